@@ -1,1 +1,237 @@
-fn main() {}
+//! `baffle`: area-constrained DORV baffle design from the command line.
+
+use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
+use baffle_core::outputs::write_design_outputs;
+use baffle_core::phantom::phantom_default;
+use baffle_core::{design, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Design the area-constrained baffle and the watertight VSD-to-aorta domain.
+    ///
+    /// Writes into --out: domain.vtp (closed, outward, ModelFaceID 2 wall / 10 baffle /
+    /// 11 VSD cap / 16 aortic cap), baffle.vtp, centerline.vtp (point arrays s_mm,
+    /// tangent), sections.vtp (raw and regularized baffle arcs), seam.vtp and
+    /// report.json (target, per-section areas and amplitudes, step timings).
+    Design(DesignArgs),
+    /// Write the built-in synthetic phantom (capped ventricle + suture points).
+    Phantom {
+        /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+#[derive(Args)]
+struct DesignArgs {
+    /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm.
+    #[arg(long, required_unless_present = "phantom")]
+    surface: Option<PathBuf>,
+    /// Suture points: Slicer markups (.mrk.json), .fcsv, CSV (x,y,z per line) or JSON.
+    #[arg(long, required_unless_present = "phantom")]
+    points: Option<PathBuf>,
+    /// Use the built-in synthetic phantom as surface and points (BSA 0.37 m2 unless given).
+    #[arg(long, conflicts_with_all = ["surface", "points"])]
+    phantom: bool,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    target: TargetArgs,
+    /// Frame of the surface file; suture points are converted into it. Slicer writes
+    /// models in LPS.
+    #[arg(long, value_enum, default_value_t = Frame::Lps)]
+    surface_frame: Frame,
+    /// Target edge length of the isotropic remeshing of the kept wall (mm).
+    #[arg(long, default_value_t = 0.85)]
+    remesh_edge_mm: f64,
+    /// Keep the input's wall triangles (no isotropic remeshing).
+    #[arg(long)]
+    no_remesh: bool,
+    /// Target edge length of the baffle (mm).
+    #[arg(long, default_value_t = 0.85)]
+    baffle_edge_mm: f64,
+    /// Points the seam spline is resampled at.
+    #[arg(long, default_value_t = 600)]
+    seam_samples: usize,
+    /// Centerline section spacing (mm).
+    #[arg(long, default_value_t = 0.5)]
+    centerline_spacing_mm: f64,
+    /// Interior TPS control points of the initial patch.
+    #[arg(long, default_value_t = 9)]
+    control_points: usize,
+    /// Largest distance of a suture point from the surface (mm).
+    #[arg(long, default_value_t = 2.0)]
+    max_point_distance_mm: f64,
+    /// ModelFaceID of the RV wall.
+    #[arg(long, default_value_t = 2)]
+    wall_label: i32,
+    /// ModelFaceID given to the baffle.
+    #[arg(long, default_value_t = 10)]
+    baffle_label: i32,
+    /// ModelFaceID of the VSD cap.
+    #[arg(long, default_value_t = 11)]
+    vsd_label: i32,
+    /// ModelFaceID of the aortic-annulus cap.
+    #[arg(long, default_value_t = 16)]
+    aortic_label: i32,
+    /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
+    #[arg(long)]
+    progress_tags: bool,
+}
+
+#[derive(Args)]
+struct TargetArgs {
+    /// Target cross-section area (mm2).
+    #[arg(long, group = "target_kind")]
+    target_area_mm2: Option<f64>,
+    /// Target aortic annulus diameter (mm): A = pi (D/2)^2.
+    #[arg(long, group = "target_kind")]
+    annulus_diameter_mm: Option<f64>,
+    /// Body surface area (m2): Boston (Colan 2006) aortic annulus at --z-score.
+    #[arg(long, group = "target_kind")]
+    bsa: Option<f64>,
+    /// Height (cm), with --weight-kg: Haycock BSA, then the Boston annulus.
+    #[arg(long, requires = "weight_kg", group = "target_kind")]
+    height_cm: Option<f64>,
+    /// Weight (kg), with --height-cm.
+    #[arg(long, requires = "height_cm")]
+    weight_kg: Option<f64>,
+    /// Annulus z-score for --bsa or --height-cm/--weight-kg.
+    #[arg(long, default_value_t = 0.0)]
+    z_score: f64,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Frame {
+    Lps,
+    Ras,
+}
+
+impl From<Frame> for CoordinateSystem {
+    fn from(f: Frame) -> Self {
+        match f {
+            Frame::Lps => CoordinateSystem::Lps,
+            Frame::Ras => CoordinateSystem::Ras,
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Design(args) => run_design(&args),
+        Command::Phantom { out } => write_phantom(&out),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("baffle: error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
+    let z_score = args.z_score;
+    if let Some(a) = args.target_area_mm2 {
+        return Ok(TargetArea::AreaMm2(a));
+    }
+    if let Some(d) = args.annulus_diameter_mm {
+        return Ok(TargetArea::AnnulusDiameterMm(d));
+    }
+    if let (Some(height_cm), Some(weight_kg)) = (args.height_cm, args.weight_kg) {
+        return Ok(TargetArea::HeightWeight { height_cm, weight_kg, z_score });
+    }
+    match args.bsa.or(default_bsa_m2) {
+        Some(bsa_m2) => Ok(TargetArea::Bsa { bsa_m2, z_score }),
+        None => Err("give the target: --bsa, --height-cm and --weight-kg, --target-area-mm2 or --annulus-diameter-mm".into()),
+    }
+}
+
+fn run_design(args: &DesignArgs) -> Result<(), String> {
+    let (surface, points, default_bsa) = if args.phantom {
+        let p = phantom_default();
+        (p.surface, p.suture_points_mm, Some(p.bsa_m2))
+    } else {
+        let (surface, points) = read_inputs(args)?;
+        (surface, points, None)
+    };
+    let target = target_from(&args.target, default_bsa)?;
+    let options = DesignOptions {
+        labels: FaceLabels {
+            wall: args.wall_label,
+            baffle: args.baffle_label,
+            vsd_cap: args.vsd_label,
+            aortic_cap: args.aortic_label,
+        },
+        seam_samples: args.seam_samples,
+        max_point_distance_mm: args.max_point_distance_mm,
+        remesh_edge_mm: (!args.no_remesh).then_some(args.remesh_edge_mm),
+        baffle_edge_mm: args.baffle_edge_mm,
+        interior_control_points: args.control_points,
+        centerline_spacing_mm: args.centerline_spacing_mm,
+        ..DesignOptions::default()
+    };
+    let tags = args.progress_tags;
+    let mut progress = |fraction: f64, stage: &str| {
+        if tags {
+            println!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>");
+        }
+        true
+    };
+    let result = design(&surface, &points, &target, &options, &mut progress).map_err(|e| e.to_string())?;
+    write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
+    let r = &result.report;
+    println!(
+        "target {:.1} mm2 ({}); centerline {:.2} mm; baffle {:.1} mm2, {} triangles; {} constrained sections, smallest {:.1} mm2; {:.0} ms",
+        r.target_area_mm2,
+        r.target,
+        r.centerline_length_mm,
+        r.baffle_area_mm2,
+        r.baffle_triangles,
+        r.constrained_sections,
+        r.min_constrained_final_area_mm2,
+        r.timings.total_ms
+    );
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
+    let (Some(surface_path), Some(points_path)) = (&args.surface, &args.points) else {
+        return Err("--surface and --points are required (or --phantom)".into());
+    };
+    let labeled = read_surface_labeled(surface_path).map_err(|e| e.to_string())?;
+    if !labeled.has_model_face_id {
+        return Err(format!(
+            "{}: no ModelFaceID cell array; label the RV wall ({}), VSD cap ({}) and aortic cap ({}) first",
+            surface_path.display(),
+            args.wall_label,
+            args.vsd_label,
+            args.aortic_label
+        ));
+    }
+    let points = read_points(points_path).map_err(|e| e.to_string())?;
+    Ok((labeled.mesh, points.to_frame(args.surface_frame.into())))
+}
+
+fn write_phantom(out: &Path) -> Result<(), String> {
+    let p = phantom_default();
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    write_trimesh_vtp(&out.join("capped_ventricle.vtp"), &p.surface).map_err(|e| e.to_string())?;
+    write_markups_closed_curve(&out.join("suture_points.mrk.json"), "BC", &p.suture_points_mm, CoordinateSystem::Lps)
+        .map_err(|e| e.to_string())?;
+    println!("wrote {} (BSA {} m2)", out.display(), p.bsa_m2);
+    Ok(())
+}

@@ -1,0 +1,600 @@
+//! The whole area-constrained baffle design [paper 2.3-2.4], step by step, with a
+//! progress/cancel callback and the time each step took.
+
+use crate::amplitudes::{arc_displacement, ArcDisplacement};
+use crate::centerline::{build_centerline, CapFrame, Centerline};
+use crate::envelope::regularize_amplitudes;
+use crate::error::DesignError;
+use crate::mesh::{manifold_report, FaceLabels, TriMesh, Vec3};
+use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
+use crate::patch::{initial_patch, nearest_seam_index, InitialPatch, Landmarks};
+use crate::sections::{cut_mesh, nearest_contour, split_at_seam, Contour, Dropped};
+use crate::seam::{imprint_seam, project_seam};
+use crate::spatial::TriangleBvh;
+use crate::surface::{final_baffle_points, Domain};
+use crate::target::TargetArea;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Every tunable of the design, with the paper's values as defaults.
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct DesignOptions {
+    pub labels: FaceLabels,
+    /// Points the seam spline is resampled at [2.3.3].
+    pub seam_samples: usize,
+    /// Largest allowed distance of a suture point from the surface (mm).
+    pub max_point_distance_mm: f64,
+    /// Isotropic remeshing of the kept region (mm); `None` keeps the input triangles.
+    pub remesh_edge_mm: Option<f64>,
+    /// Target edge of the baffle's structured disk (mm).
+    pub baffle_edge_mm: f64,
+    /// Interior TPS control points on R_init for the initial patch [2.3.3].
+    pub interior_control_points: usize,
+    /// Centerline sample spacing (mm) [2.4.2].
+    pub centerline_spacing_mm: f64,
+    /// Sections are sized to this multiple of the target area [2.4.4].
+    pub area_margin: f64,
+    /// Sections with more than this fraction of vertices on the RV wall are dropped [2.4.3].
+    pub max_wall_fraction: f64,
+    /// Smoothing of the final TPS (0 interpolates the landmarks exactly).
+    pub tps_regularization: f64,
+    /// Rounds of re-measuring the final surface and raising deficient amplitudes.
+    pub max_correction_rounds: usize,
+}
+
+impl Default for DesignOptions {
+    fn default() -> Self {
+        DesignOptions {
+            labels: FaceLabels::default(),
+            seam_samples: 600,
+            max_point_distance_mm: 2.0,
+            remesh_edge_mm: Some(0.85),
+            baffle_edge_mm: 0.85,
+            interior_control_points: 9,
+            centerline_spacing_mm: 0.5,
+            area_margin: 1.005,
+            max_wall_fraction: 0.75,
+            tps_regularization: 0.0,
+            max_correction_rounds: 6,
+        }
+    }
+}
+
+/// One centerline section and what the design did with it.
+#[derive(Clone, Debug, Serialize)]
+pub struct SectionRecord {
+    pub s_mm: f64,
+    pub origin_mm: [f64; 3],
+    pub normal: [f64; 3],
+    /// "constrained", or why the section was dropped.
+    pub status: String,
+    pub wall_fraction: Option<f64>,
+    pub raw_area_mm2: Option<f64>,
+    pub alpha_mm: Option<f64>,
+    pub alpha_regularized_mm: Option<f64>,
+    pub final_area_mm2: Option<f64>,
+}
+
+/// Wall-clock time of each step (ms).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StepTimes {
+    pub validate_ms: f64,
+    pub seam_ms: f64,
+    pub partition_ms: f64,
+    pub remesh_ms: f64,
+    pub patch_ms: f64,
+    pub centerline_ms: f64,
+    pub sections_ms: f64,
+    pub amplitudes_envelope_surface_ms: f64,
+    pub checks_ms: f64,
+    pub total_ms: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct DesignReport {
+    pub target_area_mm2: f64,
+    pub target: String,
+    pub centerline_length_mm: f64,
+    pub baffle_area_mm2: f64,
+    pub baffle_triangles: usize,
+    pub initial_baffle_area_mm2: f64,
+    pub domain_triangles: usize,
+    pub domain_volume_mm3: f64,
+    pub seam_vertices: usize,
+    pub discarded_area_mm2: f64,
+    pub constrained_sections: usize,
+    pub min_constrained_final_area_mm2: f64,
+    pub correction_rounds: usize,
+    pub input_was_inward_wound: bool,
+    pub sections: Vec<SectionRecord>,
+    pub timings: StepTimes,
+}
+
+/// Everything the design produces.
+#[derive(Clone, Debug)]
+pub struct DesignResult {
+    /// Closed, outward-wound, labelled VSD-to-aorta surface.
+    pub domain: TriMesh,
+    pub baffle: TriMesh,
+    pub initial_baffle: TriMesh,
+    /// Seam vertices shared by the wall and the baffle, in loop order (mm).
+    pub seam_mm: Vec<Vec3>,
+    /// The spline samples projected onto the wall (before insertion).
+    pub projected_seam_mm: Vec<Vec3>,
+    pub centerline: Centerline,
+    /// Baffle arcs of the constrained sections as measured on the initial patch,
+    /// and as regularized (targets of the final TPS).
+    pub raw_loops_mm: Vec<Vec<Vec3>>,
+    pub regularized_loops_mm: Vec<Vec<Vec3>>,
+    pub report: DesignReport,
+}
+
+/// Progress callback: (fraction done, stage name) -> keep going?
+pub type Progress<'a> = &'a mut dyn FnMut(f64, &str) -> bool;
+
+/// Run the whole design on a closed labelled surface and the surgeon's points.
+pub fn design(
+    surface: &TriMesh,
+    suture_points_mm: &[Vec3],
+    target: &TargetArea,
+    options: &DesignOptions,
+    progress: Progress,
+) -> Result<DesignResult, DesignError> {
+    let mut clock = Clock::new(progress);
+    let labels = options.labels;
+    clock.stage(0.0, "validate")?;
+    let target_area_mm2 = target.area_mm2().map_err(DesignError::Target)?;
+    let (surface, input_was_inward_wound) = validated_surface(surface, &labels)?;
+    let validate_ms = clock.lap();
+
+    clock.stage(0.05, "seam")?;
+    let bvh = TriangleBvh::new(&surface).map_err(DesignError::Surface)?;
+    let projected = project_seam(&surface, &bvh, &labels, suture_points_mm, options.seam_samples, options.max_point_distance_mm)?;
+    let imprinted = imprint_seam(&surface, &projected, &labels)?;
+    let seam_ms = clock.lap();
+
+    clock.stage(0.2, "partition")?;
+    let kept = keep_capped_side(&imprinted.mesh, &imprinted.loop_vertices, &labels)?;
+    let partition_ms = clock.lap();
+    clock.stage(0.3, "remesh")?;
+    let kept = match options.remesh_edge_mm {
+        Some(edge) => remesh_kept(&kept, edge)?,
+        None => kept,
+    };
+    let remesh_ms = clock.lap();
+
+    clock.stage(0.5, "initial patch")?;
+    let seam_mm: Vec<Vec3> = kept.seam_loop.iter().map(|&v| kept.mesh.points[v as usize]).collect();
+    let patch = build_initial_patch(&kept, &seam_mm, options)?;
+    let initial_domain = Domain::assemble(&kept, &patch.disk, &patch.points_mm, &labels);
+    let patch_ms = clock.lap();
+
+    clock.stage(0.6, "centerline")?;
+    let centerline = build_centerline(
+        cap_frame(&initial_domain.mesh, labels.vsd_cap)?,
+        cap_frame(&initial_domain.mesh, labels.aortic_cap)?,
+        &patch.chord,
+        options.centerline_spacing_mm,
+    )?;
+    let centerline_ms = clock.lap();
+
+    clock.stage(0.65, "sections")?;
+    let mut sections = measure_sections(&initial_domain, &centerline, &labels, options.max_wall_fraction);
+    let sections_ms = clock.lap();
+
+    clock.stage(0.75, "amplitudes, envelope and surface")?;
+    let fitted = fit_baffle(&initial_domain, &patch, &seam_mm, &mut sections, target_area_mm2, options)?;
+    let surface_ms = clock.lap();
+
+    clock.stage(0.9, "checks")?;
+    check_domain(&fitted.domain.mesh, &fitted.domain, &labels)?;
+    let checks_ms = clock.lap();
+
+    let baffle = fitted.domain.baffle_mesh();
+    let initial_baffle = initial_domain.baffle_mesh();
+    let constrained: Vec<&SectionState> = sections.iter().filter(|s| s.displacement.is_some()).collect();
+    let report = DesignReport {
+        target_area_mm2,
+        target: target.describe(),
+        centerline_length_mm: centerline.length_mm,
+        baffle_area_mm2: baffle.area_mm2(),
+        baffle_triangles: baffle.triangles.len(),
+        initial_baffle_area_mm2: initial_baffle.area_mm2(),
+        domain_triangles: fitted.domain.mesh.triangles.len(),
+        domain_volume_mm3: fitted.domain.mesh.signed_volume_mm3(),
+        seam_vertices: seam_mm.len(),
+        discarded_area_mm2: kept.discarded_area_mm2,
+        constrained_sections: constrained.len(),
+        min_constrained_final_area_mm2: constrained.iter().filter_map(|s| s.final_area_mm2).fold(f64::INFINITY, f64::min),
+        correction_rounds: fitted.rounds,
+        input_was_inward_wound,
+        sections: sections.iter().map(SectionState::record).collect(),
+        timings: StepTimes {
+            validate_ms,
+            seam_ms,
+            partition_ms,
+            remesh_ms,
+            patch_ms,
+            centerline_ms,
+            sections_ms,
+            amplitudes_envelope_surface_ms: surface_ms,
+            checks_ms,
+            total_ms: clock.total(),
+        },
+    };
+    clock.stage(1.0, "done")?;
+    Ok(DesignResult {
+        domain: fitted.domain.mesh,
+        baffle,
+        initial_baffle,
+        seam_mm,
+        projected_seam_mm: projected.samples_mm,
+        centerline,
+        raw_loops_mm: constrained.iter().map(|s| s.arc_points(0.0)).collect(),
+        regularized_loops_mm: constrained.iter().map(|s| s.arc_points(s.alpha_regularized_mm)).collect(),
+        report,
+    })
+}
+
+/// Times steps and reports progress; a `false` from the callback cancels.
+struct Clock<'a> {
+    progress: Progress<'a>,
+    start: Instant,
+    last: Instant,
+}
+
+impl<'a> Clock<'a> {
+    fn new(progress: Progress<'a>) -> Self {
+        let now = Instant::now();
+        Clock { progress, start: now, last: now }
+    }
+    fn stage(&mut self, fraction: f64, name: &str) -> Result<(), DesignError> {
+        if (self.progress)(fraction, name) {
+            Ok(())
+        } else {
+            Err(DesignError::Cancelled(name.to_string()))
+        }
+    }
+    fn lap(&mut self) -> f64 {
+        let now = Instant::now();
+        let ms = (now - self.last).as_secs_f64() * 1e3;
+        self.last = now;
+        ms
+    }
+    fn total(&self) -> f64 {
+        self.start.elapsed().as_secs_f64() * 1e3
+    }
+}
+
+/// The input must be a closed manifold with the three labels; an inward-wound
+/// surface (as SimVascular writes them) is reversed.
+fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh, bool), DesignError> {
+    if surface.face_ids.len() != surface.triangles.len() {
+        return Err(DesignError::Surface(format!(
+            "{} labels for {} triangles",
+            surface.face_ids.len(),
+            surface.triangles.len()
+        )));
+    }
+    if let Some(i) = surface.points.iter().position(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite())) {
+        return Err(DesignError::Surface(format!("point {i} has a non-finite coordinate")));
+    }
+    let n = surface.points.len() as u32;
+    if let Some(t) = surface.triangles.iter().position(|tri| tri.iter().any(|&v| v >= n)) {
+        return Err(DesignError::Surface(format!("triangle {t} refers to a point beyond the {n} points")));
+    }
+    let mut present: Vec<i32> = surface.face_ids.clone();
+    present.sort_unstable();
+    present.dedup();
+    for (label, what) in [(labels.wall, "RV wall"), (labels.vsd_cap, "VSD cap"), (labels.aortic_cap, "aortic-annulus cap")] {
+        if !present.contains(&label) {
+            return Err(DesignError::MissingLabel { label, what, present: present.clone() });
+        }
+    }
+    let rep = manifold_report(surface);
+    if !rep.is_closed_manifold() {
+        let at = rep.example_edge.map(|(a, b)| {
+            let (p, q) = (surface.points[a as usize], surface.points[b as usize]);
+            format!(" (e.g. the edge between points {a} and {b} at ({:.2}, {:.2}, {:.2})-({:.2}, {:.2}, {:.2}))", p.x, p.y, p.z, q.x, q.y, q.z)
+        });
+        return Err(DesignError::Surface(format!(
+            "not a closed manifold: {} boundary edges, {} non-manifold edges, {} degenerate triangles{}",
+            rep.boundary_edges,
+            rep.non_manifold_edges,
+            rep.degenerate_triangles,
+            at.unwrap_or_default()
+        )));
+    }
+    if rep.inconsistently_wound_edges > 0 {
+        return Err(DesignError::Surface(format!(
+            "triangles are not consistently wound ({} edges are used twice in the same direction)",
+            rep.inconsistently_wound_edges
+        )));
+    }
+    if surface.signed_volume_mm3() < 0.0 {
+        let mut flipped = surface.clone();
+        flipped.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        return Ok((flipped, true));
+    }
+    Ok((surface.clone(), false))
+}
+
+fn build_initial_patch(kept: &KeptRegion, seam_mm: &[Vec3], options: &DesignOptions) -> Result<InitialPatch, DesignError> {
+    let cap_points = |label: i32| -> Vec<Vec3> {
+        let mut pts = Vec::new();
+        for (t, tri) in kept.mesh.triangles.iter().enumerate() {
+            if kept.mesh.face_ids[t] == label {
+                pts.extend(tri.iter().map(|&v| kept.mesh.points[v as usize]));
+            }
+        }
+        pts
+    };
+    let vsd_index = nearest_seam_index(seam_mm, &cap_points(options.labels.vsd_cap));
+    let aortic_index = nearest_seam_index(seam_mm, &cap_points(options.labels.aortic_cap));
+    initial_patch(seam_mm, vsd_index, aortic_index, options.interior_control_points, options.baffle_edge_mm)
+}
+
+/// A cap's centroid and its inward normal (the domain is wound outward).
+fn cap_frame(mesh: &TriMesh, label: i32) -> Result<CapFrame, DesignError> {
+    let (centroid_mm, outward, _) = mesh
+        .label_centroid_normal(label)
+        .ok_or_else(|| DesignError::Surface(format!("the cap labelled {label} has no area")))?;
+    Ok(CapFrame { centroid_mm, inward_normal: -outward })
+}
+
+/// A centerline section during the design.
+struct SectionState {
+    s_mm: f64,
+    origin: Vec3,
+    normal: Vec3,
+    contour: Option<Contour>,
+    dropped: Option<Dropped>,
+    wall_fraction: Option<f64>,
+    displacement: Option<ArcDisplacement>,
+    alpha_mm: f64,
+    alpha_regularized_mm: f64,
+    final_area_mm2: Option<f64>,
+}
+
+impl SectionState {
+    fn record(&self) -> SectionRecord {
+        let status = match (&self.dropped, &self.displacement) {
+            (_, Some(_)) => "constrained".to_string(),
+            (Some(Dropped::NoContour), _) => "dropped: no closed contour".to_string(),
+            (Some(Dropped::MostlyWall { wall_fraction }), _) => format!("dropped: {:.0}% of vertices on the RV wall", wall_fraction * 100.0),
+            (Some(Dropped::NoBaffleArc), _) => "dropped: no baffle arc".to_string(),
+            (None, None) => "dropped: degenerate baffle arc".to_string(),
+        };
+        let constrained = self.displacement.is_some();
+        SectionRecord {
+            s_mm: self.s_mm,
+            origin_mm: self.origin.into(),
+            normal: self.normal.into(),
+            status,
+            wall_fraction: self.wall_fraction,
+            raw_area_mm2: self.displacement.as_ref().map(|d| d.area0_mm2),
+            alpha_mm: constrained.then_some(self.alpha_mm),
+            alpha_regularized_mm: constrained.then_some(self.alpha_regularized_mm),
+            final_area_mm2: self.final_area_mm2,
+        }
+    }
+
+    fn arc_points(&self, alpha_mm: f64) -> Vec<Vec3> {
+        match (&self.contour, &self.displacement) {
+            (Some(c), Some(d)) => d.displaced_arc(&c.points, alpha_mm),
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// Cut the initial domain at every centerline sample and set up each baffle arc's
+/// displacement [2.4.3, 2.4.4].
+fn measure_sections(domain: &Domain, centerline: &Centerline, labels: &FaceLabels, max_wall_fraction: f64) -> Vec<SectionState> {
+    use rayon::prelude::*;
+    centerline
+        .samples
+        .par_iter()
+        .map(|sample| {
+            let mut state = SectionState {
+                s_mm: sample.s_mm,
+                origin: sample.point,
+                normal: sample.unit_tangent,
+                contour: None,
+                dropped: None,
+                wall_fraction: None,
+                displacement: None,
+                alpha_mm: 0.0,
+                alpha_regularized_mm: 0.0,
+                final_area_mm2: None,
+            };
+            let Some(contour) = nearest_contour(cut_mesh(&domain.mesh, sample.point, sample.unit_tangent), sample.point) else {
+                state.dropped = Some(Dropped::NoContour);
+                return state;
+            };
+            match split_at_seam(&domain.mesh, &contour, labels, max_wall_fraction) {
+                Ok(arc) => state.displacement = arc_displacement(&contour.points, &arc, &sample.unit_tangent),
+                Err(why) => {
+                    if let Dropped::MostlyWall { wall_fraction } = why {
+                        state.wall_fraction = Some(wall_fraction);
+                    }
+                    state.dropped = Some(why);
+                }
+            }
+            state.contour = Some(contour);
+            state
+        })
+        .collect()
+}
+
+struct FittedBaffle {
+    domain: Domain,
+    rounds: usize,
+}
+
+/// Amplitudes, envelope and final surface [2.4.4-2.4.6], re-measured on the result:
+/// where a section of the final surface falls short of the target (the TPS passes
+/// near, not exactly through, every loop), its amplitude is raised by the shortfall
+/// and the envelope and surface are rebuilt.
+fn fit_baffle(
+    initial: &Domain,
+    patch: &InitialPatch,
+    seam_mm: &[Vec3],
+    sections: &mut [SectionState],
+    target_area_mm2: f64,
+    options: &DesignOptions,
+) -> Result<FittedBaffle, DesignError> {
+    let required_mm2 = options.area_margin * target_area_mm2;
+    for s in sections.iter_mut() {
+        if let Some(d) = &s.displacement {
+            s.alpha_mm = d.required_alpha_mm(required_mm2);
+        }
+    }
+    let mut boost = vec![0.0; sections.len()];
+    for round in 0..=options.max_correction_rounds {
+        regularize(sections, &boost)?;
+        let landmarks = loop_landmarks(initial, &patch.disk, sections, options.baffle_edge_mm);
+        let points = final_baffle_points(&patch.disk, seam_mm, &landmarks, options.tps_regularization)?;
+        let domain = initial.with_patch_points(&points);
+        let mut short = false;
+        for (k, s) in sections.iter_mut().enumerate() {
+            let Some(d) = &s.displacement else { continue };
+            let area = measured_area_mm2(&domain.mesh, s.origin, s.normal);
+            s.final_area_mm2 = area;
+            let area = area.unwrap_or(0.0);
+            if area < target_area_mm2 {
+                short = true;
+                boost[k] += (required_mm2 - area) / d.slope_mm;
+            }
+        }
+        if !short {
+            return Ok(FittedBaffle { domain, rounds: round });
+        }
+    }
+    let worst = sections
+        .iter()
+        .filter(|s| s.displacement.is_some())
+        .min_by(|a, b| a.final_area_mm2.unwrap_or(0.0).total_cmp(&b.final_area_mm2.unwrap_or(0.0)));
+    Err(DesignError::Baffle(match worst {
+        Some(s) => format!(
+            "could not reach the target area {target_area_mm2:.1} mm2 at s = {:.1} mm along the centerline (reached {:.1} mm2)",
+            s.s_mm,
+            s.final_area_mm2.unwrap_or(0.0)
+        ),
+        None => "could not reach the target area".to_string(),
+    }))
+}
+
+/// Least concave majorant of (alpha + boost) over the constrained sections.
+fn regularize(sections: &mut [SectionState], boost: &[f64]) -> Result<(), DesignError> {
+    let idx: Vec<usize> = (0..sections.len()).filter(|&k| sections[k].displacement.is_some()).collect();
+    if idx.is_empty() {
+        return Err(DesignError::Baffle(
+            "no centerline section crosses the baffle; the suture line may not surround the tunnel between the caps".into(),
+        ));
+    }
+    let s: Vec<f64> = idx.iter().map(|&k| sections[k].s_mm).collect();
+    let a: Vec<f64> = idx.iter().map(|&k| sections[k].alpha_mm + boost[k]).collect();
+    let reg = regularize_amplitudes(&s, &a)?;
+    for (&k, r) in idx.iter().zip(reg) {
+        sections[k].alpha_regularized_mm = r;
+    }
+    Ok(())
+}
+
+/// Disk coordinates and displaced positions of the regularized loops' interior
+/// arc points (the endpoints lie on the seam, already a landmark).
+fn loop_landmarks(initial: &Domain, disk: &crate::patch::UnitDisk, sections: &[SectionState], spacing_mm: f64) -> Landmarks {
+    let mut landmarks = Landmarks::default();
+    for s in sections {
+        let (Some(contour), Some(d)) = (&s.contour, &s.displacement) else { continue };
+        let moved = d.displaced_arc(&contour.points, s.alpha_regularized_mm);
+        for k in spaced_interior_points(&moved, spacing_mm) {
+            let i = d.arc_indices[k];
+            if let Some(uv) = initial.disk_uv_on_edge(disk, contour.point_edges[i], contour.point_fractions[i]) {
+                landmarks.params.push(uv);
+                landmarks.values_mm.push(moved[k]);
+            }
+        }
+    }
+    dedupe_landmarks(landmarks, 1e-3)
+}
+
+/// Indices of interior points of a polyline, each at least `spacing_mm` (along the
+/// line) after the previous one and before the end: the arc is sampled about as
+/// finely as the baffle mesh, which keeps the TPS system small.
+fn spaced_interior_points(line: &[Vec3], spacing_mm: f64) -> Vec<usize> {
+    let n = line.len();
+    let mut out = Vec::new();
+    let total: f64 = line.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    let (mut run, mut since_last) = (0.0, 0.0);
+    for k in 1..n.saturating_sub(1) {
+        let step = (line[k] - line[k - 1]).norm();
+        run += step;
+        since_last += step;
+        if since_last >= spacing_mm && total - run >= 0.5 * spacing_mm {
+            out.push(k);
+            since_last = 0.0;
+        }
+    }
+    out
+}
+
+/// Drop landmarks closer than `min_gap` in the disk to an earlier one (two loops
+/// meeting at nearly the same disk point would make the TPS system singular).
+fn dedupe_landmarks(landmarks: Landmarks, min_gap: f64) -> Landmarks {
+    let mut out = Landmarks::default();
+    let cell = min_gap;
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = std::collections::HashMap::new();
+    for (uv, p) in landmarks.params.into_iter().zip(landmarks.values_mm) {
+        let key = ((uv.0 / cell).floor() as i64, (uv.1 / cell).floor() as i64);
+        let near = (-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (key.0 + dx, key.1 + dy))).any(|k| {
+            grid.get(&k).is_some_and(|ids| {
+                ids.iter().any(|&j| {
+                    let q: (f64, f64) = out.params[j];
+                    (q.0 - uv.0).hypot(q.1 - uv.1) < min_gap
+                })
+            })
+        });
+        if !near {
+            grid.entry(key).or_default().push(out.params.len());
+            out.params.push(uv);
+            out.values_mm.push(p);
+        }
+    }
+    out
+}
+
+/// Area of the section of `mesh` nearest `origin` in the plane with `normal`.
+fn measured_area_mm2(mesh: &TriMesh, origin: Vec3, normal: Vec3) -> Option<f64> {
+    nearest_contour(cut_mesh(mesh, origin, normal), origin).map(|c| c.signed_area_mm2(&normal).abs())
+}
+
+/// The final domain must be closed, manifold, outward and free of self-intersections.
+fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<(), DesignError> {
+    let rep = manifold_report(mesh);
+    if !rep.is_closed_manifold() || rep.inconsistently_wound_edges > 0 {
+        return Err(DesignError::Baffle(format!("the merged domain is not watertight: {rep:?}")));
+    }
+    if mesh.signed_volume_mm3() <= 0.0 {
+        return Err(DesignError::Baffle("the merged domain encloses no positive volume".into()));
+    }
+    let bvh = TriangleBvh::new(mesh).map_err(DesignError::Surface)?;
+    let first_baffle = domain.first_baffle_triangle as u32;
+    let pairs = bvh.self_intersections_par(mesh, |a, b| a >= first_baffle || b >= first_baffle);
+    if let Some(&(a, b)) = pairs.iter().find(|(a, b)| {
+        (*a as usize) >= domain.first_baffle_triangle || (*b as usize) >= domain.first_baffle_triangle
+    }) {
+        let t = if (a as usize) >= domain.first_baffle_triangle { b } else { a };
+        let label = mesh.face_ids[t as usize];
+        let [p, q, r] = mesh.triangle_points(t as usize);
+        let c = (p + q + r) / 3.0;
+        let what = if label == labels.baffle { "itself" } else { "the ventricle wall" };
+        return Err(DesignError::Baffle(format!(
+            "reaching the target area makes the baffle pass through {what} near ({:.1}, {:.1}, {:.1}); \
+             the suture line leaves too little room for the required tunnel",
+            c.x, c.y, c.z
+        )));
+    }
+    Ok(())
+}

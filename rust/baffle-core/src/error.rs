@@ -1,0 +1,38 @@
+//! Errors of the design. Each names the problem and where it is, so a surgeon or
+//! engineer can fix the input (which point, which label, how far off).
+
+use thiserror::Error;
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum DesignError {
+    /// The ventricle surface is not a closed manifold (or has bad coordinates).
+    #[error("surface: {0}")]
+    Surface(String),
+    /// A required face label is absent from the surface.
+    #[error("surface has no triangles labelled {label} ({what}); labels present: {present:?}")]
+    MissingLabel { label: i32, what: &'static str, present: Vec<i32> },
+    /// The suture points are unusable (too few, too far from the surface, ...).
+    #[error("suture points: {0}")]
+    SuturePoints(String),
+    /// The seam built from the points crosses itself or a cap, or does not split the surface as expected.
+    #[error("seam: {0}")]
+    Seam(String),
+    /// The target area is invalid.
+    #[error("target area: {0}")]
+    Target(String),
+    /// The geometry cannot satisfy the area constraint (e.g. the baffle would pass through the wall).
+    #[error("baffle: {0}")]
+    Baffle(String),
+    /// A numerical step failed (singular system, degenerate curve).
+    #[error("{step}: {message}")]
+    Numerical { step: &'static str, message: String },
+    /// The caller's progress callback asked to stop.
+    #[error("cancelled during {0}")]
+    Cancelled(String),
+}
+
+impl DesignError {
+    pub fn numerical(step: &'static str, message: impl Into<String>) -> Self {
+        DesignError::Numerical { step, message: message.into() }
+    }
+}
