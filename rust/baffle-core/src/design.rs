@@ -122,6 +122,9 @@ pub struct DesignResult {
     pub seam_mm: Vec<Vec3>,
     /// The spline samples projected onto the wall (before insertion).
     pub projected_seam_mm: Vec<Vec3>,
+    /// The seam as inserted into the wall: the projected samples plus the points
+    /// where it crosses mesh edges between them. Remeshing keeps a subset of these.
+    pub imprinted_seam_mm: Vec<Vec3>,
     pub centerline: Centerline,
     /// Baffle arcs of the constrained sections as measured on the initial patch,
     /// and as regularized (targets of the final TPS).
@@ -152,6 +155,7 @@ pub fn design(
     let bvh = TriangleBvh::new(&surface).map_err(DesignError::Surface)?;
     let projected = project_seam(&surface, &bvh, &labels, suture_points_mm, options.seam_samples, options.max_point_distance_mm)?;
     let imprinted = imprint_seam(&surface, &projected, &labels)?;
+    let imprinted_seam_mm: Vec<Vec3> = imprinted.loop_vertices.iter().map(|&v| imprinted.mesh.points[v as usize]).collect();
     let seam_ms = clock.lap();
 
     clock.stage(0.2, "partition")?;
@@ -230,6 +234,7 @@ pub fn design(
         initial_baffle,
         seam_mm,
         projected_seam_mm: projected.samples_mm,
+        imprinted_seam_mm,
         centerline,
         raw_loops_mm: constrained.iter().map(|s| s.arc_points(0.0)).collect(),
         regularized_loops_mm: constrained.iter().map(|s| s.arc_points(s.alpha_regularized_mm)).collect(),

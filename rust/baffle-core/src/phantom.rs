@@ -45,8 +45,8 @@ impl Default for PhantomParams {
         PhantomParams {
             bend_radius_mm: 12.0,
             sweep_angle_deg: 95.0,
-            vsd_semi_axes_mm: (4.5, 3.5),
-            aortic_semi_axes_mm: (4.0, 3.5),
+            vsd_semi_axes_mm: (5.6, 4.4),
+            aortic_semi_axes_mm: (5.4, 4.3),
             edge_length_mm: 0.8,
             suture_point_count: 14,
             suture_rim_margin_mm: 1.2,
@@ -690,12 +690,14 @@ mod tests {
     }
 
     #[test]
-    fn default_sections_are_below_the_bsa_target_and_geometry_is_as_documented() {
+    fn default_sections_just_exceed_the_bsa_target_and_geometry_is_as_documented() {
         let params = PhantomParams::default();
-        // Target area for BSA 0.37 m^2 is about 69.8 mm^2; every section must be smaller.
+        // Target area for BSA 0.37 m^2 is about 69.8 mm^2. Like the patients' caps, the
+        // tube's sections exceed it a little; the flat initial patch across the
+        // suture loop cuts a segment away, so the design must bulge the baffle back out.
         for k in 0..=20 {
             let area_mm2 = params.cross_section_area_mm2(k as f64 / 20.0);
-            assert!((40.0..60.0).contains(&area_mm2), "{area_mm2}");
+            assert!((70.0..80.0).contains(&area_mm2), "{area_mm2}");
         }
         let distance_mm = params.vsd_to_aorta_distance_mm();
         assert!((15.0..20.0).contains(&distance_mm), "{distance_mm}");

@@ -66,17 +66,50 @@ pub fn project_seam(
     check_points_on_wall(surface, bvh, labels, points, max_point_distance_mm)?;
     let ordered = order_by_pca_angle(points);
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
-    let resampled = spline.resample_uniform_arclength(sample_count.max(16));
-    let mut samples_mm = Vec::with_capacity(resampled.len());
-    let mut sample_triangles = Vec::with_capacity(resampled.len());
-    for (i, q) in resampled.iter().enumerate() {
+    // Project a 4x denser resampling and keep every 4th sample, plus the ones in
+    // between where the projected curve leaves the chord between kept samples (across
+    // a crease), so the inserted seam follows the projected curve there too.
+    let count = sample_count.max(16);
+    let dense = spline.resample_uniform_arclength(REFINE * count);
+    let mut projected = Vec::with_capacity(dense.len());
+    for (i, q) in dense.iter().enumerate() {
         let hit = bvh
             .closest_point_filtered(surface, *q, |t| surface.face_ids[t as usize] == labels.wall)
             .ok_or_else(|| DesignError::Seam(format!("seam sample {i} found no wall triangle")))?;
-        samples_mm.push(hit.point);
-        sample_triangles.push(hit.triangle);
+        projected.push((hit.point, hit.triangle));
     }
+    let kept = samples_to_keep(&projected.iter().map(|p| p.0).collect::<Vec<_>>(), REFINE, CREASE_TOLERANCE_MM);
+    let samples_mm = kept.iter().map(|&i| projected[i].0).collect();
+    let sample_triangles = kept.iter().map(|&i| projected[i].1).collect();
     Ok(ProjectedSeam { ordered_points_mm: ordered, samples_mm, sample_triangles })
+}
+
+/// Oversampling of the seam spline before thinning (see `samples_to_keep`).
+const REFINE: usize = 4;
+/// Largest distance of an in-between projected point from the chord of the kept samples.
+const CREASE_TOLERANCE_MM: f64 = 0.005;
+
+/// Indices of the dense projected samples to keep: every `stride`-th, plus those
+/// farther than `tolerance_mm` from the chord joining the two regular samples around them.
+fn samples_to_keep(dense: &[Vec3], stride: usize, tolerance_mm: f64) -> Vec<usize> {
+    let n = dense.len();
+    let mut kept = Vec::with_capacity(n / stride + 16);
+    for start in (0..n).step_by(stride) {
+        kept.push(start);
+        let (a, b) = (dense[start], dense[(start + stride) % n]);
+        for i in start + 1..(start + stride).min(n) {
+            if distance_to_segment(&dense[i], &a, &b) > tolerance_mm {
+                kept.push(i);
+            }
+        }
+    }
+    kept
+}
+
+fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+    let d = b - a;
+    let t = ((p - a).dot(&d) / d.norm_squared().max(1e-300)).clamp(0.0, 1.0);
+    (p - (a + t * d)).norm()
 }
 
 /// Every suture point must lie on the RV wall (not a cap) within the tolerance.
@@ -349,7 +382,7 @@ impl EditMesh {
             }
             let crossing = match self.next_crossing(current, to, normal, snap_mm, labels, sample)? {
                 Some(crossing) => crossing,
-                None => self.nearer_neighbor(current, to, labels).ok_or_else(|| untraceable(sample))?,
+                None => self.nearest_link_point(current, to, snap_mm, labels).ok_or_else(|| untraceable(sample))?,
             };
             let next = match crossing {
                 Crossing::Vertex(v) => v,
@@ -370,27 +403,38 @@ impl EditMesh {
     }
 
     /// Fallback where the cutting plane finds no way forward (the chord to the next
-    /// sample runs along the surface normal across a crease): step along an edge to
-    /// the neighbour nearest the target, if it is nearer than the current vertex.
-    /// The seam then follows mesh edges for this short stretch (at most one edge
-    /// length off the projected curve). Only edges between wall triangles are taken.
-    fn nearer_neighbor(&self, c: u32, to: u32, labels: &FaceLabels) -> Option<Crossing> {
+    /// sample runs along the surface normal across a crease): step to the point of
+    /// the wall triangles' opposite edges around `c` nearest the target, if it is
+    /// nearer than `c`. The seam stays within the distance between the two samples
+    /// of the projected curve.
+    fn nearest_link_point(&self, c: u32, to: u32, snap_mm: f64, labels: &FaceLabels) -> Option<Crossing> {
         let target = self.points[to as usize];
         let here = (self.points[c as usize] - target).norm();
-        let on_wall = |v: u32| {
-            self.vert_tris[c as usize]
-                .iter()
-                .filter(|&&t| self.tris[t as usize].contains(&v))
-                .all(|&t| self.labels[t as usize] == labels.wall)
-        };
-        self.vert_tris[c as usize]
-            .iter()
-            .flat_map(|&t| self.tris[t as usize])
-            .filter(|&v| v != c && on_wall(v))
-            .map(|v| ((self.points[v as usize] - target).norm(), v))
-            .filter(|&(d, _)| d < here)
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .map(|(_, v)| Crossing::Vertex(v))
+        let mut best: Option<(f64, Crossing)> = None;
+        for &t in &self.vert_tris[c as usize] {
+            if self.labels[t as usize] != labels.wall {
+                continue;
+            }
+            let tri = self.tris[t as usize];
+            let k = (0..3).find(|&k| tri[k] == c).unwrap_or(0);
+            let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
+            let along = ((target - pa).dot(&(pb - pa)) / (pb - pa).norm_squared().max(1e-300)).clamp(0.0, 1.0);
+            let x = pa + along * (pb - pa);
+            let d = (x - target).norm();
+            if d >= here || best.as_ref().is_some_and(|(bd, _)| *bd <= d) {
+                continue;
+            }
+            let crossing = if (x - pa).norm() <= snap_mm {
+                Crossing::Vertex(a)
+            } else if (x - pb).norm() <= snap_mm {
+                Crossing::Vertex(b)
+            } else {
+                Crossing::Edge(a, b, x)
+            };
+            best = Some((d, crossing));
+        }
+        best.map(|(_, c)| c)
     }
 
     /// Among the triangles around `c`, the opposite edge (or vertex) that the cutting
@@ -558,6 +602,23 @@ mod tests {
         let imprinted = imprint_seam(&mesh, &seam, &labels).unwrap();
         assert!(manifold_report(&imprinted.mesh).is_closed_manifold());
         assert!(imprinted.loop_vertices.len() >= 300);
+    }
+
+    #[test]
+    fn a_seam_that_crosses_itself_is_rejected() {
+        // A figure eight on the top face, inserted without the angle ordering.
+        let mesh = grid_box(8);
+        let bvh = TriangleBvh::new(&mesh).unwrap();
+        let samples_mm: Vec<Vec3> = (0..200)
+            .map(|k| {
+                let a = k as f64 / 200.0 * std::f64::consts::TAU;
+                Vec3::new(2.0 + 1.5 * a.sin(), 2.0 + 1.2 * a.sin() * a.cos(), 4.0)
+            })
+            .collect();
+        let sample_triangles = samples_mm.iter().map(|p| bvh.closest_point(&mesh, *p).unwrap().triangle).collect();
+        let seam = ProjectedSeam { ordered_points_mm: Vec::new(), samples_mm, sample_triangles };
+        let err = imprint_seam(&mesh, &seam, &FaceLabels::default()).unwrap_err();
+        assert!(err.to_string().contains("crosses itself"), "{err}");
     }
 
     #[test]

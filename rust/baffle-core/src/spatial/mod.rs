@@ -268,21 +268,20 @@ impl TriangleBvh {
                 }
                 continue;
             }
-            let children = [node.first, node.first + 1].map(|c| {
-                (
-                    c,
-                    self.nodes[c as usize]
-                        .bounds
-                        .ray_entry(&origin, &inv_dir, best_t),
-                )
-            });
-            let mut hits: Vec<(u32, f64)> = children
-                .iter()
-                .filter_map(|&(c, e)| e.map(|e| (c, e)))
-                .collect();
-            // Nearer entry popped first.
-            hits.sort_by(|a, b| b.1.total_cmp(&a.1));
-            stack.extend(hits);
+            let entry = |c: u32| {
+                self.nodes[c as usize]
+                    .bounds
+                    .ray_entry(&origin, &inv_dir, best_t)
+            };
+            let (left, right) = (node.first, node.first + 1);
+            // Push the later-entered child first so the nearer one is popped next.
+            match (entry(left), entry(right)) {
+                (Some(l), Some(r)) if l <= r => stack.extend([(right, r), (left, l)]),
+                (Some(l), Some(r)) => stack.extend([(left, l), (right, r)]),
+                (Some(l), None) => stack.push((left, l)),
+                (None, Some(r)) => stack.push((right, r)),
+                (None, None) => {}
+            }
         }
         best
     }

@@ -1,0 +1,74 @@
+//! baffle_design(): the whole design through the ABI, with a C progress callback.
+
+use crate::mesh::BaffleMesh;
+use crate::options::read_options;
+use crate::result::BaffleResult;
+use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, xyz_count, BaffleStatus, CallError};
+use baffle_core::{design, DesignError, Vec3};
+use std::ffi::{c_char, c_void, CString};
+
+/// Progress callback: called with the fraction done (0..1), the stage's name and
+/// the caller's user_data; return nonzero to go on, 0 to cancel the call (which
+/// then returns BAFFLE_STATUS_CANCELLED). It runs on the calling thread and must
+/// not unwind (a C++ callback must catch its exceptions).
+pub type BaffleProgressFn = Option<unsafe extern "C" fn(fraction: f64, stage: *const c_char, user_data: *mut c_void) -> i32>;
+
+/// Design the area-constrained baffle on `surface` (closed, labelled; either
+/// winding) for the suture points (double[suture_points_len], in the surface's
+/// frame, in loop order). `progress` may be NULL. On success `*out_result` is a
+/// new handle (free with baffle_result_free).
+///
+/// # Safety
+/// Pointers must be NULL or valid for their lengths; `user_data` is passed through.
+#[no_mangle]
+pub unsafe extern "C" fn baffle_design(
+    surface: *const BaffleMesh,
+    suture_points_mm: *const f64,
+    suture_points_len: usize,
+    options: *const crate::options::BaffleDesignOptions,
+    progress: BaffleProgressFn,
+    user_data: *mut c_void,
+    out_result: *mut *mut BaffleResult,
+) -> BaffleStatus {
+    guarded(|| {
+        let out = out_ref(out_result, "out_result")?;
+        *out = std::ptr::null_mut();
+        let surface = arg_ref(surface, "surface")?;
+        let points = suture_points(in_slice(suture_points_mm, suture_points_len, "suture_points_mm")?)?;
+        let options = read_options(options)?;
+        let target = options.target()?;
+        let core_options = options.design_options()?;
+        let mut report = |fraction: f64, stage: &str| call_progress(progress, user_data, fraction, stage);
+        let result = design(&surface.mesh, &points, &target, &core_options, &mut report).map_err(design_error)?;
+        *out = BaffleResult::boxed(result)?;
+        Ok(())
+    })
+}
+
+fn suture_points(values: &[f64]) -> Result<Vec<Vec3>, CallError> {
+    if values.is_empty() {
+        return Err(CallError::null("suture_points_mm (no points given)"));
+    }
+    xyz_count(values.len(), "suture_points_mm")?;
+    check_finite(values, "suture_points_mm")?;
+    Ok(values.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
+}
+
+/// # Safety
+/// `progress`, if set, must be safe to call with `user_data`.
+unsafe fn call_progress(progress: BaffleProgressFn, user_data: *mut c_void, fraction: f64, stage: &str) -> bool {
+    let Some(callback) = progress else { return true };
+    let name = CString::new(stage.replace('\0', " ")).unwrap_or_default();
+    callback(fraction, name.as_ptr(), user_data) != 0
+}
+
+fn design_error(e: DesignError) -> CallError {
+    let status = match e {
+        DesignError::Surface(_) | DesignError::MissingLabel { .. } | DesignError::SuturePoints(_) | DesignError::Target(_) => {
+            BaffleStatus::InvalidInput
+        }
+        DesignError::Cancelled(_) => BaffleStatus::Cancelled,
+        DesignError::Seam(_) | DesignError::Baffle(_) | DesignError::Numerical { .. } => BaffleStatus::DesignFailed,
+    };
+    CallError::new(status, e.to_string())
+}

@@ -1,0 +1,194 @@
+//! The design options struct. Its first field is the size the caller compiled
+//! against, so fields can be appended in later versions: a caller's older, shorter
+//! struct keeps the defaults for the fields it does not know.
+
+use crate::status::{guarded, out_ref, BaffleStatus, CallError};
+use baffle_core::{DesignOptions, FaceLabels, TargetArea};
+
+/// How BaffleDesignOptions.target_kind chooses the target cross-section area.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BaffleTargetKind {
+    /// target_area_mm2.
+    AreaMm2 = 0,
+    /// A circle of annulus_diameter_mm.
+    AnnulusDiameterMm = 1,
+    /// Boston aortic annulus for bsa_m2 at z_score.
+    Bsa = 2,
+    /// Haycock BSA from height_cm and weight_kg, then the Boston annulus at z_score.
+    HeightWeight = 3,
+}
+
+/// Options of baffle_design(). Fill with baffle_design_options_init(), then set
+/// the target (and any tunables). Lengths in mm.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BaffleDesignOptions {
+    /// sizeof(BaffleDesignOptions) as the caller compiled it (set by _init).
+    pub struct_size: u32,
+    /// A BaffleTargetKind value.
+    pub target_kind: i32,
+    pub target_area_mm2: f64,
+    pub annulus_diameter_mm: f64,
+    pub bsa_m2: f64,
+    pub height_cm: f64,
+    pub weight_kg: f64,
+    pub z_score: f64,
+    /// ModelFaceID of the RV wall, the baffle (output), the VSD cap and the aortic cap.
+    pub wall_label: i32,
+    pub baffle_label: i32,
+    pub vsd_cap_label: i32,
+    pub aortic_cap_label: i32,
+    /// Points the seam spline is resampled at.
+    pub seam_samples: u32,
+    /// Interior thin-plate-spline control points of the initial patch.
+    pub interior_control_points: u32,
+    /// Rounds of re-measuring the final surface and raising short sections.
+    pub max_correction_rounds: u32,
+    /// Nonzero: remesh the kept wall isotropically at remesh_edge_mm.
+    pub remesh: i32,
+    /// Largest allowed distance of a suture point from the surface.
+    pub max_point_distance_mm: f64,
+    pub remesh_edge_mm: f64,
+    pub baffle_edge_mm: f64,
+    pub centerline_spacing_mm: f64,
+    /// Sections are sized to this multiple of the target area (>= 1).
+    pub area_margin: f64,
+    /// Sections with more than this fraction of vertices on the RV wall are dropped.
+    pub max_wall_fraction: f64,
+    /// Smoothing of the final thin-plate spline (0 interpolates).
+    pub tps_regularization: f64,
+}
+
+/// Size of the first published layout; any caller struct is at least this long.
+const V1_SIZE: usize = std::mem::size_of::<BaffleDesignOptions>();
+
+impl Default for BaffleDesignOptions {
+    fn default() -> Self {
+        let d = DesignOptions::default();
+        BaffleDesignOptions {
+            struct_size: std::mem::size_of::<BaffleDesignOptions>() as u32,
+            target_kind: BaffleTargetKind::Bsa as i32,
+            target_area_mm2: f64::NAN,
+            annulus_diameter_mm: f64::NAN,
+            bsa_m2: f64::NAN,
+            height_cm: f64::NAN,
+            weight_kg: f64::NAN,
+            z_score: 0.0,
+            wall_label: d.labels.wall,
+            baffle_label: d.labels.baffle,
+            vsd_cap_label: d.labels.vsd_cap,
+            aortic_cap_label: d.labels.aortic_cap,
+            seam_samples: d.seam_samples as u32,
+            interior_control_points: d.interior_control_points as u32,
+            max_correction_rounds: d.max_correction_rounds as u32,
+            remesh: i32::from(d.remesh_edge_mm.is_some()),
+            max_point_distance_mm: d.max_point_distance_mm,
+            remesh_edge_mm: d.remesh_edge_mm.unwrap_or(0.85),
+            baffle_edge_mm: d.baffle_edge_mm,
+            centerline_spacing_mm: d.centerline_spacing_mm,
+            area_margin: d.area_margin,
+            max_wall_fraction: d.max_wall_fraction,
+            tps_regularization: d.tps_regularization,
+        }
+    }
+}
+
+/// Fill `out_options` with the defaults (the paper's values) and struct_size; the
+/// target values are NaN until the caller sets one.
+///
+/// # Safety
+/// `out_options` must be NULL or point to writable memory for the struct.
+#[no_mangle]
+pub unsafe extern "C" fn baffle_design_options_init(out_options: *mut BaffleDesignOptions) -> BaffleStatus {
+    guarded(|| {
+        *out_ref(out_options, "out_options")? = BaffleDesignOptions::default();
+        Ok(())
+    })
+}
+
+/// Read the caller's struct, of whatever size it says it has, over the defaults.
+///
+/// # Safety
+/// `ptr` must be NULL or point to at least `struct_size` readable bytes.
+pub(crate) unsafe fn read_options(ptr: *const BaffleDesignOptions) -> Result<BaffleDesignOptions, CallError> {
+    if ptr.is_null() {
+        return Err(CallError::null("options"));
+    }
+    let size = std::ptr::read_unaligned(ptr.cast::<u32>()) as usize;
+    if !(V1_SIZE..=std::mem::size_of::<BaffleDesignOptions>()).contains(&size) {
+        return Err(CallError::new(
+            BaffleStatus::UnsupportedVersion,
+            format!(
+                "options.struct_size is {size}; this library (ABI {}) takes {V1_SIZE}..{} (call baffle_design_options_init)",
+                crate::BAFFLE_ABI_VERSION,
+                std::mem::size_of::<BaffleDesignOptions>()
+            ),
+        ));
+    }
+    let mut options = BaffleDesignOptions::default();
+    std::ptr::copy_nonoverlapping(ptr.cast::<u8>(), std::ptr::addr_of_mut!(options).cast::<u8>(), size);
+    Ok(options)
+}
+
+impl BaffleDesignOptions {
+    pub(crate) fn target(&self) -> Result<TargetArea, CallError> {
+        let kind = self.target_kind;
+        Ok(match kind {
+            k if k == BaffleTargetKind::AreaMm2 as i32 => TargetArea::AreaMm2(self.target_area_mm2),
+            k if k == BaffleTargetKind::AnnulusDiameterMm as i32 => TargetArea::AnnulusDiameterMm(self.annulus_diameter_mm),
+            k if k == BaffleTargetKind::Bsa as i32 => TargetArea::Bsa { bsa_m2: self.bsa_m2, z_score: self.z_score },
+            k if k == BaffleTargetKind::HeightWeight as i32 => {
+                TargetArea::HeightWeight { height_cm: self.height_cm, weight_kg: self.weight_kg, z_score: self.z_score }
+            }
+            other => return Err(CallError::invalid(format!("options.target_kind = {other} is not a BaffleTargetKind"))),
+        })
+    }
+
+    /// The core's options, with every tunable range-checked (so no value can make
+    /// the design allocate without bound or loop forever).
+    pub(crate) fn design_options(&self) -> Result<DesignOptions, CallError> {
+        let labels = FaceLabels {
+            wall: self.wall_label,
+            baffle: self.baffle_label,
+            vsd_cap: self.vsd_cap_label,
+            aortic_cap: self.aortic_cap_label,
+        };
+        let all = [labels.wall, labels.baffle, labels.vsd_cap, labels.aortic_cap];
+        if (1..4).any(|i| all[..i].contains(&all[i])) {
+            return Err(CallError::invalid(format!("options: the four labels must differ, got {all:?}")));
+        }
+        Ok(DesignOptions {
+            labels,
+            seam_samples: in_range_count("seam_samples", self.seam_samples, 16, 100_000)?,
+            interior_control_points: in_range_count("interior_control_points", self.interior_control_points, 0, 1_000)?,
+            max_correction_rounds: in_range_count("max_correction_rounds", self.max_correction_rounds, 0, 100)?,
+            max_point_distance_mm: in_range("max_point_distance_mm", self.max_point_distance_mm, 0.0, 100.0)?,
+            remesh_edge_mm: match self.remesh {
+                0 => None,
+                _ => Some(in_range("remesh_edge_mm", self.remesh_edge_mm, 0.05, 20.0)?),
+            },
+            baffle_edge_mm: in_range("baffle_edge_mm", self.baffle_edge_mm, 0.05, 20.0)?,
+            centerline_spacing_mm: in_range("centerline_spacing_mm", self.centerline_spacing_mm, 0.01, 20.0)?,
+            area_margin: in_range("area_margin", self.area_margin, 1.0, 2.0)?,
+            max_wall_fraction: in_range("max_wall_fraction", self.max_wall_fraction, 0.0, 1.0)?,
+            tps_regularization: in_range("tps_regularization", self.tps_regularization, 0.0, 1e6)?,
+        })
+    }
+}
+
+fn in_range(name: &str, value: f64, min: f64, max: f64) -> Result<f64, CallError> {
+    if value.is_finite() && (min..=max).contains(&value) {
+        Ok(value)
+    } else {
+        Err(CallError::invalid(format!("options.{name} = {value} is outside [{min}, {max}]")))
+    }
+}
+
+fn in_range_count(name: &str, value: u32, min: u32, max: u32) -> Result<usize, CallError> {
+    if (min..=max).contains(&value) {
+        Ok(value as usize)
+    } else {
+        Err(CallError::invalid(format!("options.{name} = {value} is outside [{min}, {max}]")))
+    }
+}

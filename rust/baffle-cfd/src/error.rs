@@ -1,0 +1,23 @@
+//! Errors of the CFD crate: every message names the problem (file, element, step).
+
+use thiserror::Error;
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum CfdError {
+    #[error("{path}: {message}")]
+    Io { path: String, message: String },
+    #[error("invalid mesh: {0}")]
+    Mesh(String),
+    #[error("invalid case settings: {0}")]
+    Settings(String),
+    #[error("invalid inflow waveform: {0}")]
+    Waveform(String),
+    #[error("solution diverged at step {step} (t = {time_s:.4} s): {reason}; residual {residual:.3e}")]
+    Diverged { step: usize, time_s: f64, residual: f64, reason: String },
+    #[error(
+        "linear solver failed at step {step} (t = {time_s:.4} s): relative residual {residual:.3e} after {iterations} GMRES iterations"
+    )]
+    LinearSolver { step: usize, time_s: f64, iterations: usize, residual: f64 },
+    #[error("cancelled at t = {time_s:.4} s")]
+    Cancelled { time_s: f64 },
+}

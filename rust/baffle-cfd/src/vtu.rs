@@ -1,0 +1,179 @@
+//! Readers for SimVascular-style meshes: the tetrahedral volume (`.vtu`) and its
+//! labelled surface (`.vtp`, `ModelFaceID` per triangle, `GlobalNodeID` per point =
+//! the volume's `GlobalNodeID`, 1-based).
+//!
+//! The `.vtu` is read with vtkio (the patient `.vtu` files hold no empty zlib arrays,
+//! which is what makes vtkio 0.7.0-rc2 panic on the `.vtp` files); the `.vtp` with
+//! baffle-core's own reader.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+use vtkio::model::{Attribute, CellType, DataSet, VertexNumbers};
+
+use crate::mesh::{Face, FlowMesh};
+use crate::CfdError;
+
+/// Tetrahedral volume as stored: points (file units), tets, and the point array
+/// `GlobalNodeID` when present.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeMesh {
+    pub points: Vec<[f64; 3]>,
+    pub tets: Vec<[u32; 4]>,
+    pub global_node_ids: Option<Vec<i64>>,
+}
+
+fn io_err(path: &Path, message: impl Into<String>) -> CfdError {
+    CfdError::Io { path: path.display().to_string(), message: message.into() }
+}
+
+/// Read a VTK XML UnstructuredGrid made only of linear tetrahedra (VTK type 10).
+pub fn read_vtu(path: &Path) -> Result<VolumeMesh, CfdError> {
+    if !path.is_file() {
+        return Err(io_err(path, "file not found"));
+    }
+    // vtkio panics on some malformed inputs; a panic is turned into an error here.
+    let imported = std::panic::catch_unwind(|| vtkio::Vtk::import(path))
+        .map_err(|_| io_err(path, "VTK reader panicked (malformed or unsupported file)"))?
+        .map_err(|e| io_err(path, format!("cannot read VTK file: {e}")))?;
+    let pieces = match imported.data {
+        DataSet::UnstructuredGrid { pieces, .. } => pieces,
+        _ => return Err(io_err(path, "not an UnstructuredGrid")),
+    };
+    if pieces.len() != 1 {
+        return Err(io_err(path, format!("expected one piece, found {}", pieces.len())));
+    }
+    let piece = pieces.into_iter().next().expect("one piece checked above");
+    let piece = piece.into_loaded_piece_data(path.parent()).map_err(|e| io_err(path, format!("cannot load piece: {e}")))?;
+    let coords: Vec<f64> = piece.points.cast_into().ok_or_else(|| io_err(path, "points are not numeric"))?;
+    if coords.len() % 3 != 0 {
+        return Err(io_err(path, format!("{} point coordinates is not a multiple of 3", coords.len())));
+    }
+    let points: Vec<[f64; 3]> = coords.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let tets = tets_of(path, piece.cells.cell_verts, &piece.cells.types, points.len())?;
+    let global_node_ids = piece.data.point.iter().find_map(|a| match a {
+        Attribute::DataArray(d) if d.name == "GlobalNodeID" => d.data.cast_into::<i64>(),
+        _ => None,
+    });
+    if let Some(ids) = &global_node_ids {
+        if ids.len() != points.len() {
+            return Err(io_err(path, format!("GlobalNodeID has {} values for {} points", ids.len(), points.len())));
+        }
+    }
+    Ok(VolumeMesh { points, tets, global_node_ids })
+}
+
+fn tets_of(path: &Path, verts: VertexNumbers, types: &[CellType], n_points: usize) -> Result<Vec<[u32; 4]>, CfdError> {
+    let (connectivity, offsets) = verts.into_xml();
+    let offsets: Vec<u64> = if offsets.first() == Some(&0) { offsets[1..].to_vec() } else { offsets };
+    if offsets.len() != types.len() {
+        return Err(io_err(path, format!("{} cell offsets for {} cell types", offsets.len(), types.len())));
+    }
+    let mut tets = Vec::with_capacity(types.len());
+    let mut start = 0usize;
+    for (c, (&end, ty)) in offsets.iter().zip(types).enumerate() {
+        let end = end as usize;
+        if *ty != CellType::Tetra || end != start + 4 || end > connectivity.len() {
+            return Err(io_err(path, format!("cell {c} is {ty:?} with {} nodes; only linear tetrahedra are supported", end.saturating_sub(start))));
+        }
+        let mut t = [0u32; 4];
+        for (k, &node) in connectivity[start..end].iter().enumerate() {
+            if node as usize >= n_points {
+                return Err(io_err(path, format!("cell {c} references point {node} of {n_points}")));
+            }
+            t[k] = node as u32;
+        }
+        tets.push(t);
+        start = end;
+    }
+    Ok(tets)
+}
+
+/// Conventional names of the published meshes' face ids (README of the data set).
+fn face_name(id: i32) -> String {
+    match id {
+        2 => "rv_wall".into(),
+        10 => "baffle".into(),
+        11 => "vsd_inlet".into(),
+        16 => "aortic_outlet".into(),
+        _ => format!("face_{id}"),
+    }
+}
+
+/// Read a SimVascular mesh: volume `.vtu` (cm) and its surface `.vtp`, whose
+/// triangles become faces grouped by `ModelFaceID`, mapped to volume nodes through
+/// `GlobalNodeID`. The result is validated.
+pub fn read_simvascular_mesh(vtu_path: &Path, vtp_path: &Path) -> Result<FlowMesh, CfdError> {
+    let volume = read_vtu(vtu_path)?;
+    let volume_ids = volume.global_node_ids.as_ref().ok_or_else(|| io_err(vtu_path, "no point array GlobalNodeID"))?;
+    let index_of_global: HashMap<i64, u32> = volume_ids.iter().enumerate().map(|(i, &g)| (g, i as u32)).collect();
+    let surface = baffle_core::io::read_polydata(vtp_path).map_err(|e| io_err(vtp_path, e.to_string()))?;
+    let surface_ids = surface
+        .point_array("GlobalNodeID")
+        .and_then(|a| a.as_i32())
+        .ok_or_else(|| io_err(vtp_path, "no Int32 point array GlobalNodeID"))?;
+    let face_ids = surface
+        .cell_array("ModelFaceID")
+        .and_then(|a| a.as_i32())
+        .ok_or_else(|| io_err(vtp_path, "no Int32 cell array ModelFaceID"))?;
+    let mut grouped: BTreeMap<i32, Vec<[u32; 3]>> = BTreeMap::new();
+    for (k, poly) in surface.polys.iter().enumerate() {
+        if poly.len() != 3 {
+            return Err(io_err(vtp_path, format!("polygon {k} has {} nodes; expected triangles", poly.len())));
+        }
+        let mut tri = [0u32; 3];
+        for (j, &local) in poly.iter().enumerate() {
+            let global = surface_ids[local as usize] as i64;
+            tri[j] = *index_of_global
+                .get(&global)
+                .ok_or_else(|| io_err(vtp_path, format!("triangle {k}: GlobalNodeID {global} is not in the volume mesh")))?;
+        }
+        let id = face_ids[surface.poly_cell_index(k)];
+        grouped.entry(id).or_default().push(tri);
+    }
+    let faces = grouped.into_iter().map(|(id, triangles)| Face { id, name: face_name(id), triangles }).collect();
+    let mut mesh = FlowMesh { points_cm: volume.points, tets: volume.tets, faces };
+    mesh.validate()?;
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_data::data_dir;
+
+    #[test]
+    fn p2_published_mesh_reads_with_inlet_and_outlet() {
+        let Some(dir) = data_dir() else { return };
+        let start = std::time::Instant::now();
+        let mesh = read_simvascular_mesh(&dir.join("p2/published_M_final.vtu"), &dir.join("p2/published_M_final.vtp")).unwrap();
+        println!("p2 mesh read + validated in {:?}", start.elapsed());
+        assert_eq!(mesh.points_cm.len(), 25680);
+        assert_eq!(mesh.tets.len(), 147_013);
+        let ids: Vec<i32> = mesh.faces.iter().map(|f| f.id).collect();
+        assert_eq!(ids, vec![2, 10, 11, 16]);
+        let total: usize = mesh.faces.iter().map(|f| f.triangles.len()).sum();
+        assert_eq!(total, 10620);
+        let mut copy = mesh.clone();
+        let report = copy.validate().unwrap();
+        assert_eq!(report.reoriented_tets, 0, "validated mesh is already positive");
+        assert_eq!(report.boundary_triangles, 10620, "the surface covers the whole boundary");
+        // The caps are about the annulus size: VSD and aortic caps of ~0.1-2 cm2.
+        for id in [11, 16] {
+            let area = crate::boundary::face_area_cm2(&mesh, mesh.face(id).unwrap());
+            assert!(area > 0.1 && area < 2.0, "face {id}: {area} cm2");
+        }
+    }
+
+    #[test]
+    fn missing_files_are_named() {
+        let msg = read_vtu(Path::new("/nonexistent/mesh.vtu")).unwrap_err().to_string();
+        assert!(msg.contains("/nonexistent/mesh.vtu") && msg.contains("not found"), "{msg}");
+        let dir = std::env::temp_dir().join(format!("baffle-cfd-vtu-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let garbage = dir.join("garbage.vtu");
+        std::fs::write(&garbage, "<VTKFile type=\"PolyData\"></VTKFile>").unwrap();
+        let msg = read_vtu(&garbage).unwrap_err().to_string();
+        assert!(msg.contains("garbage.vtu"), "{msg}");
+    }
+}
