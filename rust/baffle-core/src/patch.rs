@@ -13,6 +13,7 @@
 use crate::error::DesignError;
 use crate::mesh::Vec3;
 use crate::numerics::tps::ThinPlateSpline;
+use crate::spatial::closest_point_on_segment;
 use std::f64::consts::{PI, TAU};
 
 /// A structured triangulation of the unit disk: a centre vertex and concentric rings,
@@ -39,9 +40,7 @@ pub struct InitialChord {
 impl InitialChord {
     /// Closest point of the segment to `p`.
     pub fn closest_point(&self, p: Vec3) -> Vec3 {
-        let d = self.aortic_end_mm - self.vsd_end_mm;
-        let t = ((p - self.vsd_end_mm).dot(&d) / d.norm_squared().max(1e-300)).clamp(0.0, 1.0);
-        self.vsd_end_mm + t * d
+        closest_point_on_segment(&p, &self.vsd_end_mm, &self.aortic_end_mm).0
     }
 }
 

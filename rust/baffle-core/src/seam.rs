@@ -11,7 +11,7 @@ use crate::error::DesignError;
 use crate::mesh::{edge_key, FaceLabels, TriMesh, Vec3};
 use crate::numerics::pca::best_fit_plane;
 use crate::numerics::spline::ClosedSpline;
-use crate::spatial::TriangleBvh;
+use crate::spatial::{closest_point_on_segment, TriangleBvh};
 use std::collections::HashSet;
 
 /// The seam as projected onto the wall, before it is inserted into the mesh.
@@ -107,9 +107,7 @@ fn samples_to_keep(dense: &[Vec3], stride: usize, tolerance_mm: f64) -> Vec<usiz
 }
 
 fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
-    let d = b - a;
-    let t = ((p - a).dot(&d) / d.norm_squared().max(1e-300)).clamp(0.0, 1.0);
-    (p - (a + t * d)).norm()
+    (p - closest_point_on_segment(p, a, b).0).norm()
 }
 
 /// Every suture point must lie on the RV wall (not a cap) within the tolerance.
@@ -287,8 +285,7 @@ impl EditMesh {
         }
         for k in 0..3 {
             let (a, b) = (corners[k], corners[(k + 1) % 3]);
-            let along = ((p - a).dot(&(b - a)) / (b - a).norm_squared()).clamp(0.0, 1.0);
-            let foot = a + along * (b - a);
+            let foot = closest_point_on_segment(&p, &a, &b).0;
             if (foot - p).norm() <= snap_mm {
                 return self.split_edge(tri[k], tri[(k + 1) % 3], foot);
             }
@@ -419,8 +416,7 @@ impl EditMesh {
             let k = (0..3).find(|&k| tri[k] == c).unwrap_or(0);
             let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
             let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
-            let along = ((target - pa).dot(&(pb - pa)) / (pb - pa).norm_squared().max(1e-300)).clamp(0.0, 1.0);
-            let x = pa + along * (pb - pa);
+            let x = closest_point_on_segment(&target, &pa, &pb).0;
             let d = (x - target).norm();
             if d >= here || best.as_ref().is_some_and(|(bd, _)| *bd <= d) {
                 continue;

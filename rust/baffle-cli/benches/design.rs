@@ -1,0 +1,89 @@
+//! Benchmark of the whole design (release): median wall time per case and per step,
+//! over repeated runs, on the phantom and (when the data is present) p2 and p3 with
+//! the paper's BSA. `cargo bench -p baffle-cli --bench design` (15 runs per case);
+//! `-- --smoke` runs each case once, as CI does, to keep the benchmark working.
+
+use baffle_core::io::{read_points, read_surface, CoordinateSystem};
+use baffle_core::phantom::phantom_default;
+use baffle_core::{design, DesignOptions, DesignReport, TargetArea, TriMesh, Vec3};
+use std::path::PathBuf;
+
+struct Case {
+    name: String,
+    surface: TriMesh,
+    points: Vec<Vec3>,
+    target: TargetArea,
+}
+
+fn data_dir() -> PathBuf {
+    std::env::var_os("BAFFLE_DATA_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")))
+}
+
+fn cases() -> Vec<Case> {
+    let p = phantom_default();
+    let mut cases = vec![Case {
+        name: "phantom".into(),
+        surface: p.surface,
+        points: p.suture_points_mm,
+        target: TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 },
+    }];
+    let dir = data_dir();
+    let Ok(table) = std::fs::read_to_string(dir.join("patients.json")) else {
+        println!("note: no patient data at {}; benchmarking the phantom only", dir.display());
+        return cases;
+    };
+    let table: serde_json::Value = serde_json::from_str(&table).expect("patients.json");
+    for patient in ["p2", "p3"] {
+        let input = dir.join(patient).join("design_input");
+        let surface = read_surface(&input.join("capped_ventricle.vtp")).expect("surface");
+        let points = read_points(&input.join("suture_points.mrk.json")).expect("points").to_frame(CoordinateSystem::Lps);
+        let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64().expect("bsa_m2");
+        cases.push(Case { name: patient.into(), surface, points, target: TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
+    }
+    cases
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+fn main() {
+    let smoke = std::env::args().any(|a| a == "--smoke");
+    let runs = if smoke { 1 } else { 15 };
+    let options = DesignOptions::default();
+    println!("design benchmark: {runs} run(s) per case, medians in ms");
+    for case in cases() {
+        let reports: Vec<DesignReport> = (0..runs)
+            .map(|_| {
+                design(&case.surface, &case.points, &case.target, &options, &mut |_, _| true)
+                    .unwrap_or_else(|e| panic!("{}: {e}", case.name))
+                    .report
+            })
+            .collect();
+        let step = |f: fn(&DesignReport) -> f64| median(reports.iter().map(f).collect());
+        println!(
+            "{:8} total {:7.1} | validate {:5.1} seam {:5.1} partition {:5.1} remesh {:5.1} patch {:5.1} centerline {:4.1} sections {:5.1} amplitudes+envelope+surface {:5.1} checks {:5.1}  (min {:.1}, max {:.1})",
+            case.name,
+            step(|r| r.timings.total_ms),
+            step(|r| r.timings.validate_ms),
+            step(|r| r.timings.seam_ms),
+            step(|r| r.timings.partition_ms),
+            step(|r| r.timings.remesh_ms),
+            step(|r| r.timings.patch_ms),
+            step(|r| r.timings.centerline_ms),
+            step(|r| r.timings.sections_ms),
+            step(|r| r.timings.amplitudes_envelope_surface_ms),
+            step(|r| r.timings.checks_ms),
+            reports.iter().map(|r| r.timings.total_ms).fold(f64::INFINITY, f64::min),
+            reports.iter().map(|r| r.timings.total_ms).fold(0.0, f64::max),
+        );
+    }
+}
