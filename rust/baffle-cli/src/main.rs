@@ -1,6 +1,7 @@
 //! `baffle`: area-constrained DORV baffle design from the command line.
 
 use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
+use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::phantom::phantom_default;
 use baffle_core::{design, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
@@ -85,6 +86,13 @@ struct DesignArgs {
     /// ModelFaceID of the aortic-annulus cap.
     #[arg(long, default_value_t = 16)]
     aortic_label: i32,
+    /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
+    /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
+    #[arg(long, value_parser = parse_point, requires = "aortic_cap_point")]
+    vsd_cap_point: Option<Vec3>,
+    /// A point on the aortic-annulus cap (see --vsd-cap-point).
+    #[arg(long, value_parser = parse_point, requires = "vsd_cap_point")]
+    aortic_cap_point: Option<Vec3>,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     #[arg(long)]
     progress_tags: bool,
@@ -213,17 +221,30 @@ fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
         return Err("--surface and --points are required (or --phantom)".into());
     };
     let labeled = read_surface_labeled(surface_path).map_err(|e| e.to_string())?;
-    if !labeled.has_model_face_id {
+    let mut mesh = labeled.mesh;
+    if let (Some(vsd), Some(aortic)) = (args.vsd_cap_point, args.aortic_cap_point) {
+        let seeds = [CapSeed { point_mm: vsd, label: args.vsd_label }, CapSeed { point_mm: aortic, label: args.aortic_label }];
+        mesh.face_ids = label_planar_caps(&mesh, &seeds, args.wall_label, &CapTolerances::default())
+            .map_err(|e| format!("{}: {e}", surface_path.display()))?;
+    } else if !labeled.has_model_face_id {
         return Err(format!(
-            "{}: no ModelFaceID cell array; label the RV wall ({}), VSD cap ({}) and aortic cap ({}) first",
-            surface_path.display(),
-            args.wall_label,
-            args.vsd_label,
-            args.aortic_label
+            "{}: no ModelFaceID cell array; give --vsd-cap-point and --aortic-cap-point to label the caps",
+            surface_path.display()
         ));
     }
     let points = read_points(points_path).map_err(|e| e.to_string())?;
-    Ok((labeled.mesh, points.to_frame(args.surface_frame.into())))
+    Ok((mesh, points.to_frame(args.surface_frame.into())))
+}
+
+fn parse_point(text: &str) -> Result<Vec3, String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{v}' is not a number")))
+        .collect::<Result<_, _>>()?;
+    match values[..] {
+        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok(Vec3::new(x, y, z)),
+        _ => Err(format!("expected x,y,z (three finite numbers), got '{text}'")),
+    }
 }
 
 fn write_phantom(out: &Path) -> Result<(), String> {

@@ -1,0 +1,90 @@
+//! The `baffle` command end to end: the built-in sample, files written by
+//! `baffle phantom` read back through `--surface/--points`, and errors that name
+//! the file.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn baffle(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_baffle")).args(args).output().expect("run baffle")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("baffle-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn report(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn phantom_files_design_like_the_built_in_sample() {
+    let inputs = temp_dir("inputs");
+    let out = baffle(&["phantom", "--out", inputs.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let from_files = temp_dir("from-files");
+    let out = baffle(&[
+        "design",
+        "--surface",
+        inputs.join("capped_ventricle.vtp").to_str().unwrap(),
+        "--points",
+        inputs.join("suture_points.mrk.json").to_str().unwrap(),
+        "--bsa",
+        "0.37",
+        "--out",
+        from_files.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let built_in = temp_dir("built-in");
+    let out = baffle(&["design", "--phantom", "--out", built_in.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for file in ["domain.vtp", "baffle.vtp", "centerline.vtp", "sections.vtp", "seam.vtp", "report.json"] {
+        assert!(built_in.join(file).is_file(), "{file} missing");
+    }
+    let (a, b) = (report(&from_files), report(&built_in));
+    assert_eq!(a["baffle_triangles"], b["baffle_triangles"]);
+    let area = |r: &serde_json::Value| r["baffle_area_mm2"].as_f64().unwrap();
+    assert!((area(&a) - area(&b)).abs() < 1e-9, "{} vs {}", area(&a), area(&b));
+    for dir in [inputs, from_files, built_in] {
+        std::fs::remove_dir_all(dir).ok();
+    }
+}
+
+#[test]
+fn progress_tags_are_printed_for_slicer() {
+    let dir = temp_dir("tags");
+    let out = baffle(&["design", "--phantom", "--progress-tags", "--out", dir.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("<filter-progress>1.000</filter-progress>"), "{stdout}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn a_missing_input_file_is_named_and_the_exit_code_is_nonzero() {
+    let dir = temp_dir("missing");
+    let out = baffle(&["design", "--surface", "/nonexistent/ventricle.vtp", "--points", "p.csv", "--bsa", "0.4", "--out", dir.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("/nonexistent/ventricle.vtp") && stderr.contains("not found"), "{stderr}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn a_design_without_a_target_says_which_options_give_one() {
+    let inputs = temp_dir("no-target");
+    assert!(baffle(&["phantom", "--out", inputs.to_str().unwrap()]).status.success());
+    let out = baffle(&[
+        "design",
+        "--surface",
+        inputs.join("capped_ventricle.vtp").to_str().unwrap(),
+        "--points",
+        inputs.join("suture_points.mrk.json").to_str().unwrap(),
+        "--out",
+        inputs.join("out").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--bsa"));
+    std::fs::remove_dir_all(inputs).ok();
+}
