@@ -154,7 +154,7 @@ pub fn design(
     clock.stage(0.05, "seam")?;
     let bvh = TriangleBvh::new(&surface).map_err(DesignError::Surface)?;
     let projected = project_seam(&surface, &bvh, &labels, suture_points_mm, options.seam_samples, options.max_point_distance_mm)?;
-    let imprinted = imprint_seam(&surface, &projected, &labels)?;
+    let imprinted = imprint_seam(&surface, &projected)?;
     let imprinted_seam_mm: Vec<Vec3> = imprinted.loop_vertices.iter().map(|&v| imprinted.mesh.points[v as usize]).collect();
     let seam_ms = clock.lap();
 

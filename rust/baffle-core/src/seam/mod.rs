@@ -1,0 +1,338 @@
+//! Step 1, the attachment seam [paper 2.3.3].
+//!
+//! The surgeon's suture points are ordered by angle in their principal-component
+//! plane, a closed parametric cubic spline is fitted through them and resampled at
+//! (by default) 600 points evenly spaced in arc length, and each sample is projected
+//! onto the RV wall. Between consecutive samples the seam runs straight across the
+//! triangles of the input surface (unfolded about the edge they share; where two
+//! samples are not in neighbouring triangles, the spline's projected midpoint is
+//! added first). `imprint` then inserts this path into the mesh as an exact edge
+//! loop, so the baffle and the wall share the seam's vertices exactly.
+
+mod imprint;
+
+pub use imprint::{imprint_seam, ImprintedSeam};
+
+use crate::error::DesignError;
+use crate::mesh::{FaceLabels, TriMesh, Vec3};
+use crate::numerics::pca::best_fit_plane;
+use crate::numerics::spline::ClosedSpline;
+use crate::spatial::{ClosestHit, TriangleBvh};
+
+/// Where a point of the seam's path lies on the input surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Place {
+    /// Inside an input triangle.
+    Face(u32),
+    /// On the edge between two input triangles (and its two input vertices).
+    Edge { triangles: [u32; 2], vertices: [u32; 2] },
+    /// At an input vertex.
+    Vertex(u32),
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct PathPoint {
+    pub position_mm: Vec3,
+    pub place: Place,
+}
+
+/// The seam projected onto the wall, before it is inserted into the mesh.
+#[derive(Clone, Debug)]
+pub struct ProjectedSeam {
+    /// Suture points in loop order (PCA-plane angle), mm.
+    pub ordered_points_mm: Vec<Vec3>,
+    /// Spline samples projected onto the RV wall (with any midpoints added), mm.
+    pub samples_mm: Vec<Vec3>,
+    /// The closed path on the input surface: samples and edge crossings, in order.
+    pub path: Vec<PathPoint>,
+}
+
+/// Midpoints added between two samples at most this deep before giving up.
+const MAX_BISECTION_DEPTH: usize = 6;
+/// A sample whose nearest surface point is on a cap, nearer than the wall by more
+/// than this, means the spline passes over the cap.
+const CAP_MARGIN_MM: f64 = 0.05;
+
+/// Order points by their angle around the centroid in their best-fit plane.
+pub fn order_by_pca_angle(points: &[Vec3]) -> Vec<Vec3> {
+    let plane = best_fit_plane(points);
+    let mut keyed: Vec<(f64, Vec3)> = points
+        .iter()
+        .map(|p| {
+            let (u, v) = plane.project_2d(p);
+            (v.atan2(u), *p)
+        })
+        .collect();
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    keyed.into_iter().map(|(_, p)| p).collect()
+}
+
+/// Check the suture points against the surface, order them, fit the closed spline,
+/// resample it, project the samples onto the wall and trace the path between them.
+pub fn project_seam(
+    surface: &TriMesh,
+    bvh: &TriangleBvh,
+    labels: &FaceLabels,
+    points: &[Vec3],
+    sample_count: usize,
+    max_point_distance_mm: f64,
+) -> Result<ProjectedSeam, DesignError> {
+    if points.len() < 4 {
+        return Err(DesignError::SuturePoints(format!(
+            "{} point(s) given; a closed seam needs at least 4",
+            points.len()
+        )));
+    }
+    check_points_on_wall(surface, bvh, labels, points, max_point_distance_mm)?;
+    let ordered = order_by_pca_angle(points);
+    let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
+    let projector = WallProjector { surface, bvh, labels };
+    let samples = spline
+        .resample_uniform_arclength(sample_count.max(16))
+        .iter()
+        .enumerate()
+        .map(|(i, q)| projector.project(*q, i))
+        .collect::<Result<Vec<_>, _>>()?;
+    let tracer = PathTracer { projector, neighbors: surface.triangle_neighbors() };
+    let (path, samples_mm) = tracer.trace_closed(&samples)?;
+    Ok(ProjectedSeam { ordered_points_mm: ordered, samples_mm, path })
+}
+
+/// Projects points onto the RV wall, refusing points that sit over a cap.
+struct WallProjector<'a> {
+    surface: &'a TriMesh,
+    bvh: &'a TriangleBvh,
+    labels: &'a FaceLabels,
+}
+
+impl WallProjector<'_> {
+    fn project(&self, q: Vec3, sample: usize) -> Result<ClosestHit, DesignError> {
+        let (surface, labels) = (self.surface, self.labels);
+        let wall = self
+            .bvh
+            .closest_point_filtered(surface, q, |t| surface.face_ids[t as usize] == labels.wall)
+            .ok_or_else(|| DesignError::Seam(format!("seam sample {sample} found no wall triangle")))?;
+        if let Some(any) = self.bvh.closest_point(surface, q) {
+            let label = surface.face_ids[any.triangle as usize];
+            if label != labels.wall && wall.distance_mm > any.distance_mm + CAP_MARGIN_MM {
+                return Err(DesignError::Seam(format!(
+                    "the seam crosses the {} (label {label}) near sample {sample}; move the suture points \
+                     near it away from the cap rim",
+                    cap_name(labels, label)
+                )));
+            }
+        }
+        Ok(wall)
+    }
+}
+
+/// Traces the seam between projected samples across the input triangles.
+struct PathTracer<'a> {
+    projector: WallProjector<'a>,
+    neighbors: Vec<[u32; 3]>,
+}
+
+impl PathTracer<'_> {
+    fn trace_closed(&self, samples: &[ClosestHit]) -> Result<(Vec<PathPoint>, Vec<Vec3>), DesignError> {
+        let n = samples.len();
+        let mut path = Vec::with_capacity(2 * n);
+        let mut samples_mm = Vec::with_capacity(n);
+        for i in 0..n {
+            let (a, b) = (&samples[i], &samples[(i + 1) % n]);
+            path.push(PathPoint { position_mm: a.point, place: Place::Face(a.triangle) });
+            samples_mm.push(a.point);
+            self.connect(a, b, 0, i, &mut path, &mut samples_mm)?;
+        }
+        Ok((snap_to_vertices(self.projector.surface, path), samples_mm))
+    }
+
+    /// Append the path points strictly between samples `a` and `b`.
+    fn connect(
+        &self,
+        a: &ClosestHit,
+        b: &ClosestHit,
+        depth: usize,
+        sample: usize,
+        path: &mut Vec<PathPoint>,
+        samples_mm: &mut Vec<Vec3>,
+    ) -> Result<(), DesignError> {
+        if a.triangle == b.triangle {
+            return Ok(());
+        }
+        let surface = self.projector.surface;
+        let tri_a = surface.triangles[a.triangle as usize];
+        if let Some(k) = (0..3).find(|&k| self.neighbors[a.triangle as usize][k] == b.triangle) {
+            let edge = [tri_a[k], tri_a[(k + 1) % 3]];
+            match edge_crossing(surface, a, b, edge) {
+                PathPoint { place: Place::Vertex(v), position_mm } => push_vertex(path, v, position_mm),
+                crossing => path.push(crossing),
+            }
+            return Ok(());
+        }
+        if depth < MAX_BISECTION_DEPTH {
+            let mid = self.projector.project(0.5 * (a.point + b.point), sample)?;
+            self.connect(a, &mid, depth + 1, sample, path, samples_mm)?;
+            path.push(PathPoint { position_mm: mid.point, place: Place::Face(mid.triangle) });
+            samples_mm.push(mid.point);
+            return self.connect(&mid, b, depth + 1, sample, path, samples_mm);
+        }
+        let tri_b = surface.triangles[b.triangle as usize];
+        match tri_a.iter().find(|v| tri_b.contains(v)) {
+            Some(&v) => {
+                push_vertex(path, v, surface.points[v as usize]);
+                Ok(())
+            }
+            None => Err(DesignError::Seam(format!(
+                "could not trace the seam on the surface near sample {sample}: its projection jumps \
+                 across a fold of the wall"
+            ))),
+        }
+    }
+}
+
+/// Snap distance of the mesh insertion: a thousandth of the mean edge.
+pub(crate) fn insertion_snap_mm(surface: &TriMesh) -> f64 {
+    1e-3 * surface.mean_edge_length_mm()
+}
+
+/// Path points closer than ten insertion snaps to an input vertex of their triangle
+/// move onto it. The insertion snaps nearby points together; near a vertex such
+/// points can lie in triangles that share only that vertex, so the seam must pass
+/// through the vertex itself to stay inside a common triangle.
+fn snap_to_vertices(surface: &TriMesh, path: Vec<PathPoint>) -> Vec<PathPoint> {
+    let radius_mm = 10.0 * insertion_snap_mm(surface);
+    let mut out: Vec<PathPoint> = Vec::with_capacity(path.len());
+    for point in path {
+        let corners: Vec<u32> = match point.place {
+            Place::Face(t) => surface.triangles[t as usize].to_vec(),
+            Place::Edge { vertices, .. } => vertices.to_vec(),
+            Place::Vertex(v) => vec![v],
+        };
+        let near = corners.into_iter().find(|&v| (surface.points[v as usize] - point.position_mm).norm() <= radius_mm);
+        match near {
+            Some(v) if out.last().map(|p| p.place) == Some(Place::Vertex(v)) => {}
+            Some(v) => push_vertex(&mut out, v, surface.points[v as usize]),
+            None => out.push(point),
+        }
+    }
+    out
+}
+
+/// How far back a path may return to a vertex it passed, as a short excursion.
+const LOOP_WINDOW: usize = 64;
+
+/// Append vertex `v`; if the path passed through it a few points ago (the projected
+/// spline skirted a sharp vertex and came back to it), drop that excursion instead,
+/// so the seam goes through the vertex once.
+fn push_vertex(path: &mut Vec<PathPoint>, v: u32, position_mm: Vec3) {
+    let start = path.len().saturating_sub(LOOP_WINDOW);
+    if let Some(k) = (start..path.len()).rev().find(|&k| path[k].place == Place::Vertex(v)) {
+        path.truncate(k + 1);
+        return;
+    }
+    path.push(PathPoint { position_mm, place: Place::Vertex(v) });
+}
+
+/// Where the straight path from `a` to `b` crosses their shared edge, with `b`'s
+/// triangle unfolded about that edge into `a`'s plane (the geodesic across the edge).
+fn edge_crossing(surface: &TriMesh, a: &ClosestHit, b: &ClosestHit, edge: [u32; 2]) -> PathPoint {
+    let (e0, e1) = (surface.points[edge[0] as usize], surface.points[edge[1] as usize]);
+    let length = (e1 - e0).norm();
+    let along_edge = (e1 - e0) / length;
+    let tri_a = surface.triangles[a.triangle as usize];
+    let third = tri_a.iter().find(|v| !edge.contains(v)).map_or(e0, |&v| surface.points[v as usize]);
+    // In a's plane, the unit normal to the edge pointing away from a's third corner.
+    let normal_a = surface.triangle_normal2(a.triangle as usize);
+    let mut away = along_edge.cross(&normal_a).normalize();
+    if away.dot(&(third - e0)) > 0.0 {
+        away = -away;
+    }
+    let (a_along, a_across) = ((a.point - e0).dot(&along_edge), (a.point - e0).dot(&away));
+    let rel_b = b.point - e0;
+    let b_along = rel_b.dot(&along_edge);
+    let b_across = (rel_b - b_along * along_edge).norm();
+    // a lies on or behind the edge (a_across <= 0), b beyond it; rounding can put a
+    // a hair past it, so the crossing's fraction is clamped to the segment.
+    let lambda = if b_across - a_across > 0.0 { (-a_across / (b_across - a_across)).clamp(0.0, 1.0) } else { 0.5 };
+    let along = (a_along + lambda * (b_along - a_along)).clamp(0.0, length);
+    let at_end = 1e-9 * length;
+    let place = if along <= at_end {
+        Place::Vertex(edge[0])
+    } else if along >= length - at_end {
+        Place::Vertex(edge[1])
+    } else {
+        Place::Edge { triangles: [a.triangle, b.triangle], vertices: edge }
+    };
+    let position_mm = match place {
+        Place::Vertex(v) => surface.points[v as usize],
+        _ => e0 + along * along_edge,
+    };
+    PathPoint { position_mm, place }
+}
+
+/// Every suture point must lie on the RV wall (not a cap) within the tolerance.
+fn check_points_on_wall(
+    surface: &TriMesh,
+    bvh: &TriangleBvh,
+    labels: &FaceLabels,
+    points: &[Vec3],
+    max_point_distance_mm: f64,
+) -> Result<(), DesignError> {
+    for (i, p) in points.iter().enumerate() {
+        if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+            return Err(DesignError::SuturePoints(format!("point {} has a non-finite coordinate", i + 1)));
+        }
+        let hit = bvh
+            .closest_point(surface, *p)
+            .ok_or_else(|| DesignError::Surface("the surface has no triangles".into()))?;
+        if hit.distance_mm > max_point_distance_mm {
+            return Err(DesignError::SuturePoints(format!(
+                "point {} ({:.2}, {:.2}, {:.2}) is {:.2} mm from the surface (limit {:.2} mm); \
+                 is it in the same coordinate frame (LPS/RAS) as the surface?",
+                i + 1,
+                p.x,
+                p.y,
+                p.z,
+                hit.distance_mm,
+                max_point_distance_mm
+            )));
+        }
+        let label = surface.face_ids[hit.triangle as usize];
+        if label != labels.wall {
+            return Err(DesignError::SuturePoints(format!(
+                "point {} lies on the {} (label {label}), not on the RV wall",
+                i + 1,
+                cap_name(labels, label)
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn cap_name(labels: &FaceLabels, label: i32) -> &'static str {
+    if label == labels.vsd_cap {
+        "VSD cap"
+    } else if label == labels.aortic_cap {
+        "aortic-annulus cap"
+    } else {
+        "surface region"
+    }
+}
+
+/// The input triangles a path point lies in.
+fn home_triangles(place: &Place, vertex_triangles: &[Vec<u32>]) -> Vec<u32> {
+    match *place {
+        Place::Face(t) => vec![t],
+        Place::Edge { triangles, .. } => triangles.to_vec(),
+        Place::Vertex(v) => vertex_triangles[v as usize].clone(),
+    }
+}
+
+/// An input triangle holding both path points (the straight seam between them lies in it).
+fn common_triangle(a: &Place, b: &Place, vertex_triangles: &[Vec<u32>]) -> Option<u32> {
+    let home_a = home_triangles(a, vertex_triangles);
+    home_triangles(b, vertex_triangles).into_iter().find(|t| home_a.contains(t))
+}
+
+#[cfg(test)]
+mod tests;
