@@ -92,7 +92,10 @@ mod tests {
             assert!(rel(h.q_peak_ml_s, v("q_peak_ml_s")) < 0.01, "{patient} Qpeak {h:?}");
             assert_eq!(h.map_mmhg, v("map_mmhg"), "{patient}");
             assert!((h.resistance_dyn_s_cm5 - v("resistance_dyn_s_cm5")).abs() <= 1.0, "{patient} R {h:?}");
-            assert!((h.resistance_wood - v("resistance_wood")).abs() <= 0.05, "{patient} Wood {h:?}");
+            // Wood units are printed from the rounded R (p3: 4876 / 80 = 60.95 -> 61.0).
+            let wood_printed = (h.resistance_dyn_s_cm5.round() / DYN_S_CM5_PER_WOOD * 10.0).round() / 10.0;
+            assert_eq!(wood_printed, v("resistance_wood"), "{patient} Wood {h:?}");
+            assert!((h.resistance_wood - v("resistance_wood")).abs() <= 0.06, "{patient} Wood {h:?}");
         }
     }
 

@@ -1,0 +1,30 @@
+//! Incompressible Newtonian Navier-Stokes on linear tetrahedra for baffle
+//! hemodynamics (issue #4, after Martinez et al. who used svMultiPhysics).
+//!
+//! CGS units throughout: cm, g, s; pressure dyn/cm^2; flow mL/s = cm^3/s.
+//! See [`assembly`] for the formulation and [`solver`] for the linear solver choice.
+
+pub mod assembly;
+pub mod boundary;
+mod error;
+pub mod hemodynamics;
+pub mod linear;
+pub mod mesh;
+pub mod settings;
+pub mod solver;
+pub mod sparse;
+pub mod vtu;
+pub mod waveform;
+
+#[cfg(test)]
+mod test_data;
+#[cfg(test)]
+mod test_meshes;
+
+pub use error::CfdError;
+pub use mesh::{Face, FlowMesh, ValidationReport};
+pub use settings::{CaseSettings, Outlet, RunMode};
+pub use solver::{simulate, FaceResult, StepResult, Summary, Timings};
+pub use waveform::Waveform;
+#[cfg(test)]
+mod verification;

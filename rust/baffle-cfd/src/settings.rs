@@ -1,0 +1,109 @@
+//! Case settings with the paper's defaults (Martinez et al., svMultiPhysics setup).
+
+use crate::waveform::Waveform;
+use crate::CfdError;
+
+/// Resistance outlet: p = R Q, coupled implicitly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outlet {
+    pub face_id: i32,
+    pub resistance_dyn_s_cm5: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunMode {
+    /// Time-accurate run over `cycles` periods of the inflow waveform.
+    Transient,
+    /// Steady solution with the inflow fixed at the waveform's peak flow.
+    Steady,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct CaseSettings {
+    pub density_g_cm3: f64,
+    pub viscosity_g_cm_s: f64,
+    pub dt_s: f64,
+    pub cycles: usize,
+    /// Relative residual reduction of each linear solve.
+    pub linear_tolerance: f64,
+    /// Backflow stabilization coefficient beta at outlets (Esmaily Moghadam et al. 2011).
+    pub backflow_stabilization: f64,
+    pub inlet_face_id: i32,
+    pub inflow: Waveform,
+    pub outlets: Vec<Outlet>,
+    pub mode: RunMode,
+    /// Picard iterations per time step at most, and their relative residual target.
+    pub max_nonlinear_iterations: usize,
+    pub nonlinear_tolerance: f64,
+    pub gmres_restart: usize,
+    pub max_linear_iterations: usize,
+    /// Steady mode: pseudo time step (s) of the pseudo-transient continuation, or
+    /// infinite for plain Picard iterations; iterations and residual reduction target.
+    pub steady_pseudo_dt_s: f64,
+    pub steady_max_iterations: usize,
+    pub steady_tolerance: f64,
+}
+
+impl CaseSettings {
+    /// Paper defaults: rho 1.06, mu 0.04, dt 1 ms, 4 cycles, linear tolerance 1e-4,
+    /// backflow stabilization 0.2.
+    pub fn new(inlet_face_id: i32, inflow: Waveform, outlets: Vec<Outlet>) -> Self {
+        CaseSettings {
+            density_g_cm3: 1.06,
+            viscosity_g_cm_s: 0.04,
+            dt_s: 1e-3,
+            cycles: 4,
+            linear_tolerance: 1e-4,
+            backflow_stabilization: 0.2,
+            inlet_face_id,
+            inflow,
+            outlets,
+            mode: RunMode::Transient,
+            max_nonlinear_iterations: 3,
+            nonlinear_tolerance: 1e-3,
+            gmres_restart: 60,
+            max_linear_iterations: 600,
+            steady_pseudo_dt_s: 0.01,
+            steady_max_iterations: 60,
+            steady_tolerance: 1e-4,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), CfdError> {
+        let positive = [
+            ("density", self.density_g_cm3),
+            ("viscosity", self.viscosity_g_cm_s),
+            ("dt", self.dt_s),
+            ("linear tolerance", self.linear_tolerance),
+            ("nonlinear tolerance", self.nonlinear_tolerance),
+            ("steady tolerance", self.steady_tolerance),
+            ("steady pseudo dt", self.steady_pseudo_dt_s),
+        ];
+        for (name, v) in positive {
+            if !(v > 0.0) || v.is_nan() {
+                return Err(CfdError::Settings(format!("{name} must be positive, got {v}")));
+            }
+        }
+        if !(self.backflow_stabilization >= 0.0) {
+            return Err(CfdError::Settings(format!("backflow stabilization must be >= 0, got {}", self.backflow_stabilization)));
+        }
+        if self.outlets.is_empty() {
+            return Err(CfdError::Settings("at least one outlet is needed".into()));
+        }
+        for o in &self.outlets {
+            if !(o.resistance_dyn_s_cm5 >= 0.0 && o.resistance_dyn_s_cm5.is_finite()) {
+                return Err(CfdError::Settings(format!("outlet {} resistance {} is not >= 0", o.face_id, o.resistance_dyn_s_cm5)));
+            }
+            if o.face_id == self.inlet_face_id {
+                return Err(CfdError::Settings(format!("face {} is both inlet and outlet", o.face_id)));
+            }
+        }
+        if self.mode == RunMode::Transient && (self.cycles == 0 || !self.inflow.period_s().is_finite()) {
+            return Err(CfdError::Settings("a transient run needs cycles >= 1 of a periodic waveform".into()));
+        }
+        if self.max_nonlinear_iterations == 0 || self.gmres_restart == 0 || self.max_linear_iterations == 0 {
+            return Err(CfdError::Settings("iteration limits must be >= 1".into()));
+        }
+        Ok(())
+    }
+}

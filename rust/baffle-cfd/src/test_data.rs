@@ -1,0 +1,26 @@
+//! Access to the read-only patient data for tests (BAFFLE_DATA_DIR or ../shared/data).
+
+use std::path::PathBuf;
+
+pub fn data_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("BAFFLE_DATA_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("skipping: patient data directory {} is absent", dir.display());
+        None
+    }
+}
+
+pub fn patients_json() -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(data_dir()?.join("patients.json")).ok()?;
+    Some(serde_json::from_str(&text).expect("patients.json is valid JSON"))
+}
+
+/// A number from patients.json: `patient` "common" or a patient id.
+pub fn table_value(json: &serde_json::Value, patient: &str, key: &str) -> f64 {
+    let v = if patient == "common" { &json["common"][key] } else { &json["patients"][patient][key] };
+    v.as_f64().unwrap_or_else(|| panic!("patients.json has no number {patient}.{key}"))
+}

@@ -1,0 +1,713 @@
+//! Tetrahedral meshing of a closed labelled surface by gmsh run as a child process.
+//!
+//! Choice: the caller's surface triangulation is kept as the mesh boundary (gmsh's
+//! discrete surfaces are not remeshed), so every boundary triangle, its `ModelFaceID` and
+//! its points' coordinates come back bit-identical; gmsh only fills the inside (3D
+//! Delaunay + optimisation) with interior sizes up to `edge_length_mm`, grading from the
+//! boundary triangles' own size. The design surface is remeshed at 0.85 mm (the paper's
+//! surface size), finer than the paper's coarse/nominal volume sizes. For a mesh-size
+//! study that also refines the boundary, set `remesh_surface`: the surface is first
+//! remeshed isotropically at `edge_length_mm` by baffle-core's label-preserving remesher.
+//!
+//! Interior surfaces (measurement planes) are handed to gmsh as discrete surfaces embedded
+//! in the volume (`Surface{..} In Volume{1}`), so their triangles stay element faces.
+
+use crate::error::MeshError;
+use crate::gmsh::{failed, find_gmsh, run_gmsh};
+use crate::msh::{read_msh22, surface_msh22_text, MshVolume};
+use crate::quality::{quality_report, QualityReport};
+use crate::tetmesh::{face_key, FaceSet, TetMesh};
+use baffle_core::mesh::manifold_report;
+use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::{TriMesh, Vec3};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Points closer than this fraction of the bounding-box diagonal are the same point
+/// (interior-surface rims on the boundary; gmsh's 16-digit node coordinates).
+pub const POINT_MATCH_TOLERANCE: f64 = 1e-9;
+
+/// Largest accepted |tet volume - enclosed volume| / enclosed volume.
+pub const VOLUME_MISMATCH_TOLERANCE: f64 = 1e-8;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshOptions {
+    /// Largest tet edge length gmsh aims for (mm): the paper's 1.25 / 0.95 / 0.75.
+    pub edge_length_mm: f64,
+    /// gmsh to run; `None`: `$BAFFLE_GMSH`, then `gmsh` on PATH, then the Python wheel.
+    pub gmsh_executable: Option<PathBuf>,
+    /// Labelled triangle surfaces inside the domain (measurement planes) that must stay
+    /// conforming sets of element faces. Their labels must be positive and differ from the
+    /// boundary's; their points on the boundary must coincide with boundary points.
+    pub interior_surfaces: Vec<TriMesh>,
+    /// Keep gmsh's input, script, log and output (their directory is printed to stderr).
+    pub keep_temp: bool,
+    /// gmsh is stopped after this long.
+    pub timeout: Duration,
+    /// gmsh threads (`-nt`).
+    pub threads: usize,
+    /// Remesh the boundary at `edge_length_mm` first (see the module doc); off keeps the
+    /// caller's triangles.
+    pub remesh_surface: bool,
+    /// Also run gmsh's Netgen optimiser (slower; usually fewer slivers).
+    pub optimize_netgen: bool,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        MeshOptions {
+            edge_length_mm: 0.95,
+            gmsh_executable: None,
+            interior_surfaces: Vec::new(),
+            keep_temp: false,
+            timeout: Duration::from_secs(600),
+            threads: 2,
+            remesh_surface: false,
+            optimize_netgen: false,
+        }
+    }
+}
+
+/// Tetrahedral mesh of the closed labelled `surface` (mm), with its quality figures.
+/// Errors name the problem: open surface, bad label, gmsh missing or failing, a lost
+/// boundary triangle, an inverted or degenerate tet (by index), a volume mismatch.
+pub fn mesh_surface(
+    surface: &TriMesh,
+    opts: &MeshOptions,
+) -> Result<(TetMesh, QualityReport), MeshError> {
+    check_options(opts)?;
+    let boundary = prepared_boundary(surface, opts)?;
+    let input = MeshInput::new(&boundary, &opts.interior_surfaces)?;
+    let gmsh = find_gmsh(opts.gmsh_executable.as_deref())?;
+    let work = WorkDir::create(opts.keep_temp)?;
+    let msh = run_in(&work.path, &input, opts, &gmsh)?;
+    let mesh = assemble(&input, &msh)?;
+    check_volume(&mesh, input.enclosed_volume_mm3)?;
+    let report = quality_report(&mesh)
+        .ok_or_else(|| MeshError::InvalidMesh("gmsh produced no tets".into()))?;
+    Ok((mesh, report))
+}
+
+fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {
+    if !(opts.edge_length_mm.is_finite() && opts.edge_length_mm > 0.0) {
+        return Err(MeshError::InvalidInput(format!(
+            "edge length must be a positive number of mm, got {}",
+            opts.edge_length_mm
+        )));
+    }
+    if opts.threads == 0 || opts.timeout.is_zero() {
+        return Err(MeshError::InvalidInput(
+            "threads and timeout must be positive".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The boundary as gmsh gets it: validated, optionally remeshed, unused points dropped.
+fn prepared_boundary(surface: &TriMesh, opts: &MeshOptions) -> Result<TriMesh, MeshError> {
+    check_labelled_surface(surface, "surface")?;
+    check_closed(surface)?;
+    let surface = if opts.remesh_surface {
+        let ro = RemeshOptions {
+            target_edge_mm: opts.edge_length_mm,
+            ..Default::default()
+        };
+        let remeshed = remesh_isotropic(surface, &ro)
+            .map_err(|e| MeshError::InvalidInput(format!("surface remeshing failed: {e}")))?;
+        check_closed(&remeshed)?;
+        remeshed
+    } else {
+        surface.clone()
+    };
+    Ok(without_unused_points(&surface))
+}
+
+fn check_labelled_surface(mesh: &TriMesh, what: &str) -> Result<(), MeshError> {
+    if mesh.triangles.is_empty() {
+        return Err(MeshError::InvalidInput(format!("{what} has no triangles")));
+    }
+    if mesh.face_ids.len() != mesh.triangles.len() {
+        return Err(MeshError::InvalidInput(format!(
+            "{what} has {} face labels for {} triangles",
+            mesh.face_ids.len(),
+            mesh.triangles.len()
+        )));
+    }
+    if let Some(t) = mesh.face_ids.iter().position(|&id| id <= 0) {
+        return Err(MeshError::InvalidInput(format!(
+            "{what} triangle {t} has ModelFaceID {}; gmsh needs positive labels",
+            mesh.face_ids[t]
+        )));
+    }
+    let n = mesh.points.len();
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .position(|tri| tri.iter().any(|&i| i as usize >= n))
+    {
+        return Err(MeshError::InvalidInput(format!(
+            "{what} triangle {t} refers to a point beyond its {n} points"
+        )));
+    }
+    if let Some(i) = mesh
+        .points
+        .iter()
+        .position(|p| !p.iter().all(|x| x.is_finite()))
+    {
+        return Err(MeshError::InvalidInput(format!(
+            "{what} point {i} has a non-finite coordinate"
+        )));
+    }
+    Ok(())
+}
+
+fn check_closed(surface: &TriMesh) -> Result<(), MeshError> {
+    let report = manifold_report(surface);
+    if report.is_closed_manifold() && report.inconsistently_wound_edges == 0 {
+        return Ok(());
+    }
+    Err(MeshError::InvalidInput(format!(
+        "surface is not a closed, consistently wound manifold: {} boundary edges, {} non-manifold \
+         edges, {} degenerate triangles, {} inconsistently wound edges (e.g. edge {:?})",
+        report.boundary_edges,
+        report.non_manifold_edges,
+        report.degenerate_triangles,
+        report.inconsistently_wound_edges,
+        report.example_edge
+    )))
+}
+
+fn without_unused_points(mesh: &TriMesh) -> TriMesh {
+    let mut keep = vec![false; mesh.points.len()];
+    mesh.triangles
+        .iter()
+        .flatten()
+        .for_each(|&i| keep[i as usize] = true);
+    let mut new_index = vec![u32::MAX; mesh.points.len()];
+    let mut points = Vec::new();
+    for (i, p) in mesh.points.iter().enumerate().filter(|(i, _)| keep[*i]) {
+        new_index[i] = points.len() as u32;
+        points.push(*p);
+    }
+    let triangles = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| new_index[i as usize]))
+        .collect();
+    TriMesh {
+        points,
+        triangles,
+        face_ids: mesh.face_ids.clone(),
+    }
+}
+
+/// Points looked up by position within a tolerance (uniform grid hash).
+struct PointIndex {
+    cell_mm: f64,
+    tolerance_mm: f64,
+    cells: HashMap<[i64; 3], Vec<u32>>,
+}
+
+impl PointIndex {
+    fn new(tolerance_mm: f64) -> Self {
+        PointIndex {
+            cell_mm: tolerance_mm.max(f64::MIN_POSITIVE) * 4.0,
+            tolerance_mm,
+            cells: HashMap::new(),
+        }
+    }
+
+    fn cell(&self, p: &Vec3) -> [i64; 3] {
+        [p.x, p.y, p.z].map(|c| (c / self.cell_mm).floor() as i64)
+    }
+
+    fn find(&self, p: &Vec3, points: &[Vec3]) -> Option<u32> {
+        let c = self.cell(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let ids = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]);
+                    let hit = ids
+                        .into_iter()
+                        .flatten()
+                        .find(|&&i| (points[i as usize] - p).norm() <= self.tolerance_mm);
+                    if let Some(&i) = hit {
+                        return Some(i);
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    fn insert(&mut self, p: &Vec3, index: u32) {
+        let c = self.cell(p);
+        self.cells.entry(c).or_default().push(index);
+    }
+}
+
+/// Boundary and interior triangles on one shared point list, as gmsh gets them.
+struct MeshInput {
+    points_mm: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    labels: Vec<i32>,
+    boundary_labels: BTreeSet<i32>,
+    interior_labels: BTreeSet<i32>,
+    enclosed_volume_mm3: f64,
+    index: PointIndex,
+}
+
+impl MeshInput {
+    fn new(boundary: &TriMesh, interior: &[TriMesh]) -> Result<Self, MeshError> {
+        let diagonal_mm = boundary.bbox_diagonal_mm();
+        let mut input = MeshInput {
+            points_mm: Vec::with_capacity(boundary.points.len()),
+            triangles: boundary.triangles.clone(),
+            labels: boundary.face_ids.clone(),
+            boundary_labels: boundary.face_ids.iter().copied().collect(),
+            interior_labels: BTreeSet::new(),
+            enclosed_volume_mm3: boundary.signed_volume_mm3().abs(),
+            index: PointIndex::new(POINT_MATCH_TOLERANCE * diagonal_mm),
+        };
+        for (i, p) in boundary.points.iter().enumerate() {
+            if let Some(j) = input.index.find(p, &input.points_mm) {
+                return Err(MeshError::InvalidInput(format!(
+                    "surface points {j} and {i} coincide at {p:?}"
+                )));
+            }
+            input.index.insert(p, i as u32);
+            input.points_mm.push(*p);
+        }
+        for (k, s) in interior.iter().enumerate() {
+            input.add_interior(s, k)?;
+        }
+        Ok(input)
+    }
+
+    fn add_interior(&mut self, surface: &TriMesh, k: usize) -> Result<(), MeshError> {
+        let what = format!("interior surface {k}");
+        check_labelled_surface(surface, &what)?;
+        if let Some(id) = surface
+            .face_ids
+            .iter()
+            .find(|id| self.boundary_labels.contains(id))
+        {
+            return Err(MeshError::InvalidInput(format!(
+                "{what} uses ModelFaceID {id}, which the boundary also uses"
+            )));
+        }
+        let map: Vec<u32> = surface.points.iter().map(|p| self.point_id(p)).collect();
+        self.triangles
+            .extend(surface.triangles.iter().map(|t| t.map(|i| map[i as usize])));
+        self.labels.extend_from_slice(&surface.face_ids);
+        self.interior_labels
+            .extend(surface.face_ids.iter().copied());
+        Ok(())
+    }
+
+    fn point_id(&mut self, p: &Vec3) -> u32 {
+        self.index.find(p, &self.points_mm).unwrap_or_else(|| {
+            let i = self.points_mm.len() as u32;
+            self.index.insert(p, i);
+            self.points_mm.push(*p);
+            i
+        })
+    }
+
+    fn geo_script(&self, opts: &MeshOptions) -> String {
+        let join = |s: &BTreeSet<i32>| {
+            s.iter()
+                .map(|l| l.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut lines = vec![
+            "Merge \"surface.msh\";".to_string(),
+            format!("Surface Loop(1) = {{{}}};", join(&self.boundary_labels)),
+            "Volume(1) = {1};".to_string(),
+        ];
+        if !self.interior_labels.is_empty() {
+            lines.push(format!(
+                "Surface{{{}}} In Volume{{1}};",
+                join(&self.interior_labels)
+            ));
+        }
+        lines.push("Physical Volume(1) = {1};".into());
+        lines.extend([
+            format!("Mesh.MeshSizeMax = {:e};", opts.edge_length_mm),
+            "Mesh.Algorithm3D = 1;".into(),
+            "Mesh.Optimize = 1;".into(),
+            format!("Mesh.OptimizeNetgen = {};", u8::from(opts.optimize_netgen)),
+            "Mesh.ElementOrder = 1;".into(),
+            "Mesh.Binary = 0;".into(),
+            format!("General.NumThreads = {};", opts.threads),
+        ]);
+        lines.join("\n") + "\n"
+    }
+}
+
+/// A scratch directory, removed on drop unless kept.
+struct WorkDir {
+    path: PathBuf,
+    keep: bool,
+}
+
+impl WorkDir {
+    fn create(keep: bool) -> Result<Self, MeshError> {
+        static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let path =
+            std::env::temp_dir().join(format!("baffle-mesh-{}-{n}-{nanos}", std::process::id()));
+        std::fs::create_dir_all(&path).map_err(|e| MeshError::file(&path, e.to_string()))?;
+        if keep {
+            eprintln!("baffle-mesh: keeping gmsh files in {}", path.display());
+        }
+        Ok(WorkDir { path, keep })
+    }
+}
+
+impl Drop for WorkDir {
+    fn drop(&mut self) {
+        if !self.keep {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+}
+
+fn write_file(path: &Path, text: &str) -> Result<(), MeshError> {
+    std::fs::write(path, text).map_err(|e| MeshError::file(path, e.to_string()))
+}
+
+fn run_in(
+    dir: &Path,
+    input: &MeshInput,
+    opts: &MeshOptions,
+    gmsh: &crate::gmsh::GmshCommand,
+) -> Result<MshVolume, MeshError> {
+    write_file(
+        &dir.join("surface.msh"),
+        &surface_msh22_text(&input.points_mm, &input.triangles, &input.labels),
+    )?;
+    write_file(&dir.join("domain.geo"), &input.geo_script(opts))?;
+    let args: Vec<OsString> = [
+        "domain.geo",
+        "-3",
+        "-format",
+        "msh22",
+        "-o",
+        "volume.msh",
+        "-nt",
+    ]
+    .iter()
+    .map(OsString::from)
+    .chain([OsString::from(opts.threads.to_string())])
+    .collect();
+    let log = dir.join("gmsh.log");
+    run_gmsh(gmsh, &args, dir, &log, opts.timeout)?;
+    let out = dir.join("volume.msh");
+    if !out.is_file() {
+        return Err(failed(
+            "gmsh exited normally but wrote no volume.msh".into(),
+            &log,
+        ));
+    }
+    let msh = read_msh22(&out)?;
+    if msh.tets.is_empty() {
+        return Err(failed("gmsh wrote no tetrahedra".into(), &log));
+    }
+    Ok(msh)
+}
+
+/// The volume mesh on the input's exact points (input points first, gmsh's new ones
+/// after), with the input's triangles as face sets, checked for conformity.
+fn assemble(input: &MeshInput, msh: &MshVolume) -> Result<TetMesh, MeshError> {
+    let node_to_point = map_nodes(input, msh)?;
+    let tag_index = msh.node_index();
+    let lookup = |tag: &u64| -> Result<u32, MeshError> {
+        tag_index
+            .get(tag)
+            .map(|&i| node_to_point[i as usize])
+            .ok_or_else(|| {
+                MeshError::InvalidMesh(format!("gmsh element refers to unknown node {tag}"))
+            })
+    };
+    let mut points_mm = input.points_mm.clone();
+    points_mm.extend(
+        msh.nodes_mm
+            .iter()
+            .zip(&node_to_point)
+            .filter(|(_, &p)| p as usize >= input.points_mm.len())
+            .map(|(x, _)| *x),
+    );
+    let tets = msh
+        .tets
+        .iter()
+        .map(|t| {
+            Ok([
+                lookup(&t[0])?,
+                lookup(&t[1])?,
+                lookup(&t[2])?,
+                lookup(&t[3])?,
+            ])
+        })
+        .collect::<Result<Vec<_>, MeshError>>()?;
+    let gmsh_faces = msh
+        .triangles
+        .iter()
+        .map(|(label, t)| {
+            Ok((
+                face_key(&[lookup(&t[0])?, lookup(&t[1])?, lookup(&t[2])?]),
+                *label,
+            ))
+        })
+        .collect::<Result<HashMap<_, _>, MeshError>>()?;
+    check_faces_kept(input, &gmsh_faces, msh.triangles.len())?;
+    let mut mesh = TetMesh {
+        points_mm,
+        tets,
+        faces: face_sets(input),
+    };
+    mesh.check_positive_volumes()?;
+    mesh.orient_boundary_outward()?;
+    mesh.validate()?;
+    Ok(mesh)
+}
+
+/// For each gmsh node, its point index: the input point at its position, else a new
+/// index after the input points. Every input point must be matched exactly once.
+fn map_nodes(input: &MeshInput, msh: &MshVolume) -> Result<Vec<u32>, MeshError> {
+    let n_input = input.points_mm.len();
+    let mut matched_by: Vec<Option<u64>> = vec![None; n_input];
+    let mut next_new = n_input as u32;
+    let mut map = Vec::with_capacity(msh.nodes_mm.len());
+    for (tag, p) in msh.node_tags.iter().zip(&msh.nodes_mm) {
+        let index = match input.index.find(p, &input.points_mm) {
+            Some(i) => {
+                if let Some(other) = matched_by[i as usize].replace(*tag) {
+                    return Err(MeshError::InvalidMesh(format!(
+                        "gmsh nodes {other} and {tag} both lie on input point {i}"
+                    )));
+                }
+                i
+            }
+            None => {
+                next_new += 1;
+                next_new - 1
+            }
+        };
+        map.push(index);
+    }
+    if let Some(i) = matched_by.iter().position(|m| m.is_none()) {
+        return Err(MeshError::InvalidMesh(format!(
+            "input point {i} at {:?} is missing from gmsh's mesh",
+            input.points_mm[i]
+        )));
+    }
+    Ok(map)
+}
+
+/// gmsh must return exactly the input triangles, each with its label.
+fn check_faces_kept(
+    input: &MeshInput,
+    gmsh_faces: &HashMap<[u32; 3], i32>,
+    gmsh_count: usize,
+) -> Result<(), MeshError> {
+    for (k, (tri, label)) in input.triangles.iter().zip(&input.labels).enumerate() {
+        match gmsh_faces.get(&face_key(tri)) {
+            Some(l) if l == label => {}
+            Some(l) => {
+                return Err(MeshError::InvalidMesh(format!("input triangle {k} {tri:?} came back with label {l}, not {label}")))
+            }
+            None => {
+                return Err(MeshError::InvalidMesh(format!(
+                    "input triangle {k} {tri:?} (ModelFaceID {label}) is not in gmsh's mesh (surface was altered)"
+                )))
+            }
+        }
+    }
+    if gmsh_count != input.triangles.len() {
+        return Err(MeshError::InvalidMesh(format!(
+            "gmsh returned {gmsh_count} surface triangles for {} input triangles",
+            input.triangles.len()
+        )));
+    }
+    Ok(())
+}
+
+fn face_sets(input: &MeshInput) -> Vec<FaceSet> {
+    let mut sets: BTreeMap<i32, Vec<[u32; 3]>> = BTreeMap::new();
+    for (tri, label) in input.triangles.iter().zip(&input.labels) {
+        sets.entry(*label).or_default().push(*tri);
+    }
+    sets.into_iter()
+        .map(|(id, triangles)| FaceSet {
+            id,
+            triangles,
+            interior: input.interior_labels.contains(&id),
+        })
+        .collect()
+}
+
+fn check_volume(mesh: &TetMesh, enclosed_mm3: f64) -> Result<(), MeshError> {
+    let tets_mm3 = mesh.volume_mm3();
+    let relative = (tets_mm3 - enclosed_mm3).abs() / enclosed_mm3.max(f64::MIN_POSITIVE);
+    if relative > VOLUME_MISMATCH_TOLERANCE {
+        return Err(MeshError::InvalidMesh(format!(
+            "tets fill {tets_mm3} mm^3 but the surface encloses {enclosed_mm3} mm^3 (relative difference {relative:e})"
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn open_box() -> TriMesh {
+        let p = vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()];
+        TriMesh::new(p, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2]], vec![2; 3])
+    }
+
+    #[test]
+    fn open_surface_is_rejected_before_gmsh_runs() {
+        let opts = MeshOptions {
+            gmsh_executable: Some("/nonexistent/gmsh".into()),
+            ..Default::default()
+        };
+        let err = mesh_surface(&open_box(), &opts).unwrap_err().to_string();
+        assert!(err.contains("3 boundary edges"), "{err}");
+    }
+
+    #[test]
+    fn bad_options_and_labels_are_rejected() {
+        let mut closed = open_box();
+        closed.triangles.push([1, 2, 3]);
+        closed.face_ids.push(2);
+        let opts = MeshOptions {
+            edge_length_mm: -1.0,
+            ..Default::default()
+        };
+        assert!(mesh_surface(&closed, &opts)
+            .unwrap_err()
+            .to_string()
+            .contains("positive number of mm"));
+        closed.face_ids[1] = 0;
+        let err = mesh_surface(&closed, &MeshOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("triangle 1 has ModelFaceID 0"), "{err}");
+    }
+
+    #[test]
+    fn interior_points_merge_onto_boundary_points_and_labels_must_differ() {
+        let mut closed = open_box();
+        closed.triangles.push([1, 2, 3]);
+        closed.face_ids.push(2);
+        let plane = TriMesh::new(
+            vec![Vec3::x(), Vec3::y(), Vec3::new(0.2, 0.2, 0.2)],
+            vec![[0, 1, 2]],
+            vec![20],
+        );
+        let input = MeshInput::new(&closed, std::slice::from_ref(&plane)).unwrap();
+        assert_eq!(input.points_mm.len(), 5);
+        assert_eq!(input.triangles.last(), Some(&[1, 2, 4]));
+        let clash = TriMesh {
+            face_ids: vec![2],
+            ..plane
+        };
+        assert!(MeshInput::new(&closed, &[clash]).is_err());
+    }
+
+    #[test]
+    fn geo_script_embeds_interior_surfaces() {
+        let mut closed = open_box();
+        closed.triangles.push([1, 2, 3]);
+        closed.face_ids = vec![2, 11, 16, 2];
+        let plane = TriMesh::new(
+            vec![Vec3::x(), Vec3::y(), Vec3::new(0.2, 0.2, 0.2)],
+            vec![[0, 1, 2]],
+            vec![20],
+        );
+        let geo = MeshInput::new(&closed, &[plane])
+            .unwrap()
+            .geo_script(&MeshOptions::default());
+        assert!(geo.contains("Surface Loop(1) = {2, 11, 16};"), "{geo}");
+        assert!(geo.contains("Surface{20} In Volume{1};"), "{geo}");
+        assert!(geo.contains("Mesh.MeshSizeMax = 9.5e-1;"), "{geo}");
+    }
+
+    /// A stand-in for gmsh: answers `--version`, then runs `body` (sh).
+    #[cfg(unix)]
+    fn fake_gmsh(name: &str, body: &str) -> PathBuf {
+        use std::os::unix::fs::PermissionsExt;
+        let dir =
+            std::env::temp_dir().join(format!("baffle-mesh-fake-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("gmsh");
+        let script =
+            format!("#!/bin/sh\nif [ \"$1\" = --version ]; then echo 4.15.2; exit 0; fi\n{body}\n");
+        std::fs::write(&path, script).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+        path
+    }
+
+    fn closed_tet() -> TriMesh {
+        let mut closed = open_box();
+        closed.triangles.push([1, 2, 3]);
+        closed.face_ids.push(2);
+        closed
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn failing_gmsh_is_reported_with_its_log() {
+        let fake = fake_gmsh("fails", "echo 'Error   : No elements in volume 1'; exit 1");
+        let opts = MeshOptions {
+            gmsh_executable: Some(fake),
+            ..Default::default()
+        };
+        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        assert!(
+            err.contains("gmsh exited with") && err.contains("No elements in volume 1"),
+            "{err}"
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn hanging_gmsh_is_stopped_at_the_timeout() {
+        let fake = fake_gmsh("hangs", "sleep 30");
+        let opts = MeshOptions {
+            gmsh_executable: Some(fake),
+            timeout: Duration::from_millis(300),
+            ..Default::default()
+        };
+        let start = std::time::Instant::now();
+        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        assert!(err.contains("did not finish within"), "{err}");
+        assert!(start.elapsed() < Duration::from_secs(10));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn gmsh_output_with_an_inverted_tet_is_rejected() {
+        // The "mesh" gmsh returns is the one tet of the input, inverted (nodes 2 and 3 swapped).
+        let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n\
+                   $Elements\n5\n1 2 2 2 2 1 3 2\n2 2 2 2 2 1 2 4\n3 2 2 2 2 1 4 3\n4 2 2 2 2 2 3 4\n5 4 2 1 1 1 3 2 4\n$EndElements\n";
+        let fake = fake_gmsh(
+            "inverted",
+            &format!("printf '{}' > volume.msh", msh.replace('\n', "\\n")),
+        );
+        let opts = MeshOptions {
+            gmsh_executable: Some(fake),
+            ..Default::default()
+        };
+        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        assert!(err.contains("tet 0") && err.contains("inverted"), "{err}");
+    }
+}

@@ -1,0 +1,386 @@
+//! `.vtu` (VTK XML UnstructuredGrid) I/O with vtkio, face `.vtp` output with baffle-core's
+//! writer, and SimVascular-style `.vtu` + face `.vtp` sets (the paper's published meshes).
+
+use crate::error::MeshError;
+use crate::tetmesh::{tet_signed_volume_mm3, FaceSet, TetMesh};
+use baffle_core::io::{read_polydata, write_vtp, ArrayValues, DataArray, PolyData, MODEL_FACE_ID};
+use baffle_core::Vec3;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, Piece,
+    UnstructuredGridPiece, Version, VertexNumbers, Vtk,
+};
+
+/// SimVascular's point array of 1-based volume node ids on face files.
+pub const GLOBAL_NODE_ID: &str = "GlobalNodeID";
+/// Cell array on face `.vtp` files marking interior (measurement-plane) faces with 1.
+pub const INTERIOR_FACE: &str = "InteriorFace";
+
+/// A `.vtu` as read: the tets (no face sets), and its numeric point and cell arrays.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VtuData {
+    pub mesh: TetMesh,
+    pub point_data: Vec<DataArray>,
+    pub cell_data: Vec<DataArray>,
+}
+
+/// Write `mesh`'s points and tets as `.vtu` (vtkio; Float64 points), with the given
+/// arrays (one tuple per point / per tet). Written via `<path>.tmp.vtu` and renamed.
+pub fn write_vtu(
+    path: &Path,
+    mesh: &TetMesh,
+    point_data: &[DataArray],
+    cell_data: &[DataArray],
+) -> Result<(), MeshError> {
+    check_arrays(path, point_data, mesh.points_mm.len(), "point")?;
+    check_arrays(path, cell_data, mesh.tets.len(), "cell")?;
+    let piece = UnstructuredGridPiece {
+        points: IOBuffer::F64(
+            mesh.points_mm
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect(),
+        ),
+        cells: Cells {
+            cell_verts: VertexNumbers::XML {
+                connectivity: mesh.tets.iter().flatten().map(|&i| u64::from(i)).collect(),
+                offsets: (1..=mesh.tets.len() as u64).map(|k| 4 * k).collect(),
+            },
+            types: vec![CellType::Tetra; mesh.tets.len()],
+        },
+        data: Attributes {
+            point: point_data.iter().map(to_attribute).collect(),
+            cell: cell_data.iter().map(to_attribute).collect(),
+        },
+    };
+    let vtk = Vtk {
+        version: Version::new_xml(1, 0),
+        byte_order: ByteOrder::LittleEndian,
+        title: String::new(),
+        file_path: None,
+        data: DataSet::inline(piece),
+    };
+    let mut bytes = Vec::new();
+    vtk.write_xml(&mut bytes)
+        .map_err(|e| MeshError::file(path, format!("vtkio could not write it: {e}")))?;
+    write_atomic(path, &bytes)
+}
+
+fn check_arrays(
+    path: &Path,
+    arrays: &[DataArray],
+    expected: usize,
+    what: &str,
+) -> Result<(), MeshError> {
+    for a in arrays {
+        if a.values.num_tuples() != expected || a.values.components() == 0 {
+            return Err(MeshError::file(
+                path,
+                format!(
+                    "{what} array '{}' has {} tuples, expected {expected}",
+                    a.name,
+                    a.values.num_tuples()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn to_attribute(a: &DataArray) -> Attribute {
+    match &a.values {
+        ArrayValues::I32(v) => {
+            Attribute::scalars(a.name.clone(), 1).with_data(IOBuffer::I32(v.clone()))
+        }
+        ArrayValues::F64 { components, values } => {
+            Attribute::generic(a.name.clone(), *components as u32)
+                .with_data(IOBuffer::F64(values.clone()))
+        }
+    }
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes)
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            MeshError::file(path, e.to_string())
+        })
+}
+
+/// Write the face sets as one `.vtp` in SimVascular style: the used points with point
+/// array `GlobalNodeID` (1-based volume node ids), cell arrays `ModelFaceID` and
+/// `InteriorFace` (1 on interior measurement planes).
+pub fn write_faces_vtp(path: &Path, mesh: &TetMesh) -> Result<(), MeshError> {
+    let mut used: BTreeMap<u32, u32> = BTreeMap::new();
+    let all = mesh.faces.iter().flat_map(|f| f.triangles.iter().flatten());
+    for &i in all {
+        let next = used.len() as u32;
+        used.entry(i).or_insert(next);
+    }
+    let mut points = vec![Vec3::zeros(); used.len()];
+    let mut global_ids = vec![0i32; used.len()];
+    for (&volume_index, &local) in &used {
+        points[local as usize] = mesh.points_mm[volume_index as usize];
+        global_ids[local as usize] = volume_index as i32 + 1;
+    }
+    let (mut polys, mut ids, mut interior) = (Vec::new(), Vec::new(), Vec::new());
+    for set in &mesh.faces {
+        polys.extend(
+            set.triangles
+                .iter()
+                .map(|t| t.iter().map(|i| used[i]).collect::<Vec<u32>>()),
+        );
+        ids.extend(std::iter::repeat_n(set.id, set.triangles.len()));
+        interior.extend(std::iter::repeat_n(
+            i32::from(set.interior),
+            set.triangles.len(),
+        ));
+    }
+    let data = PolyData {
+        points,
+        polys,
+        lines: Vec::new(),
+        point_data: vec![DataArray::i32(GLOBAL_NODE_ID, global_ids)],
+        cell_data: vec![
+            DataArray::i32(MODEL_FACE_ID, ids),
+            DataArray::i32(INTERIOR_FACE, interior),
+        ],
+    };
+    Ok(write_vtp(path, &data)?)
+}
+
+/// Read a `.vtu` of linear tets with vtkio (coordinates as stored). Any other cell type is
+/// an error naming the cell; a vtkio panic is turned into an error.
+pub fn read_vtu(path: &Path) -> Result<VtuData, MeshError> {
+    let vtk = import_vtk(path)?;
+    let piece = unstructured_piece(path, vtk)?;
+    let points_mm = points_of(path, &piece.points)?;
+    let tets = tets_of(path, piece.cells, points_mm.len())?;
+    let point_data = piece.data.point.iter().filter_map(from_attribute).collect();
+    let cell_data = piece.data.cell.iter().filter_map(from_attribute).collect();
+    Ok(VtuData {
+        mesh: TetMesh {
+            points_mm,
+            tets,
+            faces: Vec::new(),
+        },
+        point_data,
+        cell_data,
+    })
+}
+
+fn import_vtk(path: &Path) -> Result<Vtk, MeshError> {
+    if !path.is_file() {
+        return Err(MeshError::file(path, "file not found"));
+    }
+    let owned = path.to_path_buf();
+    match std::panic::catch_unwind(move || Vtk::import(&owned)) {
+        Ok(Ok(vtk)) => Ok(vtk),
+        Ok(Err(e)) => Err(MeshError::file(
+            path,
+            format!("vtkio could not read it: {e}"),
+        )),
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()));
+            Err(MeshError::file(
+                path,
+                format!("vtkio panicked reading it: {}", msg.unwrap_or_default()),
+            ))
+        }
+    }
+}
+
+fn unstructured_piece(path: &Path, mut vtk: Vtk) -> Result<UnstructuredGridPiece, MeshError> {
+    vtk.load_all_pieces()
+        .map_err(|e| MeshError::file(path, format!("vtkio could not load its pieces: {e}")))?;
+    let DataSet::UnstructuredGrid { mut pieces, .. } = vtk.data else {
+        return Err(MeshError::file(path, "not an UnstructuredGrid"));
+    };
+    if pieces.len() != 1 {
+        return Err(MeshError::file(
+            path,
+            format!("has {} pieces; one is supported", pieces.len()),
+        ));
+    }
+    match pieces.remove(0) {
+        Piece::Inline(p) => Ok(*p),
+        _ => Err(MeshError::file(path, "piece data is not inline")),
+    }
+}
+
+fn points_of(path: &Path, buffer: &IOBuffer) -> Result<Vec<Vec3>, MeshError> {
+    let coords: Vec<f64> = buffer
+        .cast_into()
+        .ok_or_else(|| MeshError::file(path, "points are not numeric"))?;
+    if !coords.len().is_multiple_of(3) {
+        return Err(MeshError::file(
+            path,
+            format!("{} point coordinates is not a multiple of 3", coords.len()),
+        ));
+    }
+    if let Some(k) = coords.iter().position(|c| !c.is_finite()) {
+        return Err(MeshError::file(
+            path,
+            format!("point {} has a non-finite coordinate", k / 3),
+        ));
+    }
+    Ok(coords
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect())
+}
+
+fn tets_of(path: &Path, cells: Cells, num_points: usize) -> Result<Vec<[u32; 4]>, MeshError> {
+    if let Some(c) = cells.types.iter().position(|t| *t != CellType::Tetra) {
+        return Err(MeshError::file(
+            path,
+            format!(
+                "cell {c} is a {:?}; only linear tets are supported",
+                cells.types[c]
+            ),
+        ));
+    }
+    let (connectivity, offsets) = cells.cell_verts.into_xml();
+    if offsets.len() != cells.types.len() || connectivity.len() != 4 * offsets.len() {
+        return Err(MeshError::file(
+            path,
+            "cell connectivity does not hold 4 points per cell",
+        ));
+    }
+    let mut tets = Vec::with_capacity(offsets.len());
+    for (c, chunk) in connectivity.chunks_exact(4).enumerate() {
+        if offsets[c] != 4 * (c as u64 + 1) {
+            return Err(MeshError::file(
+                path,
+                format!(
+                    "cell {c} has offset {}, expected {}",
+                    offsets[c],
+                    4 * (c + 1)
+                ),
+            ));
+        }
+        if let Some(&i) = chunk.iter().find(|&&i| i as usize >= num_points) {
+            return Err(MeshError::file(
+                path,
+                format!("cell {c} refers to point {i}, but there are {num_points}"),
+            ));
+        }
+        tets.push([
+            chunk[0] as u32,
+            chunk[1] as u32,
+            chunk[2] as u32,
+            chunk[3] as u32,
+        ]);
+    }
+    Ok(tets)
+}
+
+fn from_attribute(a: &Attribute) -> Option<DataArray> {
+    let Attribute::DataArray(d) = a else {
+        return None;
+    };
+    let components = d.num_comp();
+    match &d.data {
+        IOBuffer::F32(_) | IOBuffer::F64(_) => {
+            Some(DataArray::f64(&d.name, components, d.data.cast_into()?))
+        }
+        _ if components == 1 => {
+            let values: Vec<i64> = d.data.cast_into()?;
+            let values: Option<Vec<i32>> =
+                values.into_iter().map(|v| i32::try_from(v).ok()).collect();
+            Some(DataArray::i32(&d.name, values?))
+        }
+        _ => Some(DataArray::f64(&d.name, components, d.data.cast_into()?)),
+    }
+}
+
+/// Read a SimVascular-style mesh: `vtu_path` (tets) and `surface_vtp_path` (its boundary
+/// triangles with cell `ModelFaceID` and point `GlobalNodeID` = 1-based volume node id),
+/// coordinates multiplied by `scale_to_mm` (10 for the paper's cm files). Tets are kept
+/// as stored and must be positively oriented; boundary triangles are wound outward.
+pub fn read_simvascular(
+    vtu_path: &Path,
+    surface_vtp_path: &Path,
+    scale_to_mm: f64,
+) -> Result<TetMesh, MeshError> {
+    if !(scale_to_mm.is_finite() && scale_to_mm > 0.0) {
+        return Err(MeshError::InvalidInput(format!(
+            "scale to mm must be positive, got {scale_to_mm}"
+        )));
+    }
+    let mut mesh = read_vtu(vtu_path)?.mesh;
+    mesh.points_mm.iter_mut().for_each(|p| *p *= scale_to_mm);
+    mesh.faces = simvascular_faces(surface_vtp_path, mesh.points_mm.len())?;
+    if let Some(t) =
+        (0..mesh.tets.len()).find(|&t| tet_signed_volume_mm3(&mesh.tet_points(t)) <= 0.0)
+    {
+        return Err(MeshError::file(
+            vtu_path,
+            format!("tet {t} {:?} is inverted or degenerate", mesh.tets[t]),
+        ));
+    }
+    mesh.orient_boundary_outward()?;
+    mesh.validate()?;
+    Ok(mesh)
+}
+
+/// Face sets from a SimVascular surface: triangles mapped to volume nodes via `GlobalNodeID`.
+fn simvascular_faces(path: &Path, num_volume_points: usize) -> Result<Vec<FaceSet>, MeshError> {
+    let surface = read_polydata(path)?;
+    let global = named_i32(path, &surface.point_data, GLOBAL_NODE_ID)?;
+    let labels = named_i32(path, &surface.cell_data, MODEL_FACE_ID)?;
+    let volume_index = |local: u32| -> Result<u32, MeshError> {
+        let id = *global.get(local as usize).ok_or_else(|| {
+            MeshError::file(
+                path,
+                format!("polygon uses point {local} beyond the point array"),
+            )
+        })?;
+        if id < 1 || id as usize > num_volume_points {
+            return Err(MeshError::file(
+                path,
+                format!("point {local} has {GLOBAL_NODE_ID} {id}, outside 1..={num_volume_points}"),
+            ));
+        }
+        Ok(id as u32 - 1)
+    };
+    let mut sets: BTreeMap<i32, Vec<[u32; 3]>> = BTreeMap::new();
+    for (c, poly) in surface.polys.iter().enumerate() {
+        if poly.len() != 3 {
+            return Err(MeshError::file(
+                path,
+                format!("polygon {c} has {} points; triangles expected", poly.len()),
+            ));
+        }
+        let tri = [
+            volume_index(poly[0])?,
+            volume_index(poly[1])?,
+            volume_index(poly[2])?,
+        ];
+        sets.entry(labels[c]).or_default().push(tri);
+    }
+    Ok(sets
+        .into_iter()
+        .map(|(id, triangles)| FaceSet {
+            id,
+            triangles,
+            interior: false,
+        })
+        .collect())
+}
+
+fn named_i32<'a>(path: &Path, arrays: &'a [DataArray], name: &str) -> Result<&'a [i32], MeshError> {
+    arrays
+        .iter()
+        .find(|a| a.name == name)
+        .and_then(|a| a.as_i32())
+        .ok_or_else(|| MeshError::file(path, format!("has no Int32 array '{name}'")))
+}
