@@ -9,6 +9,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+mod mesh_cmd;
+
 #[derive(Parser)]
 #[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]
 struct Cli {
@@ -25,6 +27,8 @@ enum Command {
     /// tangent), sections.vtp (raw and regularized baffle arcs), seam.vtp and
     /// report.json (target, per-section areas and amplitudes, step timings).
     Design(DesignArgs),
+    /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
+    Mesh(mesh_cmd::MeshArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
@@ -139,6 +143,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Design(args) => run_design(&args),
+        Command::Mesh(args) => mesh_cmd::run_mesh(&args),
         Command::Phantom { out } => write_phantom(&out),
     };
     match result {

@@ -88,3 +88,22 @@ fn a_design_without_a_target_says_which_options_give_one() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--bsa"));
     std::fs::remove_dir_all(inputs).ok();
 }
+
+#[test]
+fn the_designed_phantom_domain_meshes_into_tetrahedra() {
+    if std::env::var_os("BAFFLE_SKIP_GMSH").is_some() {
+        eprintln!("note: BAFFLE_SKIP_GMSH set; gmsh meshing not tested");
+        return;
+    }
+    let dir = temp_dir("mesh");
+    assert!(baffle(&["design", "--phantom", "--out", dir.to_str().unwrap()]).status.success());
+    let mesh = dir.join("mesh.vtu");
+    let out = baffle(&["mesh", "--surface", dir.join("domain.vtp").to_str().unwrap(), "--edge-length-mm", "1.25", "--out", mesh.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(mesh.is_file() && dir.join("mesh-faces.vtp").is_file());
+    let quality: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("mesh-quality.json")).unwrap()).unwrap();
+    assert!(quality["tetrahedra"].as_u64().unwrap() > 1000);
+    assert!(quality["min_scaled_jacobian"].as_f64().unwrap() > 0.0, "inverted or flat tetrahedra accepted");
+    std::fs::remove_dir_all(dir).ok();
+}
