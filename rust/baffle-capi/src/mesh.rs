@@ -36,7 +36,7 @@ pub unsafe extern "C" fn baffle_mesh_new(
         *out = std::ptr::null_mut();
         let points = mesh_points(in_slice(points_mm, points_len, "points_mm")?)?;
         let corners = in_slice(triangles, triangles_len, "triangles")?;
-        if triangles_len % 3 != 0 {
+        if !triangles_len.is_multiple_of(3) {
             return Err(CallError::invalid(format!("triangles has {triangles_len} indices, not a multiple of 3")));
         }
         let tris = corners

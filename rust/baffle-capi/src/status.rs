@@ -157,7 +157,7 @@ fn checked_array<T>(ptr: *const T, len: usize, name: &str) -> Result<(), CallErr
 
 /// `len` as a whole number of xyz triples, or an error naming the array.
 pub(crate) fn xyz_count(len: usize, name: &str) -> Result<usize, CallError> {
-    if len % 3 != 0 {
+    if !len.is_multiple_of(3) {
         return Err(CallError::invalid(format!("{name} has {len} values, not a multiple of 3 (x, y, z per point)")));
     }
     Ok(len / 3)

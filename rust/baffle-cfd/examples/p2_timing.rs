@@ -88,6 +88,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if steady_iterations > 0 {
         settings.mode = RunMode::Steady;
         settings.steady_max_iterations = steady_iterations;
+        // Optional overrides for experiments: BAFFLE_CFD_NEWTON_BELOW, BAFFLE_CFD_PSEUDO_DT.
+        let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+        if let Some(v) = env("BAFFLE_CFD_NEWTON_BELOW") {
+            settings.steady_newton_below = v;
+        }
+        if let Some(v) = env("BAFFLE_CFD_PSEUDO_DT") {
+            settings.steady_pseudo_dt_s = v;
+        }
         let summary = simulate(&mesh, &settings, &mut |_, msg| {
             println!("  {msg}");
             true

@@ -173,6 +173,54 @@ impl Assembler {
         Assembler { tets, geometry, positions, parts, part_elements }
     }
 
+    /// Add the Newton term of the Galerkin convection to the velocity blocks of `vals`:
+    /// the derivative of (rho a.grad u, w) with respect to the advecting velocity a,
+    /// evaluated at a = u = `x` with the same one-point (centroid) rule as the Picard
+    /// term: block (a, b) gets rho V/16 grad u (grad u constant on P1). The derivatives
+    /// of the SUPG/PSPG terms and of tau are not included (inexact Newton).
+    pub fn add_convection_jacobian(&self, pattern: &BlockPattern, phys: &Physics, x: &[f64], vals: &mut [f64]) {
+        let block_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
+        let mut val_parts = Vec::new();
+        let mut rest = &mut vals[..];
+        for w in block_bounds.windows(2) {
+            let (h, t) = rest.split_at_mut((w[1] - w[0]) * BB);
+            val_parts.push(h);
+            rest = t;
+        }
+        val_parts.into_par_iter().enumerate().for_each(|(p, vals_p)| {
+            let rows = &self.parts[p];
+            let base = pattern.row_ptr[rows.start];
+            for &e in &self.part_elements[p] {
+                let t = &self.tets[e as usize];
+                let geo = &self.geometry[e as usize];
+                let mut grad_u = [[0.0; 3]; 3];
+                for (a, &n) in t.iter().enumerate() {
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            grad_u[i][j] += x[n as usize * B + i] * geo.grads_per_cm[a][j];
+                        }
+                    }
+                }
+                let c = phys.density_g_cm3 * geo.volume_cm3 / 16.0;
+                let pos = &self.positions[e as usize];
+                for ai in 0..4 {
+                    if !rows.contains(&(t[ai] as usize)) {
+                        continue;
+                    }
+                    for bi in 0..4 {
+                        let k = pos[ai * 4 + bi] as usize - base;
+                        let blk = &mut vals_p[k * BB..(k + 1) * BB];
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                blk[i * B + j] += c * grad_u[i][j];
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    }
+
     /// Assemble K and F into `vals` / `rhs` (overwritten). `a` and `u_old` are nodal
     /// velocities, 4 values per node (u, v, w, p). Each partition owns its rows, so
     /// threads write disjoint memory; elements on partition borders are computed twice.

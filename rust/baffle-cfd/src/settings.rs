@@ -40,6 +40,11 @@ pub struct CaseSettings {
     /// Steady mode: pseudo time step (s) of the pseudo-transient continuation, or
     /// infinite for plain Picard iterations; iterations and residual reduction target.
     pub steady_pseudo_dt_s: f64,
+    /// Cap of the growing pseudo time step (infinite: none).
+    pub steady_pseudo_dt_max_s: f64,
+    /// Steady mode: Newton (convection Jacobian) instead of Picard linearization once
+    /// the relative steady residual is below this value (0: Picard only).
+    pub steady_newton_below: f64,
     pub steady_max_iterations: usize,
     pub steady_tolerance: f64,
 }
@@ -64,6 +69,8 @@ impl CaseSettings {
             gmres_restart: 60,
             max_linear_iterations: 600,
             steady_pseudo_dt_s: 0.01,
+            steady_pseudo_dt_max_s: f64::INFINITY,
+            steady_newton_below: 1e-2,
             steady_max_iterations: 60,
             steady_tolerance: 1e-4,
         }
@@ -78,6 +85,7 @@ impl CaseSettings {
             ("nonlinear tolerance", self.nonlinear_tolerance),
             ("steady tolerance", self.steady_tolerance),
             ("steady pseudo dt", self.steady_pseudo_dt_s),
+            ("steady pseudo dt cap", self.steady_pseudo_dt_max_s),
         ];
         for (name, v) in positive {
             if !(v > 0.0) || v.is_nan() {

@@ -303,19 +303,42 @@ impl<'a> Solver<'a> {
         }
     }
 
-    /// One implicit step: Picard iterations in defect-correction form
-    /// K(x_k) dx = F - K(x_k) x_k, x_{k+1} = x_k + dx.
-    fn step(&mut self, phys: &Physics, x: &mut [f64], x_old: &[f64], max_iterations: usize, tol: f64, step: usize, time_s: f64) -> Result<StepStats, CfdError> {
+    /// One implicit step: Picard (or Newton) iterations in defect-correction form
+    /// J(x_k) dx = F - K(x_k) x_k, x_{k+1} = x_k + dx, with J = K (Picard) or K plus
+    /// the convection Jacobian (Newton). With `check_last` false the step ends right
+    /// after the last allowed solve, without assembling again to check the residual
+    /// (the semi-implicit transient: one solve per step); `residual` is then the
+    /// relative residual of that linear solve.
+    #[allow(clippy::too_many_arguments)]
+    fn step(
+        &mut self,
+        phys: &Physics,
+        x: &mut [f64],
+        x_old: &[f64],
+        max_iterations: usize,
+        tol: f64,
+        newton: bool,
+        check_last: bool,
+        step: usize,
+        time_s: f64,
+    ) -> Result<StepStats, CfdError> {
         let n = x.len();
         let mut r = vec![0.0; n];
         let mut dx = vec![0.0; n];
         let mut stats = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0 };
         for it in 0..=max_iterations {
+            if it == max_iterations && !check_last && it > 0 {
+                break;
+            }
             let t0 = Instant::now();
             self.problem.assembler.assemble(&self.problem.pattern, phys, x, x_old, &mut self.vals, &mut self.rhs);
             self.add_backflow(x);
             Self::apply_operator(&self.problem, &self.vals, x, &mut r);
             r.iter_mut().zip(&self.rhs).for_each(|(ri, fi)| *ri = fi - *ri);
+            let will_solve = it < max_iterations;
+            if newton && will_solve {
+                self.problem.assembler.add_convection_jacobian(&self.problem.pattern, phys, x, &mut self.vals);
+            }
             self.apply_dirichlet_rows(&mut r);
             self.timings.assembly_s += t0.elapsed().as_secs_f64();
             let res = crate::sparse::norm(&r);
@@ -354,6 +377,9 @@ impl<'a> Solver<'a> {
                 return Err(CfdError::LinearSolver { step, time_s, iterations: out.iterations, residual: out.relative_residual });
             }
             crate::sparse::axpy(1.0, &dx, x);
+            if !check_last && it + 1 == max_iterations {
+                stats.residual = out.relative_residual;
+            }
         }
         Ok(stats)
     }
@@ -419,13 +445,20 @@ impl<'a> Solver<'a> {
         let n_steps = (s.cycles as f64 * s.inflow.period_s() / s.dt_s).round() as usize;
         let phys = self.physics(false, s.dt_s);
         let mut x = vec![0.0; self.problem.order.len() * B];
+        let mut x_prev = x.clone();
         let mut results = Vec::with_capacity(n_steps);
+        let semi_implicit = s.max_nonlinear_iterations == 1;
         for step in 1..=n_steps {
             let time_s = step as f64 * s.dt_s;
             let q_in = s.inflow.flow_ml_s(time_s);
             let x_old = x.clone();
+            // Initial guess (and, semi-implicit, the convection velocity): linear
+            // extrapolation 2 x_n - x_(n-1), second-order accurate in dt.
+            x.iter_mut().zip(&x_prev).for_each(|(xi, pi)| *xi = 2.0 * *xi - pi);
+            x_prev.copy_from_slice(&x_old);
             self.set_inflow(&mut x, q_in);
-            let stats = self.step(&phys, &mut x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, step, time_s)?;
+            let stats =
+                self.step(&phys, &mut x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, step, time_s)?;
             let result = self.step_result(&x, step, time_s, q_in, &stats)?;
             let msg = format!(
                 "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.1} cm/s picard={} gmres={}",
@@ -439,24 +472,33 @@ impl<'a> Solver<'a> {
         Ok((results, x, true))
     }
 
-    /// Steady solve by pseudo-transient continuation: one Picard iteration per pseudo
-    /// step of `steady_pseudo_dt_s` (infinite: plain Picard). At the start of each
-    /// pseudo step the time terms cancel, so the residual checked is the steady one.
+    /// Steady solve by pseudo-transient continuation: one Picard or Newton iteration
+    /// per pseudo step. The pseudo step starts at `steady_pseudo_dt_s` (infinite: plain
+    /// Picard/Newton) and grows by switched evolution relaxation (Mulder and van Leer
+    /// 1985), dt_k = dt_0 r_0 / r_k, capped at `steady_pseudo_dt_max_s`, so the
+    /// iteration becomes plain Newton near convergence. At the start of each pseudo
+    /// step the time terms cancel, so the residual checked is the steady one.
     fn steady(&mut self, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(Vec<StepResult>, Vec<f64>, bool), CfdError> {
         let s = self.settings;
         let (q_peak, t_peak) = s.inflow.peak();
-        let phys = self.physics(true, s.steady_pseudo_dt_s);
         let mut x = vec![0.0; self.problem.order.len() * B];
         self.set_inflow(&mut x, q_peak);
         let mut first_residual = None;
         let mut converged = false;
+        let mut pseudo_dt = s.steady_pseudo_dt_s;
+        let mut newton = false;
         let mut stats = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0 };
         for it in 1..=s.steady_max_iterations + 1 {
             let x_old = x.clone();
             let last = it > s.steady_max_iterations;
-            let step_stats = self.step(&phys, &mut x, &x_old, usize::from(!last), 1.0, it, t_peak)?;
+            let phys = self.physics(true, pseudo_dt);
+            let step_stats = self.step(&phys, &mut x, &x_old, usize::from(!last), 1.0, newton, false, it, t_peak)?;
             let reference = *first_residual.get_or_insert(step_stats.initial_residual);
             let rel = if reference > 0.0 { step_stats.initial_residual / reference } else { 0.0 };
+            if rel > 0.0 {
+                pseudo_dt = (s.steady_pseudo_dt_s / rel).min(s.steady_pseudo_dt_max_s);
+            }
+            newton = rel < s.steady_newton_below;
             stats.nonlinear_iterations += step_stats.nonlinear_iterations;
             stats.linear_iterations += step_stats.linear_iterations;
             stats.residual = rel;
@@ -468,7 +510,8 @@ impl<'a> Solver<'a> {
             if last {
                 break;
             }
-            let msg = format!("steady iteration {it}: residual {rel:.2e}, gmres {}", step_stats.linear_iterations);
+            let kind = if newton { "Newton" } else { "Picard" };
+            let msg = format!("steady iteration {it}: residual {rel:.2e}, gmres {}, next: {kind}, pseudo dt {pseudo_dt:.3e} s", step_stats.linear_iterations);
             if !progress(it as f64 / s.steady_max_iterations as f64, &msg) {
                 return Err(CfdError::Cancelled { time_s: t_peak });
             }

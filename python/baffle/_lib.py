@@ -1,0 +1,151 @@
+"""Loads libbaffle with ctypes and declares the C ABI's signatures (baffle.h)."""
+
+import ctypes
+import os
+import sys
+from ctypes import POINTER, c_char_p, c_double, c_int, c_int32, c_int64, c_size_t, c_uint32, c_void_p
+from pathlib import Path
+
+# The header's BAFFLE_ABI_VERSION this module was written against.
+ABI_VERSION = 1
+
+# BaffleStatus values.
+STATUS_OK = 0
+STATUS_CANCELLED = 7
+FRAMES = {"LPS": 0, "RAS": 1}
+TARGET_KINDS = {"area_mm2": 0, "annulus_diameter_mm": 1, "bsa": 2, "height_weight": 3}
+
+
+class BaffleError(RuntimeError):
+    """A failed library call: `status` is the BaffleStatus code, str() the library's message."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status = status
+
+
+class Cancelled(BaffleError):
+    """The progress callback asked to stop."""
+
+
+def _library_name() -> str:
+    if sys.platform == "win32":
+        return "baffle.dll"
+    if sys.platform == "darwin":
+        return "libbaffle.dylib"
+    return "libbaffle.so"
+
+
+def _library_path() -> Path:
+    """BAFFLE_LIBRARY, else the copy installed with the package, else a development
+    tree's cargo build (python/baffle -> ../../target/release)."""
+    given = os.environ.get("BAFFLE_LIBRARY")
+    if given:
+        return Path(given)
+    here = Path(__file__).resolve().parent
+    candidates = [here / _library_name(), here.parent.parent / "target" / "release" / _library_name()]
+    for candidate in candidates:
+        if candidate.exists():
+            return candidate
+    raise ImportError(
+        "baffle: shared library not found (looked at %s); reinstall with `pip install ./python` "
+        "or set BAFFLE_LIBRARY" % ", ".join(str(c) for c in candidates)
+    )
+
+
+class DesignOptions(ctypes.Structure):
+    """BaffleDesignOptions, field for field."""
+
+    _fields_ = [
+        ("struct_size", c_uint32),
+        ("target_kind", c_int32),
+        ("target_area_mm2", c_double),
+        ("annulus_diameter_mm", c_double),
+        ("bsa_m2", c_double),
+        ("height_cm", c_double),
+        ("weight_kg", c_double),
+        ("z_score", c_double),
+        ("wall_label", c_int32),
+        ("baffle_label", c_int32),
+        ("vsd_cap_label", c_int32),
+        ("aortic_cap_label", c_int32),
+        ("seam_samples", c_uint32),
+        ("interior_control_points", c_uint32),
+        ("max_correction_rounds", c_uint32),
+        ("remesh", c_int32),
+        ("max_point_distance_mm", c_double),
+        ("remesh_edge_mm", c_double),
+        ("baffle_edge_mm", c_double),
+        ("centerline_spacing_mm", c_double),
+        ("area_margin", c_double),
+        ("max_wall_fraction", c_double),
+        ("tps_regularization", c_double),
+    ]
+
+
+PROGRESS = ctypes.CFUNCTYPE(c_int32, c_double, c_char_p, c_void_p)
+
+_D, _I64, _I32, _SZ = POINTER(c_double), POINTER(c_int64), POINTER(c_int32), POINTER(c_size_t)
+_SIGNATURES = {
+    "baffle_version": ([], c_char_p),
+    "baffle_abi_version": ([], c_uint32),
+    "baffle_last_error": ([], c_char_p),
+    "baffle_free": ([c_void_p], None),
+    "baffle_design_options_init": ([c_void_p], c_int),
+    "baffle_mesh_new": ([_D, c_size_t, _I64, c_size_t, _I32, c_size_t, POINTER(c_void_p)], c_int),
+    "baffle_mesh_free": ([c_void_p], None),
+    "baffle_mesh_point_count": ([c_void_p, _SZ], c_int),
+    "baffle_mesh_triangle_count": ([c_void_p, _SZ], c_int),
+    "baffle_mesh_copy_points": ([c_void_p, _D, c_size_t], c_int),
+    "baffle_mesh_copy_triangles": ([c_void_p, _I64, c_size_t], c_int),
+    "baffle_mesh_copy_labels": ([c_void_p, _I32, c_size_t], c_int),
+    "baffle_design": ([c_void_p, _D, c_size_t, POINTER(DesignOptions), PROGRESS, c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_result_free": ([c_void_p], None),
+    "baffle_result_domain": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_result_baffle": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_result_report_json": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_result_centerline_count": ([c_void_p, _SZ], c_int),
+    "baffle_result_copy_centerline": ([c_void_p, _D, _D, _D, c_size_t], c_int),
+    "baffle_result_seam_count": ([c_void_p, _SZ], c_int),
+    "baffle_result_copy_seam": ([c_void_p, _D, c_size_t], c_int),
+    "baffle_phantom": ([POINTER(c_void_p), POINTER(_D), _SZ, _D], c_int),
+    "baffle_read_suture_points": ([c_char_p, c_int32, POINTER(_D), _SZ], c_int),
+}
+
+
+def _load() -> ctypes.CDLL:
+    lib = ctypes.CDLL(str(_library_path()))
+    for name, (argtypes, restype) in _SIGNATURES.items():
+        function = getattr(lib, name)
+        function.argtypes = argtypes
+        function.restype = restype
+    if lib.baffle_abi_version() != ABI_VERSION:
+        raise ImportError(f"libbaffle has ABI {lib.baffle_abi_version()}, this package expects {ABI_VERSION}")
+    return lib
+
+
+lib = _load()
+
+
+def check(status: int) -> None:
+    """Raise the library's error for a non-OK status."""
+    if status == STATUS_OK:
+        return
+    message = lib.baffle_last_error().decode("utf-8", "replace")
+    raise (Cancelled if status == STATUS_CANCELLED else BaffleError)(status, message)
+
+
+def version() -> str:
+    """The shared library's version."""
+    return lib.baffle_version().decode()
+
+
+def default_options() -> DesignOptions:
+    """Defaults from the library, after checking it fills a struct of our size
+    (into a generous scratch buffer, so a mismatch cannot overrun memory)."""
+    scratch = ctypes.create_string_buffer(4096)
+    check(lib.baffle_design_options_init(ctypes.cast(scratch, c_void_p)))
+    size = c_uint32.from_buffer(scratch).value
+    if size != ctypes.sizeof(DesignOptions):
+        raise BaffleError(4, f"libbaffle's options struct has {size} bytes, this package knows {ctypes.sizeof(DesignOptions)}")
+    return DesignOptions.from_buffer_copy(scratch.raw[:size])

@@ -1,0 +1,66 @@
+"""Builds the C ABI (cargo build --release -p baffle-capi) and ships the shared
+library inside the package, so `pip install ./python` gives a working `import baffle`.
+
+The cargo target directory is $CARGO_TARGET_DIR or the repository's ./target (shared
+with `cargo test` and CMake, so nothing is compiled twice). Set BAFFLE_LIBRARY to an
+existing libbaffle to skip the cargo build (it is then copied instead)."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from setuptools import setup
+from setuptools.command.build_py import build_py
+from setuptools.dist import Distribution
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+
+
+def library_name() -> str:
+    if sys.platform == "win32":
+        return "baffle.dll"
+    if sys.platform == "darwin":
+        return "libbaffle.dylib"
+    return "libbaffle.so"
+
+
+def cargo_built_library() -> Path:
+    if not (REPO / "Cargo.toml").exists():
+        sys.exit(f"baffle: no Cargo workspace at {REPO}; build from the repository or set BAFFLE_LIBRARY")
+    target_dir = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
+    command = ["cargo", "build", "--release", "-p", "baffle-capi", "--target-dir", str(target_dir)]
+    print("baffle:", " ".join(command), flush=True)
+    subprocess.run(command, cwd=REPO, check=True)
+    return target_dir / "release" / library_name()
+
+
+class BuildWithLibrary(build_py):
+    """build_py that also puts the shared library next to the Python modules."""
+
+    def run(self):
+        super().run()
+        given = os.environ.get("BAFFLE_LIBRARY")
+        library = Path(given) if given else cargo_built_library()
+        destination = Path(self.build_lib) / "baffle" / library_name()
+        destination.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(library, destination)
+
+
+class BinaryDistribution(Distribution):
+    """The wheel holds a native library, so it is tagged for this platform."""
+
+    def has_ext_modules(self):
+        return True
+
+
+# Build outside the source tree (pip builds in place): the repository ignores /target.
+BUILD_BASE = REPO / "target" / "python-build" if (REPO / "Cargo.toml").exists() else HERE / "build"
+
+setup(
+    cmdclass={"build_py": BuildWithLibrary},
+    distclass=BinaryDistribution,
+    options={"build": {"build_base": str(BUILD_BASE)}, "bdist_wheel": {"bdist_dir": str(BUILD_BASE / "bdist")}},
+)

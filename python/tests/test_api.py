@@ -1,0 +1,125 @@
+"""The Python API without VTK: errors become exceptions with the library's
+message, cancellation from the progress callback, markups reading."""
+
+import ctypes
+import json
+
+import numpy as np
+import pytest
+
+import baffle
+from baffle import _lib
+
+
+@pytest.fixture(scope="module")
+def phantom():
+    return baffle.phantom()
+
+
+def test_versions():
+    assert baffle.version() == baffle.__version__
+    assert _lib.lib.baffle_abi_version() == baffle.ABI_VERSION
+
+
+def test_null_pointer_is_an_error_code():
+    count = ctypes.c_size_t()
+    assert _lib.lib.baffle_mesh_point_count(None, ctypes.byref(count)) == 1
+    assert _lib.lib.baffle_last_error() == b"mesh is NULL"
+
+
+def test_open_mesh_is_rejected(phantom):
+    surface, points, bsa_m2 = phantom
+    with pytest.raises(baffle.BaffleError, match="not a closed manifold") as error:
+        baffle.design(surface.points, surface.triangles[1:], surface.labels[1:], points, bsa_m2=bsa_m2)
+    assert error.value.status == 5
+
+
+def test_too_few_points_are_rejected(phantom):
+    surface, points, bsa_m2 = phantom
+    with pytest.raises(baffle.BaffleError, match="at least 4"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points[:2], bsa_m2=bsa_m2)
+
+
+def test_bad_arrays_are_rejected(phantom):
+    surface, points, bsa_m2 = phantom
+    nan_points = surface.points.copy()
+    nan_points[3, 1] = np.nan
+    with pytest.raises(baffle.BaffleError, match="point 3 has a non-finite coordinate"):
+        baffle.design(nan_points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2)
+    far = surface.triangles.copy()
+    far[7, 2] = len(surface.points)
+    with pytest.raises(baffle.BaffleError, match="triangle 7 refers to point"):
+        baffle.design(surface.points, far, surface.labels, points, bsa_m2=bsa_m2)
+    with pytest.raises(ValueError, match="exactly one target"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points)
+    with pytest.raises(TypeError, match="unknown design option"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, seam_sample=3)
+
+
+def test_progress_false_cancels(phantom):
+    surface, points, bsa_m2 = phantom
+    seen = []
+
+    def stop_at_sections(fraction, stage):
+        seen.append((fraction, stage))
+        return stage != "sections"
+
+    with pytest.raises(baffle.Cancelled, match="cancelled during sections"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, progress=stop_at_sections)
+    assert seen[0][1] == "validate" and seen[-1][1] == "sections"
+    assert [f for f, _ in seen] == sorted(f for f, _ in seen)
+
+
+def test_callback_exception_reaches_the_caller(phantom):
+    surface, points, bsa_m2 = phantom
+
+    def broken(fraction, stage):
+        raise KeyError("from the callback")
+
+    with pytest.raises(KeyError, match="from the callback"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, progress=broken)
+
+
+def test_phantom_design_with_progress(phantom):
+    surface, points, bsa_m2 = phantom
+    fractions = []
+    result = baffle.design(
+        surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2,
+        progress=lambda fraction, stage: fractions.append(fraction),
+    )
+    assert fractions[0] == 0.0 and fractions[-1] == 1.0
+    assert all(s["final_area_mm2"] >= result.target_area_mm2 for s in result.constrained_sections)
+    assert result.domain.triangles.shape == (result.report["domain_triangles"], 3)
+
+
+def write_markups(path, frame, points):
+    document = {
+        "markups": [
+            {
+                "type": "ClosedCurve",
+                "coordinateSystem": frame,
+                "controlPoints": [{"position": list(p), "positionStatus": "defined"} for p in points]
+                + [{"position": [0, 0, 0], "positionStatus": "undefined"}],
+            }
+        ]
+    }
+    path.write_text(json.dumps(document))
+
+
+def read_with_library(path, frame):
+    points, length = ctypes.POINTER(ctypes.c_double)(), ctypes.c_size_t()
+    _lib.check(_lib.lib.baffle_read_suture_points(str(path).encode(), _lib.FRAMES[frame], ctypes.byref(points), ctypes.byref(length)))
+    try:
+        return np.ctypeslib.as_array(points, shape=(length.value,)).reshape(-1, 3).copy()
+    finally:
+        _lib.lib.baffle_free(ctypes.cast(points, ctypes.c_void_p))
+
+
+def test_markups_ras_points_are_converted_like_the_library(tmp_path):
+    ras = np.array([[1.0, 2.0, 3.0], [-4.0, 5.5, 6.0]])
+    path = tmp_path / "points.mrk.json"
+    write_markups(path, "RAS", ras)
+    lps = baffle.read_markups(path, frame="LPS")
+    np.testing.assert_array_equal(lps, ras * [-1, -1, 1])
+    np.testing.assert_array_equal(baffle.read_markups(path, frame="RAS"), ras)
+    np.testing.assert_array_equal(lps, read_with_library(path, "LPS"))

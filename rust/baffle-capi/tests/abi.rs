@@ -1,0 +1,303 @@
+//! The C ABI called as C would call it: argument errors become status codes with
+//! messages, the phantom design round-trips through the getters, cancellation and
+//! concurrent calls work.
+
+use baffle::*;
+use std::ffi::{c_char, c_void, CStr};
+use std::ptr::{null, null_mut};
+
+fn last_error() -> String {
+    unsafe { CStr::from_ptr(baffle_last_error()) }.to_string_lossy().into_owned()
+}
+
+/// A unit tetrahedron, labelled so each cap label is present.
+fn tetra() -> (Vec<f64>, Vec<i64>, Vec<i32>) {
+    let points = vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let tris = vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
+    (points, tris, vec![2, 2, 11, 16])
+}
+
+fn new_mesh(points: &[f64], tris: &[i64], labels: &[i32]) -> (BaffleStatus, *mut BaffleMesh) {
+    let mut mesh = null_mut();
+    let status = unsafe {
+        baffle_mesh_new(points.as_ptr(), points.len(), tris.as_ptr(), tris.len(), labels.as_ptr(), labels.len(), &mut mesh)
+    };
+    (status, mesh)
+}
+
+struct Phantom {
+    surface: *mut BaffleMesh,
+    points: Vec<f64>,
+    bsa_m2: f64,
+}
+
+impl Drop for Phantom {
+    fn drop(&mut self) {
+        unsafe { baffle_mesh_free(self.surface) };
+    }
+}
+
+fn phantom() -> Phantom {
+    let (mut surface, mut points, mut len, mut bsa_m2) = (null_mut(), null_mut(), 0usize, 0.0);
+    assert_eq!(unsafe { baffle_phantom(&mut surface, &mut points, &mut len, &mut bsa_m2) }, BaffleStatus::Ok);
+    let copy = unsafe { std::slice::from_raw_parts(points, len) }.to_vec();
+    unsafe { baffle_free(points.cast()) };
+    Phantom { surface, points: copy, bsa_m2 }
+}
+
+fn bsa_options(bsa_m2: f64) -> BaffleDesignOptions {
+    let mut options = std::mem::MaybeUninit::<BaffleDesignOptions>::uninit();
+    assert_eq!(unsafe { baffle_design_options_init(options.as_mut_ptr()) }, BaffleStatus::Ok);
+    let mut options = unsafe { options.assume_init() };
+    options.target_kind = BaffleTargetKind::Bsa as i32;
+    options.bsa_m2 = bsa_m2;
+    options
+}
+
+fn run_design(p: &Phantom, options: &BaffleDesignOptions, progress: BaffleProgressFn, user: *mut c_void) -> (BaffleStatus, *mut BaffleResult) {
+    design_with_points(p.surface, &p.points, options, progress, user)
+}
+
+fn design_with_points(
+    surface: *const BaffleMesh,
+    points: &[f64],
+    options: &BaffleDesignOptions,
+    progress: BaffleProgressFn,
+    user: *mut c_void,
+) -> (BaffleStatus, *mut BaffleResult) {
+    let mut result = null_mut();
+    let status = unsafe { baffle_design(surface, points.as_ptr(), points.len(), options, progress, user, &mut result) };
+    (status, result)
+}
+
+#[test]
+fn versions_are_reported() {
+    assert_eq!(baffle_abi_version(), BAFFLE_ABI_VERSION);
+    let version = unsafe { CStr::from_ptr(baffle_version()) }.to_str().unwrap();
+    assert_eq!(version, env!("CARGO_PKG_VERSION"));
+}
+
+#[test]
+fn mesh_round_trips_through_plain_and_vtk_layouts() {
+    let (points, tris, labels) = tetra();
+    let (status, mesh) = new_mesh(&points, &tris, &labels);
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    let offsets = [0i64, 3, 6, 9, 12];
+    let mut vtk = null_mut();
+    let status = unsafe {
+        baffle_mesh_new_vtk(points.as_ptr(), 12, offsets.as_ptr(), 5, tris.as_ptr(), 12, labels.as_ptr(), 4, &mut vtk)
+    };
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    for handle in [mesh, vtk] {
+        let (mut np, mut nt) = (0, 0);
+        unsafe {
+            assert_eq!(baffle_mesh_point_count(handle, &mut np), BaffleStatus::Ok);
+            assert_eq!(baffle_mesh_triangle_count(handle, &mut nt), BaffleStatus::Ok);
+        }
+        assert_eq!((np, nt), (4, 4));
+        let (mut p, mut t, mut l) = (vec![0.0; 12], vec![0i64; 12], vec![0i32; 4]);
+        unsafe {
+            assert_eq!(baffle_mesh_copy_points(handle, p.as_mut_ptr(), p.len()), BaffleStatus::Ok);
+            assert_eq!(baffle_mesh_copy_triangles(handle, t.as_mut_ptr(), t.len()), BaffleStatus::Ok);
+            assert_eq!(baffle_mesh_copy_labels(handle, l.as_mut_ptr(), l.len()), BaffleStatus::Ok);
+            baffle_mesh_free(handle);
+        }
+        assert_eq!((p, t, l), (points.clone(), tris.clone(), labels.clone()));
+    }
+}
+
+#[test]
+fn malformed_meshes_are_rejected_with_a_message() {
+    let (points, tris, labels) = tetra();
+    let mut nan_points = points.clone();
+    nan_points[4] = f64::NAN;
+    let mut far_tris = tris.clone();
+    far_tris[5] = 4;
+    let mut negative_tris = tris.clone();
+    negative_tris[0] = -1;
+    type Case<'a> = (&'a [f64], &'a [i64], &'a [i32], &'a str);
+    let cases: [Case; 5] = [
+        (&nan_points, &tris, &labels, "point 1 has a non-finite coordinate"),
+        (&points, &far_tris, &labels, "triangle 1 refers to point 4"),
+        (&points, &negative_tris, &labels, "triangle 0 refers to point -1"),
+        (&points[..11], &tris, &labels, "not a multiple of 3"),
+        (&points, &tris, &labels[..3], "3 labels for 4 triangles"),
+    ];
+    for (p, t, l, expected) in cases {
+        let (status, mesh) = new_mesh(p, t, l);
+        assert_eq!(status, BaffleStatus::InvalidArgument);
+        assert!(mesh.is_null());
+        assert!(last_error().contains(expected), "{:?} lacks {expected:?}", last_error());
+    }
+}
+
+#[test]
+fn non_triangle_vtk_cells_are_rejected() {
+    let (points, tris, labels) = tetra();
+    let offsets = [0i64, 4, 6, 9, 12];
+    let mut mesh = null_mut();
+    let status = unsafe {
+        baffle_mesh_new_vtk(points.as_ptr(), 12, offsets.as_ptr(), 5, tris.as_ptr(), 12, labels.as_ptr(), 4, &mut mesh)
+    };
+    assert_eq!(status, BaffleStatus::InvalidArgument);
+    assert!(last_error().contains("cell 0 has 4 points"), "{}", last_error());
+}
+
+#[test]
+fn null_pointers_are_errors_not_crashes() {
+    let (points, tris, labels) = tetra();
+    let mut mesh = null_mut();
+    let status = unsafe { baffle_mesh_new(null(), 12, tris.as_ptr(), 12, labels.as_ptr(), 4, &mut mesh) };
+    assert_eq!(status, BaffleStatus::NullPointer);
+    assert_eq!(last_error(), "points_mm is NULL");
+    let status = unsafe { baffle_mesh_new(points.as_ptr(), 12, tris.as_ptr(), 12, labels.as_ptr(), 4, null_mut()) };
+    assert_eq!(status, BaffleStatus::NullPointer);
+    let mut count = 0;
+    assert_eq!(unsafe { baffle_mesh_point_count(null(), &mut count) }, BaffleStatus::NullPointer);
+    assert_eq!(last_error(), "mesh is NULL");
+    let options = bsa_options(0.37);
+    let mut result = null_mut();
+    let status = unsafe { baffle_design(null(), points.as_ptr(), 12, &options, None, null_mut(), &mut result) };
+    assert_eq!(status, BaffleStatus::NullPointer);
+    assert!(result.is_null());
+    assert_eq!(unsafe { baffle_design_options_init(null_mut()) }, BaffleStatus::NullPointer);
+    unsafe {
+        baffle_mesh_free(null_mut());
+        baffle_result_free(null_mut());
+        baffle_free(null_mut());
+    }
+}
+
+#[test]
+fn open_surface_and_too_few_points_are_invalid_input() {
+    let (points, tris, labels) = tetra();
+    // Dropping one wall triangle leaves a hole but every label present.
+    let (status, open) = new_mesh(&points, &tris[3..], &labels[1..]);
+    assert_eq!(status, BaffleStatus::Ok);
+    let options = bsa_options(0.37);
+    let mut result = null_mut();
+    let status = unsafe { baffle_design(open, points.as_ptr(), 12, &options, None, null_mut(), &mut result) };
+    assert_eq!(status, BaffleStatus::InvalidInput, "{}", last_error());
+    assert!(last_error().contains("not a closed manifold"), "{}", last_error());
+    unsafe { baffle_mesh_free(open) };
+
+    let p = phantom();
+    let (status, result) = design_with_points(p.surface, &p.points[..6], &options, None, null_mut());
+    assert_eq!(status, BaffleStatus::InvalidInput, "{}", last_error());
+    assert!(result.is_null());
+    assert!(last_error().starts_with("suture points:"), "{}", last_error());
+}
+
+#[test]
+fn options_are_checked() {
+    let p = phantom();
+    let mut options = bsa_options(p.bsa_m2);
+    options.struct_size = 8;
+    assert_eq!(run_design(&p, &options, None, null_mut()).0, BaffleStatus::UnsupportedVersion);
+    let mut options = bsa_options(p.bsa_m2);
+    options.seam_samples = 0;
+    assert_eq!(run_design(&p, &options, None, null_mut()).0, BaffleStatus::InvalidArgument);
+    assert!(last_error().contains("seam_samples"), "{}", last_error());
+    let mut options = bsa_options(p.bsa_m2);
+    options.target_kind = 42;
+    assert_eq!(run_design(&p, &options, None, null_mut()).0, BaffleStatus::InvalidArgument);
+    let options = bsa_options(f64::NAN);
+    assert_eq!(run_design(&p, &options, None, null_mut()).0, BaffleStatus::InvalidInput);
+    assert!(last_error().contains("target area"), "{}", last_error());
+}
+
+fn report(result: *const BaffleResult) -> serde_json::Value {
+    let mut json: *mut c_char = null_mut();
+    assert_eq!(unsafe { baffle_result_report_json(result, &mut json) }, BaffleStatus::Ok);
+    let text = unsafe { CStr::from_ptr(json) }.to_str().unwrap().to_owned();
+    unsafe { baffle_free(json.cast()) };
+    serde_json::from_str(&text).unwrap()
+}
+
+#[test]
+fn phantom_design_results_are_copied_out() {
+    let p = phantom();
+    let (status, result) = run_design(&p, &bsa_options(p.bsa_m2), None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    let report = report(result);
+    let mut target = 0.0;
+    assert_eq!(unsafe { baffle_result_target_area_mm2(result, &mut target) }, BaffleStatus::Ok);
+    assert_eq!(report["target_area_mm2"].as_f64(), Some(target));
+
+    let mut n = 0;
+    assert_eq!(unsafe { baffle_result_section_count(result, &mut n) }, BaffleStatus::Ok);
+    let (mut s, mut o, mut nn, mut c, mut a) = (vec![0.0; n], vec![0.0; 3 * n], vec![0.0; 3 * n], vec![0; n], vec![0.0; n]);
+    let status = unsafe {
+        baffle_result_copy_sections(result, s.as_mut_ptr(), o.as_mut_ptr(), nn.as_mut_ptr(), c.as_mut_ptr(), a.as_mut_ptr(), n)
+    };
+    assert_eq!(status, BaffleStatus::Ok);
+    assert_eq!(c.iter().sum::<i32>() as u64, report["constrained_sections"].as_u64().unwrap());
+    for k in (0..n).filter(|&k| c[k] == 1) {
+        assert!(a[k] >= target, "section {k} at s = {} mm has {} < {target} mm2", s[k], a[k]);
+    }
+
+    let mut samples = 0;
+    assert_eq!(unsafe { baffle_result_centerline_count(result, &mut samples) }, BaffleStatus::Ok);
+    assert_eq!(samples, n, "one section per centerline sample");
+    let (mut pts, mut tan, mut s_mm) = (vec![0.0; 3 * n], vec![0.0; 3 * n], vec![0.0; n]);
+    let status = unsafe { baffle_result_copy_centerline(result, pts.as_mut_ptr(), tan.as_mut_ptr(), s_mm.as_mut_ptr(), n) };
+    assert_eq!(status, BaffleStatus::Ok);
+    assert_eq!((pts, s_mm), (o, s));
+
+    let mut domain = null_mut();
+    assert_eq!(unsafe { baffle_result_domain(result, &mut domain) }, BaffleStatus::Ok);
+    let mut triangles = 0;
+    unsafe { baffle_mesh_triangle_count(domain, &mut triangles) };
+    assert_eq!(Some(triangles as u64), report["domain_triangles"].as_u64());
+    unsafe {
+        baffle_mesh_free(domain);
+        baffle_result_free(result);
+    }
+}
+
+#[test]
+fn small_buffers_are_reported_not_overrun() {
+    let p = phantom();
+    let mut buffer = [0.0f64; 6];
+    assert_eq!(unsafe { baffle_mesh_copy_points(p.surface, buffer.as_mut_ptr(), buffer.len()) }, BaffleStatus::BufferTooSmall);
+    assert!(last_error().contains("holds 6 elements"), "{}", last_error());
+}
+
+unsafe extern "C" fn stop_at_sections(fraction: f64, stage: *const c_char, user: *mut c_void) -> i32 {
+    let seen = &mut *(user as *mut Vec<(f64, String)>);
+    seen.push((fraction, CStr::from_ptr(stage).to_string_lossy().into_owned()));
+    i32::from(seen.last().unwrap().1 != "sections")
+}
+
+#[test]
+fn progress_callback_cancels() {
+    let p = phantom();
+    let mut seen: Vec<(f64, String)> = Vec::new();
+    let user = &mut seen as *mut Vec<(f64, String)> as *mut c_void;
+    let (status, result) = run_design(&p, &bsa_options(p.bsa_m2), Some(stop_at_sections), user);
+    assert_eq!(status, BaffleStatus::Cancelled);
+    assert!(result.is_null());
+    assert_eq!(last_error(), "cancelled during sections");
+    assert_eq!(seen.first().map(|s| s.1.as_str()), Some("validate"));
+    assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "fractions increase: {seen:?}");
+}
+
+#[test]
+fn designs_run_concurrently_on_separate_handles() {
+    let areas: Vec<f64> = std::thread::scope(|scope| {
+        let jobs: Vec<_> = (0..2)
+            .map(|_| {
+                scope.spawn(|| {
+                    let p = phantom();
+                    let (status, result) = run_design(&p, &bsa_options(p.bsa_m2), None, null_mut());
+                    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+                    let area = report(result)["baffle_area_mm2"].as_f64().unwrap();
+                    unsafe { baffle_result_free(result) };
+                    area
+                })
+            })
+            .collect();
+        jobs.into_iter().map(|j| j.join().unwrap()).collect()
+    });
+    assert_eq!(areas[0], areas[1], "the design is deterministic");
+}

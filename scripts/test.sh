@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Runs every test of the project: Rust (cargo test + the benchmark's smoke mode),
+# the C/C++/VTK integration tests (CMake + ctest, incl. valgrind) and the Python
+# package's tests (pip install ./python + pytest). Exits non-zero on any failure.
+set -euo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$repo"
+build_dir="$repo/build"
+jobs="$(nproc 2>/dev/null || echo 2)"
+python="${PYTHON:-python3}"
+
+step() { printf '\n==> %s\n' "$*"; }
+
+step "cargo test --workspace --release"
+cargo test --workspace --release
+
+if [[ -f rust/baffle-cli/benches/design.rs ]]; then
+  step "cargo bench -p baffle-cli --bench design -- --smoke"
+  cargo bench -p baffle-cli --bench design -- --smoke
+else
+  step "skipping the benchmark smoke run: rust/baffle-cli/benches/design.rs does not exist yet"
+fi
+
+step "cmake configure + build + ctest ($build_dir)"
+cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release
+cmake --build "$build_dir" --parallel "$jobs"
+ctest --test-dir "$build_dir" --output-on-failure
+
+step "pip install ./python + pytest"
+"$python" -m pip install --quiet ./python
+# Run from the tests folder so `import baffle` is the installed package, not ./python/baffle.
+(cd python/tests && "$python" -m pytest -q .)
+
+step "all tests passed"
