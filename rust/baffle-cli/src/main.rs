@@ -97,6 +97,13 @@ struct DesignArgs {
     /// A point on the aortic-annulus cap (see --vsd-cap-point).
     #[arg(long, value_parser = parse_point, requires = "vsd_cap_point")]
     aortic_cap_point: Option<Vec3>,
+    /// A reference baffle to compare with (area ratio, symmetric surface distance),
+    /// written to reference_comparison.json; e.g. the paper's published_baffle.vtp.
+    #[arg(long)]
+    reference_baffle: Option<PathBuf>,
+    /// Scale of the reference's coordinates to mm (10 for the published files, in cm).
+    #[arg(long, default_value_t = 1.0)]
+    reference_scale: f64,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     #[arg(long)]
     progress_tags: bool,
@@ -217,8 +224,29 @@ fn run_design(args: &DesignArgs) -> Result<(), String> {
         r.min_constrained_final_area_mm2,
         r.timings.total_ms
     );
+    if let Some(path) = &args.reference_baffle {
+        compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?;
+    }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<(), String> {
+    let mut reference = baffle_core::io::read_surface(path).map_err(|e| e.to_string())?;
+    reference.points.iter_mut().for_each(|p| *p *= scale);
+    let c = baffle_core::compare::compare_surfaces(baffle, &reference).map_err(|e| format!("{}: {e}", path.display()))?;
+    println!(
+        "reference {}: area {:.1} vs {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
+        path.display(),
+        c.area_mm2,
+        c.reference_area_mm2,
+        c.area_ratio,
+        c.mean_distance_mm,
+        c.max_distance_mm
+    );
+    let file = out.join("reference_comparison.json");
+    let text = serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?;
+    std::fs::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))
 }
 
 fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {

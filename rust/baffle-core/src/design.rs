@@ -126,8 +126,9 @@ pub struct DesignResult {
     /// where it crosses mesh edges between them. Remeshing keeps a subset of these.
     pub imprinted_seam_mm: Vec<Vec3>,
     pub centerline: Centerline,
-    /// Baffle arcs of the constrained sections as measured on the initial patch,
-    /// and as regularized (targets of the final TPS).
+    /// Closed section loops of the constrained sections as cut on the initial patch,
+    /// and with the baffle arc displaced by the regularized amplitude (the targets of
+    /// the final TPS).
     pub raw_loops_mm: Vec<Vec<Vec3>>,
     pub regularized_loops_mm: Vec<Vec<Vec3>>,
     pub report: DesignReport,
@@ -172,6 +173,7 @@ pub fn design(
     let seam_mm: Vec<Vec3> = kept.seam_loop.iter().map(|&v| kept.mesh.points[v as usize]).collect();
     let patch = build_initial_patch(&kept, &seam_mm, options)?;
     let initial_domain = Domain::assemble(&kept, &patch.disk, &patch.points_mm, &labels);
+    check_watertight(&initial_domain.mesh, "the initial patch joined with the wall")?;
     let patch_ms = clock.lap();
 
     clock.stage(0.6, "centerline")?;
@@ -236,8 +238,8 @@ pub fn design(
         projected_seam_mm: projected.samples_mm,
         imprinted_seam_mm,
         centerline,
-        raw_loops_mm: constrained.iter().map(|s| s.arc_points(0.0)).collect(),
-        regularized_loops_mm: constrained.iter().map(|s| s.arc_points(s.alpha_regularized_mm)).collect(),
+        raw_loops_mm: constrained.iter().map(|s| s.loop_points(0.0)).collect(),
+        regularized_loops_mm: constrained.iter().map(|s| s.loop_points(s.alpha_regularized_mm)).collect(),
         report,
     })
 }
@@ -385,9 +387,16 @@ impl SectionState {
         }
     }
 
-    fn arc_points(&self, alpha_mm: f64) -> Vec<Vec3> {
+    /// The section loop with its baffle arc displaced by `alpha_mm`.
+    fn loop_points(&self, alpha_mm: f64) -> Vec<Vec3> {
         match (&self.contour, &self.displacement) {
-            (Some(c), Some(d)) => d.displaced_arc(&c.points, alpha_mm),
+            (Some(c), Some(d)) => {
+                let mut points = c.points.clone();
+                for (p, &i) in d.displaced_arc(&c.points, alpha_mm).into_iter().zip(&d.arc_indices) {
+                    points[i] = p;
+                }
+                points
+            }
             _ => Vec::new(),
         }
     }
@@ -575,12 +584,33 @@ fn measured_area_mm2(mesh: &TriMesh, origin: Vec3, normal: Vec3) -> Option<f64> 
     nearest_contour(cut_mesh(mesh, origin, normal), origin).map(|c| c.signed_area_mm2(&normal).abs())
 }
 
-/// The final domain must be closed, manifold, outward and free of self-intersections.
-fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<(), DesignError> {
+/// Closed, manifold, consistently wound and connected (one component).
+fn check_watertight(mesh: &TriMesh, what: &str) -> Result<(), DesignError> {
     let rep = manifold_report(mesh);
     if !rep.is_closed_manifold() || rep.inconsistently_wound_edges > 0 {
-        return Err(DesignError::Baffle(format!("the merged domain is not watertight: {rep:?}")));
+        return Err(DesignError::Baffle(format!("{what} is not watertight: {rep:?}")));
     }
+    let neighbors = mesh.triangle_neighbors();
+    let mut seen = vec![false; mesh.triangles.len()];
+    let mut stack = vec![0usize];
+    seen[0] = true;
+    while let Some(t) = stack.pop() {
+        for &nb in &neighbors[t] {
+            if !seen[nb as usize] {
+                seen[nb as usize] = true;
+                stack.push(nb as usize);
+            }
+        }
+    }
+    if let Some(t) = seen.iter().position(|s| !s) {
+        return Err(DesignError::Baffle(format!("{what} is not connected (triangle {t} is cut off)")));
+    }
+    Ok(())
+}
+
+/// The final domain must be closed, manifold, outward and free of self-intersections.
+fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<(), DesignError> {
+    check_watertight(mesh, "the merged domain")?;
     if mesh.signed_volume_mm3() <= 0.0 {
         return Err(DesignError::Baffle("the merged domain encloses no positive volume".into()));
     }

@@ -27,6 +27,7 @@ pub mod envelope;
 pub mod surface;
 pub mod design;
 pub mod outputs;
+pub mod compare;
 
 pub use design::{design, DesignOptions, DesignReport, DesignResult};
 pub use error::DesignError;

@@ -35,17 +35,19 @@ pub fn centerline_polydata(result: &DesignResult) -> PolyData {
     }
 }
 
-/// Raw (on the initial patch) and regularized baffle arcs of every constrained
-/// section, as open polylines with cell arrays `regularized` (0 raw, 1 regularized)
-/// and `section` (index into the report's constrained sections).
+/// Raw (cut on the initial patch) and regularized loops of every constrained
+/// section, as closed polylines with cell arrays `regularized` (0 raw, 1 regularized)
+/// and `section` (index among the report's constrained sections).
 pub fn sections_polydata(result: &DesignResult) -> PolyData {
     let mut pd = PolyData::default();
     let (mut kind, mut section) = (Vec::new(), Vec::new());
     for (flag, loops) in [(0, &result.raw_loops_mm), (1, &result.regularized_loops_mm)] {
-        for (k, arc) in loops.iter().enumerate() {
+        for (k, arc) in loops.iter().enumerate().filter(|(_, l)| !l.is_empty()) {
             let first = pd.points.len() as u32;
             pd.points.extend_from_slice(arc);
-            pd.lines.push((first..pd.points.len() as u32).collect());
+            let mut line: Vec<u32> = (first..pd.points.len() as u32).collect();
+            line.push(first);
+            pd.lines.push(line);
             kind.push(flag);
             section.push(k as i32);
         }

@@ -217,17 +217,12 @@ fn comparison_with_the_published_baffle() {
         let dir = common::data_dir().unwrap().join(patient);
         let mut published = read_surface(&dir.join("published_baffle.vtp")).unwrap();
         published.points.iter_mut().for_each(|p| *p *= 10.0);
-        let ratio = result.report.baffle_area_mm2 / published.area_mm2();
-        let (ab_mean, ab_max) = one_sided_distance(&result.baffle, &published);
-        let (ba_mean, ba_max) = one_sided_distance(&published, &result.baffle);
-        let mean = 0.5 * (ab_mean + ba_mean);
+        let c = baffle_core::compare::compare_surfaces(&result.baffle, &published).unwrap();
         println!(
-            "{patient}: baffle {:.1} mm2 vs published {:.1} mm2 (ratio {ratio:.3}); symmetric surface distance mean {mean:.2} mm, max {:.2} mm",
-            result.report.baffle_area_mm2,
-            published.area_mm2(),
-            ab_max.max(ba_max)
+            "{patient}: baffle {:.1} mm2 vs published {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
+            c.area_mm2, c.reference_area_mm2, c.area_ratio, c.mean_distance_mm, c.max_distance_mm
         );
-        assert!(ratio.is_finite() && mean.is_finite());
+        assert!(c.area_ratio.is_finite() && c.mean_distance_mm.is_finite());
     }
 }
 
@@ -259,11 +254,4 @@ fn distance_to_open_polyline(p: &Vec3, line: &[Vec3]) -> f64 {
 fn distance_to_closed_polyline(p: &Vec3, line: &[Vec3]) -> f64 {
     let n = line.len();
     (0..n).map(|i| distance_to_segment(p, &line[i], &line[(i + 1) % n])).fold(f64::INFINITY, f64::min)
-}
-
-/// Mean and max distance from the vertices of `a` to the surface `b`.
-fn one_sided_distance(a: &TriMesh, b: &TriMesh) -> (f64, f64) {
-    let bvh = TriangleBvh::new(b).unwrap();
-    let d: Vec<f64> = a.points.iter().map(|p| bvh.closest_point(b, *p).unwrap().distance_mm).collect();
-    (d.iter().sum::<f64>() / d.len() as f64, d.iter().copied().fold(0.0, f64::max))
 }
