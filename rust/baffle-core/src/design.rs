@@ -7,11 +7,11 @@ use crate::envelope::regularize_amplitudes;
 use crate::error::DesignError;
 use crate::mesh::{manifold_report, FaceLabels, TriMesh, Vec3};
 use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
-use crate::patch::{initial_patch, nearest_seam_index, InitialPatch, Landmarks};
+use crate::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
 use crate::sections::{cut_mesh, nearest_contour, split_at_seam, Contour, Dropped};
 use crate::seam::{imprint_seam, project_seam};
 use crate::spatial::TriangleBvh;
-use crate::surface::{final_baffle_points, Domain};
+use crate::surface::Domain;
 use crate::target::TargetArea;
 use serde::Serialize;
 use std::time::Instant;
@@ -464,11 +464,17 @@ fn fit_baffle(
             s.alpha_mm = d.required_alpha_mm(required_mm2);
         }
     }
+    // Sections are 0.5 mm apart; one landmark every two baffle edges along each arc
+    // already puts about as many landmarks as the baffle has vertices.
+    let sites = loop_sites(initial, &patch.disk, sections, 2.0 * options.baffle_edge_mm);
+    let params: Vec<(f64, f64)> = sites.iter().map(|s| s.uv).collect();
+    let map = DiskMap::new(&patch.disk, &params, options.tps_regularization)
+        .map_err(|m| DesignError::numerical("final surface TPS", m))?;
     let mut boost = vec![0.0; sections.len()];
     for round in 0..=options.max_correction_rounds {
         regularize(sections, &boost)?;
-        let landmarks = loop_landmarks(initial, &patch.disk, sections, options.baffle_edge_mm);
-        let points = final_baffle_points(&patch.disk, seam_mm, &landmarks, options.tps_regularization)?;
+        let targets: Vec<Vec3> = sites.iter().map(|site| site.target_mm(sections)).collect();
+        let points = map.points(seam_mm, &targets).map_err(|m| DesignError::numerical("final surface TPS", m))?;
         let domain = initial.with_patch_points(&points);
         let mut short = false;
         for (k, s) in sections.iter_mut().enumerate() {
@@ -516,22 +522,71 @@ fn regularize(sections: &mut [SectionState], boost: &[f64]) -> Result<(), Design
     Ok(())
 }
 
-/// Disk coordinates and displaced positions of the regularized loops' interior
-/// arc points (the endpoints lie on the seam, already a landmark).
-fn loop_landmarks(initial: &Domain, disk: &crate::patch::UnitDisk, sections: &[SectionState], spacing_mm: f64) -> Landmarks {
-    let mut landmarks = Landmarks::default();
-    for s in sections {
+/// An interior landmark of the final surface: point `arc_position` of section
+/// `section`'s baffle arc, at disk coordinates `uv` (taken on the initial patch).
+struct LoopSite {
+    section: usize,
+    arc_position: usize,
+    uv: (f64, f64),
+}
+
+impl LoopSite {
+    /// Where the regularized loop puts this point.
+    fn target_mm(&self, sections: &[SectionState]) -> Vec3 {
+        let s = &sections[self.section];
+        match (&s.contour, &s.displacement) {
+            (Some(c), Some(d)) => {
+                let i = d.arc_indices[self.arc_position];
+                c.points[i] + s.alpha_regularized_mm * d.weights[self.arc_position] * d.direction
+            }
+            _ => Vec3::zeros(),
+        }
+    }
+}
+
+/// The landmark sites: interior points of every constrained baffle arc, about one
+/// per `spacing_mm` (the arc endpoints lie on the seam, already a landmark), at most
+/// one per tiny disk neighbourhood (two loops meeting at nearly the same disk point
+/// would make the TPS system singular).
+fn loop_sites(initial: &Domain, disk: &UnitDisk, sections: &[SectionState], spacing_mm: f64) -> Vec<LoopSite> {
+    let mut sites: Vec<LoopSite> = Vec::new();
+    let mut taken = DiskGrid::new(1e-3);
+    for (k, s) in sections.iter().enumerate() {
         let (Some(contour), Some(d)) = (&s.contour, &s.displacement) else { continue };
-        let moved = d.displaced_arc(&contour.points, s.alpha_regularized_mm);
-        for k in spaced_interior_points(&moved, spacing_mm) {
-            let i = d.arc_indices[k];
-            if let Some(uv) = initial.disk_uv_on_edge(disk, contour.point_edges[i], contour.point_fractions[i]) {
-                landmarks.params.push(uv);
-                landmarks.values_mm.push(moved[k]);
+        let arc: Vec<Vec3> = d.arc_indices.iter().map(|&i| contour.points[i]).collect();
+        for arc_position in spaced_interior_points(&arc, spacing_mm) {
+            let i = d.arc_indices[arc_position];
+            let Some(uv) = initial.disk_uv_on_edge(disk, contour.point_edges[i], contour.point_fractions[i]) else { continue };
+            if taken.insert(uv) {
+                sites.push(LoopSite { section: k, arc_position, uv });
             }
         }
     }
-    dedupe_landmarks(landmarks, 1e-3)
+    sites
+}
+
+/// Disk points kept at least `min_gap` apart (a hash grid of that cell size).
+struct DiskGrid {
+    min_gap: f64,
+    cells: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>>,
+}
+
+impl DiskGrid {
+    fn new(min_gap: f64) -> Self {
+        DiskGrid { min_gap, cells: std::collections::HashMap::new() }
+    }
+
+    /// Keep `uv` unless a kept point is closer than `min_gap`; true if kept.
+    fn insert(&mut self, uv: (f64, f64)) -> bool {
+        let key = ((uv.0 / self.min_gap).floor() as i64, (uv.1 / self.min_gap).floor() as i64);
+        let near = (-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (key.0 + dx, key.1 + dy))).any(|k| {
+            self.cells.get(&k).is_some_and(|pts| pts.iter().any(|q| (q.0 - uv.0).hypot(q.1 - uv.1) < self.min_gap))
+        });
+        if !near {
+            self.cells.entry(key).or_default().push(uv);
+        }
+        !near
+    }
 }
 
 /// Indices of interior points of a polyline, each at least `spacing_mm` (along the
@@ -549,31 +604,6 @@ fn spaced_interior_points(line: &[Vec3], spacing_mm: f64) -> Vec<usize> {
         if since_last >= spacing_mm && total - run >= 0.5 * spacing_mm {
             out.push(k);
             since_last = 0.0;
-        }
-    }
-    out
-}
-
-/// Drop landmarks closer than `min_gap` in the disk to an earlier one (two loops
-/// meeting at nearly the same disk point would make the TPS system singular).
-fn dedupe_landmarks(landmarks: Landmarks, min_gap: f64) -> Landmarks {
-    let mut out = Landmarks::default();
-    let cell = min_gap;
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = std::collections::HashMap::new();
-    for (uv, p) in landmarks.params.into_iter().zip(landmarks.values_mm) {
-        let key = ((uv.0 / cell).floor() as i64, (uv.1 / cell).floor() as i64);
-        let near = (-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (key.0 + dx, key.1 + dy))).any(|k| {
-            grid.get(&k).is_some_and(|ids| {
-                ids.iter().any(|&j| {
-                    let q: (f64, f64) = out.params[j];
-                    (q.0 - uv.0).hypot(q.1 - uv.1) < min_gap
-                })
-            })
-        });
-        if !near {
-            grid.entry(key).or_default().push(out.params.len());
-            out.params.push(uv);
-            out.values_mm.push(p);
         }
     }
     out

@@ -12,7 +12,7 @@
 
 use crate::error::DesignError;
 use crate::mesh::Vec3;
-use crate::numerics::tps::ThinPlateSpline;
+use crate::numerics::tps::TpsSolver;
 use crate::spatial::closest_point_on_segment;
 use std::f64::consts::{PI, TAU};
 
@@ -193,38 +193,41 @@ pub fn initial_patch(
     let rings = ((half_width_mm / target_edge_mm).ceil() as usize).max(2);
     let outer_count = ((seam_length_mm / target_edge_mm).round() as usize).max(6);
     let disk = unit_disk(&angles, rings, outer_count);
-    let mut on_chord = Landmarks::default();
     let n_ctrl = interior_control_points.max(1);
-    for k in 1..=n_ctrl {
-        let f = k as f64 / (n_ctrl + 1) as f64;
-        on_chord.params.push((-1.0 + 2.0 * f, 0.0));
-        on_chord.values_mm.push(chord.vsd_end_mm + f * (chord.aortic_end_mm - chord.vsd_end_mm));
-    }
-    let points_mm = map_disk(&disk, seam_mm, &on_chord, 0.0).map_err(|m| DesignError::numerical("initial patch TPS", m))?;
+    let fractions: Vec<f64> = (1..=n_ctrl).map(|k| k as f64 / (n_ctrl + 1) as f64).collect();
+    let params: Vec<(f64, f64)> = fractions.iter().map(|f| (-1.0 + 2.0 * f, 0.0)).collect();
+    let on_chord: Vec<Vec3> = fractions.iter().map(|&f| chord.vsd_end_mm + f * (chord.aortic_end_mm - chord.vsd_end_mm)).collect();
+    let points_mm = DiskMap::new(&disk, &params, 0.0)
+        .and_then(|map| map.points(seam_mm, &on_chord))
+        .map_err(|m| DesignError::numerical("initial patch TPS", m))?;
     Ok(InitialPatch { disk, points_mm, chord })
 }
 
-/// Interior TPS landmarks: disk coordinates and the positions they map to (mm).
-#[derive(Clone, Debug, Default)]
-pub struct Landmarks {
-    pub params: Vec<(f64, f64)>,
-    pub values_mm: Vec<Vec3>,
+/// Thin-plate-spline map of the disk with the seam on its boundary and interior
+/// landmarks at fixed disk parameters, factored once so new landmark positions (the
+/// design's correction rounds) cost only a solve. Boundary vertices are set to the
+/// seam exactly, so the patch and the wall share them bit for bit.
+pub struct DiskMap<'a> {
+    disk: &'a UnitDisk,
+    solver: TpsSolver,
 }
 
-/// Thin-plate-spline map of the disk with the seam (on the disk's boundary) and the
-/// interior landmarks; boundary vertices are then set to the seam exactly, so the
-/// patch and the wall share them bit for bit.
-pub fn map_disk(disk: &UnitDisk, seam_mm: &[Vec3], interior: &Landmarks, regularization: f64) -> Result<Vec<Vec3>, String> {
-    let mut params: Vec<(f64, f64)> = disk.boundary.iter().map(|&b| disk.uv[b as usize]).collect();
-    let mut values: Vec<Vec3> = seam_mm.to_vec();
-    params.extend_from_slice(&interior.params);
-    values.extend_from_slice(&interior.values_mm);
-    let tps = ThinPlateSpline::fit(&params, &values, regularization)?;
-    let mut points = tps.eval_many(&disk.uv);
-    for (&b, &p) in disk.boundary.iter().zip(seam_mm) {
-        points[b as usize] = p;
+impl<'a> DiskMap<'a> {
+    pub fn new(disk: &'a UnitDisk, interior_params: &[(f64, f64)], regularization: f64) -> Result<Self, String> {
+        let mut params: Vec<(f64, f64)> = disk.boundary.iter().map(|&b| disk.uv[b as usize]).collect();
+        params.extend_from_slice(interior_params);
+        Ok(DiskMap { disk, solver: TpsSolver::new(&params, regularization)? })
     }
-    Ok(points)
+
+    /// Positions of every disk vertex for the seam and the interior landmark positions.
+    pub fn points(&self, seam_mm: &[Vec3], interior_mm: &[Vec3]) -> Result<Vec<Vec3>, String> {
+        let values: Vec<Vec3> = seam_mm.iter().chain(interior_mm).copied().collect();
+        let mut points = self.solver.fit(&values)?.eval_many(&self.disk.uv);
+        for (&b, &p) in self.disk.boundary.iter().zip(seam_mm) {
+            points[b as usize] = p;
+        }
+        Ok(points)
+    }
 }
 
 #[cfg(test)]

@@ -5,10 +5,9 @@
 //! restored exactly and the baffle is merged with the kept wall into the closed,
 //! labelled VSD-to-aorta domain (wall, VSD cap, aortic cap, baffle).
 
-use crate::error::DesignError;
 use crate::mesh::{FaceLabels, TriMesh, Vec3};
 use crate::partition::KeptRegion;
-use crate::patch::{map_disk, Landmarks, UnitDisk};
+use crate::patch::UnitDisk;
 
 /// The kept wall and a baffle on the unit disk, sharing the seam vertices.
 #[derive(Clone, Debug)]
@@ -88,14 +87,4 @@ fn baffle_runs_with_wall(disk: &UnitDisk) -> bool {
     // The kept region's boundary loop follows its triangles' winding: seam_loop[0] -> seam_loop[1],
     // and disk boundary vertex i sits on seam vertex i.
     disk.triangles.iter().any(|t| (0..3).any(|k| t[k] == b0 && t[(k + 1) % 3] == b1))
-}
-
-/// The final baffle: the disk mapped through the seam and the regularized loops.
-pub fn final_baffle_points(
-    disk: &UnitDisk,
-    seam_mm: &[Vec3],
-    loops: &Landmarks,
-    regularization: f64,
-) -> Result<Vec<Vec3>, DesignError> {
-    map_disk(disk, seam_mm, loops, regularization).map_err(|m| DesignError::numerical("final surface TPS", m))
 }

@@ -16,7 +16,7 @@ pub use concave::least_concave_majorant;
 pub use pca::{best_fit_plane, best_fit_plane_checked, polygon_area_2d, polygon_vector_area, Plane};
 pub use pchip::{CurveSample, Pchip, PchipCurve3};
 pub use spline::ClosedSpline;
-pub use tps::ThinPlateSpline;
+pub use tps::{ThinPlateSpline, TpsSolver};
 
 /// Nodes and weights of the 8-point Gauss-Legendre rule on [-1, 1] (exact for
 /// polynomials up to degree 15; the speed |C'(t)| of a cubic is the square root of

@@ -29,22 +29,34 @@ fn kernel(du: f64, dv: f64) -> f64 {
     }
 }
 
-impl ThinPlateSpline {
-    /// Fit to `values` at `params`. `regularization` (lambda >= 0) is added to the kernel
-    /// diagonal: 0 interpolates exactly, larger values smooth. Solves
-    /// [K + lambda I, P; P^T, 0] [w; a] = [v; 0] once by LU for the three coordinates.
-    pub fn fit(params: &[(f64, f64)], values: &[Vec3], regularization: f64) -> Result<Self, String> {
-        validate_landmarks(params, values, regularization)?;
-        let system = build_system(params, regularization);
-        let n = params.len();
+/// The factorized TPS system for fixed landmark parameters: fitting new values at
+/// the same parameters (as the design's correction rounds do) reuses the LU.
+#[derive(Clone, Debug)]
+pub struct TpsSolver {
+    landmarks: Vec<(f64, f64)>,
+    lu: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+}
+
+impl TpsSolver {
+    /// Factor [K + lambda I, P; P^T, 0] for `params`. `regularization` (lambda >= 0) is
+    /// added to the kernel diagonal: 0 interpolates exactly, larger values smooth.
+    pub fn new(params: &[(f64, f64)], regularization: f64) -> Result<Self, String> {
+        validate_parameters(params, regularization)?;
+        let lu = build_system(params, regularization).lu();
+        Ok(TpsSolver { landmarks: params.to_vec(), lu })
+    }
+
+    /// The spline through `values` at the factored parameters (three coordinates at once).
+    pub fn fit(&self, values: &[Vec3]) -> Result<ThinPlateSpline, String> {
+        let n = self.landmarks.len();
+        validate_values(&self.landmarks, values)?;
         let mut rhs = DMatrix::zeros(n + 3, 3);
         for (i, v) in values.iter().enumerate() {
             for c in 0..3 {
                 rhs[(i, c)] = v[c];
             }
         }
-        let lu = system.lu();
-        let solution = lu.solve(&rhs).ok_or_else(|| {
+        let solution = self.lu.solve(&rhs).ok_or_else(|| {
             format!("thin-plate spline: the {n}-landmark system is singular (landmarks nearly collinear or repeated?)")
         })?;
         if solution.iter().any(|x| !x.is_finite()) {
@@ -52,10 +64,18 @@ impl ThinPlateSpline {
         }
         let row = |r: usize| Vec3::new(solution[(r, 0)], solution[(r, 1)], solution[(r, 2)]);
         Ok(ThinPlateSpline {
-            landmarks: params.to_vec(),
+            landmarks: self.landmarks.clone(),
             weights: (0..n).map(row).collect(),
             affine: [row(n), row(n + 1), row(n + 2)],
         })
+    }
+}
+
+impl ThinPlateSpline {
+    /// Fit to `values` at `params` (see [`TpsSolver`] to fit several value sets).
+    pub fn fit(params: &[(f64, f64)], values: &[Vec3], regularization: f64) -> Result<Self, String> {
+        validate_values(params, values)?;
+        TpsSolver::new(params, regularization)?.fit(values)
     }
 
     /// The 3D point (mm) at parameter (u, v).
@@ -75,20 +95,25 @@ impl ThinPlateSpline {
     }
 }
 
-fn validate_landmarks(params: &[(f64, f64)], values: &[Vec3], regularization: f64) -> Result<(), String> {
+fn validate_values(params: &[(f64, f64)], values: &[Vec3]) -> Result<(), String> {
     if params.len() != values.len() {
         return Err(format!("thin-plate spline: {} parameters but {} values", params.len(), values.len()));
     }
+    if let Some(i) = (0..values.len()).find(|&i| !values[i].iter().all(|c| c.is_finite())) {
+        return Err(format!("thin-plate spline: landmark {i} is not finite ({:?} -> {:?})", params[i], values[i]));
+    }
+    Ok(())
+}
+
+fn validate_parameters(params: &[(f64, f64)], regularization: f64) -> Result<(), String> {
     if params.len() < 3 {
         return Err(format!("thin-plate spline needs at least 3 landmarks, got {}", params.len()));
     }
     if !(regularization.is_finite() && regularization >= 0.0) {
         return Err(format!("thin-plate spline: regularization must be finite and >= 0, got {regularization}"));
     }
-    let finite =
-        |i: usize| params[i].0.is_finite() && params[i].1.is_finite() && values[i].iter().all(|c| c.is_finite());
-    if let Some(i) = (0..params.len()).find(|&i| !finite(i)) {
-        return Err(format!("thin-plate spline: landmark {i} is not finite ({:?} -> {:?})", params[i], values[i]));
+    if let Some(i) = (0..params.len()).find(|&i| !(params[i].0.is_finite() && params[i].1.is_finite())) {
+        return Err(format!("thin-plate spline: landmark {i} is not finite ({:?})", params[i]));
     }
     let extent = parameter_extent(params);
     if let Some((i, j)) = find_duplicate(params, 1e-12 * extent) {
