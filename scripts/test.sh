@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test of the project: Rust (cargo test + the benchmark's smoke mode),
 # the C/C++/VTK integration tests (CMake + ctest, incl. valgrind) and the Python
-# package's tests (pip install ./python + pytest). Exits non-zero on any failure.
+# package's tests (pip install ./python + pytest) and the 3D Slicer module's tests on
+# slicer-core (scripts/test_slicer.sh). Exits non-zero on any failure.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -31,5 +32,8 @@ step "pip install ./python + pytest"
 "$python" -m pip install --quiet ./python
 # Run from the tests folder so `import baffle` is the installed package, not ./python/baffle.
 (cd python/tests && "$python" -m pytest -q .)
+
+step "3D Slicer module tests (slicer-core, own venv)"
+bash scripts/test_slicer.sh
 
 step "all tests passed"

@@ -318,4 +318,36 @@ mod tests {
         }
         assert!(sum_p.iter().all(|v| v.abs() < 1e-12), "{sum_p:?}");
     }
+
+    #[test]
+    fn convection_jacobian_is_the_derivative_of_the_galerkin_convection() {
+        // The Galerkin convection c(a, u) is bilinear, so its derivative in a at a = u,
+        // applied to v, equals c(v, u) = [K(a = v) - K(a = 0)] u. A huge viscosity makes
+        // the SUPG/PSPG terms (which the Jacobian omits) negligible: tau ~ h^2 / nu.
+        let p = [[0.0, 0.0, 0.0], [1.0, 0.1, 0.0], [0.2, 1.0, 0.1], [0.1, 0.3, 1.2], [1.0, 1.0, 1.0]];
+        let tets = vec![[0, 1, 2, 3], [1, 2, 3, 4]];
+        let pattern = BlockPattern::from_tets(5, &tets);
+        let asm = Assembler::new(&p, tets, &pattern, vec![0..5]);
+        let phys = Physics { density_g_cm3: 1.0, viscosity_g_cm_s: 1e6, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0 };
+        let field = |s: f64| (0..5 * B).map(|k| if k % B == 3 { 0.0 } else { ((k as f64 + s) * 0.7).sin() }).collect::<Vec<f64>>();
+        let (u, v) = (field(0.0), field(1.3));
+        let n_vals = pattern.cols.len() * BB;
+        let matvec = |vals: &[f64], x: &[f64]| {
+            let mut y = vec![0.0; x.len()];
+            crate::sparse::spmv(&pattern, vals, x, &mut y);
+            y
+        };
+        let (mut k1, mut k0, mut rhs) = (vec![0.0; n_vals], vec![0.0; n_vals], vec![0.0; 5 * B]);
+        asm.assemble(&pattern, &phys, &v, &u, &mut k1, &mut rhs);
+        asm.assemble(&pattern, &phys, &vec![0.0; 5 * B], &u, &mut k0, &mut rhs);
+        let expected: Vec<f64> = matvec(&k1, &u).iter().zip(matvec(&k0, &u)).map(|(a, b)| a - b).collect();
+        let mut jac = vec![0.0; n_vals];
+        asm.add_convection_jacobian(&pattern, &phys, &u, &mut jac);
+        let got = matvec(&jac, &v);
+        let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(scale > 1e-3);
+        for k in (0..5 * B).filter(|k| k % B != 3) {
+            assert!((got[k] - expected[k]).abs() < 1e-6 * scale, "dof {k}: {} vs {}", got[k], expected[k]);
+        }
+    }
 }

@@ -23,7 +23,7 @@ mod test_meshes;
 
 pub use error::CfdError;
 pub use mesh::{Face, FlowMesh, ValidationReport};
-pub use settings::{CaseSettings, Outlet, RunMode};
+pub use settings::{CaseSettings, InflowProfile, Outlet, RunMode};
 pub use solver::{simulate, FaceResult, StepResult, Summary, Timings};
 pub use waveform::Waveform;
 #[cfg(test)]

@@ -10,6 +10,15 @@ pub struct Outlet {
     pub resistance_dyn_s_cm5: f64,
 }
 
+/// Velocity profile imposed on the inlet cap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InflowProfile {
+    /// The same velocity at every node off the rim (rim nodes are no-slip).
+    Plug,
+    /// Fully developed laminar profile of the cap's shape (-lap phi = 1, phi = 0 on the rim).
+    Poiseuille,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RunMode {
     /// Time-accurate run over `cycles` periods of the inflow waveform.
@@ -30,6 +39,7 @@ pub struct CaseSettings {
     pub backflow_stabilization: f64,
     pub inlet_face_id: i32,
     pub inflow: Waveform,
+    pub inflow_profile: InflowProfile,
     pub outlets: Vec<Outlet>,
     pub mode: RunMode,
     /// Picard iterations per time step at most, and their relative residual target.
@@ -62,6 +72,7 @@ impl CaseSettings {
             backflow_stabilization: 0.2,
             inlet_face_id,
             inflow,
+            inflow_profile: InflowProfile::Plug,
             outlets,
             mode: RunMode::Transient,
             max_nonlinear_iterations: 3,

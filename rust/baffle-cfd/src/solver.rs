@@ -16,8 +16,38 @@
 //! Steady Stokes-like systems of the tube tests converge to 1e-8 in tens of
 //! iterations. A pressure-projection scheme was not tried.
 //!
+//! Steady solve (issue #4 follow-up, measured on p2 at Q_peak 70 mL/s, plug inflow,
+//! 2 threads, with other jobs sharing the 2 cores): the old fixed pseudo dt 10 ms with
+//! one Picard iteration per pseudo step stalled at 3.6e-4 after 45 iterations. Now the
+//! pseudo step grows by switched evolution relaxation (dt_k = dt_0 r_0 / r_k) and the
+//! linearization switches to Newton (Galerkin convection Jacobian; SUPG/tau derivatives
+//! omitted) below a relative residual of 1e-2: converged to 6.6e-5 (target 1e-4) in 23
+//! iterations (15 Picard + 8 Newton), 1478 GMRES iterations, 27 s wall on a quiet
+//! machine (48 and 71 s with other jobs' compiles running, load 3-5); dp(11-16) 7.381 mmHg, v_max 250.3 cm/s,
+//! the same as the unconverged 7.4 / 250: the difference to the paper is not an
+//! unconverged solve. Newton from the start (pure Newton with SER) failed: the residual
+//! rose 4x and GMRES/ILU(0) needed 359 then > 600 iterations (the Jacobian far from
+//! the solution is strongly non-diagonally dominant). Newton iterations converge
+//! linearly (ratio ~0.6, inexact Jacobian) and need ~100 GMRES iterations each vs ~45
+//! for Picard. With the Poiseuille inflow profile the same scheme did not converge in
+//! 60 iterations (1.6e-3; dp 6.31 mmHg, v_max 239 cm/s at that point).
+//!
+//! Transient: linear extrapolation 2 u_n - u_(n-1) is the initial guess of every step;
+//! with `max_nonlinear_iterations` = 1 the step is semi-implicit (one linear solve with
+//! the extrapolated convection velocity, no residual re-assembly afterwards). p2, 31
+//! steps from t = 0.1 s: 0.91 s per step (assembly 0.13, ILU 0.05, GMRES 0.72 s for
+//! ~43 iterations, i.e. ~17 ms per GMRES iteration under load), vs 2.0-2.8 s with 3
+//! Picard iterations: 4 cycles would take ~41 min, not yet the 30 min target. GMRES
+//! orthogonalization is classical Gram-Schmidt in two fused passes with one
+//! conditional re-orthogonalization (DGKS, 0.7) instead of modified Gram-Schmidt;
+//! its speed-up was not A/B-measured (the shared machine was loaded), iteration counts
+//! were unchanged (43-47 per step). Not yet tried: ILU reuse across steps, f32 ILU,
+//! a block (Schur) preconditioner.
+//! Peak resident memory 188-195 MB. The semi-implicit scheme passes the Womersley test
+//! (verification.rs: alpha 4, amplitude +1.8%, phase -0.9%).
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
-//! outlet faces; plug inflow (see [`plug_profile`]); resistance outlets p = R Q as
+//! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
 
 use std::collections::HashSet;
@@ -27,7 +57,7 @@ use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
 use crate::linear::{gmres, partitions, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
-use crate::settings::{CaseSettings, RunMode};
+use crate::settings::{CaseSettings, InflowProfile, RunMode};
 use crate::sparse::{dot, reverse_cuthill_mckee, spmv, BlockPattern, B, BB};
 use crate::CfdError;
 
@@ -161,7 +191,7 @@ impl Problem {
                 tri.iter().for_each(|&i| dirichlet[i as usize] = true);
             }
         }
-        let inlet_nodes = plug_profile(&faces[inlet_face], &dirichlet)?;
+        let inlet_nodes = inflow_profile(&faces[inlet_face], &dirichlet, &mesh.points_cm, settings.inflow_profile)?;
         for &(i, _) in &inlet_nodes {
             dirichlet[i as usize] = true;
         }
@@ -178,10 +208,17 @@ impl Problem {
     }
 }
 
-/// Plug profile on the inlet: the same velocity along -n (mean inward normal) at
-/// every inlet node not on a wall, scaled so that the discrete flux of the P1
-/// field through the inlet is exactly 1 mL/s.
-fn plug_profile(face: &FaceGeometry, wall: &[bool]) -> Result<Vec<(u32, [f64; 3])>, CfdError> {
+/// Inflow profile on the inlet: a shape value per inlet node not on a wall, along -n
+/// (mean inward normal), scaled so that the discrete flux of the P1 field through the
+/// inlet is exactly 1 mL/s. Plug: shape 1. Poiseuille: the solution of -lap phi = 1
+/// on the cap with phi = 0 on its rim (the fully developed laminar profile of any
+/// cross-section; the paraboloid on a circle).
+fn inflow_profile(
+    face: &FaceGeometry,
+    wall: &[bool],
+    points_cm: &[[f64; 3]],
+    kind: InflowProfile,
+) -> Result<Vec<(u32, [f64; 3])>, CfdError> {
     let inward = face.mean_unit_normal().map(|x| -x);
     let weights = face.nodal_flux_weights();
     let mut free: Vec<(u32, f64)> = weights
@@ -190,12 +227,70 @@ fn plug_profile(face: &FaceGeometry, wall: &[bool]) -> Result<Vec<(u32, [f64; 3]
         .map(|(&i, b)| (i, -crate::mesh::dot(inward, *b)))
         .collect();
     free.sort_unstable_by_key(|e| e.0);
-    // Inflow of unit speed along -n: -sum b_i . (-n) = sum n . b_i.
-    let inflow_per_unit_speed: f64 = free.iter().map(|e| e.1).sum::<f64>();
-    if !(inflow_per_unit_speed > 0.0) {
+    let shape: Vec<f64> = match kind {
+        InflowProfile::Plug => vec![1.0; free.len()],
+        InflowProfile::Poiseuille => cap_poisson(face, wall, points_cm, &free.iter().map(|e| e.0).collect::<Vec<_>>()),
+    };
+    // Inflow of the shape along -n: -sum shape_i b_i . (-n) = sum shape_i n . b_i.
+    let inflow_per_unit: f64 = free.iter().zip(&shape).map(|(e, s)| e.1 * s).sum::<f64>();
+    if !(inflow_per_unit > 0.0) {
         return Err(CfdError::Mesh(format!("inlet face {} '{}' has no node off the wall", face.id, face.name)));
     }
-    Ok(free.into_iter().map(|(i, _)| (i, inward.map(|x| x / inflow_per_unit_speed))).collect())
+    Ok(free.into_iter().zip(shape).map(|((i, _), s)| (i, inward.map(|x| s * x / inflow_per_unit))).collect())
+}
+
+/// P1 solution of -lap phi = 1 on the cap's triangles with phi = 0 at wall nodes, at
+/// the `free` nodes (sorted), by conjugate gradients.
+fn cap_poisson(face: &FaceGeometry, wall: &[bool], p: &[[f64; 3]], free: &[u32]) -> Vec<f64> {
+    let index = |i: u32| free.binary_search(&i).ok();
+    let n = free.len();
+    let mut entries: std::collections::HashMap<(usize, usize), f64> = std::collections::HashMap::new();
+    let mut load = vec![0.0; n];
+    for (tri, an) in face.triangles.iter().zip(&face.area_normals_cm2) {
+        let area = crate::mesh::dot(*an, *an).sqrt();
+        if area == 0.0 {
+            continue;
+        }
+        // Edge opposite vertex a (cyclic): K_ab = e_a . e_b / (4 A).
+        let x = tri.map(|i| p[i as usize]);
+        let e = [0, 1, 2].map(|a| crate::mesh::sub(x[(a + 2) % 3], x[(a + 1) % 3]));
+        for a in 0..3 {
+            let Some(ia) = index(tri[a]).filter(|_| !wall[tri[a] as usize]) else { continue };
+            load[ia] += area / 3.0;
+            for b in 0..3 {
+                if let Some(ib) = index(tri[b]).filter(|_| !wall[tri[b] as usize]) {
+                    *entries.entry((ia, ib)).or_insert(0.0) += crate::mesh::dot(e[a], e[b]) / (4.0 * area);
+                }
+            }
+        }
+    }
+    let entries: Vec<((usize, usize), f64)> = entries.into_iter().collect();
+    let apply = |v: &[f64]| {
+        let mut y = vec![0.0; n];
+        for &((i, j), k) in &entries {
+            y[i] += k * v[j];
+        }
+        y
+    };
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut x = vec![0.0; n];
+    let mut r = load.clone();
+    let mut d = r.clone();
+    let mut rr = dot(&r, &r);
+    let target = 1e-24 * rr;
+    for _ in 0..10 * n + 100 {
+        if rr <= target {
+            break;
+        }
+        let q = apply(&d);
+        let alpha = rr / dot(&d, &q);
+        x.iter_mut().zip(&d).for_each(|(xi, di)| *xi += alpha * di);
+        r.iter_mut().zip(&q).for_each(|(ri, qi)| *ri -= alpha * qi);
+        let rr_new = dot(&r, &r);
+        d.iter_mut().zip(&r).for_each(|(di, ri)| *di = ri + rr_new / rr * *di);
+        rr = rr_new;
+    }
+    x
 }
 
 fn outlet_data(face: &FaceGeometry, k: usize, resistance: f64, dirichlet: &[bool], n: usize) -> OutletData {

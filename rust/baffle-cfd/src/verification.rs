@@ -128,3 +128,113 @@ fn blow_up_is_reported_with_step_and_time() {
     let msg = err.to_string();
     assert!(msg.contains("step") && msg.contains("t = ") && msg.contains("residual"), "{msg}");
 }
+
+/// Minimal complex arithmetic for the Womersley solution.
+#[derive(Clone, Copy, Debug)]
+struct C(f64, f64);
+
+impl C {
+    fn add(self, o: C) -> C {
+        C(self.0 + o.0, self.1 + o.1)
+    }
+    fn mul(self, o: C) -> C {
+        C(self.0 * o.0 - self.1 * o.1, self.0 * o.1 + self.1 * o.0)
+    }
+    fn div(self, o: C) -> C {
+        let d = o.0 * o.0 + o.1 * o.1;
+        C((self.0 * o.0 + self.1 * o.1) / d, (self.1 * o.0 - self.0 * o.1) / d)
+    }
+    fn scale(self, s: f64) -> C {
+        C(self.0 * s, self.1 * s)
+    }
+    fn abs(self) -> f64 {
+        self.0.hypot(self.1)
+    }
+    fn arg(self) -> f64 {
+        self.1.atan2(self.0)
+    }
+}
+
+/// Bessel function J_n(z), n = 0 or 1, by its power series (|z| <= ~10).
+fn bessel_j(n: i32, z: C) -> C {
+    let half = z.scale(0.5);
+    let q = half.mul(half).scale(-1.0);
+    let mut term = if n == 0 { C(1.0, 0.0) } else { half };
+    let mut sum = term;
+    for k in 1..60 {
+        term = term.mul(q).scale(1.0 / (k as f64 * (k + n) as f64));
+        sum = sum.add(term);
+    }
+    sum
+}
+
+/// Complex amplitude G of the Womersley pressure gradient -dp/dz = Im(G e^{i w t}) for
+/// the flux Q(t) = Q0 sin(w t) in a tube of radius R:
+/// G = i w rho Q0 / (pi R^2 (1 - 2 J1(L) / (L J0(L)))), L = i^{3/2} alpha.
+fn womersley_gradient(q0: f64, omega: f64, rho: f64, mu: f64, radius: f64) -> C {
+    let alpha = radius * (omega * rho / mu).sqrt();
+    let l = C((0.75 * PI).cos(), (0.75 * PI).sin()).scale(alpha);
+    let ratio = bessel_j(1, l).scale(2.0).div(l.mul(bessel_j(0, l)));
+    let denominator = C(1.0, 0.0).add(ratio.scale(-1.0)).scale(PI * radius * radius);
+    C(0.0, omega * rho * q0).div(denominator)
+}
+
+#[test]
+fn womersley_solution_is_poiseuille_at_low_frequency() {
+    let (q0, rho) = (0.2, 1.06);
+    let g = womersley_gradient(q0, 1e-4, rho, MU, RADIUS_CM);
+    let poiseuille = 8.0 * MU * q0 / (PI * RADIUS_CM.powi(4));
+    assert!((g.abs() - poiseuille).abs() < 1e-6 * poiseuille && g.arg().abs() < 1e-4, "{g:?} vs {poiseuille}");
+}
+
+#[test]
+fn womersley_pressure_gradient_amplitude_and_phase() {
+    // alpha = R sqrt(w rho / mu) = 4: inertia and viscosity both matter (the gradient
+    // leads the flux by about 50 degrees). Sinusoidal flux through a plug inlet, zero
+    // outlet pressure, the gradient measured between interior planes at z = 1 and 2.5 cm;
+    // first period discarded (zero-flux transients decay at ~16/s), second fitted.
+    let (rho, alpha, q0) = (1.06, 4.0, 0.2);
+    let omega = alpha * alpha * MU / (rho * RADIUS_CM * RADIUS_CM);
+    let period = 2.0 * PI / omega;
+    let per_period = 160;
+    let dt = period / per_period as f64;
+    let times_s: Vec<f64> = (0..per_period).map(|i| i as f64 * dt).collect();
+    let flows_ml_s = times_s.iter().map(|t| q0 * (omega * t).sin()).collect();
+    let inflow = Waveform::Table { times_s, flows_ml_s, period_s: period };
+    let (rings, layers) = (4, 12);
+    let (lo, hi) = (layers / 3, 5 * layers / 6);
+    let mesh = tube(RADIUS_CM, LENGTH_CM, rings, layers, &[lo, hi]);
+    let mut s = CaseSettings::new(INLET, inflow, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 0.0 }]);
+    s.density_g_cm3 = rho;
+    s.dt_s = dt;
+    s.cycles = 2;
+    s.linear_tolerance = 1e-6;
+    // Semi-implicit: one solve per step with extrapolated convection velocity.
+    s.max_nonlinear_iterations = 1;
+    let start = std::time::Instant::now();
+    let summary = simulate(&mesh, &s, &mut |_, _| true).unwrap();
+    let length = LENGTH_CM * (hi - lo) as f64 / layers as f64;
+    let (mut a, mut b) = (0.0, 0.0);
+    for step in &summary.steps[per_period..] {
+        let g = (step.face(PLANE + lo as i32).unwrap().mean_pressure_dyn_cm2 - step.face(PLANE + hi as i32).unwrap().mean_pressure_dyn_cm2) / length;
+        a += 2.0 / per_period as f64 * g * (omega * step.time_s).sin();
+        b += 2.0 / per_period as f64 * g * (omega * step.time_s).cos();
+    }
+    let computed = C(a, b);
+    let exact = womersley_gradient(q0, omega, rho, MU, RADIUS_CM);
+    let amplitude_error = (computed.abs() - exact.abs()) / exact.abs();
+    let phase_error = (computed.arg() - exact.arg()) / exact.arg();
+    println!(
+        "Womersley alpha {alpha}: |G| {:.4} exact {:.4} ({:+.2}%), phase {:.2} deg exact {:.2} deg ({:+.2}%), {} steps in {:?}",
+        computed.abs(),
+        exact.abs(),
+        100.0 * amplitude_error,
+        computed.arg().to_degrees(),
+        exact.arg().to_degrees(),
+        100.0 * phase_error,
+        summary.steps.len(),
+        start.elapsed()
+    );
+    assert!(amplitude_error.abs() < 0.05, "amplitude error {amplitude_error}");
+    assert!(phase_error.abs() < 0.05, "phase error {phase_error}");
+}

@@ -137,10 +137,100 @@ pub fn read_simvascular_mesh(vtu_path: &Path, vtp_path: &Path) -> Result<FlowMes
     Ok(mesh)
 }
 
+/// Write the solution as a VTK XML UnstructuredGrid (ASCII): points (cm), linear
+/// tetrahedra, point arrays `velocity` (cm/s, 3 components) and `pressure` (dyn/cm^2).
+/// Atomic: written to a temporary name in the same directory, synced, then renamed,
+/// so a reader never sees a partial file.
+pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]], velocity_cm_s: &[[f64; 3]], pressure_dyn_cm2: &[f64]) -> Result<(), CfdError> {
+    use std::io::Write;
+    if velocity_cm_s.len() != points_cm.len() || pressure_dyn_cm2.len() != points_cm.len() {
+        let msg = format!("{} velocities and {} pressures for {} points", velocity_cm_s.len(), pressure_dyn_cm2.len(), points_cm.len());
+        return Err(io_err(path, msg));
+    }
+    let name = path.file_name().ok_or_else(|| io_err(path, "no file name"))?.to_string_lossy().into_owned();
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let write = || -> std::io::Result<()> {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        writeln!(w, r#"<?xml version="1.0"?>"#)?;
+        writeln!(w, r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#)?;
+        writeln!(w, "<UnstructuredGrid>")?;
+        writeln!(w, r#"<Piece NumberOfPoints="{}" NumberOfCells="{}">"#, points_cm.len(), tets.len())?;
+        writeln!(w, r#"<PointData Vectors="velocity" Scalars="pressure">"#)?;
+        writeln!(w, r#"<DataArray type="Float64" Name="velocity" NumberOfComponents="3" format="ascii">"#)?;
+        for v in velocity_cm_s {
+            writeln!(w, "{:e} {:e} {:e}", v[0], v[1], v[2])?;
+        }
+        writeln!(w, "</DataArray>")?;
+        writeln!(w, r#"<DataArray type="Float64" Name="pressure" format="ascii">"#)?;
+        for p in pressure_dyn_cm2 {
+            writeln!(w, "{p:e}")?;
+        }
+        writeln!(w, "</DataArray>\n</PointData>")?;
+        writeln!(w, r#"<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">"#)?;
+        for p in points_cm {
+            writeln!(w, "{:e} {:e} {:e}", p[0], p[1], p[2])?;
+        }
+        writeln!(w, "</DataArray></Points>\n<Cells>")?;
+        writeln!(w, r#"<DataArray type="Int64" Name="connectivity" format="ascii">"#)?;
+        for t in tets {
+            writeln!(w, "{} {} {} {}", t[0], t[1], t[2], t[3])?;
+        }
+        writeln!(w, "</DataArray>")?;
+        writeln!(w, r#"<DataArray type="Int64" Name="offsets" format="ascii">"#)?;
+        for k in 1..=tets.len() {
+            writeln!(w, "{}", 4 * k)?;
+        }
+        writeln!(w, "</DataArray>")?;
+        writeln!(w, r#"<DataArray type="UInt8" Name="types" format="ascii">"#)?;
+        for _ in tets {
+            writeln!(w, "10")?;
+        }
+        writeln!(w, "</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>")?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    };
+    write().map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io_err(path, format!("cannot write: {e}"))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::test_data::data_dir;
+
+    #[test]
+    fn solution_vtu_round_trips_through_vtkio() {
+        let mesh = crate::test_meshes::tube(0.25, 1.0, 2, 3, &[]);
+        let n = mesh.points_cm.len();
+        let velocity: Vec<[f64; 3]> = (0..n).map(|i| [i as f64, -0.5 * i as f64, 1e-3 * i as f64]).collect();
+        let pressure: Vec<f64> = (0..n).map(|i| 1000.0 + 0.25 * i as f64).collect();
+        let dir = std::env::temp_dir().join(format!("baffle-cfd-solution-vtu-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("solution.vtu");
+        write_solution_vtu(&path, &mesh.points_cm, &mesh.tets, &velocity, &pressure).unwrap();
+        // Only the final file is left behind.
+        let names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        assert_eq!(names, vec!["solution.vtu".to_string()]);
+        let back = read_vtu(&path).unwrap();
+        assert_eq!(back.tets, mesh.tets);
+        assert_eq!(back.points, mesh.points_cm);
+        let vtk = vtkio::Vtk::import(&path).unwrap();
+        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("not a grid") };
+        let piece = pieces.into_iter().next().unwrap().into_loaded_piece_data(None).unwrap();
+        let array = |name: &str| -> Vec<f64> {
+            piece.data.point.iter().find_map(|a| match a {
+                Attribute::DataArray(d) if d.name == name => d.data.clone().cast_into::<f64>(),
+                _ => None,
+            }).unwrap()
+        };
+        assert_eq!(array("pressure"), pressure);
+        assert_eq!(array("velocity"), velocity.iter().flatten().copied().collect::<Vec<f64>>());
+        assert!(write_solution_vtu(&path, &mesh.points_cm, &mesh.tets, &velocity[1..], &pressure).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn p2_published_mesh_reads_with_inlet_and_outlet() {

@@ -1,0 +1,649 @@
+"""BaffleDesigner logic: MRML nodes in, the area-constrained baffle and its outputs back
+into the scene. Depends only on `slicer` MRML classes, `vtk`, numpy and the project's
+`baffle` package, so it runs inside the Slicer application and headless (slicer-core).
+
+Frames: everything here is in Slicer's world frame (RAS, mm). The ventricle model node's
+polydata is taken to world through its parent transforms, the suture points are the curve's
+world control point positions, and the outputs are written in world coordinates. The
+library is frame-agnostic as long as surface and points agree.
+
+Per-candidate state lives on the suture curve node, as BafflePlanner does: the target and
+CFD parameters and the latest results are node attributes ("BaffleDesigner.*"), the input
+and output nodes are node references ("BaffleDesigner*"). One scene can therefore hold
+several candidate baffles, one per closed curve.
+"""
+
+import math
+import time
+from dataclasses import dataclass, fields
+from typing import Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+import slicer
+import vtk
+from vtkmodules.util import numpy_support
+
+import baffle
+from baffle import vtk_adapters
+
+ATTRIBUTE_PREFIX = "BaffleDesigner."
+CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
+ROLE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Role"
+
+# Node reference roles on the suture curve node.
+REF_SURFACE = "BaffleDesignerSurface"
+REF_BAFFLE = "BaffleDesignerBaffleModel"
+REF_DOMAIN = "BaffleDesignerDomainModel"
+REF_CENTERLINE = "BaffleDesignerCenterline"
+REF_SECTIONS = "BaffleDesignerSectionsModel"
+REF_TABLE = "BaffleDesignerSectionsTable"
+REF_CHART = "BaffleDesignerAreaChart"
+REF_SERIES_FINAL = "BaffleDesignerSeriesFinalArea"
+REF_SERIES_RAW = "BaffleDesignerSeriesRawArea"
+REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
+REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
+REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
+
+TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
+
+# Section table columns (name, unit, description).
+COL_S = "s"
+COL_TARGET = "Target area"
+COL_RAW = "Raw area"
+COL_FINAL = "Final area"
+COL_MEASURED = "Measured area"
+COL_ALPHA = "Amplitude"
+COL_STATUS = "Status"
+SECTION_COLUMNS = (
+    (COL_S, "mm", "arc length along the centerline"),
+    (COL_TARGET, "mm2", "target cross-section area"),
+    (COL_RAW, "mm2", "section area of the initial patch (library)"),
+    (COL_FINAL, "mm2", "section area of the final baffle (library)"),
+    (COL_MEASURED, "mm2", "area of the section loop cut from the domain model here (VTK)"),
+    (COL_ALPHA, "mm", "regularized parabolic arc amplitude"),
+)
+
+
+class BaffleDesignerError(RuntimeError):
+    """An error to show the user; str() carries the library's message where there is one."""
+
+
+@dataclass
+class DesignParameters:
+    """Target area and CFD conditions of one candidate, stored as curve node attributes.
+
+    target_mode: "bsa" (BSA + z-score, Boston aortic annulus), "height_weight" (Haycock
+    BSA + z-score), "area" (explicit mm2) or "diameter" (explicit annulus diameter mm).
+    The blood pressure and heart rate are kept for the CFD step."""
+
+    target_mode: str = "bsa"
+    bsa_m2: float = 0.37
+    height_cm: float = 60.0
+    weight_kg: float = 6.0
+    z_score: float = 0.0
+    target_area_mm2: float = 70.0
+    annulus_diameter_mm: float = 9.4
+    systolic_mmhg: float = 80.0
+    diastolic_mmhg: float = 45.0
+    heart_rate_bpm: float = 120.0
+
+    def validate(self) -> None:
+        if self.target_mode not in TARGET_MODES:
+            raise BaffleDesignerError(f"target mode must be one of {', '.join(TARGET_MODES)}, not {self.target_mode!r}")
+        positive = {
+            "bsa": ("bsa_m2",),
+            "height_weight": ("height_cm", "weight_kg"),
+            "area": ("target_area_mm2",),
+            "diameter": ("annulus_diameter_mm",),
+        }[self.target_mode]
+        for name in positive:
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise BaffleDesignerError(f"{name} must be a positive number, not {value}")
+        if not math.isfinite(self.z_score):
+            raise BaffleDesignerError("z_score must be a finite number")
+
+    def design_kwargs(self) -> dict:
+        """The target arguments of baffle.design()."""
+        self.validate()
+        if self.target_mode == "bsa":
+            return {"bsa_m2": self.bsa_m2, "z_score": self.z_score}
+        if self.target_mode == "height_weight":
+            return {"height_cm": self.height_cm, "weight_kg": self.weight_kg, "z_score": self.z_score}
+        if self.target_mode == "area":
+            return {"target_area_mm2": self.target_area_mm2}
+        return {"annulus_diameter_mm": self.annulus_diameter_mm}
+
+    def write(self, node) -> None:
+        for f in fields(self):
+            node.SetAttribute(ATTRIBUTE_PREFIX + f.name, str(getattr(self, f.name)))
+
+    @classmethod
+    def read(cls, node) -> "DesignParameters":
+        """Parameters stored on the node; defaults for those it does not hold."""
+        parameters = cls()
+        for f in fields(cls):
+            text = node.GetAttribute(ATTRIBUTE_PREFIX + f.name)
+            if text is None:
+                continue
+            try:
+                setattr(parameters, f.name, text if f.type in (str, "str") else float(text))
+            except ValueError as error:
+                raise BaffleDesignerError(f"{node.GetName()}: attribute {ATTRIBUTE_PREFIX + f.name} = {text!r}: {error}")
+        return parameters
+
+
+def _vtk_double_array(name: str, values) -> vtk.vtkDoubleArray:
+    array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=1)
+    array.SetName(name)
+    return array
+
+
+def _nan(value) -> float:
+    return float("nan") if value is None else float(value)
+
+
+def polygon_area(loop: np.ndarray) -> float:
+    """Area of a closed planar polygon (points in order, first not repeated)."""
+    origin = loop.mean(axis=0)
+    rel = loop - origin
+    return 0.5 * float(np.linalg.norm(np.cross(rel, np.roll(rel, -1, axis=0)).sum(axis=0)))
+
+
+def section_loop(domain: vtk.vtkPolyData, origin, normal) -> Optional[np.ndarray]:
+    """The loop where the plane (origin, normal) cuts the closed domain, on the connected
+    piece nearest the origin: (n, 3) points in order, or None when the plane misses."""
+    plane = vtk.vtkPlane()
+    plane.SetOrigin(*origin)
+    plane.SetNormal(*normal)
+    cutter = vtk.vtkCutter()
+    cutter.SetInputData(domain)
+    cutter.SetCutFunction(plane)
+    connectivity = vtk.vtkPolyDataConnectivityFilter()
+    connectivity.SetInputConnection(cutter.GetOutputPort())
+    connectivity.SetExtractionModeToClosestPointRegion()
+    connectivity.SetClosestPoint(*origin)
+    stripper = vtk.vtkStripper()
+    stripper.SetInputConnection(connectivity.GetOutputPort())
+    stripper.JoinContiguousSegmentsOn()
+    stripper.Update()
+    loop_data = stripper.GetOutput()
+    if loop_data.GetNumberOfLines() != 1 or loop_data.GetNumberOfPoints() < 3:
+        return None
+    points = numpy_support.vtk_to_numpy(loop_data.GetPoints().GetData())
+    ids = vtk.vtkIdList()
+    lines = loop_data.GetLines()
+    lines.InitTraversal()
+    lines.GetNextCell(ids)
+    index = [ids.GetId(i) for i in range(ids.GetNumberOfIds())]
+    if len(index) < 4 or index[0] != index[-1]:  # not closed
+        return None
+    return np.asarray(points[index[:-1]], dtype=np.float64)
+
+
+class BaffleDesignerLogic:
+    """Designs candidate baffles for the closed curve nodes of a scene.
+
+    Without Qt: the widget drives the debounced auto-update by calling
+    processPendingUpdates() from a single-shot QTimer that it restarts on every
+    `onUpdateRequested` call; tests call processPendingUpdates() directly."""
+
+    def __init__(self, scene, debounce_seconds: float = 0.3):
+        if scene is None:
+            raise BaffleDesignerError("no MRML scene")
+        self.scene = scene
+        self.debounce_seconds = debounce_seconds
+        # Called with the curve node whenever an observed curve changes (widget: restart timer).
+        self.onUpdateRequested: Optional[Callable] = None
+        # Called after every auto-update attempt: (curve node, error message or None).
+        self.onAutoUpdated: Optional[Callable] = None
+        self._observations: Dict[str, List[Tuple[object, int]]] = {}
+        self._pending: Dict[str, float] = {}
+        self.design_count = 0
+
+    # ---- inputs and parameters -------------------------------------------------------
+
+    def setSurfaceNode(self, curve, surface_node) -> None:
+        self._check_curve(curve)
+        curve.SetNodeReferenceID(REF_SURFACE, surface_node.GetID() if surface_node else None)
+        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+
+    def surfaceNode(self, curve):
+        return curve.GetNodeReference(REF_SURFACE)
+
+    def setParameters(self, curve, parameters: DesignParameters) -> None:
+        self._check_curve(curve)
+        parameters.validate()
+        parameters.write(curve)
+        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+
+    def parameters(self, curve) -> DesignParameters:
+        return DesignParameters.read(curve)
+
+    @staticmethod
+    def _check_curve(curve) -> None:
+        if curve is None:
+            raise BaffleDesignerError("select the suture points (a closed curve node)")
+        if not curve.IsA("vtkMRMLMarkupsClosedCurveNode"):
+            raise BaffleDesignerError(
+                f"{curve.GetName()}: the suture points must be a closed curve (vtkMRMLMarkupsClosedCurveNode), "
+                f"not {curve.GetClassName()}"
+            )
+
+    @staticmethod
+    def suturePointsWorld(curve) -> np.ndarray:
+        """Defined control points of the curve in world coordinates (RAS), (n, 3)."""
+        points = []
+        for i in range(curve.GetNumberOfControlPoints()):
+            if curve.GetNthControlPointPositionStatus(i) != curve.PositionDefined:
+                continue
+            position = [0.0, 0.0, 0.0]
+            curve.GetNthControlPointPositionWorld(i, position)
+            points.append(position)
+        if len(points) < 3:
+            raise BaffleDesignerError(
+                f"{curve.GetName()}: {len(points)} defined suture points; place at least 3 (BafflePlanner uses 12-15)"
+            )
+        return np.asarray(points, dtype=np.float64)
+
+    @staticmethod
+    def surfacePolyDataWorld(surface_node) -> vtk.vtkPolyData:
+        """The ventricle surface in world coordinates; segmentations need the library's
+        prepare step, which this build does not have yet."""
+        if surface_node is None:
+            raise BaffleDesignerError("select the ventricle (a model node with ModelFaceID, or a segmentation)")
+        if surface_node.IsA("vtkMRMLSegmentationNode"):
+            raise BaffleDesignerError(
+                f"{surface_node.GetName()}: segmentation input needs the library's prepare step "
+                "(`baffle prepare`, capping and labelling the ventricle), which is not available yet in this "
+                "build; export a capped model with a ModelFaceID cell array (2 wall, 11 VSD cap, 16 aortic cap) "
+                "and select that model"
+            )
+        if not surface_node.IsA("vtkMRMLModelNode"):
+            raise BaffleDesignerError(f"{surface_node.GetName()}: {surface_node.GetClassName()} is not a model or segmentation")
+        polydata = surface_node.GetPolyData()
+        if polydata is None or polydata.GetNumberOfPoints() == 0:
+            raise BaffleDesignerError(f"{surface_node.GetName()}: the model has no surface")
+        if polydata.GetCellData().GetArray(vtk_adapters.LABEL_ARRAY) is None:
+            raise BaffleDesignerError(
+                f"{surface_node.GetName()}: no {vtk_adapters.LABEL_ARRAY} cell array; the capped ventricle needs "
+                "labels 2 (RV wall), 11 (VSD cap) and 16 (aortic-annulus cap)"
+            )
+        parent = surface_node.GetParentTransformNode()
+        if parent is None:
+            return polydata
+        to_world = vtk.vtkGeneralTransform()
+        slicer.vtkMRMLTransformNode.GetTransformBetweenNodes(parent, None, to_world)
+        transformer = vtk.vtkTransformPolyDataFilter()
+        transformer.SetTransform(to_world)
+        transformer.SetInputData(polydata)
+        transformer.Update()
+        return transformer.GetOutput()
+
+    # ---- design ----------------------------------------------------------------------
+
+    def design(self, curve, progress=None) -> "baffle.DesignResult":
+        """Design the candidate of `curve` and update its output nodes. On failure the
+        previous outputs stay, the curve's Status/Error attributes say why, and
+        BaffleDesignerError carries the library's message."""
+        self._check_curve(curve)
+        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+        started = time.perf_counter()
+        try:
+            parameters = self.parameters(curve)
+            surface = self.surfacePolyDataWorld(self.surfaceNode(curve))
+            points = self.suturePointsWorld(curve)
+            try:
+                mesh = vtk_adapters.polydata_to_mesh(surface)
+            except ValueError as error:
+                raise BaffleDesignerError(f"{self.surfaceNode(curve).GetName()}: {error}") from error
+            try:
+                result = baffle.design(
+                    mesh.points, mesh.triangles, mesh.labels, points, progress=progress, **parameters.design_kwargs()
+                )
+            except baffle.Cancelled as error:
+                raise BaffleDesignerError(f"design cancelled: {error}") from error
+            except baffle.BaffleError as error:
+                raise BaffleDesignerError(f"design failed: {error}") from error
+        except BaffleDesignerError as error:
+            curve.SetAttribute(ATTRIBUTE_PREFIX + "Status", "failed")
+            curve.SetAttribute(ATTRIBUTE_PREFIX + "Error", str(error))
+            raise
+        self._write_outputs(curve, result, parameters)
+        elapsed_ms = 1000.0 * (time.perf_counter() - started)
+        report = result.report
+        for name, value in (
+            ("Status", "designed"),
+            ("Error", ""),
+            ("TargetAreaMm2", report["target_area_mm2"]),
+            ("TargetDescription", report["target"]),
+            ("BaffleAreaMm2", report["baffle_area_mm2"]),
+            ("MinSectionAreaMm2", report["min_constrained_final_area_mm2"]),
+            ("ConstrainedSections", report["constrained_sections"]),
+            ("CenterlineLengthMm", report["centerline_length_mm"]),
+            ("DesignTimeMs", f"{elapsed_ms:.0f}"),
+        ):
+            curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
+        self.design_count += 1
+        return result
+
+    def _output_node(self, curve, role: str, class_name: str, suffix: str):
+        node = curve.GetNodeReference(role)
+        if node is None or not node.IsA(class_name):
+            node = self.scene.AddNewNodeByClass(class_name, f"{curve.GetName()} {suffix}")
+            if node is None:  # class not registered with this scene (headless scenes)
+                node = getattr(slicer, class_name)()
+                node.SetName(f"{curve.GetName()} {suffix}")
+                self.scene.AddNode(node)
+            node.SetAttribute(ROLE_ATTRIBUTE, role)
+            if hasattr(node, "CreateDefaultDisplayNodes"):
+                node.CreateDefaultDisplayNodes()
+            curve.SetNodeReferenceID(role, node.GetID())
+        return node
+
+    def _model(self, curve, role, suffix, polydata, color, opacity=1.0):
+        node = self._output_node(curve, role, "vtkMRMLModelNode", suffix)
+        was_new = node.GetPolyData() is None
+        node.SetAndObservePolyData(polydata)
+        display = node.GetDisplayNode()
+        if display is not None and was_new:
+            display.SetColor(*color)
+            display.SetOpacity(opacity)
+            display.SetVisibility2D(True)
+        return node
+
+    def _write_outputs(self, curve, result, parameters) -> None:
+        baffle_polydata = vtk_adapters.mesh_to_polydata(result.baffle)
+        domain_polydata = vtk_adapters.mesh_to_polydata(result.domain)
+        self._model(curve, REF_BAFFLE, "baffle", baffle_polydata, (0.85, 0.25, 0.2))
+        self._model(curve, REF_DOMAIN, "domain", domain_polydata, (0.95, 0.85, 0.6), opacity=0.3)
+        self._write_centerline(curve, result)
+        measured = self._write_sections(curve, result, domain_polydata)
+        table = self._write_table(curve, result, measured)
+        self._write_plot(curve, table)
+
+    def _write_centerline(self, curve, result) -> None:
+        node = self._output_node(curve, REF_CENTERLINE, "vtkMRMLMarkupsCurveNode", "centerline")
+        node.SetCurveTypeToLinear()
+        points = vtk.vtkPoints()
+        points.SetData(_vtk_double_array("points", result.centerline_points_mm))
+        node.SetLocked(False)
+        node.SetControlPointPositionsWorld(points)
+        node.SetLocked(True)  # an output: the surgeon drags the suture points, not this
+        display = node.GetDisplayNode()
+        if display is not None and hasattr(display, "SetPointLabelsVisibility"):
+            display.SetPointLabelsVisibility(False)
+
+    def _write_sections(self, curve, result, domain_polydata) -> List[float]:
+        """Cut every section plane of the report from the domain; the loops go into the
+        sections model (cell arrays s_mm, area_mm2, constrained), their areas (an
+        independent re-measurement) into the table."""
+        append_points, lines, s_values, areas, constrained = [], [], [], [], []
+        measured = []
+        offset = 0
+        for section in result.report["sections"]:
+            loop = section_loop(domain_polydata, section["origin_mm"], section["normal"])
+            if loop is None:
+                measured.append(float("nan"))
+                continue
+            area = polygon_area(loop)
+            measured.append(area)
+            append_points.append(loop)
+            lines.append(list(range(offset, offset + len(loop))) + [offset])
+            offset += len(loop)
+            s_values.append(section["s_mm"])
+            areas.append(area)
+            constrained.append(1 if section["status"] == "constrained" else 0)
+        polydata = vtk.vtkPolyData()
+        points = vtk.vtkPoints()
+        if append_points:
+            points.SetData(_vtk_double_array("points", np.vstack(append_points)))
+        polydata.SetPoints(points)
+        cells = vtk.vtkCellArray()
+        for line in lines:
+            cells.InsertNextCell(len(line))
+            for index in line:
+                cells.InsertCellPoint(index)
+        polydata.SetLines(cells)
+        for name, values in (("s_mm", s_values), ("area_mm2", areas)):
+            polydata.GetCellData().AddArray(_vtk_double_array(name, values))
+        flag = numpy_support.numpy_to_vtk(np.asarray(constrained, dtype=np.int32), deep=1)
+        flag.SetName("constrained")
+        polydata.GetCellData().AddArray(flag)
+        self._model(curve, REF_SECTIONS, "sections", polydata, (0.2, 0.5, 0.95))
+        return measured
+
+    def _write_table(self, curve, result, measured):
+        node = self._output_node(curve, REF_TABLE, "vtkMRMLTableNode", "sections")
+        sections = result.report["sections"]
+        target = result.report["target_area_mm2"]
+        columns = {
+            COL_S: [s["s_mm"] for s in sections],
+            COL_TARGET: [target] * len(sections),
+            COL_RAW: [_nan(s["raw_area_mm2"]) for s in sections],
+            COL_FINAL: [_nan(s["final_area_mm2"]) for s in sections],
+            COL_MEASURED: measured,
+            COL_ALPHA: [_nan(s["alpha_regularized_mm"]) for s in sections],
+        }
+        table = vtk.vtkTable()
+        for name, _, _ in SECTION_COLUMNS:
+            table.AddColumn(_vtk_double_array(name, columns[name]))
+        status = vtk.vtkStringArray()
+        status.SetName(COL_STATUS)
+        for s in sections:
+            status.InsertNextValue(s["status"])
+        table.AddColumn(status)
+        node.SetAndObserveTable(table)
+        for name, unit, description in SECTION_COLUMNS:
+            node.SetColumnUnitLabel(name, unit)
+            node.SetColumnDescription(name, description)
+        node.SetColumnDescription(COL_STATUS, "constrained, or why the section was dropped")
+        return node
+
+    def _write_plot(self, curve, table_node) -> None:
+        chart = self._output_node(curve, REF_CHART, "vtkMRMLPlotChartNode", "area along centerline")
+        chart.SetTitle(f"{curve.GetName()}: section area along the centerline")
+        chart.SetXAxisTitle("s (mm)")
+        chart.SetYAxisTitle("area (mm2)")
+        styles = (
+            (REF_SERIES_FINAL, COL_FINAL, (0.85, 0.25, 0.2), slicer.vtkMRMLPlotSeriesNode.LineStyleSolid),
+            (REF_SERIES_RAW, COL_RAW, (0.5, 0.5, 0.5), slicer.vtkMRMLPlotSeriesNode.LineStyleDot),
+            (REF_SERIES_TARGET, COL_TARGET, (0.1, 0.6, 0.2), slicer.vtkMRMLPlotSeriesNode.LineStyleDash),
+        )
+        for role, column, color, line_style in styles:
+            series = self._output_node(curve, role, "vtkMRMLPlotSeriesNode", column.lower())
+            series.SetAndObserveTableNodeID(table_node.GetID())
+            series.SetXColumnName(COL_S)
+            series.SetYColumnName(column)
+            series.SetPlotType(slicer.vtkMRMLPlotSeriesNode.PlotTypeScatter)
+            series.SetLineStyle(line_style)
+            series.SetMarkerStyle(slicer.vtkMRMLPlotSeriesNode.MarkerStyleNone)
+            series.SetColor(*color)
+            if not chart.HasPlotSeriesNodeID(series.GetID()):
+                chart.AddAndObservePlotSeriesNodeID(series.GetID())
+
+    # ---- auto-update ------------------------------------------------------------------
+
+    def setAutoUpdate(self, curve, enabled: bool) -> None:
+        """Observe the curve's control points: every add, remove or drag marks the
+        candidate pending; processPendingUpdates() designs it once it has been quiet for
+        debounce_seconds."""
+        self._check_curve(curve)
+        curve_id = curve.GetID()
+        for node, tag in self._observations.pop(curve_id, []):
+            node.RemoveObserver(tag)
+        self._pending.pop(curve_id, None)
+        curve.SetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate", "1" if enabled else "0")
+        if not enabled:
+            return
+        events = (curve.PointModifiedEvent, curve.PointAddedEvent, curve.PointRemovedEvent)
+        self._observations[curve_id] = [(curve, curve.AddObserver(event, self._on_curve_changed)) for event in events]
+
+    def isAutoUpdating(self, curve) -> bool:
+        return curve.GetID() in self._observations
+
+    def _on_curve_changed(self, curve, _event=None) -> None:
+        self.requestUpdate(curve)
+
+    def requestUpdate(self, curve) -> None:
+        """Mark the candidate for a debounced redesign (point drags, parameter edits)."""
+        self._pending[curve.GetID()] = time.monotonic()
+        if self.onUpdateRequested is not None:
+            self.onUpdateRequested(curve)
+
+    def pendingUpdates(self) -> List[str]:
+        return list(self._pending)
+
+    def processPendingUpdates(self, now: Optional[float] = None, force: bool = False) -> Dict[str, Optional[str]]:
+        """Design every pending candidate that has been quiet for debounce_seconds (all
+        of them with force). Returns {curve ID: None or the error message}; errors are
+        also left on the curve (Status/Error attributes), never raised, so a point
+        dragged off the wall just leaves the last good baffle in place."""
+        now = time.monotonic() if now is None else now
+        done = {}
+        for curve_id, changed in list(self._pending.items()):
+            if not force and now - changed < self.debounce_seconds:
+                continue
+            del self._pending[curve_id]
+            curve = self.scene.GetNodeByID(curve_id)
+            if curve is None:
+                continue
+            try:
+                self.design(curve)
+                done[curve_id] = None
+            except BaffleDesignerError as error:
+                done[curve_id] = str(error)
+            if self.onAutoUpdated is not None:
+                self.onAutoUpdated(curve, done[curve_id])
+        return done
+
+    def cleanup(self) -> None:
+        """Remove all observers (module widget cleanup / scene close)."""
+        for observations in self._observations.values():
+            for node, tag in observations:
+                node.RemoveObserver(tag)
+        self._observations.clear()
+        self._pending.clear()
+
+    # ---- candidates ---------------------------------------------------------------------
+
+    def candidates(self) -> list:
+        """Closed curve nodes of the scene that are BaffleDesigner candidates."""
+        nodes = []
+        collection = self.scene.GetNodesByClass("vtkMRMLMarkupsClosedCurveNode")
+        for i in range(collection.GetNumberOfItems()):
+            node = collection.GetItemAsObject(i)
+            if node.GetAttribute(CANDIDATE_ATTRIBUTE) == "1":
+                nodes.append(node)
+        return nodes
+
+    def updateCompareTable(self, simulation_note: str = "not simulated"):
+        """One table of all candidates: target area, baffle area, smallest constrained
+        section, status; pressure drop and v_max stay empty (NaN) with
+        `simulation_note` until a CFD result exists for the candidate."""
+        node = None
+        collection = self.scene.GetNodesByClass("vtkMRMLTableNode")
+        for i in range(collection.GetNumberOfItems()):
+            candidate = collection.GetItemAsObject(i)
+            if candidate.GetAttribute(ROLE_ATTRIBUTE) == "Compare":
+                node = candidate
+                break
+        if node is None:
+            node = slicer.vtkMRMLTableNode()
+            node.SetName("BaffleDesigner candidates")
+            node.SetAttribute(ROLE_ATTRIBUTE, "Compare")
+            self.scene.AddNode(node)
+        rows = self.candidates()
+        table = vtk.vtkTable()
+        name_column = vtk.vtkStringArray()
+        name_column.SetName("Candidate")
+        status_column = vtk.vtkStringArray()
+        status_column.SetName("Status")
+        simulation_column = vtk.vtkStringArray()
+        simulation_column.SetName("Simulation")
+        numeric = {
+            "Target area": "TargetAreaMm2",
+            "Baffle area": "BaffleAreaMm2",
+            "Min section area": "MinSectionAreaMm2",
+            "Constrained sections": "ConstrainedSections",
+        }
+        values = {column: [] for column in numeric}
+        for curve in rows:
+            name_column.InsertNextValue(curve.GetName())
+            status = curve.GetAttribute(ATTRIBUTE_PREFIX + "Status") or "not designed"
+            error = curve.GetAttribute(ATTRIBUTE_PREFIX + "Error")
+            status_column.InsertNextValue(f"{status}: {error}" if error else status)
+            simulation_column.InsertNextValue(simulation_note)
+            for column, attribute in numeric.items():
+                text = curve.GetAttribute(ATTRIBUTE_PREFIX + attribute)
+                values[column].append(float(text) if text else float("nan"))
+        table.AddColumn(name_column)
+        for column in numeric:
+            table.AddColumn(_vtk_double_array(column, values[column]))
+        for column in ("dp", "v_max"):
+            table.AddColumn(_vtk_double_array(column, [float("nan")] * len(rows)))
+        table.AddColumn(status_column)
+        table.AddColumn(simulation_column)
+        node.SetAndObserveTable(table)
+        for column in ("Target area", "Baffle area", "Min section area"):
+            node.SetColumnUnitLabel(column, "mm2")
+        node.SetColumnUnitLabel("dp", "mmHg")
+        node.SetColumnUnitLabel("v_max", "m/s")
+        return node
+
+    # ---- volume mesh (the step before CFD; `baffle mesh` as a separate process) ----------
+
+    def volumeMeshCommand(self, curve, executable: str, work_dir: str, edge_length_mm: float = 0.95) -> List[str]:
+        """Write the candidate's domain (world coordinates) into work_dir and return the
+        `baffle mesh` command line that meshes it into work_dir/volume.vtu."""
+        import os
+
+        domain = curve.GetNodeReference(REF_DOMAIN)
+        if domain is None or domain.GetPolyData() is None:
+            raise BaffleDesignerError(f"{curve.GetName()}: design the baffle first (no domain model)")
+        os.makedirs(work_dir, exist_ok=True)
+        surface_path = os.path.join(work_dir, "domain.vtp")
+        writer = vtk.vtkXMLPolyDataWriter()
+        writer.SetFileName(surface_path)
+        writer.SetInputData(domain.GetPolyData())
+        if not writer.Write():
+            raise BaffleDesignerError(f"could not write {surface_path}")
+        return [
+            executable, "mesh", "--surface", surface_path, "--out", os.path.join(work_dir, "volume.vtu"),
+            "--edge-length-mm", repr(float(edge_length_mm)),
+        ]
+
+    def loadVolumeMesh(self, curve, work_dir: str):
+        """Load work_dir/volume.vtu (an unstructured grid, shown by a model node) and its
+        quality figures (a table node) onto the candidate."""
+        import json
+        import os
+
+        volume_path = os.path.join(work_dir, "volume.vtu")
+        quality_path = os.path.join(work_dir, "volume-quality.json")
+        if not os.path.exists(volume_path):
+            raise BaffleDesignerError(f"{volume_path} was not written")
+        reader = vtk.vtkXMLUnstructuredGridReader()
+        reader.SetFileName(volume_path)
+        reader.Update()
+        grid = reader.GetOutput()
+        if grid.GetNumberOfCells() == 0:
+            raise BaffleDesignerError(f"{volume_path} holds no cells")
+        node = self._output_node(curve, REF_VOLUME_MESH, "vtkMRMLModelNode", "volume mesh")
+        node.SetAndObserveMesh(grid)
+        with open(quality_path, encoding="utf-8") as handle:
+            quality = json.load(handle)
+        table_node = self._output_node(curve, REF_VOLUME_MESH_QUALITY, "vtkMRMLTableNode", "volume mesh quality")
+        table = vtk.vtkTable()
+        names = vtk.vtkStringArray()
+        names.SetName("Measure")
+        numbers = vtk.vtkDoubleArray()
+        numbers.SetName("Value")
+        for key, value in quality.items():
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                names.InsertNextValue(key)
+                numbers.InsertNextValue(float(value))
+        table.AddColumn(names)
+        table.AddColumn(numbers)
+        table_node.SetAndObserveTable(table)
+        return node, table_node

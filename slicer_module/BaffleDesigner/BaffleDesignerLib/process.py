@@ -1,0 +1,192 @@
+"""Runs the `baffle` command line as a separate process without blocking the caller:
+Slicer CLI progress tags (<filter-progress>, <filter-stage>, <filter-comment>) are parsed
+from its standard output on a reader thread; the GUI polls `progress`/`stage`/`state`
+from a QTimer and calls cancel(). Pure Python (subprocess + threading), no Qt."""
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+from typing import List, Optional, Tuple
+
+_TAG = re.compile(r"<(filter-[a-z]+)>(.*?)</\1>")
+
+RUNNING, COMPLETED, FAILED, CANCELLED = "running", "completed", "failed", "cancelled"
+
+
+def find_baffle_executable() -> Optional[str]:
+    """$BAFFLE_EXECUTABLE, else `baffle` on PATH, else a development tree's cargo build
+    (slicer_module/BaffleDesigner/BaffleDesignerLib -> ../../../target/release/baffle)."""
+    given = os.environ.get("BAFFLE_EXECUTABLE")
+    if given:
+        return given
+    on_path = shutil.which("baffle")
+    if on_path:
+        return on_path
+    name = "baffle.exe" if os.name == "nt" else "baffle"
+    built = Path(__file__).resolve().parents[3] / "target" / "release" / name
+    return str(built) if built.exists() else None
+
+
+def subcommand_availability(executable: Optional[str], subcommand: str, timeout: float = 20.0) -> Tuple[bool, str]:
+    """(True, "") when `executable SUBCOMMAND --help` succeeds, else (False, why)."""
+    if not executable:
+        return False, "the baffle command line program was not found (set BAFFLE_EXECUTABLE or put baffle on PATH)"
+    try:
+        done = subprocess.run(
+            [executable, subcommand, "--help"], capture_output=True, text=True, timeout=timeout, check=False
+        )
+    except (OSError, subprocess.TimeoutExpired) as error:
+        return False, f"{executable} {subcommand} --help: {error}"
+    if done.returncode == 0:
+        return True, ""
+    detail = (done.stderr or done.stdout).strip().splitlines()
+    return False, f"`baffle {subcommand}` is not available in this build" + (f" ({detail[0]})" if detail else "")
+
+
+def simulate_availability(executable: Optional[str]) -> Tuple[bool, str]:
+    """Whether this build has the CFD worker (`baffle simulate`), and if not, why."""
+    available, reason = subcommand_availability(executable, "simulate")
+    if available:
+        return True, ""
+    return False, "The CFD worker is not available in this build: " + reason
+
+
+class CliProcess:
+    """One command line run. start() returns at once; `progress` (0..1), `stage`,
+    `state` and `output_lines` update from reader threads; cancel() terminates it
+    (then kills it after `kill_after` seconds)."""
+
+    def __init__(self, command: List[str], cwd: Optional[str] = None, env: Optional[dict] = None):
+        self.command = [str(c) for c in command]
+        self.cwd = cwd
+        self.env = env
+        self.progress = 0.0
+        self.stage = ""
+        self.comment = ""
+        self.state = ""
+        self.returncode: Optional[int] = None
+        self.output_lines: List[str] = []
+        self.error_lines: List[str] = []
+        self.progress_updates = 0
+        self._process: Optional[subprocess.Popen] = None
+        self._threads: List[threading.Thread] = []
+        self._cancel_requested = False
+        self._lock = threading.Lock()
+        self.started_at = 0.0
+        self.finished_at = 0.0
+
+    def start(self) -> "CliProcess":
+        if self._process is not None:
+            raise RuntimeError("already started")
+        self.started_at = time.monotonic()
+        self._process = subprocess.Popen(
+            self.command,
+            cwd=self.cwd,
+            env=self.env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            bufsize=1,
+            start_new_session=(os.name != "nt"),  # its own process group: cancel ends its children too
+        )
+        self.state = RUNNING
+        self._threads = [
+            threading.Thread(target=self._read_stdout, daemon=True),
+            threading.Thread(target=self._read_stderr, daemon=True),
+        ]
+        for thread in self._threads:
+            thread.start()
+        threading.Thread(target=self._wait, daemon=True).start()
+        return self
+
+    def _read_stdout(self) -> None:
+        for line in self._process.stdout:
+            line = line.rstrip("\n")
+            with self._lock:
+                self.output_lines.append(line)
+                for tag, value in _TAG.findall(line):
+                    if tag == "filter-progress":
+                        try:
+                            self.progress = min(1.0, max(0.0, float(value)))
+                            self.progress_updates += 1
+                        except ValueError:
+                            pass
+                    elif tag in ("filter-stage", "filter-name"):
+                        self.stage = value
+                    elif tag == "filter-comment":
+                        self.comment = value
+
+    def _read_stderr(self) -> None:
+        for line in self._process.stderr:
+            with self._lock:
+                self.error_lines.append(line.rstrip("\n"))
+
+    def _wait(self) -> None:
+        code = self._process.wait()
+        if self._cancel_requested:
+            # Children the program started (gmsh under `baffle mesh`) go with it.
+            self._signal(signal.SIGKILL if os.name != "nt" else None)
+        for thread in self._threads:
+            thread.join()
+        with self._lock:
+            self.returncode = code
+            self.finished_at = time.monotonic()
+            if self._cancel_requested:
+                self.state = CANCELLED
+            elif code == 0:
+                self.progress = 1.0
+                self.state = COMPLETED
+            else:
+                self.state = FAILED
+
+    @property
+    def running(self) -> bool:
+        return self.state == RUNNING
+
+    def cancel(self, kill_after: float = 3.0) -> None:
+        """Ask the process (group) to stop; returns at once. A background timer kills it
+        if it has not exited after `kill_after` seconds."""
+        if self._process is None or self.state != RUNNING:
+            return
+        self._cancel_requested = True
+        self._signal(signal.SIGTERM if os.name != "nt" else None)
+
+        def kill_later():
+            try:
+                self._process.wait(timeout=kill_after)
+            except subprocess.TimeoutExpired:
+                self._signal(signal.SIGKILL if os.name != "nt" else None)
+
+        threading.Thread(target=kill_later, daemon=True).start()
+
+    def _signal(self, sig) -> None:
+        try:
+            if sig is None:
+                self._process.kill()
+            else:
+                os.killpg(self._process.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    def wait(self, timeout: Optional[float] = None) -> str:
+        """Block until the run has ended (tests and scripts; the GUI polls instead)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.state == RUNNING:
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"{' '.join(self.command)} still running after {timeout} s")
+            time.sleep(0.02)
+        return self.state
+
+    def error_message(self) -> str:
+        """The program's own error line (`baffle: error: ...`), else its last stderr line."""
+        with self._lock:
+            for line in reversed(self.error_lines):
+                if "error" in line.lower():
+                    return line.strip()
+            return self.error_lines[-1].strip() if self.error_lines else f"exit code {self.returncode}"

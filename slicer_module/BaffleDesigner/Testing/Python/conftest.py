@@ -1,0 +1,96 @@
+"""Fixtures for the BaffleDesigner logic tests on real MRML classes (PyPI slicer-core):
+a headless scene, the p2 patient inputs loaded through Slicer's own storage nodes, and
+the built-in phantom. Patient data: $BAFFLE_DATA_DIR, else ../shared/data beside the
+repository; tests that need it skip with a note when it is absent."""
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+MODULE_DIR = Path(__file__).resolve().parents[2]  # slicer_module/BaffleDesigner
+REPO = MODULE_DIR.parents[1]
+sys.path.insert(0, str(MODULE_DIR))
+
+slicer = pytest.importorskip("slicer", reason="slicer-core is not installed (pip install slicer-core)")
+if not hasattr(slicer, "vtkMRMLScene"):
+    pytest.skip("`slicer` is not slicer-core's MRML package", allow_module_level=True)
+
+from BaffleDesignerLib import logic as bdlogic  # noqa: E402
+
+
+def data_dir() -> Path:
+    return Path(os.environ.get("BAFFLE_DATA_DIR") or REPO.parent / "shared" / "data")
+
+
+def p2_inputs():
+    folder = data_dir() / "p2" / "design_input"
+    surface, points = folder / "capped_ventricle.vtp", folder / "suture_points.mrk.json"
+    if not (surface.exists() and points.exists()):
+        pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
+    return surface, points
+
+
+@pytest.fixture
+def scene():
+    s = slicer.vtkMRMLScene()
+    yield s
+    s.Clear(1)
+
+
+def load_model(scene, path, name="ventricle"):
+    """As Slicer loads a model file: vtkMRMLModelStorageNode, LPS on disk -> RAS node."""
+    node = scene.AddNewNodeByClass("vtkMRMLModelNode", name)
+    storage = scene.AddNewNodeByClass("vtkMRMLModelStorageNode")
+    storage.SetFileName(str(path))
+    node.SetAndObserveStorageNodeID(storage.GetID())
+    assert storage.ReadData(node) == 1, f"could not read {path}"
+    return node
+
+
+def load_closed_curve(scene, path, name="BC"):
+    """As BafflePlanner's curve is loaded: vtkMRMLMarkupsJsonStorageNode -> RAS world points."""
+    curve = scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)
+    storage = slicer.vtkMRMLMarkupsJsonStorageNode()
+    scene.AddNode(storage)
+    storage.SetFileName(str(path))
+    curve.SetAndObserveStorageNodeID(storage.GetID())
+    assert storage.ReadData(curve) == 1, f"could not read {path}"
+    return curve
+
+
+def curve_from_points(scene, points, name):
+    curve = scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)
+    for p in np.asarray(points, dtype=float):
+        curve.AddControlPointWorld(float(p[0]), float(p[1]), float(p[2]))
+    return curve
+
+
+@pytest.fixture
+def p2_scene(scene):
+    """(scene, logic, model node, curve node) of patient p2 with BSA 0.37 m2."""
+    surface_path, points_path = p2_inputs()
+    model = load_model(scene, surface_path)
+    curve = load_closed_curve(scene, points_path)
+    logic = bdlogic.BaffleDesignerLogic(scene)
+    logic.setSurfaceNode(curve, model)
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=0.37, z_score=0.0))
+    return scene, logic, model, curve
+
+
+@pytest.fixture
+def phantom_scene(scene):
+    """(scene, logic, model node, curve node) of the library's synthetic phantom."""
+    import baffle
+    from baffle import vtk_adapters
+
+    mesh, points, bsa_m2 = baffle.phantom()
+    model = scene.AddNewNodeByClass("vtkMRMLModelNode", "phantom")
+    model.SetAndObservePolyData(vtk_adapters.mesh_to_polydata(mesh))
+    curve = curve_from_points(scene, points, "phantom BC")
+    logic = bdlogic.BaffleDesignerLogic(scene)
+    logic.setSurfaceNode(curve, model)
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa_m2))
+    return scene, logic, model, curve
