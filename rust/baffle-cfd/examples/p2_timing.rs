@@ -51,9 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<usize> = std::env::args().skip(1).filter_map(|a| a.parse().ok()).collect();
     let steps = args.first().copied().unwrap_or(10);
     let steady_iterations = args.get(1).copied().unwrap_or(0);
-    let dir = std::env::var_os("BAFFLE_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
+    let dir = baffle_core::reference_data::reference_data_dir();
     let start = Instant::now();
     let mesh = read_simvascular_mesh(&dir.join("p2/published_M_final.vtu"), &dir.join("p2/published_M_final.vtp"))?;
     println!("read p2: {} nodes, {} tets in {:.2} s; threads {}", mesh.points_cm.len(), mesh.tets.len(), start.elapsed().as_secs_f64(), rayon::current_num_threads());

@@ -3,15 +3,7 @@
 use std::path::PathBuf;
 
 pub fn data_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("BAFFLE_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipping: patient data directory {} is absent", dir.display());
-        None
-    }
+    baffle_core::reference_data::reference_data_if_present()
 }
 
 pub fn patients_json() -> Option<serde_json::Value> {

@@ -6,19 +6,12 @@
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::phantom::phantom_default;
 use baffle_core::{design, DesignOptions, DesignReport, TargetArea, TriMesh, Vec3};
-use std::path::PathBuf;
 
 struct Case {
     name: String,
     surface: TriMesh,
     points: Vec<Vec3>,
     target: TargetArea,
-}
-
-fn data_dir() -> PathBuf {
-    std::env::var_os("BAFFLE_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")))
 }
 
 fn cases() -> Vec<Case> {
@@ -29,7 +22,7 @@ fn cases() -> Vec<Case> {
         points: p.suture_points_mm,
         target: TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 },
     }];
-    let dir = data_dir();
+    let dir = baffle_core::reference_data::reference_data_dir();
     let Ok(table) = std::fs::read_to_string(dir.join("patients.json")) else {
         println!("note: no patient data at {}; benchmarking the phantom only", dir.display());
         return cases;

@@ -28,6 +28,7 @@ pub mod surface;
 pub mod design;
 pub mod outputs;
 pub mod compare;
+pub mod reference_data;
 
 pub use design::{design, DesignOptions, DesignReport, DesignResult};
 pub use error::DesignError;

@@ -199,9 +199,7 @@ mod tests {
     }
 
     fn data_dir() -> PathBuf {
-        std::env::var_os("BAFFLE_DATA_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")))
+        crate::reference_data::reference_data_dir()
     }
 
     #[test]

@@ -9,20 +9,7 @@ use baffle_mesh::{
 use std::path::PathBuf;
 
 fn data_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("BAFFLE_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))
-        });
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "note: patient data not found at {}, skipping",
-            dir.display()
-        );
-        None
-    }
+    baffle_core::reference_data::reference_data_if_present()
 }
 
 fn scratch(name: &str) -> PathBuf {

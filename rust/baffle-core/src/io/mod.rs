@@ -111,17 +111,8 @@ mod tests {
     use std::collections::BTreeSet;
     use std::path::PathBuf;
 
-    /// Patient data directory, or `None` (with a note) when it is not present.
     fn data_dir() -> Option<PathBuf> {
-        let dir = std::env::var_os("BAFFLE_DATA_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")));
-        if dir.is_dir() {
-            Some(dir)
-        } else {
-            eprintln!("skipping: patient data directory {} is absent", dir.display());
-            None
-        }
+        crate::reference_data::reference_data_if_present()
     }
 
     fn scratch_dir() -> PathBuf {

@@ -379,18 +379,7 @@ fn tree_is_balanced_enough_for_a_large_sphere() {
 }
 
 fn data_dir() -> Option<std::path::PathBuf> {
-    let dir = std::env::var_os("BAFFLE_DATA_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data").into());
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "skipping: patient data directory {} is absent",
-            dir.display()
-        );
-        None
-    }
+    crate::reference_data::reference_data_if_present()
 }
 
 #[test]
