@@ -1,0 +1,158 @@
+//! Running an exported case with svMultiPhysics out of process: find the executables,
+//! spawn `mpiexec -n N svmultiphysics solver.xml`, report progress from its step log.
+
+use std::ffi::OsStr;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use crate::export::CaseManifest;
+use crate::format::{parse_step_line, SOLVER_FILE};
+use crate::SvmpError;
+
+/// Executable names tried, in order.
+pub const SVMP_NAMES: [&str; 2] = ["svmultiphysics", "svMultiPhysics"];
+pub const MPIEXEC_NAME: &str = "mpiexec";
+/// svMultiPhysics' stdout is copied to LOG_FILE in the case directory, stderr to ERR_FILE.
+pub const LOG_FILE: &str = "svmultiphysics.log";
+pub const ERR_FILE: &str = "svmultiphysics.err";
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Engine {
+    pub svmultiphysics: PathBuf,
+    pub mpiexec: PathBuf,
+}
+
+/// Find svMultiPhysics and mpiexec on `PATH`.
+pub fn find_engine() -> Result<Engine, SvmpError> {
+    find_engine_in(&std::env::var_os("PATH").unwrap_or_default())
+}
+
+/// Find svMultiPhysics and mpiexec in the directories of `path_var` (PATH syntax); the
+/// error says which is missing and where it looked.
+pub fn find_engine_in(path_var: &OsStr) -> Result<Engine, SvmpError> {
+    let dirs: Vec<PathBuf> = std::env::split_paths(path_var).collect();
+    let svmp = SVMP_NAMES.iter().find_map(|name| find_executable(&dirs, name));
+    let mpiexec = find_executable(&dirs, MPIEXEC_NAME);
+    let mut missing = Vec::new();
+    if svmp.is_none() {
+        missing.push(format!("neither {} is on PATH", SVMP_NAMES.join(" nor ")));
+    }
+    if mpiexec.is_none() {
+        missing.push(format!("{MPIEXEC_NAME} is not on PATH"));
+    }
+    match (svmp, mpiexec) {
+        (Some(svmultiphysics), Some(mpiexec)) => Ok(Engine { svmultiphysics, mpiexec }),
+        _ => Err(SvmpError::NotInstalled(format!(
+            "{} (searched: {}); the exported case is complete: run its run.sh where svMultiPhysics is installed",
+            missing.join(" and "),
+            dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(":")
+        ))),
+    }
+}
+
+fn find_executable(dirs: &[PathBuf], name: &str) -> Option<PathBuf> {
+    dirs.iter().map(|d| d.join(name)).find(|p| is_executable(p))
+}
+
+#[cfg(unix)]
+fn is_executable(path: &Path) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    path.metadata().map(|m| m.is_file() && m.permissions().mode() & 0o111 != 0).unwrap_or(false)
+}
+
+#[cfg(not(unix))]
+fn is_executable(path: &Path) -> bool {
+    path.is_file()
+}
+
+/// How a finished run went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunReport {
+    pub last_step: usize,
+    pub elapsed_s: f64,
+    pub log_file: PathBuf,
+}
+
+/// Run the case in `case_dir` with `manifest.mpi_processes` processes. `progress(fraction,
+/// message)` is called at every new time step of the log; returning false kills the run.
+pub fn run_case(
+    engine: &Engine,
+    case_dir: &Path,
+    progress: &mut dyn FnMut(f64, &str) -> bool,
+) -> Result<RunReport, SvmpError> {
+    let manifest = CaseManifest::read(case_dir)?;
+    let log_path = case_dir.join(LOG_FILE);
+    let err_path = case_dir.join(ERR_FILE);
+    let mut log = std::fs::File::create(&log_path).map_err(|e| SvmpError::io(&log_path, e))?;
+    let err = std::fs::File::create(&err_path).map_err(|e| SvmpError::io(&err_path, e))?;
+    let mut child = Command::new(&engine.mpiexec)
+        .arg("-n")
+        .arg(manifest.mpi_processes.to_string())
+        .arg(&engine.svmultiphysics)
+        .arg(SOLVER_FILE)
+        .current_dir(case_dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(err))
+        .spawn()
+        .map_err(|e| SvmpError::io(&engine.mpiexec, format!("could not start: {e}")))?;
+    let stdout = child.stdout.take().ok_or_else(|| SvmpError::io(&engine.mpiexec, "no stdout pipe"))?;
+    let mut tracker = StepTracker::new(manifest.n_time_steps);
+    for line in BufReader::new(stdout).lines() {
+        let line = line.map_err(|e| SvmpError::io(&log_path, e))?;
+        writeln!(log, "{line}").map_err(|e| SvmpError::io(&log_path, e))?;
+        if let Some((fraction, message)) = tracker.update(&line) {
+            if !progress(fraction, &message) {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(SvmpError::Cancelled { step: tracker.last_step });
+            }
+        }
+    }
+    let status = child.wait().map_err(|e| SvmpError::io(&engine.mpiexec, e))?;
+    if !status.success() || tracker.last_step < manifest.n_time_steps {
+        return Err(SvmpError::RunFailed {
+            reason: format!("{status}, last time step {} of {}", tracker.last_step, manifest.n_time_steps),
+            log_tail: log_tail(&[&log_path, &err_path], 20),
+        });
+    }
+    Ok(RunReport { last_step: tracker.last_step, elapsed_s: tracker.elapsed_s, log_file: log_path })
+}
+
+/// Turns step-log lines into progress: one report per new time step.
+pub struct StepTracker {
+    n_time_steps: usize,
+    pub last_step: usize,
+    pub elapsed_s: f64,
+}
+
+impl StepTracker {
+    pub fn new(n_time_steps: usize) -> Self {
+        StepTracker { n_time_steps, last_step: 0, elapsed_s: 0.0 }
+    }
+
+    /// (fraction done, message) when `line` starts a new time step, or says that results
+    /// were saved (svMultiPhysics prints a last line with "s" after saving a step).
+    pub fn update(&mut self, line: &str) -> Option<(f64, String)> {
+        let step = parse_step_line(line)?;
+        self.elapsed_s = step.elapsed_s;
+        if step.step < self.last_step || (step.step == self.last_step && !step.saved) {
+            return None;
+        }
+        self.last_step = step.step;
+        let fraction = (step.step as f64 / self.n_time_steps.max(1) as f64).min(1.0);
+        let saved = if step.saved { ", results saved" } else { "" };
+        Some((fraction, format!("svMultiPhysics step {}/{}{saved} ({:.1} s)", step.step, self.n_time_steps, step.elapsed_s)))
+    }
+}
+
+fn log_tail(paths: &[&Path], lines: usize) -> String {
+    let mut out = Vec::new();
+    for path in paths {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        let all: Vec<&str> = text.lines().collect();
+        out.extend(all[all.len().saturating_sub(lines)..].iter().map(|l| l.to_string()));
+    }
+    out.join("\n")
+}
