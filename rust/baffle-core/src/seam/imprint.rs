@@ -178,7 +178,7 @@ impl EditMesh {
                 }
                 let foot = closest_point_on_segment(&p, &self.points[a as usize], &self.points[b as usize]).0;
                 let d = (foot - p).norm();
-                if best.map_or(true, |(bd, ..)| d < bd) {
+                if best.is_none_or(|(bd, ..)| d < bd) {
                     best = Some((d, a, b, foot));
                 }
             }
@@ -339,7 +339,7 @@ impl EditMesh {
         let mut best: Option<(f64, Crossing)> = None;
         let mut consider = |x: Vec3, crossing: Crossing| {
             let cos = (x - pc).dot(&dir) / ((x - pc).norm() * dir.norm()).max(1e-300);
-            if cos > 1e-9 && best.as_ref().map_or(true, |b| cos > b.0) {
+            if cos > 1e-9 && best.as_ref().is_none_or(|b| cos > b.0) {
                 best = Some((cos, crossing));
             }
         };
