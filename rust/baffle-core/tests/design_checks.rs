@@ -181,9 +181,12 @@ fn centerline_spacing_barely_changes_the_design() {
 #[test]
 fn interior_control_point_count_barely_changes_the_initial_surface() {
     // Paper's robustness check: 3 to 29 interior control points change the initial
-    // surface by < 0.05 mm. We meet it from 5 to 29 points; with only 3 the TPS sags
-    // between them by up to 0.074 mm (p3), so that count has its own, measured bound.
-    let mut worst = Vec::new();
+    // surface by < 0.05 mm. The change of a surface is its distance from the other
+    // (symmetric, vertex to surface); vertices also slide along the surface, which
+    // is printed too but is not a change of the surface. We meet the paper's bound from
+    // 5 to 29 points; with 3 the spline sags between them a little more (measured up to
+    // 0.058 mm on p3), so that count has its own, measured bound.
+    let mut changes = Vec::new();
     for case in all_cases() {
         let reference = run(&case, &DesignOptions::default());
         for n in [3, 5, 15, 29] {
@@ -197,13 +200,17 @@ fn interior_control_point_count_barely_changes_the_initial_surface() {
                 .zip(&other.initial_baffle.points)
                 .map(|(a, b)| (a - b).norm())
                 .fold(0.0, f64::max);
-            println!("{}: {n} control points move the initial surface by {moved:.4} mm", case.name);
-            worst.push((moved, n, case.name.clone()));
+            let change = baffle_core::compare::compare_surfaces(&other.initial_baffle, &reference.initial_baffle).unwrap();
+            println!(
+                "{}: {n} control points change the initial surface by at most {:.4} mm (vertices move up to {moved:.4} mm)",
+                case.name, change.max_distance_mm
+            );
+            changes.push((change.max_distance_mm, n, case.name.clone()));
         }
     }
-    for (moved, n, name) in worst {
-        let bound_mm = if n == 3 { 0.08 } else { 0.05 };
-        assert!(moved < bound_mm, "{name}: {n} control points moved the initial surface by {moved:.3} mm");
+    for (change_mm, n, name) in changes {
+        let bound_mm = if n == 3 { 0.06 } else { 0.05 };
+        assert!(change_mm < bound_mm, "{name}: {n} control points changed the initial surface by {change_mm:.3} mm");
     }
 }
 
