@@ -24,7 +24,7 @@ mod test_meshes;
 pub use error::CfdError;
 pub use mesh::{Face, FlowMesh, ValidationReport};
 pub use settings::{CaseSettings, InflowProfile, Outlet, RunMode};
-pub use solver::{simulate, FaceResult, StepResult, Summary, Timings};
+pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, StepResult, StepView, Summary, Timings};
 pub use waveform::Waveform;
 #[cfg(test)]
 mod verification;

@@ -524,26 +524,23 @@ impl<'a> Solver<'a> {
         })
     }
 
-    fn fields(&self, x: &[f64]) -> (Vec<[f64; 3]>, Vec<f64>) {
-        let n = self.problem.order.len();
-        let mut velocity = vec![[0.0; 3]; n];
-        let mut pressure = vec![0.0; n];
-        for (new, &old) in self.problem.order.iter().enumerate() {
-            velocity[old as usize] = [x[new * B], x[new * B + 1], x[new * B + 2]];
-            pressure[old as usize] = x[new * B + 3];
-        }
-        (velocity, pressure)
-    }
 
-    fn transient(&mut self, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(Vec<StepResult>, Vec<f64>, bool), CfdError> {
+    fn transient(&mut self, start: Option<&SolverState>, observer: &mut Observer) -> Result<Outcome, CfdError> {
         let s = self.settings;
         let n_steps = (s.cycles as f64 * s.inflow.period_s() / s.dt_s).round() as usize;
         let phys = self.physics(false, s.dt_s);
-        let mut x = vec![0.0; self.problem.order.len() * B];
-        let mut x_prev = x.clone();
+        let (first, mut x, mut x_prev) = match start {
+            Some(state) => {
+                let x = state_vector(&self.problem.order, &state.velocity_cm_s, &state.pressure_dyn_cm2, "velocity/pressure")?;
+                let x_prev = state_vector(&self.problem.order, &state.previous_velocity_cm_s, &state.previous_pressure_dyn_cm2, "previous velocity/pressure")?;
+                (state.step + 1, x, x_prev)
+            }
+            None => (1, vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B]),
+        };
         let mut results = Vec::with_capacity(n_steps);
         let semi_implicit = s.max_nonlinear_iterations == 1;
-        for step in 1..=n_steps {
+        let mut cancelled_at = None;
+        for step in first..=n_steps {
             let time_s = step as f64 * s.dt_s;
             let q_in = s.inflow.flow_ml_s(time_s);
             let x_old = x.clone();
@@ -560,11 +557,22 @@ impl<'a> Solver<'a> {
                 result.inflow_ml_s, result.max_velocity_cm_s, stats.nonlinear_iterations, stats.linear_iterations
             );
             results.push(result);
-            if !progress(step as f64 / n_steps as f64, &msg) {
-                return Err(CfdError::Cancelled { time_s });
+            let view = StepView {
+                fraction: step as f64 / n_steps as f64,
+                message: &msg,
+                result: results.last(),
+                step,
+                time_s,
+                order: &self.problem.order,
+                x: &x,
+                x_prev: Some(&x_prev),
+            };
+            if !observer(&view) {
+                cancelled_at = Some(time_s);
+                break;
             }
         }
-        Ok((results, x, true))
+        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), converged: true, cancelled_at })
     }
 
     /// Steady solve by pseudo-transient continuation: one Picard or Newton iteration
@@ -573,7 +581,7 @@ impl<'a> Solver<'a> {
     /// 1985), dt_k = dt_0 r_0 / r_k, capped at `steady_pseudo_dt_max_s`, so the
     /// iteration becomes plain Newton near convergence. At the start of each pseudo
     /// step the time terms cancel, so the residual checked is the steady one.
-    fn steady(&mut self, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(Vec<StepResult>, Vec<f64>, bool), CfdError> {
+    fn steady(&mut self, observer: &mut Observer) -> Result<Outcome, CfdError> {
         let s = self.settings;
         let (q_peak, t_peak) = s.inflow.peak();
         let mut x = vec![0.0; self.problem.order.len() * B];
@@ -583,6 +591,7 @@ impl<'a> Solver<'a> {
         let mut pseudo_dt = s.steady_pseudo_dt_s;
         let mut newton = false;
         let mut stats = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0 };
+        let mut cancelled_at = None;
         for it in 1..=s.steady_max_iterations + 1 {
             let x_old = x.clone();
             let last = it > s.steady_max_iterations;
@@ -607,31 +616,161 @@ impl<'a> Solver<'a> {
             }
             let kind = if newton { "Newton" } else { "Picard" };
             let msg = format!("steady iteration {it}: residual {rel:.2e}, gmres {}, next: {kind}, pseudo dt {pseudo_dt:.3e} s", step_stats.linear_iterations);
-            if !progress(it as f64 / s.steady_max_iterations as f64, &msg) {
-                return Err(CfdError::Cancelled { time_s: t_peak });
+            let view = StepView {
+                fraction: it as f64 / s.steady_max_iterations as f64,
+                message: &msg,
+                result: None,
+                step: it,
+                time_s: t_peak,
+                order: &self.problem.order,
+                x: &x,
+                x_prev: None,
+            };
+            if !observer(&view) {
+                cancelled_at = Some(t_peak);
+                break;
             }
         }
         let result = self.step_result(&x, 0, t_peak, q_peak, &stats)?;
-        Ok((vec![result], x, converged))
+        Ok(Outcome { steps: vec![result], x, x_prev: None, converged, cancelled_at })
     }
+}
+
+/// What [`simulate_from`]'s observer is shown after every time step (or steady iteration).
+pub struct StepView<'a> {
+    pub fraction: f64,
+    pub message: &'a str,
+    /// The step's results (transient runs; None between steady iterations).
+    pub result: Option<&'a StepResult>,
+    /// Time step number (steady: iteration number) and time (steady: the peak time).
+    pub step: usize,
+    pub time_s: f64,
+    order: &'a [u32],
+    x: &'a [f64],
+    x_prev: Option<&'a [f64]>,
+}
+
+impl StepView<'_> {
+    /// Velocity (cm/s) and pressure (dyn/cm^2) at the mesh nodes (input numbering).
+    pub fn fields(&self) -> (Vec<[f64; 3]>, Vec<f64>) {
+        fields(self.order, self.x)
+    }
+
+    /// The state to continue this transient run from with [`simulate_from`] (None in steady mode).
+    pub fn state(&self) -> Option<SolverState> {
+        let prev = self.x_prev?;
+        let (velocity_cm_s, pressure_dyn_cm2) = fields(self.order, self.x);
+        let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(self.order, prev);
+        Some(SolverState { step: self.step, time_s: self.time_s, velocity_cm_s, pressure_dyn_cm2, previous_velocity_cm_s, previous_pressure_dyn_cm2 })
+    }
+}
+
+/// A transient run's state after a time step (input node numbering): enough to continue
+/// it bit for bit (the next step's initial guess extrapolates from the previous step).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolverState {
+    pub step: usize,
+    pub time_s: f64,
+    pub velocity_cm_s: Vec<[f64; 3]>,
+    pub pressure_dyn_cm2: Vec<f64>,
+    pub previous_velocity_cm_s: Vec<[f64; 3]>,
+    pub previous_pressure_dyn_cm2: Vec<f64>,
+}
+
+/// The result of [`simulate_from`]: the summary of the steps run (after the start
+/// state's step), the final state (transient runs), and whether the observer stopped it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Run {
+    pub summary: Summary,
+    pub state: Option<SolverState>,
+    /// Time of the last step done when the observer returned false.
+    pub cancelled_at_s: Option<f64>,
+}
+
+type Observer<'a> = dyn FnMut(&StepView) -> bool + 'a;
+
+struct Outcome {
+    steps: Vec<StepResult>,
+    x: Vec<f64>,
+    x_prev: Option<Vec<f64>>,
+    converged: bool,
+    cancelled_at: Option<f64>,
+}
+
+fn fields(order: &[u32], x: &[f64]) -> (Vec<[f64; 3]>, Vec<f64>) {
+    let n = order.len();
+    let mut velocity = vec![[0.0; 3]; n];
+    let mut pressure = vec![0.0; n];
+    for (new, &old) in order.iter().enumerate() {
+        velocity[old as usize] = [x[new * B], x[new * B + 1], x[new * B + 2]];
+        pressure[old as usize] = x[new * B + 3];
+    }
+    (velocity, pressure)
+}
+
+/// Solver vector (RCM numbering) of nodal fields given in input numbering.
+fn state_vector(order: &[u32], velocity: &[[f64; 3]], pressure: &[f64], what: &str) -> Result<Vec<f64>, CfdError> {
+    let n = order.len();
+    if velocity.len() != n || pressure.len() != n {
+        return Err(CfdError::Settings(format!("start state {what} has {} / {} values for {n} mesh nodes", velocity.len(), pressure.len())));
+    }
+    if velocity.iter().flatten().chain(pressure).any(|v| !v.is_finite()) {
+        return Err(CfdError::Settings(format!("start state {what} has a non-finite value")));
+    }
+    let mut x = vec![0.0; n * B];
+    for (new, &old) in order.iter().enumerate() {
+        x[new * B..new * B + 3].copy_from_slice(&velocity[old as usize]);
+        x[new * B + 3] = pressure[old as usize];
+    }
+    Ok(x)
 }
 
 /// Run a case on a mesh. `progress(fraction, message)` is called after every time
 /// step (or steady iteration); returning false cancels the run.
 pub fn simulate(mesh: &FlowMesh, settings: &CaseSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<Summary, CfdError> {
-    let start = Instant::now();
+    let run = simulate_from(mesh, settings, None, &mut |view| progress(view.fraction, view.message))?;
+    match run.cancelled_at_s {
+        Some(time_s) => Err(CfdError::Cancelled { time_s }),
+        None => Ok(run.summary),
+    }
+}
+
+/// [`simulate`] with a start state (transient: continue after `start.step`) and an
+/// observer that sees each step's results and fields; returning false stops the run
+/// at the end of that step with the results so far (`cancelled_at_s` set).
+pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&SolverState>, observer: &mut Observer) -> Result<Run, CfdError> {
+    let start_time = Instant::now();
     settings.validate()?;
+    if start.is_some() && settings.mode == RunMode::Steady {
+        return Err(CfdError::Settings("a start state can only continue a transient run".into()));
+    }
     let problem = Problem::new(mesh, settings)?;
     let n_blocks = problem.pattern.cols.len();
     let n_dofs = problem.order.len() * B;
     let mut solver = Solver { problem, settings, vals: vec![0.0; n_blocks * BB], rhs: vec![0.0; n_dofs], timings: Timings::default() };
-    solver.timings.setup_s = start.elapsed().as_secs_f64();
-    let (steps, x, converged) = match settings.mode {
-        RunMode::Transient => solver.transient(progress)?,
-        RunMode::Steady => solver.steady(progress)?,
+    solver.timings.setup_s = start_time.elapsed().as_secs_f64();
+    let outcome = match settings.mode {
+        RunMode::Transient => solver.transient(start, observer)?,
+        RunMode::Steady => solver.steady(observer)?,
     };
-    let (velocity_cm_s, pressure_dyn_cm2) = solver.fields(&x);
+    let order = &solver.problem.order;
+    let (velocity_cm_s, pressure_dyn_cm2) = fields(order, &outcome.x);
+    let state = match (&outcome.x_prev, outcome.steps.last()) {
+        (Some(prev), Some(last)) => {
+            let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(order, prev);
+            Some(SolverState {
+                step: last.step,
+                time_s: last.time_s,
+                velocity_cm_s: velocity_cm_s.clone(),
+                pressure_dyn_cm2: pressure_dyn_cm2.clone(),
+                previous_velocity_cm_s,
+                previous_pressure_dyn_cm2,
+            })
+        }
+        _ => start.cloned(),
+    };
     let mut timings = solver.timings;
-    timings.total_s = start.elapsed().as_secs_f64();
-    Ok(Summary { steps, velocity_cm_s, pressure_dyn_cm2, converged, timings })
+    timings.total_s = start_time.elapsed().as_secs_f64();
+    let summary = Summary { steps: outcome.steps, velocity_cm_s, pressure_dyn_cm2, converged: outcome.converged, timings };
+    Ok(Run { summary, state, cancelled_at_s: outcome.cancelled_at })
 }

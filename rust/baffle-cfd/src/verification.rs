@@ -118,6 +118,45 @@ fn cancel_and_bad_settings_are_reported() {
 }
 
 #[test]
+fn stopped_run_resumes_to_the_same_result() {
+    let mesh = tube(RADIUS_CM, 1.0, 2, 4, &[]);
+    let mut s = CaseSettings::new(INLET, Waveform::Ejection { period_s: 0.01, q_mean_ml_s: 0.5 }, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 500.0 }]);
+    s.cycles = 1;
+    s.dt_s = 1e-3;
+    let straight = crate::simulate_from(&mesh, &s, None, &mut |_| true).unwrap();
+    assert_eq!(straight.summary.steps.len(), 10);
+    assert!(straight.cancelled_at_s.is_none());
+    // Stop after step 4 (results so far kept), continue from the state the observer saw.
+    let mut seen = None;
+    let first = crate::simulate_from(&mesh, &s, None, &mut |view| {
+        seen = view.state();
+        view.step < 4
+    })
+    .unwrap();
+    assert_eq!(first.summary.steps.len(), 4);
+    assert!((first.cancelled_at_s.unwrap() - 4e-3).abs() < 1e-12);
+    let state = first.state.unwrap();
+    assert_eq!(Some(&state), seen.as_ref());
+    assert_eq!(state.step, 4);
+    let rest = crate::simulate_from(&mesh, &s, Some(&state), &mut |_| true).unwrap();
+    assert_eq!(rest.summary.steps.first().map(|r| r.step), Some(5));
+    let joined: Vec<_> = first.summary.steps.iter().chain(&rest.summary.steps).collect();
+    assert_eq!(joined.len(), straight.summary.steps.len());
+    for (a, b) in joined.iter().zip(&straight.summary.steps) {
+        assert_eq!(a.step, b.step);
+        let scale = b.faces[0].mean_pressure_dyn_cm2.abs().max(1.0);
+        assert!((a.faces[0].mean_pressure_dyn_cm2 - b.faces[0].mean_pressure_dyn_cm2).abs() < 1e-9 * scale, "step {}", a.step);
+        assert!((a.max_velocity_cm_s - b.max_velocity_cm_s).abs() < 1e-9 * b.max_velocity_cm_s.max(1.0));
+    }
+    // A state of another mesh is refused; steady runs do not take one.
+    let mut bad = state.clone();
+    bad.pressure_dyn_cm2.pop();
+    assert!(crate::simulate_from(&mesh, &s, Some(&bad), &mut |_| true).unwrap_err().to_string().contains("mesh nodes"));
+    s.mode = RunMode::Steady;
+    assert!(crate::simulate_from(&mesh, &s, Some(&state), &mut |_| true).is_err());
+}
+
+#[test]
 fn blow_up_is_reported_with_step_and_time() {
     // A grossly excessive flow through a coarse tube with dt far too large for the
     // iteration count: the Picard iterates leave any physical range.

@@ -9,7 +9,9 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+mod case;
 mod mesh_cmd;
+mod simulate_cmd;
 
 #[derive(Parser)]
 #[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]
@@ -29,6 +31,8 @@ enum Command {
     Design(DesignArgs),
     /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
     Mesh(mesh_cmd::MeshArgs),
+    /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
+    Simulate(simulate_cmd::SimulateArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
@@ -151,6 +155,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Design(args) => run_design(&args),
         Command::Mesh(args) => mesh_cmd::run_mesh(&args),
+        Command::Simulate(args) => simulate_cmd::run_simulate(&args),
         Command::Phantom { out } => write_phantom(&out),
     };
     match result {

@@ -1,0 +1,377 @@
+//! The JSON case file of `baffle simulate`: mesh, face roles, fluid, inflow, outlet,
+//! time stepping and output. Relative paths are relative to the case file.
+
+use baffle_cfd::hemodynamics::{hemodynamics, mean_arterial_pressure_mmhg, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, DYN_CM2_PER_MMHG};
+use baffle_cfd::{CaseSettings, Face, FlowMesh, InflowProfile, Outlet, RunMode, Waveform};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+pub const EXAMPLE: &str = r#"{
+  "mesh": { "volume": "mesh.vtu", "faces": "mesh-faces.vtp", "format": "baffle", "units": "mm" },
+  "faces": { "inlet": 11, "outlets": [16], "walls": [2, 10], "planes": [] },
+  "fluid": { "density_g_cm3": 1.06, "viscosity_g_cm_s": 0.04 },
+  "inflow": { "bsa_m2": 0.37, "cardiac_index_l_min_m2": 3.48, "period_s": 0.682, "profile": "plug" },
+  "outlet": { "sbp_mmhg": 107, "dbp_mmhg": 78 },
+  "time": { "mode": "transient", "dt_s": 0.001, "cycles": 4 },
+  "output": { "vtu_every_steps": 0, "checkpoint_every_steps": 50 }
+}"#;
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Case {
+    pub mesh: MeshSpec,
+    pub faces: FaceRoles,
+    #[serde(default)]
+    pub fluid: Fluid,
+    pub inflow: Inflow,
+    pub outlet: OutletSpec,
+    #[serde(default)]
+    pub time: TimeSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// Tetrahedral volume (.vtu).
+    pub volume: PathBuf,
+    /// Labelled faces (.vtp, cell ModelFaceID, point GlobalNodeID); default: `baffle
+    /// mesh`'s `<stem>-faces.vtp` beside the volume.
+    pub faces: Option<PathBuf>,
+    /// "baffle" (GlobalNodeID = 1-based volume point index, as `baffle mesh` writes) or
+    /// "simvascular" (GlobalNodeID matched to the volume's GlobalNodeID array).
+    #[serde(default = "default_format")]
+    pub format: String,
+    /// Coordinate units of the files: "mm" (default for `baffle mesh`) or "cm" (SimVascular).
+    pub units: Option<String>,
+}
+
+fn default_format() -> String {
+    "baffle".into()
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaceRoles {
+    pub inlet: i32,
+    pub outlets: Vec<i32>,
+    /// No-slip walls (every boundary face that is not inlet or outlet is a wall; listed ones are checked to exist).
+    #[serde(default)]
+    pub walls: Vec<i32>,
+    /// Interior measurement planes: dp = p(first) - p(second).
+    #[serde(default)]
+    pub planes: Vec<i32>,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Fluid {
+    pub density_g_cm3: f64,
+    pub viscosity_g_cm_s: f64,
+}
+
+impl Default for Fluid {
+    fn default() -> Self {
+        Fluid { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04 }
+    }
+}
+
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Inflow {
+    /// Mean flow (mL/s) given directly, or from BSA x cardiac index.
+    pub q_mean_ml_s: Option<f64>,
+    pub bsa_m2: Option<f64>,
+    pub cardiac_index_l_min_m2: Option<f64>,
+    /// Tabulated waveform file ("time flow" lines or .flx); scaled to the mean flow when one is given.
+    pub waveform_file: Option<PathBuf>,
+    /// Period of the built-in waveform (s), or from the heart rate; default 0.682 s.
+    pub period_s: Option<f64>,
+    pub heart_rate_bpm: Option<f64>,
+    /// "plug" (default) or "poiseuille".
+    pub profile: Option<String>,
+}
+
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutletSpec {
+    /// Resistance (dyn s/cm^5) given directly, or R = MAP / Q_mean from SBP/DBP
+    /// (MAP = (SBP + 2 DBP)/3 rounded, as the paper), or from a MAP.
+    pub resistance_dyn_s_cm5: Option<f64>,
+    pub sbp_mmhg: Option<f64>,
+    pub dbp_mmhg: Option<f64>,
+    pub map_mmhg: Option<f64>,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TimeSpec {
+    /// "transient" or "steady" (flow fixed at Q_peak).
+    pub mode: String,
+    pub dt_s: f64,
+    pub cycles: usize,
+    /// Stop after this time step (default: cycles x period / dt).
+    pub steps: Option<usize>,
+    /// Picard iterations per step (1: semi-implicit).
+    pub nonlinear_iterations: Option<usize>,
+    pub linear_tolerance: Option<f64>,
+    pub steady_tolerance: Option<f64>,
+    pub steady_max_iterations: Option<usize>,
+}
+
+impl Default for TimeSpec {
+    fn default() -> Self {
+        TimeSpec {
+            mode: "transient".into(),
+            dt_s: 1e-3,
+            cycles: 4,
+            steps: None,
+            nonlinear_iterations: None,
+            linear_tolerance: None,
+            steady_tolerance: None,
+            steady_max_iterations: None,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSpec {
+    /// Write fields_<step>.vtu every this many steps (0: only peak.vtu and final.vtu).
+    pub vtu_every_steps: usize,
+    /// Write checkpoint.json every this many steps (it is always written when stopping).
+    pub checkpoint_every_steps: usize,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { vtu_every_steps: 0, checkpoint_every_steps: 50 }
+    }
+}
+
+/// Derived flow conditions, reported in summary.json.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FlowInputs {
+    pub q_mean_ml_s: f64,
+    pub q_peak_ml_s: f64,
+    pub peak_time_in_cycle_s: f64,
+    pub period_s: f64,
+    pub resistance_dyn_s_cm5: f64,
+    pub map_mmhg: Option<f64>,
+}
+
+pub fn read_case(path: &Path) -> Result<Case, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut case: Case = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let resolve = |p: &mut PathBuf| {
+        if p.is_relative() {
+            *p = base.join(&*p);
+        }
+    };
+    resolve(&mut case.mesh.volume);
+    if let Some(f) = case.mesh.faces.as_mut() {
+        resolve(f);
+    }
+    if let Some(f) = case.inflow.waveform_file.as_mut() {
+        resolve(f);
+    }
+    Ok(case)
+}
+
+fn faces_path(spec: &MeshSpec) -> PathBuf {
+    spec.faces.clone().unwrap_or_else(|| {
+        let stem = spec.volume.with_extension("");
+        PathBuf::from(format!("{}-faces.vtp", stem.display()))
+    })
+}
+
+fn face_name(id: i32, roles: &FaceRoles) -> String {
+    if id == roles.inlet {
+        format!("inlet_{id}")
+    } else if roles.outlets.contains(&id) {
+        format!("outlet_{id}")
+    } else if let Some(k) = roles.planes.iter().position(|&p| p == id) {
+        format!("plane{}_{id}", k + 1)
+    } else {
+        format!("wall_{id}")
+    }
+}
+
+/// The flow mesh in cm with named faces.
+pub fn load_mesh(case: &Case) -> Result<FlowMesh, String> {
+    let spec = &case.mesh;
+    let vtp = faces_path(spec);
+    for p in [&spec.volume, &vtp] {
+        if !p.is_file() {
+            return Err(format!("{}: mesh file not found", p.display()));
+        }
+    }
+    let units = spec.units.clone().unwrap_or_else(|| if spec.format == "simvascular" { "cm".into() } else { "mm".into() });
+    let to_cm = match units.as_str() {
+        "mm" => 0.1,
+        "cm" => 1.0,
+        "m" => 100.0,
+        other => return Err(format!("mesh units '{other}': expected mm, cm or m")),
+    };
+    let mut mesh = match spec.format.as_str() {
+        "simvascular" => baffle_cfd::vtu::read_simvascular_mesh(&spec.volume, &vtp).map_err(|e| e.to_string())?,
+        "baffle" => read_baffle_mesh(&spec.volume, &vtp)?,
+        other => return Err(format!("mesh format '{other}': expected baffle or simvascular")),
+    };
+    if to_cm != 1.0 {
+        mesh.points_cm.iter_mut().flatten().for_each(|x| *x *= to_cm);
+    }
+    for f in &mut mesh.faces {
+        f.name = face_name(f.id, &case.faces);
+    }
+    let ids: Vec<i32> = mesh.faces.iter().map(|f| f.id).collect();
+    let roles = &case.faces;
+    let named = std::iter::once(("inlet", roles.inlet))
+        .chain(roles.outlets.iter().map(|&o| ("outlet", o)))
+        .chain(roles.walls.iter().map(|&w| ("wall", w)))
+        .chain(roles.planes.iter().map(|&p| ("plane", p)));
+    for (role, id) in named {
+        if !ids.contains(&id) {
+            return Err(format!("{}: {role} face {id} is not in the mesh (faces {ids:?})", vtp.display()));
+        }
+    }
+    if !roles.planes.is_empty() && roles.planes.len() != 2 {
+        return Err(format!("faces.planes: give two measurement planes (dp = first - second), got {:?}", roles.planes));
+    }
+    mesh.validate().map_err(|e| format!("{}: {e}", spec.volume.display()))?;
+    Ok(mesh)
+}
+
+/// `baffle mesh` output: volume .vtu and faces .vtp whose GlobalNodeID is the 1-based volume index.
+fn read_baffle_mesh(vtu: &Path, vtp: &Path) -> Result<FlowMesh, String> {
+    let volume = baffle_mesh::read_vtu(vtu).map_err(|e| e.to_string())?.mesh;
+    let n = volume.points_mm.len();
+    let surface = baffle_core::io::read_polydata(vtp).map_err(|e| format!("{}: {e}", vtp.display()))?;
+    let global = surface
+        .point_array("GlobalNodeID")
+        .and_then(|a| a.as_i32())
+        .ok_or_else(|| format!("{}: no Int32 point array GlobalNodeID", vtp.display()))?;
+    let labels = surface
+        .cell_array("ModelFaceID")
+        .and_then(|a| a.as_i32())
+        .ok_or_else(|| format!("{}: no Int32 cell array ModelFaceID", vtp.display()))?;
+    let mut grouped: BTreeMap<i32, Vec<[u32; 3]>> = BTreeMap::new();
+    for (k, poly) in surface.polys.iter().enumerate() {
+        if poly.len() != 3 {
+            return Err(format!("{}: polygon {k} has {} points; triangles expected", vtp.display(), poly.len()));
+        }
+        let mut tri = [0u32; 3];
+        for (j, &local) in poly.iter().enumerate() {
+            let g = *global.get(local as usize).ok_or_else(|| format!("{}: polygon {k} uses point {local} beyond the points", vtp.display()))?;
+            if g < 1 || g as usize > n {
+                return Err(format!("{}: GlobalNodeID {g} outside 1..={n} of {}", vtp.display(), vtu.display()));
+            }
+            tri[j] = g as u32 - 1;
+        }
+        grouped.entry(labels[surface.poly_cell_index(k)]).or_default().push(tri);
+    }
+    Ok(FlowMesh {
+        points_cm: volume.points_mm.iter().map(|p| [p.x, p.y, p.z]).collect(),
+        tets: volume.tets,
+        faces: grouped.into_iter().map(|(id, triangles)| Face { id, name: String::new(), triangles }).collect(),
+    })
+}
+
+fn positive(name: &str, v: f64) -> Result<f64, String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{name} must be positive and finite, got {v}"))
+    }
+}
+
+/// Solver settings and the derived flow conditions.
+pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
+    let inflow = &case.inflow;
+    let q_mean = match (inflow.q_mean_ml_s, inflow.bsa_m2) {
+        (Some(q), _) => Some(positive("inflow.q_mean_ml_s", q)?),
+        (None, Some(bsa)) => {
+            let ci = inflow.cardiac_index_l_min_m2.unwrap_or(CARDIAC_INDEX_DEFAULT_L_MIN_M2);
+            Some(positive("inflow.bsa_m2", bsa)? * positive("inflow.cardiac_index_l_min_m2", ci)? * 1000.0 / 60.0)
+        }
+        (None, None) => None,
+    };
+    let period = match (inflow.period_s, inflow.heart_rate_bpm) {
+        (Some(p), _) => positive("inflow.period_s", p)?,
+        (None, Some(hr)) => 60.0 / positive("inflow.heart_rate_bpm", hr)?,
+        (None, None) => baffle_cfd::waveform::DEFAULT_PERIOD_S,
+    };
+    let waveform = match (&inflow.waveform_file, q_mean) {
+        (Some(file), q) => {
+            let w = Waveform::read(file).map_err(|e| e.to_string())?;
+            match q {
+                Some(q) => w.scaled_to_mean(q).map_err(|e| e.to_string())?,
+                None => w,
+            }
+        }
+        (None, Some(q)) => Waveform::Ejection { period_s: period, q_mean_ml_s: q },
+        (None, None) => return Err("inflow: give q_mean_ml_s, bsa_m2 (with cardiac_index_l_min_m2) or waveform_file".into()),
+    };
+    let q_mean = waveform.mean_ml_s();
+    let out = &case.outlet;
+    let (resistance, map_mmhg) = match (out.resistance_dyn_s_cm5, out.map_mmhg, out.sbp_mmhg, out.dbp_mmhg) {
+        (Some(r), _, _, _) => (r, None),
+        (None, Some(map), _, _) => (positive("outlet.map_mmhg", map)? * DYN_CM2_PER_MMHG / q_mean, Some(map)),
+        (None, None, Some(sbp), Some(dbp)) => match (inflow.bsa_m2, inflow.q_mean_ml_s, &inflow.waveform_file) {
+            (Some(bsa), None, None) => {
+                let ci = inflow.cardiac_index_l_min_m2.unwrap_or(CARDIAC_INDEX_DEFAULT_L_MIN_M2);
+                let h = hemodynamics(&ClinicalInputs { bsa_m2: bsa, sbp_mmhg: sbp, dbp_mmhg: dbp, cardiac_index_l_min_m2: ci })
+                    .map_err(|e| e.to_string())?;
+                (h.resistance_dyn_s_cm5, Some(h.map_mmhg))
+            }
+            _ => {
+                let map = mean_arterial_pressure_mmhg(positive("outlet.sbp_mmhg", sbp)?, positive("outlet.dbp_mmhg", dbp)?).round();
+                (map * DYN_CM2_PER_MMHG / q_mean, Some(map))
+            }
+        },
+        _ => return Err("outlet: give resistance_dyn_s_cm5, map_mmhg, or sbp_mmhg and dbp_mmhg".into()),
+    };
+    let outlets = case.faces.outlets.iter().map(|&face_id| Outlet { face_id, resistance_dyn_s_cm5: resistance }).collect();
+    let (q_peak, t_peak) = waveform.peak();
+    let mut s = CaseSettings::new(case.faces.inlet, waveform, outlets);
+    s.density_g_cm3 = case.fluid.density_g_cm3;
+    s.viscosity_g_cm_s = case.fluid.viscosity_g_cm_s;
+    s.inflow_profile = match inflow.profile.as_deref().unwrap_or("plug") {
+        "plug" => InflowProfile::Plug,
+        "poiseuille" => InflowProfile::Poiseuille,
+        other => return Err(format!("inflow.profile '{other}': expected plug or poiseuille")),
+    };
+    let t = &case.time;
+    s.mode = match t.mode.as_str() {
+        "transient" => RunMode::Transient,
+        "steady" => RunMode::Steady,
+        other => return Err(format!("time.mode '{other}': expected transient or steady")),
+    };
+    s.dt_s = t.dt_s;
+    s.cycles = t.cycles;
+    if let Some(n) = t.nonlinear_iterations {
+        s.max_nonlinear_iterations = n;
+    }
+    if let Some(v) = t.linear_tolerance {
+        s.linear_tolerance = v;
+    }
+    if let Some(v) = t.steady_tolerance {
+        s.steady_tolerance = v;
+    }
+    if let Some(v) = t.steady_max_iterations {
+        s.steady_max_iterations = v;
+    }
+    s.validate().map_err(|e| e.to_string())?;
+    let flow = FlowInputs {
+        q_mean_ml_s: q_mean,
+        q_peak_ml_s: q_peak,
+        peak_time_in_cycle_s: t_peak,
+        period_s: s.inflow.period_s(),
+        resistance_dyn_s_cm5: resistance,
+        map_mmhg,
+    };
+    Ok((s, flow))
+}

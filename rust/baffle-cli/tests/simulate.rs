@@ -1,0 +1,196 @@
+//! `baffle simulate` end to end on the phantom: design -> `baffle mesh` (gmsh) ->
+//! steady and short transient runs, SIGTERM with results so far and --resume, and a
+//! case naming a missing mesh. Set BAFFLE_SKIP_GMSH=1 to skip the gmsh-dependent parts.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+
+fn baffle(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_baffle")).args(args).output().expect("run baffle")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("baffle-sim-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn skip_gmsh() -> bool {
+    std::env::var("BAFFLE_SKIP_GMSH").is_ok_and(|v| v == "1")
+}
+
+/// The phantom designed and meshed at 1.25 mm once; returns the case file.
+fn phantom_case() -> &'static Path {
+    static CASE: OnceLock<PathBuf> = OnceLock::new();
+    CASE.get_or_init(|| {
+        let dir = temp_dir("phantom");
+        let design = dir.join("design");
+        let out = baffle(&["design", "--phantom", "--out", design.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let mesh = dir.join("mesh.vtu");
+        let out = baffle(&["mesh", "--surface", design.join("domain.vtp").to_str().unwrap(), "--edge-length-mm", "1.25", "--out", mesh.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let case = dir.join("case.json");
+        let text = r#"{
+          "mesh": { "volume": "mesh.vtu", "units": "mm" },
+          "faces": { "inlet": 11, "outlets": [16], "walls": [2, 10] },
+          "inflow": { "bsa_m2": 0.37, "cardiac_index_l_min_m2": 3.48 },
+          "outlet": { "sbp_mmhg": 107, "dbp_mmhg": 78 },
+          "time": { "dt_s": 0.001, "cycles": 4 }
+        }"#;
+        std::fs::write(&case, text).unwrap();
+        case
+    })
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+/// Header and numeric rows of timeseries.csv; every row has the header's width.
+fn csv(dir: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect()).collect();
+    assert!(rows.iter().all(|r| r.len() == header.len()), "ragged CSV");
+    (header, rows)
+}
+
+#[test]
+fn steady_phantom_gives_a_positive_pressure_drop() {
+    if skip_gmsh() {
+        return;
+    }
+    let out_dir = temp_dir("steady");
+    let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--steady"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}\n{}", stdout, String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("<filter-progress>") && stdout.contains("</filter-progress>"), "{stdout}");
+    let s = summary(&out_dir);
+    for key in ["peak_time_s", "dp_peak_mmhg", "max_velocity_m_s", "q_mean_ml_s", "q_peak_ml_s", "outlet_mean_pressure_mmhg", "mass_imbalance", "wall_time_s"] {
+        let v = s[key].as_f64().unwrap_or_else(|| panic!("{key} missing: {s}"));
+        assert!(v.is_finite(), "{key} = {v}");
+    }
+    assert_eq!(s["status"], "completed");
+    assert!(s["converged"].as_bool().unwrap());
+    let dp = s["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(dp > 0.0 && dp < 100.0, "dp {dp}");
+    // Q_peak = 3.26 x 0.37 x 3.48 / 60 L/s; the solver carries it through the domain.
+    let q_peak = s["q_peak_ml_s"].as_f64().unwrap();
+    assert!((q_peak - 3.26 * 0.37 * 3.48 * 1000.0 / 60.0).abs() < 0.01 * q_peak, "{q_peak}");
+    assert!(s["mass_imbalance"].as_f64().unwrap() < 1e-3);
+    assert!(s["max_velocity_m_s"].as_f64().unwrap() > 0.1);
+    let (header, rows) = csv(&out_dir);
+    assert_eq!(rows.len(), 1);
+    assert!(header.contains(&"p_inlet_11_mmhg".to_string()) && header.contains(&"p_outlet_16_mmhg".to_string()), "{header:?}");
+    for name in ["peak.vtu", "final.vtu"] {
+        let vtu = baffle_cfd::vtu::read_vtu(&out_dir.join(name)).unwrap();
+        assert!(vtu.tets.len() > 1000, "{name}");
+        let text = std::fs::read_to_string(out_dir.join(name)).unwrap();
+        assert!(text.contains(r#"Name="velocity""#) && text.contains(r#"Name="pressure""#));
+    }
+    // Atomic writes leave no temporary files.
+    let leftovers: Vec<_> = std::fs::read_dir(&out_dir).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp")).collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    std::fs::remove_dir_all(out_dir).ok();
+}
+
+#[test]
+fn short_transient_writes_the_time_series() {
+    if skip_gmsh() {
+        return;
+    }
+    let out_dir = temp_dir("transient");
+    let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--steps", "5"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (header, rows) = csv(&out_dir);
+    let expected = [
+        "step", "time_s", "prescribed_inflow_ml_s", "inflow_ml_s", "outflow_ml_s", "max_velocity_m_s", "residual",
+        "p_wall_2_mmhg", "p_wall_10_mmhg", "p_inlet_11_mmhg", "p_outlet_16_mmhg",
+    ];
+    assert_eq!(header, expected);
+    assert_eq!(rows.len(), 5);
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r[0], (k + 1) as f64);
+        assert!((r[1] - 0.001 * (k + 1) as f64).abs() < 1e-12);
+        // The computed inflow follows the prescribed ramp of the ejection waveform.
+        assert!((r[3] - r[2]).abs() < 1e-6 * r[2].abs().max(1.0), "{r:?}");
+        assert!(r.iter().all(|v| v.is_finite()));
+    }
+    assert!(rows[4][2] > rows[0][2]);
+    let s = summary(&out_dir);
+    assert_eq!(s["steps_done"], 5);
+    assert!(s["periodicity_nrmsd"].is_null(), "fewer than two cycles: no periodicity");
+    assert!(out_dir.join("checkpoint.json").is_file());
+    std::fs::remove_dir_all(out_dir).ok();
+}
+
+#[test]
+fn sigterm_keeps_the_steps_done_and_resume_continues() {
+    if skip_gmsh() {
+        return;
+    }
+    let out_dir = temp_dir("sigterm");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_baffle"))
+        .args(["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut tags = 0;
+    let mut line = String::new();
+    while tags < 3 {
+        line.clear();
+        assert!(stdout.read_line(&mut line).unwrap() > 0, "baffle simulate ended early");
+        tags += usize::from(line.contains("<filter-progress>"));
+    }
+    // SIGTERM (not SIGKILL): the run stops at the end of the current step.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) }, 0);
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stdout, &mut rest).unwrap();
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "a stopped run is not a completed one");
+    let s = summary(&out_dir);
+    assert_eq!(s["status"], "stopped", "{s}");
+    let done = s["steps_done"].as_u64().unwrap() as usize;
+    assert!((3..2728).contains(&done), "{done} steps");
+    let (_, rows) = csv(&out_dir);
+    assert_eq!(rows.len(), done);
+    assert!(out_dir.join("checkpoint.json").is_file() && out_dir.join("final.vtu").is_file());
+    // Continue for three more steps from the checkpoint.
+    let limit = (done + 3).to_string();
+    let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--resume", "--steps", &limit]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (_, rows) = csv(&out_dir);
+    assert_eq!(rows.len(), done + 3);
+    assert!(rows.iter().enumerate().all(|(k, r)| r[0] == (k + 1) as f64), "steps continue without a gap");
+    assert_eq!(summary(&out_dir)["status"], "completed");
+    std::fs::remove_dir_all(out_dir).ok();
+}
+
+#[test]
+fn missing_mesh_is_named() {
+    let dir = temp_dir("missing");
+    let case = dir.join("case.json");
+    let text = r#"{
+      "mesh": { "volume": "no-such-mesh.vtu" },
+      "faces": { "inlet": 11, "outlets": [16] },
+      "inflow": { "q_mean_ml_s": 21.5 },
+      "outlet": { "resistance_dyn_s_cm5": 5467 }
+    }"#;
+    std::fs::write(&case, text).unwrap();
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap(), "--steady"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no-such-mesh.vtu") && stderr.contains("not found"), "{stderr}");
+    // The case file itself missing, and --help showing an example case.
+    let out = baffle(&["simulate", dir.join("nope.json").to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nope.json"));
+    let help = baffle(&["simulate", "--help"]);
+    assert!(String::from_utf8_lossy(&help.stdout).contains(r#""faces": { "inlet": 11"#));
+    std::fs::remove_dir_all(dir).ok();
+}
