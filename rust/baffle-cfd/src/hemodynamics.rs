@@ -68,7 +68,7 @@ pub fn hemodynamics(inputs: &ClinicalInputs) -> Result<Hemodynamics, crate::CfdE
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_data::{patients_json, table_value};
+    use crate::test_data::{patients_json, table4_hemodynamics, table_value};
 
     fn rel(a: f64, b: f64) -> f64 {
         (a - b).abs() / b.abs()
@@ -79,13 +79,7 @@ mod tests {
         let Some(json) = patients_json() else { return };
         for patient in ["p2", "p3"] {
             let v = |key: &str| table_value(&json, patient, key);
-            let inputs = ClinicalInputs {
-                bsa_m2: v("bsa_m2"),
-                sbp_mmhg: v("sbp_mmhg"),
-                dbp_mmhg: v("dbp_mmhg"),
-                cardiac_index_l_min_m2: CARDIAC_INDEX_DEFAULT_L_MIN_M2,
-            };
-            let h = hemodynamics(&inputs).unwrap();
+            let h = table4_hemodynamics(&json, patient);
             // Table values are printed rounded (CO to 0.01, Q to 0.1, R to 1, Wood to 0.1).
             assert!((h.cardiac_output_l_min - v("cardiac_output_l_min")).abs() <= 0.005, "{patient} CO {h:?}");
             assert!((h.q_mean_ml_s - v("q_mean_ml_s")).abs() <= 0.05, "{patient} Q {h:?}");

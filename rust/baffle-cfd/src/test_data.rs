@@ -16,3 +16,16 @@ pub fn table_value(json: &serde_json::Value, patient: &str, key: &str) -> f64 {
     let v = if patient == "common" { &json["common"][key] } else { &json["patients"][patient][key] };
     v.as_f64().unwrap_or_else(|| panic!("patients.json has no number {patient}.{key}"))
 }
+
+/// The paper's hemodynamic inputs for `patient` (BSA, SBP, DBP, default cardiac index).
+pub fn table4_hemodynamics(json: &serde_json::Value, patient: &str) -> crate::hemodynamics::Hemodynamics {
+    use crate::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
+    let v = |key: &str| table_value(json, patient, key);
+    let inputs = ClinicalInputs {
+        bsa_m2: v("bsa_m2"),
+        sbp_mmhg: v("sbp_mmhg"),
+        dbp_mmhg: v("dbp_mmhg"),
+        cardiac_index_l_min_m2: CARDIAC_INDEX_DEFAULT_L_MIN_M2,
+    };
+    hemodynamics(&inputs).expect("Table 4 inputs are valid")
+}

@@ -214,21 +214,14 @@ fn strip_flx_header(rows: Vec<Vec<f64>>) -> Vec<[f64; 2]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
-    use crate::test_data::{patients_json, table_value};
+    use crate::test_data::{patients_json, table4_hemodynamics, table_value};
 
     #[test]
     fn default_waveform_matches_table4_peaks() {
         let Some(json) = patients_json() else { return };
         for patient in ["p2", "p3"] {
             let v = |key: &str| table_value(&json, patient, key);
-            let inputs = ClinicalInputs {
-                bsa_m2: v("bsa_m2"),
-                sbp_mmhg: v("sbp_mmhg"),
-                dbp_mmhg: v("dbp_mmhg"),
-                cardiac_index_l_min_m2: CARDIAC_INDEX_DEFAULT_L_MIN_M2,
-            };
-            let h = hemodynamics(&inputs).unwrap();
+            let h = table4_hemodynamics(&json, patient);
             let w = Waveform::default_for_mean(h.q_mean_ml_s).unwrap();
             // Sampled, not the closed form: integrate and search the curve itself.
             let n = 68_200;
