@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 mod case;
+mod export_cmd;
 mod mesh_cmd;
 mod simulate_cmd;
 
@@ -33,6 +34,8 @@ enum Command {
     Mesh(mesh_cmd::MeshArgs),
     /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
     Simulate(simulate_cmd::SimulateArgs),
+    /// Write the same case for svMultiPhysics (the paper's MPI solver), to run on a cluster.
+    ExportSvmp(export_cmd::ExportArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
@@ -156,6 +159,7 @@ fn main() -> ExitCode {
         Command::Design(args) => run_design(&args),
         Command::Mesh(args) => mesh_cmd::run_mesh(&args),
         Command::Simulate(args) => simulate_cmd::run_simulate(&args),
+        Command::ExportSvmp(args) => export_cmd::run_export(&args),
         Command::Phantom { out } => write_phantom(&out),
     };
     match result {

@@ -194,3 +194,21 @@ fn missing_mesh_is_named() {
     assert!(String::from_utf8_lossy(&help.stdout).contains(r#""faces": { "inlet": 11"#));
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn the_same_case_exports_for_svmultiphysics() {
+    if skip_gmsh() {
+        return;
+    }
+    let case = phantom_case();
+    let dir = temp_dir("svmp");
+    let out = baffle(&["export-svmp", case.to_str().unwrap(), "--out", dir.to_str().unwrap(), "--mpi-processes", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for file in ["solver.xml", "run.sh", "inflow.flw", "mesh-complete/mesh-complete.mesh.vtu", "mesh-complete/mesh-surfaces/inflow.vtp", "mesh-complete/mesh-surfaces/outlet_16.vtp", "mesh-complete/walls_combined.vtp"] {
+        assert!(dir.join(file).is_file(), "{file} missing");
+    }
+    let xml = std::fs::read_to_string(dir.join("solver.xml")).unwrap();
+    assert!(xml.contains("<Time_step_size> 0.001 </Time_step_size>"), "{xml}");
+    assert!(std::fs::read_to_string(dir.join("run.sh")).unwrap().contains("${NP:-2}"));
+    std::fs::remove_dir_all(dir).ok();
+}
