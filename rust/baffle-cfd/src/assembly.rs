@@ -173,20 +173,27 @@ impl Assembler {
         Assembler { tets, geometry, positions, parts, part_elements }
     }
 
+    /// `vals` split into the disjoint runs of blocks whose rows each partition owns,
+    /// so threads can write them in parallel.
+    fn block_values_by_partition<'v>(&self, pattern: &BlockPattern, vals: &'v mut [f64]) -> Vec<&'v mut [f64]> {
+        let block_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
+        let mut val_parts = Vec::with_capacity(self.parts.len());
+        let mut rest = vals;
+        for w in block_bounds.windows(2) {
+            let (h, t) = rest.split_at_mut((w[1] - w[0]) * BB);
+            val_parts.push(h);
+            rest = t;
+        }
+        val_parts
+    }
+
     /// Add the Newton term of the Galerkin convection to the velocity blocks of `vals`:
     /// the derivative of (rho a.grad u, w) with respect to the advecting velocity a,
     /// evaluated at a = u = `x` with the same one-point (centroid) rule as the Picard
     /// term: block (a, b) gets rho V/16 grad u (grad u constant on P1). The derivatives
     /// of the SUPG/PSPG terms and of tau are not included (inexact Newton).
     pub fn add_convection_jacobian(&self, pattern: &BlockPattern, phys: &Physics, x: &[f64], vals: &mut [f64]) {
-        let block_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
-        let mut val_parts = Vec::new();
-        let mut rest = &mut vals[..];
-        for w in block_bounds.windows(2) {
-            let (h, t) = rest.split_at_mut((w[1] - w[0]) * BB);
-            val_parts.push(h);
-            rest = t;
-        }
+        let val_parts = self.block_values_by_partition(pattern, vals);
         val_parts.into_par_iter().enumerate().for_each(|(p, vals_p)| {
             let rows = &self.parts[p];
             let base = pattern.row_ptr[rows.start];
@@ -225,14 +232,7 @@ impl Assembler {
     /// velocities, 4 values per node (u, v, w, p). Each partition owns its rows, so
     /// threads write disjoint memory; elements on partition borders are computed twice.
     pub fn assemble(&self, pattern: &BlockPattern, phys: &Physics, a: &[f64], u_old: &[f64], vals: &mut [f64], rhs: &mut [f64]) {
-        let block_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
-        let mut val_parts = Vec::new();
-        let mut rest = &mut vals[..];
-        for w in block_bounds.windows(2) {
-            let (h, t) = rest.split_at_mut((w[1] - w[0]) * BB);
-            val_parts.push(h);
-            rest = t;
-        }
+        let val_parts = self.block_values_by_partition(pattern, vals);
         let mut rhs_parts = Vec::new();
         let mut rest = &mut rhs[..];
         for r in &self.parts {
