@@ -15,6 +15,15 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// `baffle design` on the files `baffle phantom` wrote into `inputs`, plus `extra` options.
+fn design_from_phantom_files(inputs: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let (surface, points) = (inputs.join("capped_ventricle.vtp"), inputs.join("suture_points.mrk.json"));
+    let mut args = vec!["design", "--surface", surface.to_str().unwrap(), "--points", points.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+    baffle(&args)
+}
+
 fn report(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap()
 }
@@ -25,17 +34,7 @@ fn phantom_files_design_like_the_built_in_sample() {
     let out = baffle(&["phantom", "--out", inputs.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let from_files = temp_dir("from-files");
-    let out = baffle(&[
-        "design",
-        "--surface",
-        inputs.join("capped_ventricle.vtp").to_str().unwrap(),
-        "--points",
-        inputs.join("suture_points.mrk.json").to_str().unwrap(),
-        "--bsa",
-        "0.37",
-        "--out",
-        from_files.to_str().unwrap(),
-    ]);
+    let out = design_from_phantom_files(&inputs, &from_files, &["--bsa", "0.37"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let built_in = temp_dir("built-in");
     let out = baffle(&["design", "--phantom", "--out", built_in.to_str().unwrap()]);
@@ -75,15 +74,7 @@ fn a_missing_input_file_is_named_and_the_exit_code_is_nonzero() {
 fn a_design_without_a_target_says_which_options_give_one() {
     let inputs = temp_dir("no-target");
     assert!(baffle(&["phantom", "--out", inputs.to_str().unwrap()]).status.success());
-    let out = baffle(&[
-        "design",
-        "--surface",
-        inputs.join("capped_ventricle.vtp").to_str().unwrap(),
-        "--points",
-        inputs.join("suture_points.mrk.json").to_str().unwrap(),
-        "--out",
-        inputs.join("out").to_str().unwrap(),
-    ]);
+    let out = design_from_phantom_files(&inputs, &inputs.join("out"), &[]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--bsa"));
     std::fs::remove_dir_all(inputs).ok();

@@ -364,18 +364,29 @@ fn tree_is_balanced_enough_for_a_large_sphere() {
         }
     }
     assert!(seen.iter().all(|&c| c == 1));
+    let (serial, parallel) = timed_self_intersections("sphere", &mesh, &bvh, build);
+    assert!(serial.is_empty() && parallel.is_empty());
+}
+
+/// Serial and parallel self-intersection pairs, with their times printed.
+fn timed_self_intersections(
+    name: &str,
+    mesh: &TriMesh,
+    bvh: &TriangleBvh,
+    build: std::time::Duration,
+) -> (Vec<(u32, u32)>, Vec<(u32, u32)>) {
     let started = std::time::Instant::now();
-    let serial = bvh.self_intersections(&mesh, |_, _| true);
+    let serial = bvh.self_intersections(mesh, |_, _| true);
     let serial_time = started.elapsed();
     let started = std::time::Instant::now();
-    let parallel = bvh.self_intersections_par(&mesh, |_, _| true);
+    let parallel = bvh.self_intersections_par(mesh, |_, _| true);
     println!(
-        "{} triangles, {} nodes: build {build:?}, self-intersections serial {serial_time:?}, parallel {:?}",
+        "{name}: {} triangles, {} nodes: build {build:?}, self-intersections serial {serial_time:?}, parallel {:?}",
         mesh.triangles.len(),
         bvh.node_count(),
         started.elapsed()
     );
-    assert!(serial.is_empty() && parallel.is_empty());
+    (serial, parallel)
 }
 
 fn data_dir() -> Option<std::path::PathBuf> {
@@ -391,16 +402,7 @@ fn patient_capped_ventricles_do_not_self_intersect() {
         let started = std::time::Instant::now();
         let bvh = TriangleBvh::new(&mesh).unwrap();
         let build = started.elapsed();
-        let started = std::time::Instant::now();
-        let serial = bvh.self_intersections(&mesh, |_, _| true);
-        let serial_time = started.elapsed();
-        let started = std::time::Instant::now();
-        let parallel = bvh.self_intersections_par(&mesh, |_, _| true);
-        println!(
-            "{patient}: {} triangles, build {build:?}, self-intersections serial {serial_time:?}, parallel {:?}",
-            mesh.triangles.len(),
-            started.elapsed()
-        );
+        let (serial, parallel) = timed_self_intersections(patient, &mesh, &bvh, build);
         assert!(
             serial.is_empty(),
             "{patient}: intersecting triangle pairs {:?}",
