@@ -10,21 +10,23 @@ mod error;
 pub mod hemodynamics;
 pub mod linear;
 pub mod mesh;
+pub mod periodicity;
 pub mod settings;
 pub mod solver;
 pub mod sparse;
+/// Structured tube meshes for verification tests and benchmarks.
+pub mod test_meshes;
 pub mod vtu;
 pub mod waveform;
 
 #[cfg(test)]
 mod test_data;
-#[cfg(test)]
-mod test_meshes;
 
 pub use error::CfdError;
 pub use mesh::{Face, FlowMesh, ValidationReport};
 pub use settings::{CaseSettings, InflowProfile, Outlet, RunMode};
-pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, StepResult, StepView, Summary, Timings};
+pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, SteadyProgress, StepResult, StepView, Summary, Timings};
+pub use periodicity::periodicity_nrmsd;
 pub use waveform::Waveform;
 #[cfg(test)]
 mod verification;

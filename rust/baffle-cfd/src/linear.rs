@@ -1,19 +1,21 @@
 //! Linear algebra for the coupled (u, v, w, p) system: block ILU(0) in parallel
-//! partitions and right-preconditioned restarted GMRES.
+//! partitions, right-preconditioned restarted GMRES, and mixed-precision iterative
+//! refinement around it (f32 inner solves, f64 residuals).
 
 use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::sparse::{axpy, invert4, mul4, mulv4, norm, BlockPattern, B, BB};
+use crate::sparse::{axpy, convert, invert4, mul4, mulv4, norm, BlockPattern, Scalar, B, BB};
 
 /// Block-Jacobi over contiguous row partitions of block ILU(0): each partition is
 /// factored and solved independently (couplings between partitions are dropped),
-/// so factorization and triangular solves run in parallel on the 2 cores.
-pub struct BlockIlu {
+/// so factorization and triangular solves run in parallel on the 2 cores. The
+/// factorization runs in f64; the factors are stored in precision T.
+pub struct BlockIlu<T: Scalar = f64> {
     parts: Vec<Range<usize>>,
-    lu: Vec<f64>,
-    diag_inv: Vec<[f64; BB]>,
+    lu: Vec<T>,
+    diag_inv: Vec<[T; BB]>,
 }
 
 /// Split rows into `n` contiguous ranges of about equal block count.
@@ -46,7 +48,7 @@ fn split_by<'a, T>(mut data: &'a mut [T], bounds: &[usize], stride: usize) -> Ve
     out
 }
 
-impl BlockIlu {
+impl<T: Scalar> BlockIlu<T> {
     /// Factor. Err(row) if a pivot block is singular.
     pub fn factor(pattern: &BlockPattern, vals: &[f64], parts: Vec<Range<usize>>) -> Result<Self, usize> {
         let mut lu = vals.to_vec();
@@ -61,11 +63,12 @@ impl BlockIlu {
             .zip(parts.par_iter())
             .map(|((lu_p, inv_p), rows)| factor_part(pattern, lu_p, inv_p, rows.clone()))
             .collect::<Result<Vec<()>, usize>>()?;
-        Ok(BlockIlu { parts, lu, diag_inv })
+        let diag_inv = diag_inv.iter().map(|d| d.map(T::from_f64)).collect();
+        Ok(BlockIlu { parts, lu: convert(&lu), diag_inv })
     }
 
     /// z = M^-1 r.
-    pub fn apply(&self, pattern: &BlockPattern, r: &[f64], z: &mut [f64]) {
+    pub fn apply<V: Scalar>(&self, pattern: &BlockPattern, r: &[V], z: &mut [V]) {
         let row_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| r.end)).collect();
         let z_parts = split_by(z, &row_bounds, B);
         z_parts.into_par_iter().zip(self.parts.par_iter()).for_each(|(z_p, rows)| {
@@ -116,10 +119,10 @@ fn factor_part(pattern: &BlockPattern, lu: &mut [f64], inv: &mut [[f64; BB]], ro
     Ok(())
 }
 
-fn solve_part(pattern: &BlockPattern, lu: &[f64], inv: &[[f64; BB]], rows: Range<usize>, r: &[f64], z: &mut [f64]) {
+fn solve_part<T: Scalar, V: Scalar>(pattern: &BlockPattern, lu: &[T], inv: &[[T; BB]], rows: Range<usize>, r: &[V], z: &mut [V]) {
     let r0 = rows.start;
     for i in rows.clone() {
-        let mut y = [r[i * B], r[i * B + 1], r[i * B + 2], r[i * B + 3]];
+        let mut y = [0, 1, 2, 3].map(|c| r[i * B + c].to_f64());
         for p in pattern.row_ptr[i]..pattern.diag[i] {
             let k = pattern.cols[p] as usize;
             if k >= r0 {
@@ -129,11 +132,10 @@ fn solve_part(pattern: &BlockPattern, lu: &[f64], inv: &[[f64; BB]], rows: Range
                 }
             }
         }
-        z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&y);
+        z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&y.map(V::from_f64));
     }
     for i in rows.clone().rev() {
-        let mut y = [0.0; B];
-        y.copy_from_slice(&z[(i - r0) * B..(i - r0 + 1) * B]);
+        let mut y = [0, 1, 2, 3].map(|c| z[(i - r0) * B + c].to_f64());
         for p in pattern.diag[i] + 1..pattern.row_ptr[i + 1] {
             let j = pattern.cols[p] as usize;
             if j < rows.end {
@@ -144,7 +146,7 @@ fn solve_part(pattern: &BlockPattern, lu: &[f64], inv: &[[f64; BB]], rows: Range
             }
         }
         let x = mulv4(&inv[i], &y);
-        z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&x);
+        z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&x.map(V::from_f64));
     }
 }
 
@@ -158,25 +160,26 @@ pub struct GmresOutcome {
 }
 
 /// Solve A x = b (x starts at 0) by GMRES(restart) preconditioned on the right, so
-/// the residual it monitors is the true one: ||b - A x|| <= tol ||b||.
-pub fn gmres(
-    apply_a: &dyn Fn(&[f64], &mut [f64]),
-    apply_m: &dyn Fn(&[f64], &mut [f64]),
-    b: &[f64],
-    x: &mut [f64],
+/// the residual it monitors is the true one: ||b - A x|| <= tol ||b||. Vectors are
+/// stored in precision T; the Hessenberg least-squares problem is in f64.
+pub fn gmres<T: Scalar>(
+    apply_a: &dyn Fn(&[T], &mut [T]),
+    apply_m: &dyn Fn(&[T], &mut [T]),
+    b: &[T],
+    x: &mut [T],
     tol: f64,
     restart: usize,
     max_iterations: usize,
 ) -> GmresOutcome {
     let n = b.len();
-    x.iter_mut().for_each(|v| *v = 0.0);
+    x.iter_mut().for_each(|v| *v = T::default());
     let b_norm = norm(b);
     if b_norm == 0.0 {
         return GmresOutcome { iterations: 0, relative_residual: 0.0, converged: true };
     }
     let mut r = b.to_vec();
-    let mut work = vec![0.0; n];
-    let mut z = vec![0.0; n];
+    let mut work = vec![T::default(); n];
+    let mut z = vec![T::default(); n];
     let mut iterations = 0;
     let mut rel = 1.0;
     while iterations < max_iterations {
@@ -185,7 +188,7 @@ pub fn gmres(
         if !rel.is_finite() || rel <= tol {
             break;
         }
-        let mut basis: Vec<Vec<f64>> = vec![r.iter().map(|v| v / beta).collect()];
+        let mut basis: Vec<Vec<T>> = vec![scaled(&r, 1.0 / beta)];
         let mut h = vec![vec![0.0; restart]; restart + 1];
         let (mut cs, mut sn) = (vec![0.0; restart], vec![0.0; restart]);
         let mut g = vec![0.0; restart + 1];
@@ -229,7 +232,7 @@ pub fn gmres(
             if estimate <= tol || !estimate.is_finite() || next_norm == 0.0 {
                 break;
             }
-            basis.push(work.iter().map(|v| v / next_norm).collect());
+            basis.push(scaled(&work, 1.0 / next_norm));
         }
         // y = H^-1 g, x += M^-1 (V y)
         let mut y = vec![0.0; k_used];
@@ -237,14 +240,14 @@ pub fn gmres(
             let s: f64 = (i + 1..k_used).map(|j| h[i][j] * y[j]).sum();
             y[i] = if h[i][i] != 0.0 { (g[i] - s) / h[i][i] } else { 0.0 };
         }
-        let mut update = vec![0.0; n];
+        let mut update = vec![T::default(); n];
         for (j, yj) in y.iter().enumerate() {
             axpy(*yj, &basis[j], &mut update);
         }
         apply_m(&update, &mut z);
         axpy(1.0, &z, x);
         apply_a(x, &mut work);
-        r.par_iter_mut().zip(b.par_iter().zip(&work)).for_each(|(ri, (bi, ai))| *ri = bi - ai);
+        r.par_iter_mut().zip(b.par_iter().zip(&work)).for_each(|(ri, (bi, ai))| *ri = T::from_f64(bi.to_f64() - ai.to_f64()));
         rel = norm(&r) / b_norm;
         if !rel.is_finite() || rel <= tol {
             break;
@@ -253,8 +256,13 @@ pub fn gmres(
     GmresOutcome { iterations, relative_residual: rel, converged: rel <= tol }
 }
 
+/// s v, stored in precision T.
+fn scaled<S: Scalar, T: Scalar>(v: &[S], s: f64) -> Vec<T> {
+    v.par_iter().with_min_len(4096).map(|x| T::from_f64(x.to_f64() * s)).collect()
+}
+
 /// w -= V (V^T w) for the orthonormal columns V = `basis`; returns V^T w.
-fn orthogonalize(basis: &[Vec<f64>], w: &mut [f64]) -> Vec<f64> {
+fn orthogonalize<T: Scalar>(basis: &[Vec<T>], w: &mut [T]) -> Vec<f64> {
     const CHUNK: usize = 8192;
     let k = basis.len();
     let c = w
@@ -262,7 +270,10 @@ fn orthogonalize(basis: &[Vec<f64>], w: &mut [f64]) -> Vec<f64> {
         .enumerate()
         .map(|(ci, wc)| {
             let off = ci * CHUNK;
-            basis.iter().map(|v| v[off..off + wc.len()].iter().zip(wc).map(|(a, b)| a * b).sum::<f64>()).collect::<Vec<f64>>()
+            basis
+                .iter()
+                .map(|v| v[off..off + wc.len()].iter().zip(wc).map(|(a, b)| a.to_f64() * b.to_f64()).sum::<f64>())
+                .collect::<Vec<f64>>()
         })
         .reduce(|| vec![0.0; k], |mut a, b| {
             a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
@@ -270,12 +281,84 @@ fn orthogonalize(basis: &[Vec<f64>], w: &mut [f64]) -> Vec<f64> {
         });
     w.par_chunks_mut(CHUNK).enumerate().for_each(|(ci, wc)| {
         let off = ci * CHUNK;
+        let len = wc.len();
+        let mut acc: Vec<f64> = wc.iter().map(|x| x.to_f64()).collect();
         for (v, cj) in basis.iter().zip(&c) {
-            let len = wc.len();
-            wc.iter_mut().zip(&v[off..off + len]).for_each(|(x, y)| *x -= cj * y);
+            acc.iter_mut().zip(&v[off..off + len]).for_each(|(x, y)| *x -= cj * y.to_f64());
         }
+        wc.iter_mut().zip(acc).for_each(|(x, a)| *x = T::from_f64(a));
     });
     c
+}
+
+/// How many f32 GMRES solves [`solve_refined`] may chain.
+const MAX_REFINEMENT_ROUNDS: usize = 4;
+/// The smallest relative residual asked of one f32 GMRES solve: f32 has ~7 digits, and
+/// rounding in the f32 operator stops the residual decreasing somewhere below 1e-5.
+const LOW_PRECISION_FLOOR: f64 = 1e-5;
+/// A refinement round must cut the f64 residual at least this much, or the f32 copy
+/// of the operator is too coarse for this system (eps_f32 x condition >~ 1).
+const MIN_ROUND_REDUCTION: f64 = 0.5;
+
+/// Solve A x = b to ||b - A x|| <= tol ||b|| by mixed-precision iterative refinement
+/// (Carson and Higham 2018, GMRES-IR): GMRES runs on f32 copies of the operator and
+/// vectors (`apply_a_low`, `apply_m_low`: half the memory traffic), then the true
+/// residual of the accumulated f64 solution is formed with the f64 operator `apply_a`;
+/// while it misses the tolerance, GMRES solves again for the correction. When a round
+/// stalls (ill-conditioned systems such as steady Stokes flow, where f32 rounding of
+/// the operator is amplified beyond the tolerance), the rest is solved by f64 GMRES
+/// (`apply_m`). The returned residual is always the f64 one.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_refined(
+    apply_a: &dyn Fn(&[f64], &mut [f64]),
+    apply_m: &dyn Fn(&[f64], &mut [f64]),
+    apply_a_low: &dyn Fn(&[f32], &mut [f32]),
+    apply_m_low: &dyn Fn(&[f32], &mut [f32]),
+    b: &[f64],
+    x: &mut [f64],
+    tol: f64,
+    restart: usize,
+    max_iterations: usize,
+) -> GmresOutcome {
+    x.iter_mut().for_each(|v| *v = 0.0);
+    let b_norm = norm(b);
+    if b_norm == 0.0 {
+        return GmresOutcome { iterations: 0, relative_residual: 0.0, converged: true };
+    }
+    let mut residual = b.to_vec();
+    let mut work = vec![0.0; b.len()];
+    let mut iterations = 0;
+    let mut r_norm = b_norm;
+    for _ in 0..MAX_REFINEMENT_ROUNDS {
+        if r_norm <= tol * b_norm || iterations >= max_iterations {
+            break;
+        }
+        // Scale to unit norm so the f32 copy keeps its full range whatever the units.
+        let rhs: Vec<f32> = scaled(&residual, 1.0 / r_norm);
+        let mut dx = vec![0.0f32; b.len()];
+        let inner_tol = (tol * b_norm / r_norm).max(LOW_PRECISION_FLOOR);
+        // One restart cycle at most: an f32 solve that stalls above its target is
+        // caught by the f64 residual check below instead of burning the budget.
+        let out = gmres(apply_a_low, apply_m_low, &rhs, &mut dx, inner_tol, restart, restart.min(max_iterations - iterations));
+        iterations += out.iterations;
+        axpy(r_norm, &dx, x);
+        apply_a(x, &mut work);
+        residual.par_iter_mut().zip(b.par_iter().zip(&work)).for_each(|(ri, (bi, ai))| *ri = bi - ai);
+        let previous = r_norm;
+        r_norm = norm(&residual);
+        if !(r_norm <= MIN_ROUND_REDUCTION * previous) {
+            break;
+        }
+    }
+    if r_norm <= tol * b_norm || !r_norm.is_finite() || iterations >= max_iterations {
+        let rel = r_norm / b_norm;
+        return GmresOutcome { iterations, relative_residual: rel, converged: rel <= tol };
+    }
+    let mut dx = vec![0.0; b.len()];
+    let out = gmres(apply_a, apply_m, &residual, &mut dx, tol * b_norm / r_norm, restart, max_iterations - iterations);
+    axpy(1.0, &dx, x);
+    let rel = out.relative_residual * r_norm / b_norm;
+    GmresOutcome { iterations: iterations + out.iterations, relative_residual: rel, converged: rel <= tol }
 }
 
 #[cfg(test)]
@@ -310,7 +393,7 @@ mod tests {
         let mut b = vec![0.0; n * B];
         spmv(&pattern, &vals, &x_true, &mut b);
         for parts in [1, 2] {
-            let ilu = BlockIlu::factor(&pattern, &vals, partitions(&pattern, parts)).unwrap();
+            let ilu = BlockIlu::<f64>::factor(&pattern, &vals, partitions(&pattern, parts)).unwrap();
             let mut x = vec![0.0; n * B];
             let out = gmres(
                 &|v, y| spmv(&pattern, &vals, v, y),
@@ -328,10 +411,58 @@ mod tests {
     }
 
     #[test]
+    fn mixed_precision_refinement_reaches_an_f64_tolerance() {
+        // f32 inner solves alone stall near 1e-6..1e-7; the f64 residual and repeated
+        // corrections reach 1e-11, and the reported residual is the f64 one.
+        let n = 300;
+        let (pattern, vals) = chain(n);
+        let vals_low: Vec<f32> = convert(&vals);
+        let x_true: Vec<f64> = (0..n * B).map(|i| 1e3 * (i as f64 * 0.37).sin()).collect();
+        let mut b = vec![0.0; n * B];
+        spmv(&pattern, &vals, &x_true, &mut b);
+        let ilu = BlockIlu::<f32>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap();
+        let mut x = vec![0.0; n * B];
+        let out = solve_refined(
+            &|v, y| spmv(&pattern, &vals, v, y),
+            &|r, z| ilu.apply(&pattern, r, z),
+            &|v, y| spmv(&pattern, &vals_low, v, y),
+            &|r, z| ilu.apply(&pattern, r, z),
+            &b,
+            &mut x,
+            1e-11,
+            30,
+            500,
+        );
+        let mut ax = vec![0.0; n * B];
+        spmv(&pattern, &vals, &x, &mut ax);
+        let true_rel = norm(&b.iter().zip(&ax).map(|(p, q)| p - q).collect::<Vec<f64>>()) / norm(&b);
+        assert!(out.converged && out.relative_residual <= 1e-11, "{out:?}");
+        assert!((true_rel - out.relative_residual).abs() <= 1e-3 * out.relative_residual.max(1e-16) + 1e-15, "{true_rel} vs {out:?}");
+        let err = x.iter().zip(&x_true).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(err < 1e-6, "max error {err}");
+        // A zero right-hand side needs no iteration.
+        let out = solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &|r, z| ilu.apply(&pattern, r, z), &|v, y| spmv(&pattern, &vals_low, v, y), &|r, z| ilu.apply(&pattern, r, z), &vec![0.0; n * B], &mut x, 1e-8, 30, 500);
+        assert_eq!((out.iterations, out.converged), (0, true));
+        assert!(x.iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn f32_factors_precondition_as_well_as_f64_factors() {
+        let (pattern, vals) = chain(200);
+        let r: Vec<f64> = (0..200 * B).map(|i| (i as f64 * 0.11).cos()).collect();
+        let (mut z64, mut z32) = (vec![0.0; r.len()], vec![0.0; r.len()]);
+        BlockIlu::<f64>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap().apply(&pattern, &r, &mut z64);
+        BlockIlu::<f32>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap().apply(&pattern, &r, &mut z32);
+        let diff = z64.iter().zip(&z32).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let scale = z64.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(diff < 1e-6 * scale, "{diff} vs {scale}");
+    }
+
+    #[test]
     fn ilu_of_a_full_pattern_is_the_exact_inverse() {
         // 4 nodes of one tet: the block pattern is full, so ILU(0) = LU per partition.
         let (pattern, vals) = chain(4);
-        let ilu = BlockIlu::factor(&pattern, &vals, partitions(&pattern, 1)).unwrap();
+        let ilu = BlockIlu::<f64>::factor(&pattern, &vals, partitions(&pattern, 1)).unwrap();
         let x_true: Vec<f64> = (0..16).map(|i| 1.0 + i as f64).collect();
         let mut b = vec![0.0; 16];
         spmv(&pattern, &vals, &x_true, &mut b);
@@ -356,7 +487,7 @@ mod tests {
         }
         let parts = partitions(&pattern, 2);
         assert_eq!(parts, vec![0..4, 4..8]);
-        let ilu = BlockIlu::factor(&pattern, &vals, parts).unwrap();
+        let ilu = BlockIlu::<f64>::factor(&pattern, &vals, parts).unwrap();
         let x_true: Vec<f64> = (0..32).map(|i| (i as f64).cos()).collect();
         let mut b = vec![0.0; 32];
         spmv(&pattern, &vals, &x_true, &mut b);
@@ -371,6 +502,6 @@ mod tests {
         for p in pattern.row_ptr[4]..pattern.row_ptr[5] {
             vals[p * BB..(p + 1) * BB].iter_mut().for_each(|v| *v = 0.0);
         }
-        assert_eq!(BlockIlu::factor(&pattern, &vals, partitions(&pattern, 1)).err(), Some(4));
+        assert_eq!(BlockIlu::<f64>::factor(&pattern, &vals, partitions(&pattern, 1)).err(), Some(4));
     }
 }

@@ -47,6 +47,9 @@ pub struct CaseSettings {
     pub nonlinear_tolerance: f64,
     pub gmres_restart: usize,
     pub max_linear_iterations: usize,
+    /// Inner GMRES in f32 with f64 iterative refinement (`linear::solve_refined`)
+    /// instead of GMRES in f64: same tolerance on the f64 residual, less memory traffic.
+    pub mixed_precision: bool,
     /// Steady mode: pseudo time step (s) of the pseudo-transient continuation, or
     /// infinite for plain Picard iterations; iterations and residual reduction target.
     pub steady_pseudo_dt_s: f64,
@@ -79,6 +82,7 @@ impl CaseSettings {
             nonlinear_tolerance: 1e-3,
             gmres_restart: 60,
             max_linear_iterations: 600,
+            mixed_precision: true,
             steady_pseudo_dt_s: 0.01,
             steady_pseudo_dt_max_s: f64::INFINITY,
             steady_newton_below: 1e-2,

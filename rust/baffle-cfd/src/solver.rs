@@ -55,10 +55,10 @@ use std::time::Instant;
 
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
-use crate::linear::{gmres, partitions, BlockIlu};
+use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
-use crate::sparse::{dot, reverse_cuthill_mckee, spmv, BlockPattern, B, BB};
+use crate::sparse::{convert, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
 
 /// Pressure and flow on one face at one step.
@@ -371,7 +371,7 @@ impl<'a> Solver<'a> {
     }
 
     /// y = K x + sum_o R_o b_o (b_o . x): the implicit resistance coupling as a rank-one term.
-    fn apply_operator(problem: &Problem, vals: &[f64], x: &[f64], y: &mut [f64]) {
+    fn apply_operator<M: Scalar, T: Scalar>(problem: &Problem, vals: &[M], x: &[T], y: &mut [T]) {
         spmv(&problem.pattern, vals, x, y);
         for o in &problem.outlets {
             let q = dot(&o.flux_weights, x);
@@ -448,20 +448,38 @@ impl<'a> Solver<'a> {
                 break;
             }
             let t1 = Instant::now();
-            let ilu = BlockIlu::factor(&self.problem.pattern, &self.vals, self.problem.parts.clone()).map_err(|row| {
-                CfdError::Diverged { step, time_s, residual: res, reason: format!("singular pivot block at node {row} in ILU(0)") }
-            })?;
-            let t2 = Instant::now();
-            let (problem, vals) = (&self.problem, &self.vals);
-            let out = gmres(
-                &|v, y| Self::apply_operator(problem, vals, v, y),
-                &|v, z| ilu.apply(&problem.pattern, v, z),
-                &r,
-                &mut dx,
-                self.settings.linear_tolerance,
-                self.settings.gmres_restart,
-                self.settings.max_linear_iterations,
-            );
+            let singular = |row: usize| CfdError::Diverged { step, time_s, residual: res, reason: format!("singular pivot block at node {row} in ILU(0)") };
+            let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
+            let parts = || problem.parts.clone();
+            let t2;
+            let out = if s.mixed_precision {
+                let ilu = BlockIlu::<f32>::factor(&problem.pattern, vals, parts()).map_err(singular)?;
+                let vals_low: Vec<f32> = convert(vals);
+                t2 = Instant::now();
+                solve_refined(
+                    &|v, y| Self::apply_operator(problem, vals, v, y),
+                    &|v, z| ilu.apply(&problem.pattern, v, z),
+                    &|v, y| Self::apply_operator(problem, &vals_low, v, y),
+                    &|v, z| ilu.apply(&problem.pattern, v, z),
+                    &r,
+                    &mut dx,
+                    s.linear_tolerance,
+                    s.gmres_restart,
+                    s.max_linear_iterations,
+                )
+            } else {
+                let ilu = BlockIlu::<f64>::factor(&problem.pattern, vals, parts()).map_err(singular)?;
+                t2 = Instant::now();
+                gmres(
+                    &|v, y| Self::apply_operator(problem, vals, v, y),
+                    &|v, z| ilu.apply(&problem.pattern, v, z),
+                    &r,
+                    &mut dx,
+                    s.linear_tolerance,
+                    s.gmres_restart,
+                    s.max_linear_iterations,
+                )
+            };
             self.timings.preconditioner_s += (t2 - t1).as_secs_f64();
             self.timings.gmres_s += t2.elapsed().as_secs_f64();
             stats.linear_iterations += out.iterations;
@@ -530,6 +548,9 @@ impl<'a> Solver<'a> {
         let n_steps = (s.cycles as f64 * s.inflow.period_s() / s.dt_s).round() as usize;
         let phys = self.physics(false, s.dt_s);
         let (first, mut x, mut x_prev) = match start {
+            Some(state) if state.steady.is_some() => {
+                return Err(CfdError::Settings("the start state is of a steady solve, not of a transient run".into()));
+            }
             Some(state) => {
                 let x = state_vector(&self.problem.order, &state.velocity_cm_s, &state.pressure_dyn_cm2, "velocity/pressure")?;
                 let x_prev = state_vector(&self.problem.order, &state.previous_velocity_cm_s, &state.previous_pressure_dyn_cm2, "previous velocity/pressure")?;
@@ -566,13 +587,14 @@ impl<'a> Solver<'a> {
                 order: &self.problem.order,
                 x: &x,
                 x_prev: Some(&x_prev),
+                steady: None,
             };
             if !observer(&view) {
                 cancelled_at = Some(time_s);
                 break;
             }
         }
-        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), converged: true, cancelled_at })
+        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), steady: None, last_iteration: 0, converged: true, cancelled_at })
     }
 
     /// Steady solve by pseudo-transient continuation: one Picard or Newton iteration
@@ -581,27 +603,41 @@ impl<'a> Solver<'a> {
     /// 1985), dt_k = dt_0 r_0 / r_k, capped at `steady_pseudo_dt_max_s`, so the
     /// iteration becomes plain Newton near convergence. At the start of each pseudo
     /// step the time terms cancel, so the residual checked is the steady one.
-    fn steady(&mut self, observer: &mut Observer) -> Result<Outcome, CfdError> {
+    fn steady(&mut self, start: Option<&SolverState>, observer: &mut Observer) -> Result<Outcome, CfdError> {
         let s = self.settings;
         let (q_peak, t_peak) = s.inflow.peak();
-        let mut x = vec![0.0; self.problem.order.len() * B];
+        // A resumed solve continues the iteration count, the residual reference and the
+        // pseudo step of the run it continues, so it takes the same path.
+        let (first, mut x, mut progress) = match start {
+            Some(state) => {
+                let x = state_vector(&self.problem.order, &state.velocity_cm_s, &state.pressure_dyn_cm2, "velocity/pressure")?;
+                let progress = state.steady.ok_or_else(|| CfdError::Settings("the start state is of a transient run, not of a steady solve".into()))?;
+                (state.step + 1, x, Some(progress))
+            }
+            None => (1, vec![0.0; self.problem.order.len() * B], None),
+        };
         self.set_inflow(&mut x, q_peak);
-        let mut first_residual = None;
+        let rel_of = |p: &Option<SteadyProgress>| p.map(|p| p.relative_residual);
+        let next_pseudo_dt = |rel: Option<f64>| match rel {
+            Some(rel) if rel > 0.0 => (s.steady_pseudo_dt_s / rel).min(s.steady_pseudo_dt_max_s),
+            _ => s.steady_pseudo_dt_s,
+        };
+        let mut pseudo_dt = next_pseudo_dt(rel_of(&progress));
+        let mut newton = rel_of(&progress).is_some_and(|rel| rel < s.steady_newton_below);
         let mut converged = false;
-        let mut pseudo_dt = s.steady_pseudo_dt_s;
-        let mut newton = false;
         let mut stats = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0 };
         let mut cancelled_at = None;
-        for it in 1..=s.steady_max_iterations + 1 {
+        let mut last_iteration = first - 1;
+        for it in first..=s.steady_max_iterations + 1 {
             let x_old = x.clone();
             let last = it > s.steady_max_iterations;
             let phys = self.physics(true, pseudo_dt);
             let step_stats = self.step(&phys, &mut x, &x_old, usize::from(!last), 1.0, newton, false, it, t_peak)?;
-            let reference = *first_residual.get_or_insert(step_stats.initial_residual);
+            last_iteration = it;
+            let reference = progress.map_or(step_stats.initial_residual, |p| p.reference_residual);
             let rel = if reference > 0.0 { step_stats.initial_residual / reference } else { 0.0 };
-            if rel > 0.0 {
-                pseudo_dt = (s.steady_pseudo_dt_s / rel).min(s.steady_pseudo_dt_max_s);
-            }
+            progress = Some(SteadyProgress { reference_residual: reference, relative_residual: rel });
+            pseudo_dt = next_pseudo_dt(Some(rel));
             newton = rel < s.steady_newton_below;
             stats.nonlinear_iterations += step_stats.nonlinear_iterations;
             stats.linear_iterations += step_stats.linear_iterations;
@@ -625,6 +661,7 @@ impl<'a> Solver<'a> {
                 order: &self.problem.order,
                 x: &x,
                 x_prev: None,
+                steady: progress,
             };
             if !observer(&view) {
                 cancelled_at = Some(t_peak);
@@ -632,7 +669,7 @@ impl<'a> Solver<'a> {
             }
         }
         let result = self.step_result(&x, 0, t_peak, q_peak, &stats)?;
-        Ok(Outcome { steps: vec![result], x, x_prev: None, converged, cancelled_at })
+        Ok(Outcome { steps: vec![result], x, x_prev: None, steady: progress, last_iteration, converged, cancelled_at })
     }
 }
 
@@ -648,6 +685,7 @@ pub struct StepView<'a> {
     order: &'a [u32],
     x: &'a [f64],
     x_prev: Option<&'a [f64]>,
+    steady: Option<SteadyProgress>,
 }
 
 impl StepView<'_> {
@@ -656,13 +694,26 @@ impl StepView<'_> {
         fields(self.order, self.x)
     }
 
-    /// The state to continue this transient run from with [`simulate_from`] (None in steady mode).
+    /// The state to continue this run from with [`simulate_from`].
     pub fn state(&self) -> Option<SolverState> {
-        let prev = self.x_prev?;
-        let (velocity_cm_s, pressure_dyn_cm2) = fields(self.order, self.x);
-        let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(self.order, prev);
-        Some(SolverState { step: self.step, time_s: self.time_s, velocity_cm_s, pressure_dyn_cm2, previous_velocity_cm_s, previous_pressure_dyn_cm2 })
+        Some(solver_state(self.order, self.step, self.time_s, self.x, self.x_prev, self.steady))
     }
+}
+
+/// A run's state in input numbering; a steady iterate is its own previous state.
+fn solver_state(order: &[u32], step: usize, time_s: f64, x: &[f64], x_prev: Option<&[f64]>, steady: Option<SteadyProgress>) -> SolverState {
+    let (velocity_cm_s, pressure_dyn_cm2) = fields(order, x);
+    let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(order, x_prev.unwrap_or(x));
+    SolverState { step, time_s, velocity_cm_s, pressure_dyn_cm2, previous_velocity_cm_s, previous_pressure_dyn_cm2, steady }
+}
+
+/// Where a steady solve stands: the absolute residual of its first iteration (the
+/// reference of the relative target and of the pseudo time step) and the last
+/// relative residual.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SteadyProgress {
+    pub reference_residual: f64,
+    pub relative_residual: f64,
 }
 
 /// A transient run's state after a time step (input node numbering): enough to continue
@@ -675,6 +726,8 @@ pub struct SolverState {
     pub pressure_dyn_cm2: Vec<f64>,
     pub previous_velocity_cm_s: Vec<[f64; 3]>,
     pub previous_pressure_dyn_cm2: Vec<f64>,
+    /// Steady solves only (then step counts iterations and previous = current).
+    pub steady: Option<SteadyProgress>,
 }
 
 /// The result of [`simulate_from`]: the summary of the steps run (after the start
@@ -693,6 +746,9 @@ struct Outcome {
     steps: Vec<StepResult>,
     x: Vec<f64>,
     x_prev: Option<Vec<f64>>,
+    steady: Option<SteadyProgress>,
+    /// Steady solves: the number of the last iteration done.
+    last_iteration: usize,
     converged: bool,
     cancelled_at: Option<f64>,
 }
@@ -741,9 +797,6 @@ pub fn simulate(mesh: &FlowMesh, settings: &CaseSettings, progress: &mut dyn FnM
 pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&SolverState>, observer: &mut Observer) -> Result<Run, CfdError> {
     let start_time = Instant::now();
     settings.validate()?;
-    if start.is_some() && settings.mode == RunMode::Steady {
-        return Err(CfdError::Settings("a start state can only continue a transient run".into()));
-    }
     let problem = Problem::new(mesh, settings)?;
     let n_blocks = problem.pattern.cols.len();
     let n_dofs = problem.order.len() * B;
@@ -751,22 +804,13 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
     solver.timings.setup_s = start_time.elapsed().as_secs_f64();
     let outcome = match settings.mode {
         RunMode::Transient => solver.transient(start, observer)?,
-        RunMode::Steady => solver.steady(observer)?,
+        RunMode::Steady => solver.steady(start, observer)?,
     };
     let order = &solver.problem.order;
     let (velocity_cm_s, pressure_dyn_cm2) = fields(order, &outcome.x);
-    let state = match (&outcome.x_prev, outcome.steps.last()) {
-        (Some(prev), Some(last)) => {
-            let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(order, prev);
-            Some(SolverState {
-                step: last.step,
-                time_s: last.time_s,
-                velocity_cm_s: velocity_cm_s.clone(),
-                pressure_dyn_cm2: pressure_dyn_cm2.clone(),
-                previous_velocity_cm_s,
-                previous_pressure_dyn_cm2,
-            })
-        }
+    let state = match (&outcome.x_prev, outcome.steady, outcome.steps.last()) {
+        (Some(prev), _, Some(last)) => Some(solver_state(order, last.step, last.time_s, &outcome.x, Some(prev), None)),
+        (None, Some(progress), Some(last)) => Some(solver_state(order, outcome.last_iteration, last.time_s, &outcome.x, None, Some(progress))),
         _ => start.cloned(),
     };
     let mut timings = solver.timings;

@@ -51,33 +51,70 @@ impl BlockPattern {
     }
 }
 
+/// Storage precision of matrix values and Krylov vectors. The inner linear solves run
+/// in f32 (half the memory traffic of the bandwidth-bound kernels: block SpMV, ILU
+/// triangular solves, Gram-Schmidt), while residuals and the solution stay in f64
+/// (see `linear::solve_refined`). Reductions always accumulate in f64.
+pub trait Scalar: Copy + Default + Send + Sync + PartialEq + std::fmt::Debug + 'static {
+    fn from_f64(v: f64) -> Self;
+    fn to_f64(self) -> f64;
+}
+
+impl Scalar for f64 {
+    #[inline]
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+impl Scalar for f32 {
+    #[inline]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+}
+
 /// y = A x for block values `vals` (row-major 4x4 per block) on `pattern`.
-pub fn spmv(pattern: &BlockPattern, vals: &[f64], x: &[f64], y: &mut [f64]) {
+pub fn spmv<M: Scalar, T: Scalar>(pattern: &BlockPattern, vals: &[M], x: &[T], y: &mut [T]) {
     y.par_chunks_mut(B).enumerate().for_each(|(i, yi)| {
         let mut acc = [0.0; B];
         for k in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
             let j = pattern.cols[k] as usize;
-            let a = &vals[k * BB..(k + 1) * BB];
-            let xj = &x[j * B..(j + 1) * B];
+            let ax = mulv4(&vals[k * BB..(k + 1) * BB], &x[j * B..(j + 1) * B]);
             for r in 0..B {
-                acc[r] += a[r * B] * xj[0] + a[r * B + 1] * xj[1] + a[r * B + 2] * xj[2] + a[r * B + 3] * xj[3];
+                acc[r] += ax[r];
             }
         }
-        yi.copy_from_slice(&acc);
+        for r in 0..B {
+            yi[r] = T::from_f64(acc[r]);
+        }
     });
 }
 
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.par_iter().zip(b).with_min_len(4096).map(|(x, y)| x * y).sum()
+pub fn dot<S: Scalar, T: Scalar>(a: &[S], b: &[T]) -> f64 {
+    a.par_iter().zip(b).with_min_len(4096).map(|(x, y)| x.to_f64() * y.to_f64()).sum()
 }
 
-pub fn norm(a: &[f64]) -> f64 {
+pub fn norm<T: Scalar>(a: &[T]) -> f64 {
     dot(a, a).sqrt()
 }
 
 /// y += alpha x
-pub fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
-    y.par_iter_mut().zip(x).with_min_len(4096).for_each(|(yi, xi)| *yi += alpha * xi);
+pub fn axpy<S: Scalar, T: Scalar>(alpha: f64, x: &[S], y: &mut [T]) {
+    y.par_iter_mut().zip(x).with_min_len(4096).for_each(|(yi, xi)| *yi = T::from_f64(yi.to_f64() + alpha * xi.to_f64()));
+}
+
+/// A copy of `v` in precision T.
+pub fn convert<S: Scalar, T: Scalar>(v: &[S]) -> Vec<T> {
+    v.par_iter().with_min_len(4096).map(|x| T::from_f64(x.to_f64())).collect()
 }
 
 /// Invert a 4x4 block (row-major) by Gauss-Jordan with partial pivoting; None if singular.
@@ -135,12 +172,13 @@ pub fn mul4(a: &[f64], b: &[f64]) -> [f64; BB] {
     c
 }
 
-/// y = a x for a 4x4 block.
+/// y = a x for a 4x4 block, in f64 whatever the storage precision.
 #[inline]
-pub fn mulv4(a: &[f64], x: &[f64]) -> [f64; B] {
+pub fn mulv4<M: Scalar, T: Scalar>(a: &[M], x: &[T]) -> [f64; B] {
+    let x = [x[0].to_f64(), x[1].to_f64(), x[2].to_f64(), x[3].to_f64()];
     let mut y = [0.0; B];
     for r in 0..B {
-        y[r] = a[r * B] * x[0] + a[r * B + 1] * x[1] + a[r * B + 2] * x[2] + a[r * B + 3] * x[3];
+        y[r] = a[r * B].to_f64() * x[0] + a[r * B + 1].to_f64() * x[1] + a[r * B + 2].to_f64() * x[2] + a[r * B + 3].to_f64() * x[3];
     }
     y
 }

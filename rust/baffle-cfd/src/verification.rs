@@ -157,6 +157,58 @@ fn stopped_run_resumes_to_the_same_result() {
 }
 
 #[test]
+fn pulsatile_run_becomes_periodic_over_cycles() {
+    // Four cycles of the ejection waveform from rest: the start-up transient (the
+    // velocity profile developing from rest) decays, so each cycle repeats the one
+    // before more closely; measured on the inlet-outlet pressure difference as the
+    // CLI's periodicity_nrmsd.
+    let mesh = tube(RADIUS_CM, 1.5, 3, 8, &[]);
+    let period_steps = 40;
+    let inflow = Waveform::Ejection { period_s: period_steps as f64 * 1e-3, q_mean_ml_s: 0.5 };
+    let mut s = CaseSettings::new(INLET, inflow, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }]);
+    s.cycles = 4;
+    s.max_nonlinear_iterations = 1;
+    let summary = simulate(&mesh, &s, &mut |_, _| true).unwrap();
+    assert_eq!(summary.steps.len(), 4 * period_steps);
+    let dp: Vec<f64> = summary
+        .steps
+        .iter()
+        .map(|r| r.face(INLET).unwrap().mean_pressure_dyn_cm2 - r.face(OUTLET).unwrap().mean_pressure_dyn_cm2)
+        .collect();
+    let by_cycles: Vec<f64> = (2..=4).map(|c| crate::periodicity_nrmsd(&dp[..c * period_steps], period_steps).unwrap()).collect();
+    println!("periodicity NRMSD cycles 1-2, 2-3, 3-4: {by_cycles:?}");
+    assert!(by_cycles.windows(2).all(|w| w[1] <= w[0]), "{by_cycles:?}");
+    assert!(by_cycles[2] < 0.01, "cycle 4 vs 3: {by_cycles:?}");
+}
+
+#[test]
+fn stopped_steady_solve_resumes_on_the_same_path() {
+    // Stop after 3 iterations, continue from the observer's state: the same iterations
+    // (count, pseudo steps, Newton switch) and the same converged solution.
+    let mesh = tube(RADIUS_CM, 1.5, 3, 8, &[]);
+    let mut s = CaseSettings::new(INLET, Waveform::Constant { q_ml_s: 2.0 }, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }]);
+    s.mode = RunMode::Steady;
+    let straight = crate::simulate_from(&mesh, &s, None, &mut |_| true).unwrap();
+    assert!(straight.summary.converged);
+    let total = straight.state.as_ref().unwrap().step;
+    assert!(total > 4, "{total} iterations");
+    let first = crate::simulate_from(&mesh, &s, None, &mut |view| view.step < 3).unwrap();
+    let state = first.state.unwrap();
+    assert_eq!((state.step, first.cancelled_at_s.is_some()), (3, true));
+    assert!(state.steady.is_some());
+    let rest = crate::simulate_from(&mesh, &s, Some(&state), &mut |_| true).unwrap();
+    assert!(rest.summary.converged);
+    assert_eq!(rest.state.as_ref().unwrap().step, total);
+    let (a, b) = (&rest.summary.steps[0], &straight.summary.steps[0]);
+    let p = |r: &crate::StepResult| r.face(INLET).unwrap().mean_pressure_dyn_cm2;
+    assert!((p(a) - p(b)).abs() < 1e-9 * p(b).abs(), "{} vs {}", p(a), p(b));
+    // A steady state does not start a transient run.
+    s.mode = RunMode::Transient;
+    s.inflow = Waveform::Ejection { period_s: 0.01, q_mean_ml_s: 0.5 };
+    assert!(crate::simulate_from(&mesh, &s, Some(&state), &mut |_| true).unwrap_err().to_string().contains("steady solve"));
+}
+
+#[test]
 fn blow_up_is_reported_with_step_and_time() {
     // A grossly excessive flow through a coarse tube with dt far too large for the
     // iteration count: the Picard iterates leave any physical range.

@@ -307,6 +307,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
             pressure_dyn_cm2: cp.pressure_dyn_cm2,
             previous_velocity_cm_s: cp.previous_velocity_cm_s,
             previous_pressure_dyn_cm2: cp.previous_pressure_dyn_cm2,
+            steady: None,
         };
         (cp.rows, Some(state), cp.wall_time_s)
     } else {

@@ -1,0 +1,308 @@
+//! Speed and memory of the CFD solver (issue #4), on patient p2's published mesh
+//! (147k tets, faces 11 VSD cap = inlet, 16 aortic cap = resistance outlet) with the
+//! paper's settings.
+//!
+//!   cargo bench -p baffle-cfd --bench solver -- [--runs N] [--steps S] [--t0 T] [--picard K]
+//!                          [--precision mixed|f64|both] [--steady] [--full] [--compare-schemes] [--smoke]
+//!
+//! - default: time per time step, median over N runs (3) of S steps (20) started from
+//!   rest at t = T (0.1 s: steep systole, the hardest part) with at most K nonlinear
+//!   iterations per step (the case default unless given), and the projected
+//!   4-cycle wall time = median per step x steps of 4 cycles;
+//! - `--steady`: the steady planning estimate (Q_peak), median of N runs;
+//! - `--compare-schemes`: the same S-step window with one linear solve per step
+//!   (semi-implicit) and with Picard iterations to convergence (up to 5 per step,
+//!   1e-3): the difference of dp and v_max, step by step;
+//! - `--full`: one complete 4-cycle run (2728 steps): wall time, dp at peak flow,
+//!   periodicity (cycle 3 vs 4);
+//! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs.
+//!
+//! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
+
+use std::time::Instant;
+
+use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
+use baffle_cfd::test_meshes::{tube, INLET, OUTLET};
+use baffle_cfd::vtu::read_simvascular_mesh;
+use baffle_cfd::{simulate, CaseSettings, FlowMesh, Outlet, RunMode, Summary, Waveform};
+
+const MMHG: f64 = 1333.22;
+const VSD_CAP: i32 = 11;
+const AORTIC_CAP: i32 = 16;
+
+struct Options {
+    runs: usize,
+    steps: usize,
+    precisions: Vec<bool>,
+    steady: bool,
+    full: bool,
+    smoke: bool,
+    compare_schemes: bool,
+    t0_s: f64,
+    picard: Option<usize>,
+}
+
+fn options() -> Result<Options, String> {
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
+        match a.as_str() {
+            "--runs" => o.runs = value("--runs")?.parse().map_err(|e| format!("--runs: {e}"))?,
+            "--steps" => o.steps = value("--steps")?.parse().map_err(|e| format!("--steps: {e}"))?,
+            "--precision" => {
+                o.precisions = match value("--precision")?.as_str() {
+                    "mixed" => vec![true],
+                    "f64" => vec![false],
+                    "both" => vec![true, false],
+                    other => return Err(format!("--precision takes mixed, f64 or both, not {other}")),
+                }
+            }
+            "--steady" => o.steady = true,
+            "--full" => o.full = true,
+            "--smoke" => o.smoke = true,
+            "--compare-schemes" => o.compare_schemes = true,
+            "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
+            "--picard" => o.picard = Some(value("--picard")?.parse().map_err(|e| format!("--picard: {e}"))?),
+            "--bench" => {} // passed by `cargo bench`
+            other => return Err(format!("unknown argument {other}")),
+        }
+    }
+    if o.runs == 0 || o.steps == 0 {
+        return Err("--runs and --steps must be >= 1".into());
+    }
+    Ok(o)
+}
+
+fn peak_memory_mb() -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|kb| kb.parse::<f64>().ok())
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg").map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" ")).unwrap_or_default()
+}
+
+/// p2's case: Table 4 hemodynamics (BSA 0.37, 107/78 mmHg, CI 3.48), the built-in waveform.
+fn p2_case() -> Result<(FlowMesh, CaseSettings), Box<dyn std::error::Error>> {
+    let dir = baffle_core::reference_data::reference_data_dir();
+    let mesh = read_simvascular_mesh(&dir.join("p2/published_M_final.vtu"), &dir.join("p2/published_M_final.vtp"))?;
+    let h = hemodynamics(&ClinicalInputs { bsa_m2: 0.37, sbp_mmhg: 107.0, dbp_mmhg: 78.0, cardiac_index_l_min_m2: CARDIAC_INDEX_DEFAULT_L_MIN_M2 })?;
+    let outlets = vec![Outlet { face_id: AORTIC_CAP, resistance_dyn_s_cm5: h.resistance_dyn_s_cm5 }];
+    let settings = CaseSettings::new(VSD_CAP, Waveform::default_for_mean(h.q_mean_ml_s)?, outlets);
+    Ok((mesh, settings))
+}
+
+/// `steps` steps of the case's waveform from t0: the waveform shifted by t0 and run as
+/// one "cycle" of that length, so the run ends normally with its timing breakdown.
+fn window(settings: &CaseSettings, t0_s: f64, steps: usize) -> CaseSettings {
+    let dt = settings.dt_s;
+    let mut s = settings.clone();
+    s.inflow = Waveform::Table {
+        times_s: (0..=steps + 1).map(|i| i as f64 * dt).collect(),
+        flows_ml_s: (0..=steps + 1).map(|i| settings.inflow.flow_ml_s(t0_s + i as f64 * dt)).collect(),
+        period_s: (steps + 1) as f64 * dt,
+    };
+    s.cycles = 1;
+    s.mode = RunMode::Transient;
+    s
+}
+
+fn dp_mmhg(summary: &Summary, step: usize) -> f64 {
+    let r = &summary.steps[step];
+    let p = |id| r.face(id).map_or(f64::NAN, |f| f.mean_pressure_dyn_cm2);
+    (p(VSD_CAP) - p(AORTIC_CAP)) / MMHG
+}
+
+fn run(mesh: &FlowMesh, settings: &CaseSettings) -> Result<(Summary, f64), Box<dyn std::error::Error>> {
+    let start = Instant::now();
+    let summary = simulate(mesh, settings, &mut |_, _| true)?;
+    Ok((summary, start.elapsed().as_secs_f64()))
+}
+
+fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let total_steps = (settings.cycles as f64 * settings.inflow.period_s() / settings.dt_s).round();
+    for &mixed in &o.precisions {
+        let mut s = window(settings, o.t0_s, o.steps);
+        s.mixed_precision = mixed;
+        if let Some(k) = o.picard {
+            s.max_nonlinear_iterations = k;
+        }
+        let mut per_step_s = Vec::new();
+        for k in 0..o.runs {
+            let (summary, _) = run(mesh, &s)?;
+            let t = &summary.timings;
+            let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
+            let step_s = (t.total_s - t.setup_s) / summary.steps.len() as f64;
+            println!(
+                "  run {k}: {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step), last dp(11-16) {:.4} mmHg, load {}",
+                t.assembly_s / summary.steps.len() as f64,
+                t.preconditioner_s / summary.steps.len() as f64,
+                t.gmres_s / summary.steps.len() as f64,
+                gmres as f64 / summary.steps.len() as f64,
+                dp_mmhg(&summary, summary.steps.len() - 1),
+                load_average()
+            );
+            per_step_s.push(step_s);
+        }
+        let m = median(per_step_s.clone());
+        println!(
+            "transient ({} precision, at most {} nonlinear iterations): median {m:.3} s per step over {} runs of {} steps (min {:.3}, max {:.3}); 4 cycles = {total_steps} steps ~ {:.1} min",
+            if mixed { "mixed f32/f64" } else { "f64" },
+            s.max_nonlinear_iterations,
+            o.runs,
+            o.steps,
+            per_step_s.iter().cloned().fold(f64::INFINITY, f64::min),
+            per_step_s.iter().cloned().fold(0.0, f64::max),
+            m * total_steps / 60.0
+        );
+    }
+    Ok(())
+}
+
+fn steady(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let mut s = settings.clone();
+    s.mode = RunMode::Steady;
+    let mut walls = Vec::new();
+    for k in 0..o.runs {
+        let (summary, wall) = run(mesh, &s)?;
+        let r = &summary.steps[0];
+        println!(
+            "  run {k}: {wall:.1} s, converged {}, {} iterations, {} GMRES, dp(11-16) {:.3} mmHg, vmax {:.1} cm/s, load {}",
+            summary.converged,
+            r.nonlinear_iterations,
+            r.linear_iterations,
+            dp_mmhg(&summary, 0),
+            r.max_velocity_cm_s,
+            load_average()
+        );
+        walls.push(wall);
+    }
+    println!("steady estimate: median {:.1} s over {} runs", median(walls), o.runs);
+    Ok(())
+}
+
+fn full(mesh: &FlowMesh, settings: &CaseSettings) -> Result<(), Box<dyn std::error::Error>> {
+    let start = Instant::now();
+    let mut last_report = Instant::now();
+    let summary = simulate(mesh, settings, &mut |f, msg| {
+        if last_report.elapsed().as_secs() >= 60 {
+            println!("  {:.0}% after {:.0} s: {msg} (load {})", 100.0 * f, start.elapsed().as_secs_f64(), load_average());
+            last_report = Instant::now();
+        }
+        true
+    })?;
+    let wall = start.elapsed().as_secs_f64();
+    let period_steps = (settings.inflow.period_s() / settings.dt_s).round() as usize;
+    let last_cycle = summary.steps.len() - period_steps..summary.steps.len();
+    let peak = last_cycle.clone().max_by(|&a, &b| summary.steps[a].inflow_ml_s.total_cmp(&summary.steps[b].inflow_ml_s)).unwrap_or(0);
+    let dp: Vec<f64> = (0..summary.steps.len()).map(|k| dp_mmhg(&summary, k)).collect();
+    let (c3, c4) = (&dp[last_cycle.start - period_steps..last_cycle.start], &dp[last_cycle.clone()]);
+    let range = c4.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - c4.iter().cloned().fold(f64::INFINITY, f64::min);
+    let nrmsd = (c3.iter().zip(c4).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / c4.len() as f64).sqrt() / range;
+    let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
+    println!(
+        "full 4-cycle run: {} steps in {:.1} min ({:.3} s/step, {:.1} GMRES it/step); peak flow {:.1} mL/s at t = {:.3} s: dp(11-16) {:.3} mmHg, vmax {:.1} cm/s; periodicity NRMSD cycle 3 vs 4 {:.2e}",
+        summary.steps.len(),
+        wall / 60.0,
+        wall / summary.steps.len() as f64,
+        gmres as f64 / summary.steps.len() as f64,
+        summary.steps[peak].inflow_ml_s,
+        summary.steps[peak].time_s,
+        dp[peak],
+        summary.steps[peak].max_velocity_cm_s,
+        nrmsd
+    );
+    Ok(())
+}
+
+fn compare_schemes(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let mut semi = window(settings, o.t0_s, o.steps);
+    semi.max_nonlinear_iterations = 1;
+    let mut picard = semi.clone();
+    picard.max_nonlinear_iterations = 5;
+    picard.nonlinear_tolerance = 1e-3;
+    let (a, wall_a) = run(mesh, &semi)?;
+    let (b, wall_b) = run(mesh, &picard)?;
+    let mut worst_dp = 0.0f64;
+    let mut worst_v = 0.0f64;
+    for k in 0..a.steps.len() {
+        let (dpa, dpb) = (dp_mmhg(&a, k), dp_mmhg(&b, k));
+        let (va, vb) = (a.steps[k].max_velocity_cm_s, b.steps[k].max_velocity_cm_s);
+        // The first steps after the impulsive start are dominated by the start itself.
+        if k >= o.steps / 2 {
+            worst_dp = worst_dp.max((dpa - dpb).abs() / dpb.abs());
+            worst_v = worst_v.max((va - vb).abs() / vb);
+        }
+        if k % 5 == 4 || k + 1 == a.steps.len() {
+            println!(
+                "  step {:3} t={:.3} Q={:.1}: dp semi-implicit {dpa:.4} / Picard {dpb:.4} mmHg ({} iterations), vmax {va:.1} / {vb:.1} cm/s",
+                a.steps[k].step, a.steps[k].time_s, a.steps[k].inflow_ml_s, b.steps[k].nonlinear_iterations
+            );
+        }
+    }
+    println!(
+        "schemes over {} steps from rest at t = {} s: semi-implicit {wall_a:.0} s, Picard {wall_b:.0} s; second half: max |d dp| / dp {:.2}%, max |d vmax| / vmax {:.2}%",
+        o.steps,
+        o.t0_s,
+        100.0 * worst_dp,
+        100.0 * worst_v
+    );
+    Ok(())
+}
+
+/// A few steps and a steady solve on a small tube: the bench's code paths, in seconds.
+fn smoke() -> Result<(), Box<dyn std::error::Error>> {
+    let mesh = tube(0.25, 2.0, 3, 10, &[]);
+    let outlets = vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }];
+    let settings = CaseSettings::new(INLET, Waveform::Ejection { period_s: 0.02, q_mean_ml_s: 1.0 }, outlets);
+    let (summary, wall) = run(&mesh, &window(&settings, 0.004, 5))?;
+    let mut steady = settings.clone();
+    steady.mode = RunMode::Steady;
+    let (steady_summary, steady_wall) = run(&mesh, &steady)?;
+    let finite = summary.steps.iter().chain(&steady_summary.steps).all(|r| r.faces.iter().all(|f| f.mean_pressure_dyn_cm2.is_finite()));
+    if !finite || !steady_summary.converged {
+        return Err("smoke run gave a non-finite pressure or an unconverged steady solve".into());
+    }
+    println!("smoke: {} steps in {wall:.3} s, steady in {steady_wall:.3} s; peak memory {:.0} MB", summary.steps.len(), peak_memory_mb());
+    Ok(())
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let o = options()?;
+    if o.smoke {
+        return smoke();
+    }
+    let start = Instant::now();
+    let (mesh, settings) = p2_case()?;
+    println!(
+        "p2: {} nodes, {} tets read in {:.2} s; {} threads; load {}",
+        mesh.points_cm.len(),
+        mesh.tets.len(),
+        start.elapsed().as_secs_f64(),
+        rayon::current_num_threads(),
+        load_average()
+    );
+    if o.full {
+        full(&mesh, &settings)?;
+    } else if o.compare_schemes {
+        compare_schemes(&mesh, &settings, &o)?;
+    } else if o.steady {
+        steady(&mesh, &settings, &o)?;
+    } else {
+        per_step(&mesh, &settings, &o)?;
+    }
+    println!("peak memory {:.0} MB", peak_memory_mb());
+    Ok(())
+}
