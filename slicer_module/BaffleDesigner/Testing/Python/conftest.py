@@ -4,6 +4,7 @@ the built-in phantom. Patient data: $BAFFLE_DATA_DIR, else ../shared/data beside
 repository; tests that need it skip with a note when it is absent."""
 
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -31,6 +32,22 @@ def p2_inputs():
     if not (surface.exists() and points.exists()):
         pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
     return surface, points
+
+
+@pytest.fixture(scope="session")
+def executable():
+    """The built `baffle` command line program (BAFFLE_EXECUTABLE, PATH or target/release)."""
+    from BaffleDesignerLib import process
+
+    found = process.find_baffle_executable()
+    if not found:
+        pytest.skip("baffle executable not found: cargo build --release -p baffle-cli, or set BAFFLE_EXECUTABLE")
+    return found
+
+
+def has_subcommand(executable, name):
+    listing = subprocess.run([executable, "--help"], capture_output=True, text=True, check=True).stdout
+    return any(line.split()[:1] == [name] for line in listing.splitlines())
 
 
 @pytest.fixture
@@ -83,6 +100,11 @@ def p2_scene(scene):
 @pytest.fixture
 def phantom_scene(scene):
     """(scene, logic, model node, curve node) of the library's synthetic phantom."""
+    return phantom_candidate(scene)
+
+
+def phantom_candidate(scene):
+    """(scene, logic, model node, curve node) of the library's synthetic phantom in `scene`."""
     import baffle
     from baffle import vtk_adapters
 
