@@ -253,9 +253,10 @@ def _series_table(results: SimulationResults) -> vtk.vtkTable:
     return table
 
 
-def store_results(logic, curve, results: SimulationResults, out_dir: str) -> None:
+def store_results(logic, curve, results: SimulationResults, out_dir: str, outdated: bool = False) -> None:
     """The checked results onto the candidate: summary table, peak fields model, time
-    series table and chart (node references on the curve), the verdict (attributes)."""
+    series table and chart (node references on the curve), the verdict (attributes).
+    `outdated`: the candidate was redesigned while it ran."""
     summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
     summary_node.SetAndObserveTable(_summary_table(results))
     summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
@@ -274,7 +275,7 @@ def store_results(logic, curve, results: SimulationResults, out_dir: str) -> Non
     _write_series_chart(logic, curve, series_node, results.steady)
 
     for name, value in (
-        ("SimulationStatus", "completed"),
+        ("SimulationStatus", "outdated" if outdated else "completed"),
         ("SimulationDpMmhg", results.dp_mmhg),
         ("SimulationMaxVelocityMS", results.max_velocity_m_s),
         ("SimulationVerdict", results.verdict),
@@ -329,6 +330,7 @@ class SimulationJob:
         self.run: Optional[process.CliProcess] = None
         self.results: Optional[SimulationResults] = None
         self._case: Optional[dict] = None
+        self._domain = None  # the domain polydata that was meshed
         self._cancel_requested = False
         self.started_at = 0.0
         self.simulate_started_at = 0.0
@@ -344,6 +346,7 @@ class SimulationJob:
             raise bdlogic.BaffleDesignerError(f"{self.curve.GetName()}: design the baffle first (no domain model)")
         parameters = self.logic.parameters(self.curve)
         self._case = case_document(parameters, domain_face_ids(domain.GetPolyData()))
+        self._domain = (domain.GetPolyData(), domain.GetPolyData().GetMTime())
         command = self.logic.volumeMeshCommand(self.curve, self.executable, self.work_dir, parameters.mesh_edge_length_mm)
         self.started_at = time.monotonic()
         self._start_stage(MESH_STAGE, command)
@@ -398,12 +401,18 @@ class SimulationJob:
             self.results = read_results(self.out_dir)
         except bdlogic.BaffleDesignerError as error:
             return self._finish(process.FAILED, str(error))
-        store_results(self.logic, self.curve, self.results, self.out_dir)
+        store_results(self.logic, self.curve, self.results, self.out_dir, outdated=self._redesigned())
         return self._finish(
             process.COMPLETED,
             f"dp {self.results.dp_mmhg:.2f} mmHg ({self.results.verdict}: threshold {DP_THRESHOLD_MMHG:g} mmHg), "
             f"v_max {self.results.max_velocity_m_s:.2f} m/s",
         )
+
+    def _redesigned(self) -> bool:
+        """Whether the candidate's domain changed since it was meshed (a redesign while running)."""
+        node = self.curve.GetNodeReference(bdlogic.REF_DOMAIN)
+        polydata = node.GetPolyData() if node is not None else None
+        return polydata is not self._domain[0] or polydata.GetMTime() != self._domain[1]
 
     def _start_simulation(self) -> None:
         case_path = os.path.join(self.work_dir, "case.json")

@@ -273,6 +273,18 @@ def test_missing_results_are_reported_and_change_nothing(phantom_scene, tmp_path
         simulation.read_fields(str(tmp_path / "peak.vtu"))
 
 
+def test_redesign_while_simulating_marks_the_results_outdated(phantom_scene, executable, tmp_path):
+    require_cfd(executable)
+    scene, logic, model, curve = phantom_scene
+    logic.design(curve)
+    job = logic.startSimulation(curve, executable, str(tmp_path))
+    logic.design(curve)  # during the volume mesh of the previous geometry
+    assert job.stage == simulation.MESH_STAGE
+    assert finish(job, timeout=60) == process.COMPLETED, job.message
+    assert curve.GetAttribute("BaffleDesigner.SimulationStatus") == "outdated"
+    assert "(outdated: redesigned since)" in logic.simulationSummary(curve)
+
+
 def test_redesign_marks_the_simulation_outdated(phantom_scene):
     scene, logic, model, curve = phantom_scene
     logic.design(curve)
