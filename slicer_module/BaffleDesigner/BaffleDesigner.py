@@ -285,21 +285,24 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         if curve is self.curve:
             self.setStatus(self.curveSummary(curve), error=error is not None)
 
-    def showOutputs(self, curve):
-        chart = curve.GetNodeReference(bdlogic.REF_CHART)
-        table = curve.GetNodeReference(bdlogic.REF_TABLE)
+    def showOutputs(self, curve, chartRole=bdlogic.REF_CHART, tableRole=bdlogic.REF_TABLE):
+        """The candidate's chart in the layout and its table in the table view."""
+        chart = curve.GetNodeReference(chartRole)
+        table = curve.GetNodeReference(tableRole)
         if chart is not None:
             slicer.modules.plots.logic().ShowChartInLayout(chart)
         if table is not None:
-            slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(table.GetID())
-            slicer.app.applicationLogic().PropagateTableSelection()
+            self.showTable(table)
+
+    def showTable(self, table):
+        slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(table.GetID())
+        slicer.app.applicationLogic().PropagateTableSelection()
 
     def onCompare(self):
         reason = self.simulateReason
         table = self.logic.updateCompareTable(f"not simulated: {reason}" if reason else "not simulated")
         slicer.app.layoutManager().setLayout(slicer.vtkMRMLLayoutNode.SlicerLayoutFourUpTableView)
-        slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(table.GetID())
-        slicer.app.applicationLogic().PropagateTableSelection()
+        self.showTable(table)
 
     # ---- separate processes: volume mesh, simulation (mesh then CFD) ----------------
 
@@ -391,7 +394,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             return
         self.setStatus(f"{curve.GetName()}: {job.message}")  # the results, or why they were not loaded
         if state == bdprocess.COMPLETED:
-            self.showSimulationOutputs(curve)
+            self.showOutputs(curve, bdlogic.REF_SIM_CHART, bdlogic.REF_SIM_SUMMARY)
 
     def reportVolumeMeshEnd(self, run, state):
         curve = self.runCurve
@@ -406,15 +409,6 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                 self.showError("Loading the volume mesh failed", str(error))
                 return
             self.setStatus(f"{curve.GetName()}: volume mesh of {node.GetMesh().GetNumberOfCells()} tetrahedra loaded.")
-
-    def showSimulationOutputs(self, curve):
-        chart = curve.GetNodeReference(bdlogic.REF_SIM_CHART)
-        summary = curve.GetNodeReference(bdlogic.REF_SIM_SUMMARY)
-        if chart is not None:
-            slicer.modules.plots.logic().ShowChartInLayout(chart)
-        if summary is not None:
-            slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(summary.GetID())
-            slicer.app.applicationLogic().PropagateTableSelection()
 
     # ---- messages --------------------------------------------------------------------
 
@@ -475,11 +469,11 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.assertEqual(edges.GetOutput().GetNumberOfCells(), 0)
         self.assertEqual(curve.GetNodeReference(bdlogic.REF_CHART).GetNumberOfPlotSeriesNodes(), 3)
 
-    def test_phantom_design_and_drag(self):
+    def _phantomCandidate(self):
+        """(logic, curve, BSA) of the library's phantom in the application's scene."""
         import baffle
         from baffle import vtk_adapters
 
-        self.delayDisplay("Phantom: design, then drag a suture point")
         mesh, points, bsa = baffle.phantom()
         model = slicer.modules.models.logic().AddModel(vtk_adapters.mesh_to_polydata(mesh))
         curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "BC")
@@ -488,6 +482,11 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         logic = BaffleDesignerLogic()
         logic.setSurfaceNode(curve, model)
         logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa))
+        return logic, curve, bsa
+
+    def test_phantom_design_and_drag(self):
+        self.delayDisplay("Phantom: design, then drag a suture point")
+        logic, curve, _ = self._phantomCandidate()
         result = logic.design(curve)
         self._check_outputs(curve, result)
         area = float(curve.GetAttribute("BaffleDesigner.BaffleAreaMm2"))
@@ -529,22 +528,13 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         return job.state
 
     def test_phantom_simulate_cancel_and_errors(self):
-        import baffle
-        from baffle import vtk_adapters
-
         executable = bdprocess.find_baffle_executable()
         available, reason = bdprocess.simulate_availability(executable)
         if not available:
             self.delayDisplay(f"Simulate skipped: {reason}")
             return
         self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
-        mesh, points, bsa = baffle.phantom()
-        model = slicer.modules.models.logic().AddModel(vtk_adapters.mesh_to_polydata(mesh))
-        curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "BC")
-        for p in points:
-            curve.AddControlPointWorld(vtk.vtkVector3d(*p))
-        logic = BaffleDesignerLogic()
-        logic.setSurfaceNode(curve, model)
+        logic, curve, bsa = self._phantomCandidate()
         with self.assertRaises(bdlogic.BaffleDesignerError):  # not designed yet
             logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath))
         logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa, flow_mode="steady",

@@ -19,6 +19,9 @@ slicer = pytest.importorskip("slicer", reason="slicer-core is not installed (pip
 if not hasattr(slicer, "vtkMRMLScene"):
     pytest.skip("`slicer` is not slicer-core's MRML package", allow_module_level=True)
 
+import vtk  # noqa: E402  (slicer-core's pinned vtk)
+from vtkmodules.util import numpy_support  # noqa: E402
+
 from BaffleDesignerLib import logic as bdlogic  # noqa: E402
 
 
@@ -48,6 +51,15 @@ def executable():
 def has_subcommand(executable, name):
     listing = subprocess.run([executable, "--help"], capture_output=True, text=True, check=True).stdout
     return any(line.split()[:1] == [name] for line in listing.splitlines())
+
+
+def column(table_node, name):
+    """A table node's column: a list of str for string columns, else a numpy array."""
+    array = table_node.GetTable().GetColumnByName(name)
+    assert array is not None, f"table has no column {name!r}"
+    if isinstance(array, vtk.vtkStringArray):
+        return [array.GetValue(i) for i in range(array.GetNumberOfValues())]
+    return numpy_support.vtk_to_numpy(array).copy()
 
 
 @pytest.fixture

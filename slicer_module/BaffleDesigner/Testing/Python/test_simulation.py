@@ -11,7 +11,7 @@ import pytest
 import vtk
 from vtkmodules.util import numpy_support
 
-from conftest import bdlogic, has_subcommand, phantom_candidate, slicer
+from conftest import bdlogic, column, has_subcommand, phantom_candidate, slicer
 from BaffleDesignerLib import process, simulation
 
 SIMULATION_REFS = (
@@ -20,16 +20,8 @@ SIMULATION_REFS = (
 )
 
 
-def table_column(table_node, name):
-    array = table_node.GetTable().GetColumnByName(name)
-    assert array is not None, f"table has no column {name!r}"
-    if isinstance(array, vtk.vtkStringArray):
-        return [array.GetValue(i) for i in range(array.GetNumberOfValues())]
-    return numpy_support.vtk_to_numpy(array).copy()
-
-
 def summary_values(summary_node):
-    return dict(zip(table_column(summary_node, "Quantity"), table_column(summary_node, "Value")))
+    return dict(zip(column(summary_node, "Quantity"), column(summary_node, "Value")))
 
 
 def require_cfd(executable):
@@ -161,9 +153,9 @@ def test_time_series_table_and_chart(simulated):
     with open(f"{job.out_dir}/timeseries.csv", encoding="utf-8") as handle:
         lines = handle.read().splitlines()
     assert series_node.GetNumberOfRows() == len(lines) - 1 > 0
-    dp = table_column(series_node, simulation.COL_DP)
-    inlet = table_column(series_node, "p_inlet_11_mmhg")
-    outlet = table_column(series_node, "p_outlet_16_mmhg")
+    dp = column(series_node, simulation.COL_DP)
+    inlet = column(series_node, "p_inlet_11_mmhg")
+    outlet = column(series_node, "p_outlet_16_mmhg")
     np.testing.assert_allclose(dp, inlet - outlet)
     # The steady solve's last iterate is the reported result.
     assert dp[-1] == pytest.approx(float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")), rel=1e-6)
@@ -178,13 +170,13 @@ def test_time_series_table_and_chart(simulated):
 def test_compare_table_has_the_simulated_dp_and_v_max(simulated):
     scene, logic, curve, job, _ = simulated
     table = logic.updateCompareTable("not simulated: test")
-    assert table_column(table, "Candidate") == [curve.GetName()]
-    assert table_column(table, "dp")[0] == pytest.approx(float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")))
-    assert table_column(table, "v_max")[0] == pytest.approx(
+    assert column(table, "Candidate") == [curve.GetName()]
+    assert column(table, "dp")[0] == pytest.approx(float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")))
+    assert column(table, "v_max")[0] == pytest.approx(
         float(curve.GetAttribute("BaffleDesigner.SimulationMaxVelocityMS"))
     )
     verdict = curve.GetAttribute("BaffleDesigner.SimulationVerdict")
-    assert table_column(table, "Simulation") == [f"{verdict}, steady"]
+    assert column(table, "Simulation") == [f"{verdict}, steady"]
     assert table.GetColumnUnitLabel("dp") == "mmHg"
 
 
@@ -294,5 +286,5 @@ def test_redesign_marks_the_simulation_outdated(phantom_scene):
     logic.design(curve)
     assert curve.GetAttribute("BaffleDesigner.SimulationStatus") == "outdated"
     table = logic.updateCompareTable()
-    assert table_column(table, "Simulation") == ["pass, steady (outdated: redesigned since)"]
-    assert table_column(table, "dp")[0] == 3.0
+    assert column(table, "Simulation") == ["pass, steady (outdated: redesigned since)"]
+    assert column(table, "dp")[0] == 3.0
