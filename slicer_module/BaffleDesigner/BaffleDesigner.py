@@ -314,7 +314,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             return
         try:
             self.runDir = self.workDirectory(VOLUME_MESH)
-            command = self.logic.volumeMeshCommand(self.curve, self.executable, self.runDir)
+            edge_mm = self.ui.meshEdgeLengthSpinBox.value
+            command = self.logic.volumeMeshCommand(self.curve, self.executable, self.runDir, edge_mm)
             self.startRun(VOLUME_MESH, bdprocess.CliProcess(command).start())
         except (bdlogic.BaffleDesignerError, OSError) as error:
             self.showError("Volume mesh failed", str(error))

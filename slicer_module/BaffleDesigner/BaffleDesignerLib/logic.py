@@ -657,9 +657,12 @@ class BaffleDesignerLogic:
 
     # ---- volume mesh (the step before CFD; `baffle mesh` as a separate process) ----------
 
-    def volumeMeshCommand(self, curve, executable: str, work_dir: str, edge_length_mm: float = 0.95) -> List[str]:
+    def volumeMeshCommand(self, curve, executable: str, work_dir: str, edge_length_mm: float = 1.25) -> List[str]:
         """Write the candidate's domain (world coordinates) into work_dir and return the
-        `baffle mesh` command line that meshes it into work_dir/volume.vtu."""
+        `baffle mesh` command line that meshes it into work_dir/volume.vtu. The boundary
+        is remeshed at the edge length too: otherwise the design's finer surface
+        triangles set the size near the wall (the phantom meshes the same at 1.25 and
+        2 mm) and leave slivers (scaled Jacobian 0.003 against 0.15 remeshed)."""
         import os
 
         domain = curve.GetNodeReference(REF_DOMAIN)
@@ -674,7 +677,7 @@ class BaffleDesignerLogic:
             raise BaffleDesignerError(f"could not write {surface_path}")
         return [
             executable, "mesh", "--surface", surface_path, "--out", os.path.join(work_dir, "volume.vtu"),
-            "--edge-length-mm", repr(float(edge_length_mm)),
+            "--edge-length-mm", repr(float(edge_length_mm)), "--remesh-surface",
         ]
 
     def loadVolumeMesh(self, curve, work_dir: str):

@@ -131,7 +131,7 @@ def test_peak_fields_node_has_the_mesh_and_the_arrays_in_scene_units(simulated):
     reader.SetFileName(f"{job.work_dir}/volume.vtu")
     reader.Update()
     volume = reader.GetOutput()
-    assert grid.GetNumberOfPoints() == volume.GetNumberOfPoints() > 1000  # one value per mesh node
+    assert grid.GetNumberOfPoints() == volume.GetNumberOfPoints() > 500  # one value per mesh node
     assert grid.GetNumberOfCells() == volume.GetNumberOfCells()
     # Back in mm, where the domain is (the solver writes cm).
     np.testing.assert_allclose(grid.GetBounds(), volume.GetBounds(), atol=1e-6)
