@@ -51,6 +51,13 @@ SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 
 
+def childEnvironment():
+    """The environment for `baffle` child processes: Slicer's startup environment, without
+    the launcher's PYTHONHOME/PYTHONPATH/LD_LIBRARY_PATH, so that the system python3 that
+    `baffle mesh` may run gmsh with starts (it aborts under Slicer's Python settings)."""
+    return slicer.util.startupEnvironment()
+
+
 class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def __init__(self, parent=None):
         ScriptedLoadableModuleWidget.__init__(self, parent)
@@ -316,7 +323,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.runDir = self.workDirectory(VOLUME_MESH)
             edge_mm = self.ui.meshEdgeLengthSpinBox.value
             command = self.logic.volumeMeshCommand(self.curve, self.executable, self.runDir, edge_mm)
-            self.startRun(VOLUME_MESH, bdprocess.CliProcess(command).start())
+            self.startRun(VOLUME_MESH, bdprocess.CliProcess(command, env=childEnvironment()).start())
         except (bdlogic.BaffleDesignerError, OSError) as error:
             self.showError("Volume mesh failed", str(error))
 
@@ -326,7 +333,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         try:
             self.logic.setParameters(self.curve, self.parametersFromGUI())
             self.runDir = self.workDirectory(SIMULATION)
-            self.startRun(SIMULATION, self.logic.startSimulation(self.curve, self.executable, self.runDir))
+            job = self.logic.startSimulation(self.curve, self.executable, self.runDir, env=childEnvironment())
+            self.startRun(SIMULATION, job)
         except (bdlogic.BaffleDesignerError, OSError) as error:
             self.showError("Simulation could not start", str(error))
 
@@ -519,6 +527,10 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.assertEqual(table.GetNumberOfRows(), 1)
         self.delayDisplay("Patient test passed")
 
+    def _startSimulation(self, logic, curve, executable):
+        return logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath),
+                                     env=childEnvironment())
+
     def _waitFor(self, job, timeout_s, until=None):
         """Poll the job as the widget's timer does, keeping the application responsive."""
         deadline = time.monotonic() + timeout_s
@@ -537,14 +549,14 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
         logic, curve, bsa = self._phantomCandidate()
         with self.assertRaises(bdlogic.BaffleDesignerError):  # not designed yet
-            logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath))
+            self._startSimulation(logic, curve, executable)
         logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa, flow_mode="steady",
                                                             mesh_edge_length_mm=1.25))
         logic.design(curve)
         with self.assertRaises(bdlogic.BaffleDesignerError):  # no program
-            logic.startSimulation(curve, None, tempfile.mkdtemp(dir=slicer.app.temporaryPath))
+            self._startSimulation(logic, curve, None)
 
-        job = logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath))
+        job = self._startSimulation(logic, curve, executable)
         self.assertEqual(self._waitFor(job, 120), bdprocess.COMPLETED, job.message)
         summary = curve.GetNodeReference(bdlogic.REF_SIM_SUMMARY)
         quantities = summary.GetTable().GetColumnByName("Quantity")
@@ -574,7 +586,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         logic.setParameters(curve, parameters)
         roles = (bdlogic.REF_SIM_SUMMARY, bdlogic.REF_SIM_FIELDS, bdlogic.REF_SIM_SERIES_TABLE, bdlogic.REF_SIM_CHART)
         before = [curve.GetNodeReferenceID(role) for role in roles]
-        job = logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath))
+        job = self._startSimulation(logic, curve, executable)
         self._waitFor(job, 90, until=lambda: job.stage == bdsimulation.SIMULATE_STAGE and job.progress > 0)
         self.assertTrue(job.running, job.message)
         job.cancel()

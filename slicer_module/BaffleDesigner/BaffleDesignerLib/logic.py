@@ -647,13 +647,14 @@ class BaffleDesignerLogic:
 
     # ---- simulation (`baffle mesh` then `baffle simulate`, separate processes) -----------
 
-    def startSimulation(self, curve, executable: Optional[str], work_dir: str):
+    def startSimulation(self, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
         """Start meshing and simulating the candidate in work_dir; returns the running
-        simulation.SimulationJob (poll() it from a timer). Raises BaffleDesignerError
-        when it cannot start."""
+        simulation.SimulationJob (poll() it from a timer). `env`: the child processes'
+        environment (default: this process's). Raises BaffleDesignerError when it
+        cannot start."""
         from BaffleDesignerLib import simulation  # it builds on this module
 
-        return simulation.SimulationJob(self, curve, executable, work_dir).start()
+        return simulation.SimulationJob(self, curve, executable, work_dir, env).start()
 
     # ---- volume mesh (the step before CFD; `baffle mesh` as a separate process) ----------
 

@@ -318,11 +318,12 @@ class SimulationJob:
     running process. `state` is process.RUNNING / COMPLETED / FAILED / CANCELLED,
     `message` says what happened (the program's own error line on failure)."""
 
-    def __init__(self, logic, curve, executable: Optional[str], work_dir: str):
+    def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
         self.logic = logic
         self.curve = curve
         self.executable = executable
         self.work_dir = work_dir
+        self.env = env  # of the child processes (in Slicer: without the launcher's Python settings)
         self.out_dir = os.path.join(work_dir, "results")
         self.stage = ""
         self.state = ""
@@ -363,7 +364,7 @@ class SimulationJob:
     def _start_stage(self, stage: str, command: List[str]) -> None:
         self.stage = stage
         try:
-            self.run = process.CliProcess(command, cwd=self.work_dir).start()
+            self.run = process.CliProcess(command, cwd=self.work_dir, env=self.env).start()
         except OSError as error:
             raise bdlogic.BaffleDesignerError(f"could not start the {stage}: {error}") from error
         self.state = process.RUNNING

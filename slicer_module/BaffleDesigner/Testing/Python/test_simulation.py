@@ -4,6 +4,7 @@ separate processes) loaded back as tables, a fields model and a chart; cancellin
 running simulation; and the error paths."""
 
 import json
+import os
 import time
 
 import numpy as np
@@ -234,6 +235,19 @@ def test_a_case_the_cli_rejects_fails_with_its_message(phantom_scene, executable
     assert scene.GetNumberOfNodes() == node_count
     assert all(curve.GetNodeReference(role) is None for role in SIMULATION_REFS)
     assert curve.GetAttribute("BaffleDesigner.SimulationLastRun").startswith("failed: simulation failed")
+
+
+def test_the_child_processes_get_the_given_environment(phantom_scene, executable, tmp_path):
+    # As in Slicer, where they get the startup environment: here it names a gmsh that is not there.
+    require_cfd(executable)
+    scene, logic, model, curve = phantom_scene
+    logic.design(curve)
+    env = dict(os.environ, BAFFLE_GMSH=str(tmp_path / "no-gmsh"))
+    job = logic.startSimulation(curve, executable, str(tmp_path / "run"), env=env)
+    assert job.wait(timeout=60) == process.FAILED
+    assert job.message.startswith("volume mesh failed: baffle: error: gmsh not found"), job.message
+    assert "no-gmsh" in job.message
+    assert all(curve.GetNodeReference(role) is None for role in SIMULATION_REFS)
 
 
 def test_simulation_cannot_start_without_program_or_design(phantom_scene, tmp_path):
