@@ -279,7 +279,7 @@ def store_results(logic, curve, results: SimulationResults, out_dir: str, outdat
         ("SimulationDpMmhg", results.dp_mmhg),
         ("SimulationMaxVelocityMS", results.max_velocity_m_s),
         ("SimulationVerdict", results.verdict),
-        ("SimulationMode", results.summary.get("mode")),
+        ("SimulationMode", "steady" if results.steady else "pulsatile"),  # the GUI's words
         ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
         ("SimulationDir", out_dir),
     ):
@@ -403,11 +403,19 @@ class SimulationJob:
         except bdlogic.BaffleDesignerError as error:
             return self._finish(process.FAILED, str(error))
         store_results(self.logic, self.curve, self.results, self.out_dir, outdated=self._redesigned())
-        return self._finish(
-            process.COMPLETED,
-            f"dp {self.results.dp_mmhg:.2f} mmHg ({self.results.verdict}: threshold {DP_THRESHOLD_MMHG:g} mmHg), "
-            f"v_max {self.results.max_velocity_m_s:.2f} m/s",
+        return self._finish(process.COMPLETED, self._result_line())
+
+    def _result_line(self) -> str:
+        results = self.results
+        line = (
+            f"dp {results.dp_mmhg:.2f} mmHg ({results.verdict}: threshold {DP_THRESHOLD_MMHG:g} mmHg), "
+            f"v_max {results.max_velocity_m_s:.2f} m/s"
         )
+        if not results.summary.get("converged", True):
+            line += "; the solver did not reach its residual target, treat the figures with care"
+        if self._redesigned():
+            line += "; the baffle was redesigned meanwhile, so these results are outdated"
+        return line
 
     def _redesigned(self) -> bool:
         """Whether the candidate's domain changed since it was meshed (a redesign while running)."""

@@ -289,6 +289,7 @@ def test_redesign_while_simulating_marks_the_results_outdated(phantom_scene, exe
     assert finish(job, timeout=60) == process.COMPLETED, job.message
     assert curve.GetAttribute("BaffleDesigner.SimulationStatus") == "outdated"
     assert "(outdated: redesigned since)" in logic.simulationSummary(curve)
+    assert job.message.endswith("the baffle was redesigned meanwhile, so these results are outdated")
 
 
 def test_redesign_marks_the_simulation_outdated(phantom_scene):
