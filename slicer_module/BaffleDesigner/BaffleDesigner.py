@@ -6,6 +6,7 @@ suite in Testing/Python drives headless with slicer-core."""
 import logging
 import os
 import tempfile
+import time
 
 import qt
 import slicer
@@ -20,6 +21,7 @@ from slicer.util import VTKObservationMixin
 
 from BaffleDesignerLib import logic as bdlogic
 from BaffleDesignerLib import process as bdprocess
+from BaffleDesignerLib import simulation as bdsimulation
 
 
 class BaffleDesigner(ScriptedLoadableModule):
@@ -42,8 +44,18 @@ Built on SlicerHeart's BafflePlanner conventions; geometry by the baffle library
 """
 
 
-# Target modes in the order of the UI's targetModeComboBox.
+# Target modes in the order of the UI's targetModeComboBox, flow modes in flowModeComboBox's.
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
+FLOW_MODES = ("steady", "pulsatile")
+SIMULATION = "simulation"
+VOLUME_MESH = "volume mesh"
+
+
+def childEnvironment():
+    """The environment for `baffle` child processes: Slicer's startup environment, without
+    the launcher's PYTHONHOME/PYTHONPATH/LD_LIBRARY_PATH, so that the system python3 that
+    `baffle mesh` may run gmsh with starts (it aborts under Slicer's Python settings)."""
+    return slicer.util.startupEnvironment()
 
 
 class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
@@ -52,9 +64,10 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         VTKObservationMixin.__init__(self)
         self.logic = None
         self.curve = None
-        self.run = None  # the running bdprocess.CliProcess
+        self.run = None  # the running bdprocess.CliProcess (volume mesh) or bdsimulation.SimulationJob
         self.runKind = ""
         self.runDir = ""
+        self.runCurve = None  # the candidate of the running process
         self._updatingGUI = False
 
     def setup(self):
@@ -83,21 +96,20 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.targetModeComboBox.connect("currentIndexChanged(int)", self.onParametersChanged)
         for spinBox in self.parameterSpinBoxes():
             spinBox.connect("valueChanged(double)", self.onParametersChanged)
+        # CFD inputs are stored on the candidate but do not change the geometry: no redesign.
+        for spinBox in self.cfdSpinBoxes():
+            spinBox.connect("valueChanged(double)", self.onCfdParametersChanged)
+        self.ui.flowModeComboBox.connect("currentIndexChanged(int)", self.onCfdParametersChanged)
         self.ui.autoUpdateCheckBox.connect("toggled(bool)", self.onAutoUpdateToggled)
         self.ui.designButton.connect("clicked(bool)", self.onDesign)
         self.ui.volumeMeshButton.connect("clicked(bool)", self.onVolumeMesh)
+        self.ui.simulateButton.connect("clicked(bool)", self.onSimulate)
         self.ui.cancelButton.connect("clicked(bool)", self.onCancel)
         self.ui.compareButton.connect("clicked(bool)", self.onCompare)
 
         self.executable = bdprocess.find_baffle_executable()
-        available, reason = bdprocess.simulate_availability(self.executable)
-        # This module version does not drive the CFD worker yet, whether or not the build has it.
-        self.ui.simulateButton.enabled = False
-        self.ui.simulateButton.toolTip = reason if not available else (
-            "`baffle simulate` was found, but this BaffleDesigner version cannot drive it yet; update the module."
-        )
-        meshAvailable, meshReason = bdprocess.subcommand_availability(self.executable, "mesh")
-        self.volumeMeshReason = meshReason
+        _, self.simulateReason = bdprocess.simulate_availability(self.executable)
+        _, self.volumeMeshReason = bdprocess.subcommand_availability(self.executable, "mesh")
         self.ui.cancelButton.enabled = False
         self.ui.progressBar.setRange(0, 1000)
 
@@ -105,10 +117,16 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.onCurveSelected(self.ui.curveSelector.currentNode())
 
     def parameterSpinBoxes(self):
+        """Spin boxes of the target area (a change redesigns when auto-updating)."""
         return (
             self.ui.bsaSpinBox, self.ui.heightSpinBox, self.ui.weightSpinBox, self.ui.zScoreSpinBox,
-            self.ui.areaSpinBox, self.ui.diameterSpinBox, self.ui.systolicSpinBox, self.ui.diastolicSpinBox,
-            self.ui.heartRateSpinBox,
+            self.ui.areaSpinBox, self.ui.diameterSpinBox,
+        )
+
+    def cfdSpinBoxes(self):
+        return (
+            self.ui.systolicSpinBox, self.ui.diastolicSpinBox, self.ui.heartRateSpinBox,
+            self.ui.cardiacIndexSpinBox, self.ui.meshEdgeLengthSpinBox,
         )
 
     def cleanup(self):
@@ -121,6 +139,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.logic.cleanup()
 
     def onSceneStartClose(self, caller, event):
+        if self.run is not None:  # its candidate goes with the scene
+            self.run.cancel()
         self.logic.cleanup()
         self.curve = None
 
@@ -138,6 +158,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             systolic_mmhg=self.ui.systolicSpinBox.value,
             diastolic_mmhg=self.ui.diastolicSpinBox.value,
             heart_rate_bpm=self.ui.heartRateSpinBox.value,
+            cardiac_index_l_min_m2=self.ui.cardiacIndexSpinBox.value,
+            flow_mode=FLOW_MODES[max(0, self.ui.flowModeComboBox.currentIndex)],
+            mesh_edge_length_mm=self.ui.meshEdgeLengthSpinBox.value,
         )
 
     def onCurveSelected(self, curve):
@@ -151,24 +174,31 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             enabled = curve is not None
             for widget in (self.ui.designButton, self.ui.autoUpdateCheckBox, self.ui.compareButton):
                 widget.enabled = enabled
-            self.ui.volumeMeshButton.enabled = enabled and not self.volumeMeshReason
+            idle = enabled and self.run is None
+            self.ui.volumeMeshButton.enabled = idle and not self.volumeMeshReason
             self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or "Tetrahedral mesh of the domain by `baffle mesh`."
+            self.ui.simulateButton.enabled = idle and not (self.simulateReason or self.volumeMeshReason)
+            self.ui.simulateButton.toolTip = self.simulateReason or self.volumeMeshReason or (
+                "Mesh the domain (baffle mesh) and run the CFD assessment (baffle simulate) as separate processes."
+            )
             if curve is None:
                 self.setStatus("Select the suture points (BafflePlanner's closed curve).")
                 return
             parameters = self.logic.parameters(curve)
             self.ui.targetModeComboBox.currentIndex = TARGET_MODES.index(parameters.target_mode)
-            for spinBox, value in zip(self.parameterSpinBoxes(), (
+            self.ui.flowModeComboBox.currentIndex = FLOW_MODES.index(parameters.flow_mode)
+            for spinBox, value in zip(self.parameterSpinBoxes() + self.cfdSpinBoxes(), (
                 parameters.bsa_m2, parameters.height_cm, parameters.weight_kg, parameters.z_score,
                 parameters.target_area_mm2, parameters.annulus_diameter_mm, parameters.systolic_mmhg,
-                parameters.diastolic_mmhg, parameters.heart_rate_bpm,
+                parameters.diastolic_mmhg, parameters.heart_rate_bpm, parameters.cardiac_index_l_min_m2,
+                parameters.mesh_edge_length_mm,
             )):
                 spinBox.value = value
             surface = self.logic.surfaceNode(curve)
             if surface is not None:
                 self.ui.surfaceSelector.setCurrentNode(surface)
             self.ui.autoUpdateCheckBox.checked = self.logic.isAutoUpdating(curve)
-            self.setStatus(self.curveSummary(curve))
+            self.setStatus("\n".join(filter(None, (self.curveSummary(curve), self.simulationLine(curve)))))
         except bdlogic.BaffleDesignerError as error:
             self.setStatus(str(error), error=True)
         finally:
@@ -181,14 +211,22 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.requestAutoUpdate()
 
     def onParametersChanged(self, *_):
+        if self.storeParameters():
+            self.requestAutoUpdate()
+
+    def onCfdParametersChanged(self, *_):
+        self.storeParameters()
+
+    def storeParameters(self):
+        """The GUI's parameters onto the selected candidate; False when there is none or they are invalid."""
         if self._updatingGUI or self.curve is None:
-            return
+            return False
         try:
             self.logic.setParameters(self.curve, self.parametersFromGUI())
         except bdlogic.BaffleDesignerError as error:
             self.setStatus(str(error), error=True)
-            return
-        self.requestAutoUpdate()
+            return False
+        return True
 
     def requestAutoUpdate(self):
         if self.curve is not None and self.logic.isAutoUpdating(self.curve):
@@ -216,6 +254,13 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         if status == "failed":
             return f"{curve.GetName()}: {curve.GetAttribute('BaffleDesigner.Error')}"
         return f"{curve.GetName()}: not designed yet"
+
+    def simulationLine(self, curve):
+        dp = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
+        if not dp:
+            return ""
+        v_max = float(curve.GetAttribute("BaffleDesigner.SimulationMaxVelocityMS"))
+        return f"dp {float(dp):.2f} mmHg, v_max {v_max:.2f} m/s: {self.logic.simulationSummary(curve)}"
 
     def onDesign(self):
         if self.curve is None:
@@ -247,40 +292,62 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         if curve is self.curve:
             self.setStatus(self.curveSummary(curve), error=error is not None)
 
-    def showOutputs(self, curve):
-        chart = curve.GetNodeReference(bdlogic.REF_CHART)
-        table = curve.GetNodeReference(bdlogic.REF_TABLE)
+    def showOutputs(self, curve, chartRole=bdlogic.REF_CHART, tableRole=bdlogic.REF_TABLE):
+        """The candidate's chart in the layout and its table in the table view."""
+        chart = curve.GetNodeReference(chartRole)
+        table = curve.GetNodeReference(tableRole)
         if chart is not None:
             slicer.modules.plots.logic().ShowChartInLayout(chart)
         if table is not None:
-            slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(table.GetID())
-            slicer.app.applicationLogic().PropagateTableSelection()
+            self.showTable(table)
 
-    def onCompare(self):
-        _, reason = bdprocess.simulate_availability(self.executable)
-        table = self.logic.updateCompareTable(f"not simulated: {reason}" if reason else "not simulated")
-        slicer.app.layoutManager().setLayout(slicer.vtkMRMLLayoutNode.SlicerLayoutFourUpTableView)
+    def showTable(self, table):
         slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(table.GetID())
         slicer.app.applicationLogic().PropagateTableSelection()
 
-    # ---- separate processes (volume mesh now; the CFD worker when it exists) ----------
+    def onCompare(self):
+        reason = self.simulateReason
+        table = self.logic.updateCompareTable(f"not simulated: {reason}" if reason else "not simulated")
+        slicer.app.layoutManager().setLayout(slicer.vtkMRMLLayoutNode.SlicerLayoutFourUpTableView)
+        self.showTable(table)
+
+    # ---- separate processes: volume mesh, simulation (mesh then CFD) ----------------
+
+    def workDirectory(self, kind):
+        return tempfile.mkdtemp(prefix=f"BaffleDesigner-{kind.replace(' ', '-')}-", dir=slicer.app.temporaryPath)
 
     def onVolumeMesh(self):
         if self.curve is None or self.run is not None:
             return
         try:
-            self.runDir = tempfile.mkdtemp(prefix="BaffleDesigner-mesh-")
-            command = self.logic.volumeMeshCommand(self.curve, self.executable, self.runDir)
-            self.run = bdprocess.CliProcess(command).start()
+            self.runDir = self.workDirectory(VOLUME_MESH)
+            edge_mm = self.ui.meshEdgeLengthSpinBox.value
+            command = self.logic.volumeMeshCommand(self.curve, self.executable, self.runDir, edge_mm)
+            self.startRun(VOLUME_MESH, bdprocess.CliProcess(command, env=childEnvironment()).start())
         except (bdlogic.BaffleDesignerError, OSError) as error:
             self.showError("Volume mesh failed", str(error))
-            self.run = None
+
+    def onSimulate(self):
+        if self.curve is None or self.run is not None:
             return
-        self.runKind = "volume mesh"
+        try:
+            self.logic.setParameters(self.curve, self.parametersFromGUI())
+            self.runDir = self.workDirectory(SIMULATION)
+            job = self.logic.startSimulation(self.curve, self.executable, self.runDir, env=childEnvironment())
+            self.startRun(SIMULATION, job)
+        except (bdlogic.BaffleDesignerError, OSError) as error:
+            self.showError("Simulation could not start", str(error))
+
+    def startRun(self, kind, run):
+        """Track a started process (or simulation job) from the polling timer."""
+        self.run = run
+        self.runKind = kind
+        self.runCurve = self.curve
         self.ui.cancelButton.enabled = True
         self.ui.volumeMeshButton.enabled = False
-        self.ui.progressBar.setRange(0, 0)  # `baffle mesh` reports no fractions: busy indicator
-        self.setStatus(f"{self.curve.GetName()}: {self.runKind} running ...")
+        self.ui.simulateButton.enabled = False
+        self.ui.progressBar.setRange(0, 0)  # busy until the first progress fraction
+        self.setStatus(f"{self.curve.GetName()}: {kind} running ...")
         self.processTimer.start()
 
     def onCancel(self):
@@ -288,34 +355,69 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.run.cancel()
             self.setStatus(f"Cancelling the {self.runKind} ...")
 
+    def runProgress(self, run):
+        """Fraction done, or None when the running step reports none (gmsh)."""
+        if isinstance(run, bdsimulation.SimulationJob):
+            return run.progress
+        return run.progress if run.progress_updates else None
+
     def onProcessTimer(self):
         run = self.run
         if run is None:
             self.processTimer.stop()
             return
-        if run.progress_updates:
-            self.ui.progressBar.setRange(0, 1000)
-            self.ui.progressBar.value = int(1000 * run.progress)
-            self.ui.progressBar.format = run.stage or "%p%"
-        if run.running:
+        try:
+            state = run.poll() if isinstance(run, bdsimulation.SimulationJob) else run.state
+        except Exception as error:  # a bug while loading must not leave the timer firing
+            logging.exception("BaffleDesigner: %s", self.runKind)
+            run.cancel()
+            self.endRun()
+            self.showError(f"The {self.runKind} failed", f"{type(error).__name__}: {error}")
             return
+        fraction = self.runProgress(run)
+        if fraction is not None:
+            self.ui.progressBar.setRange(0, 1000)
+            self.ui.progressBar.value = int(1000 * fraction)
+        stage = getattr(run, "stage", "") or self.runKind
+        self.ui.progressBar.format = f"{stage} %p%" if fraction is not None else stage
+        if state == bdprocess.RUNNING:
+            return
+        self.endRun()
+        if self.runKind == SIMULATION:
+            self.reportSimulationEnd(run, state)
+        else:
+            self.reportVolumeMeshEnd(run, state)
+
+    def endRun(self):
         self.processTimer.stop()
         self.run = None
         self.ui.cancelButton.enabled = False
         self.ui.progressBar.setRange(0, 1000)
         self.ui.progressBar.value = 0
         self.updateGUIFromCurve()
-        if run.state == bdprocess.CANCELLED:
+
+    def reportSimulationEnd(self, job, state):
+        curve = self.runCurve
+        if state == bdprocess.FAILED:
+            self.showError("The simulation failed", job.message)
+            return
+        self.setStatus(f"{curve.GetName()}: {job.message}")  # the results, or why they were not loaded
+        if state == bdprocess.COMPLETED:
+            self.showOutputs(curve, bdlogic.REF_SIM_CHART, bdlogic.REF_SIM_SUMMARY)
+
+    def reportVolumeMeshEnd(self, run, state):
+        curve = self.runCurve
+        if state == bdprocess.CANCELLED:
             self.setStatus(f"The {self.runKind} was cancelled.")
-        elif run.state == bdprocess.FAILED:
+        elif state == bdprocess.FAILED:
             self.showError(f"The {self.runKind} failed", run.error_message())
-        elif self.runKind == "volume mesh":
+        else:
             try:
-                node, quality = self.logic.loadVolumeMesh(self.curve, self.runDir)
+                node, quality = self.logic.loadVolumeMesh(curve, self.runDir)
             except (bdlogic.BaffleDesignerError, OSError, ValueError) as error:
                 self.showError("Loading the volume mesh failed", str(error))
                 return
-            self.setStatus(f"{self.curve.GetName()}: volume mesh of {node.GetMesh().GetNumberOfCells()} tetrahedra loaded.")
+            self.setStatus(f"{curve.GetName()}: volume mesh of {node.GetMesh().GetNumberOfCells()} tetrahedra loaded.")
 
     # ---- messages --------------------------------------------------------------------
 
@@ -349,6 +451,8 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.test_phantom_design_and_drag()
         self.setUp()
         self.test_patient_design_and_compare()
+        self.setUp()
+        self.test_phantom_simulate_cancel_and_errors()
 
     def _check_outputs(self, curve, result):
         table = curve.GetNodeReference(bdlogic.REF_TABLE)
@@ -374,11 +478,11 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.assertEqual(edges.GetOutput().GetNumberOfCells(), 0)
         self.assertEqual(curve.GetNodeReference(bdlogic.REF_CHART).GetNumberOfPlotSeriesNodes(), 3)
 
-    def test_phantom_design_and_drag(self):
+    def _phantomCandidate(self):
+        """(logic, curve, BSA) of the library's phantom in the application's scene."""
         import baffle
         from baffle import vtk_adapters
 
-        self.delayDisplay("Phantom: design, then drag a suture point")
         mesh, points, bsa = baffle.phantom()
         model = slicer.modules.models.logic().AddModel(vtk_adapters.mesh_to_polydata(mesh))
         curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "BC")
@@ -387,6 +491,11 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         logic = BaffleDesignerLogic()
         logic.setSurfaceNode(curve, model)
         logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa))
+        return logic, curve, bsa
+
+    def test_phantom_design_and_drag(self):
+        self.delayDisplay("Phantom: design, then drag a suture point")
+        logic, curve, _ = self._phantomCandidate()
         result = logic.design(curve)
         self._check_outputs(curve, result)
         area = float(curve.GetAttribute("BaffleDesigner.BaffleAreaMm2"))
@@ -417,3 +526,74 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         table = logic.updateCompareTable()
         self.assertEqual(table.GetNumberOfRows(), 1)
         self.delayDisplay("Patient test passed")
+
+    def _startSimulation(self, logic, curve, executable):
+        return logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath),
+                                     env=childEnvironment())
+
+    def _waitFor(self, job, timeout_s, until=None):
+        """Poll the job as the widget's timer does, keeping the application responsive."""
+        deadline = time.monotonic() + timeout_s
+        while job.poll() == bdprocess.RUNNING and not (until and until()):
+            self.assertLess(time.monotonic(), deadline, f"{job.stage} still running after {timeout_s} s")
+            slicer.app.processEvents(qt.QEventLoop.ExcludeUserInputEvents)
+            time.sleep(0.05)
+        return job.state
+
+    def test_phantom_simulate_cancel_and_errors(self):
+        executable = bdprocess.find_baffle_executable()
+        available, reason = bdprocess.simulate_availability(executable)
+        if not available:
+            self.delayDisplay(f"Simulate skipped: {reason}")
+            return
+        self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
+        logic, curve, bsa = self._phantomCandidate()
+        with self.assertRaises(bdlogic.BaffleDesignerError):  # not designed yet
+            self._startSimulation(logic, curve, executable)
+        logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa, flow_mode="steady",
+                                                            mesh_edge_length_mm=1.25))
+        logic.design(curve)
+        with self.assertRaises(bdlogic.BaffleDesignerError):  # no program
+            self._startSimulation(logic, curve, None)
+
+        job = self._startSimulation(logic, curve, executable)
+        self.assertEqual(self._waitFor(job, 120), bdprocess.COMPLETED, job.message)
+        summary = curve.GetNodeReference(bdlogic.REF_SIM_SUMMARY)
+        quantities = summary.GetTable().GetColumnByName("Quantity")
+        values = summary.GetTable().GetColumnByName("Value")
+        figures = {quantities.GetValue(i): values.GetValue(i) for i in range(summary.GetNumberOfRows())}
+        dp = figures["Pressure difference at peak flow"]
+        self.assertTrue(0 < dp < float("inf"))
+        self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationVerdict"),
+                         "pass" if dp < bdsimulation.DP_THRESHOLD_MMHG else "fail")
+        fields = curve.GetNodeReference(bdlogic.REF_SIM_FIELDS)
+        reader = vtk.vtkXMLUnstructuredGridReader()
+        reader.SetFileName(os.path.join(job.work_dir, "volume.vtu"))
+        reader.Update()
+        self.assertEqual(fields.GetMesh().GetNumberOfPoints(), reader.GetOutput().GetNumberOfPoints())
+        for name in ("velocity_m_s", "speed_m_s", "pressure_mmhg"):
+            self.assertIsNotNone(fields.GetMesh().GetPointData().GetArray(name), name)
+        series = curve.GetNodeReference(bdlogic.REF_SIM_SERIES_TABLE)
+        self.assertGreater(series.GetNumberOfRows(), 0)
+        self.assertEqual(curve.GetNodeReference(bdlogic.REF_SIM_CHART).GetNumberOfPlotSeriesNodes(), 2)
+        slicer.modules.plots.logic().ShowChartInLayout(curve.GetNodeReference(bdlogic.REF_SIM_CHART))
+        compare = logic.updateCompareTable()
+        self.assertAlmostEqual(compare.GetTable().GetColumnByName("dp").GetValue(0), dp, places=6)
+
+        self.delayDisplay("Cancel a running pulsatile simulation: the steady results stay")
+        parameters = logic.parameters(curve)
+        parameters.flow_mode = "pulsatile"
+        logic.setParameters(curve, parameters)
+        roles = (bdlogic.REF_SIM_SUMMARY, bdlogic.REF_SIM_FIELDS, bdlogic.REF_SIM_SERIES_TABLE, bdlogic.REF_SIM_CHART)
+        before = [curve.GetNodeReferenceID(role) for role in roles]
+        job = self._startSimulation(logic, curve, executable)
+        self._waitFor(job, 90, until=lambda: job.stage == bdsimulation.SIMULATE_STAGE and job.progress > 0)
+        self.assertTrue(job.running, job.message)
+        job.cancel()
+        self.assertEqual(self._waitFor(job, 30), bdprocess.CANCELLED)
+        self.assertEqual([curve.GetNodeReferenceID(role) for role in roles], before)
+        self.assertEqual(summary.GetNumberOfRows(), len(figures))
+        self.assertEqual(float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")), dp)
+        self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationMode"), "steady")
+        logic.cleanup()
+        self.delayDisplay("Simulate test passed")

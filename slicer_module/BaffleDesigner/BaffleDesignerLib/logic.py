@@ -43,8 +43,18 @@ REF_SERIES_RAW = "BaffleDesignerSeriesRawArea"
 REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
 REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
 REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
+# Simulation results (BaffleDesignerLib.simulation).
+REF_SIM_SUMMARY = "BaffleDesignerSimulationSummary"
+REF_SIM_FIELDS = "BaffleDesignerSimulationFields"
+REF_SIM_SERIES_TABLE = "BaffleDesignerSimulationTimeSeries"
+REF_SIM_CHART = "BaffleDesignerSimulationChart"
+REF_SIM_SERIES_DP = "BaffleDesignerSeriesPressureDifference"
+REF_SIM_SERIES_FLOW = "BaffleDesignerSeriesInflow"
 
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
+# "steady": flow held at Q_peak (quick estimate of the peak pressure difference);
+# "pulsatile": the paper's transient run over cardiac cycles.
+FLOW_MODES = ("steady", "pulsatile")
 
 # Section table columns (name, unit, description).
 COL_S = "s"
@@ -74,7 +84,9 @@ class DesignParameters:
 
     target_mode: "bsa" (BSA + z-score, Boston aortic annulus), "height_weight" (Haycock
     BSA + z-score), "area" (explicit mm2) or "diameter" (explicit annulus diameter mm).
-    The blood pressure and heart rate are kept for the CFD step."""
+    The CFD step uses the blood pressure, heart rate, cardiac index (CO = BSA x CI), the
+    flow mode (FLOW_MODES) and the volume mesh edge length; its BSA is bsa_m2, or the
+    Haycock BSA in the height_weight mode."""
 
     target_mode: str = "bsa"
     bsa_m2: float = 0.37
@@ -86,6 +98,9 @@ class DesignParameters:
     systolic_mmhg: float = 80.0
     diastolic_mmhg: float = 45.0
     heart_rate_bpm: float = 120.0
+    cardiac_index_l_min_m2: float = 3.48  # the paper's normal cardiac index
+    flow_mode: str = "steady"
+    mesh_edge_length_mm: float = 1.25  # the coarsest of the paper's meshes (1.25 / 0.95 / 0.75)
 
     def validate(self) -> None:
         if self.target_mode not in TARGET_MODES:
@@ -102,6 +117,26 @@ class DesignParameters:
                 raise BaffleDesignerError(f"{name} must be a positive number, not {value}")
         if not math.isfinite(self.z_score):
             raise BaffleDesignerError("z_score must be a finite number")
+
+    def cfd_bsa_m2(self) -> float:
+        """The BSA the flow is scaled with: Haycock's from height and weight in that mode
+        (the library's target.rs formula), else bsa_m2."""
+        if self.target_mode == "height_weight":
+            return 0.024265 * self.weight_kg**0.5378 * self.height_cm**0.3964
+        return self.bsa_m2
+
+    def validate_cfd(self) -> None:
+        """What the case file needs; physiological consistency (DBP below SBP, ...) is
+        checked by `baffle simulate`, which derives flow and resistance."""
+        if self.flow_mode not in FLOW_MODES:
+            raise BaffleDesignerError(f"flow mode must be one of {', '.join(FLOW_MODES)}, not {self.flow_mode!r}")
+        for name in ("systolic_mmhg", "diastolic_mmhg", "heart_rate_bpm", "cardiac_index_l_min_m2", "mesh_edge_length_mm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise BaffleDesignerError(f"{name} must be a positive number, not {value}")
+        bsa = self.cfd_bsa_m2()
+        if not (math.isfinite(bsa) and bsa > 0):
+            raise BaffleDesignerError(f"the BSA for the flow must be a positive number, not {bsa}")
 
     def design_kwargs(self) -> dict:
         """The target arguments of baffle.design()."""
@@ -310,6 +345,9 @@ class BaffleDesignerLogic:
             curve.SetAttribute(ATTRIBUTE_PREFIX + "Error", str(error))
             raise
         self._write_outputs(curve, result, parameters)
+        if curve.GetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus") == "completed":
+            # Its results describe the previous geometry; kept, but marked.
+            curve.SetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus", "outdated")
         elapsed_ms = 1000.0 * (time.perf_counter() - started)
         report = result.report
         for name, value in (
@@ -539,8 +577,9 @@ class BaffleDesignerLogic:
 
     def updateCompareTable(self, simulation_note: str = "not simulated"):
         """One table of all candidates: target area, baffle area, smallest constrained
-        section, status; pressure drop and v_max stay empty (NaN) with
-        `simulation_note` until a CFD result exists for the candidate."""
+        section, status, and the simulation's peak pressure difference, v_max and 10 mmHg
+        verdict; dp and v_max stay empty (NaN) with `simulation_note` for candidates
+        without a simulation result."""
         node = None
         collection = self.scene.GetNodesByClass("vtkMRMLTableNode")
         for i in range(collection.GetNumberOfItems()):
@@ -566,6 +605,8 @@ class BaffleDesignerLogic:
             "Baffle area": "BaffleAreaMm2",
             "Min section area": "MinSectionAreaMm2",
             "Constrained sections": "ConstrainedSections",
+            "dp": "SimulationDpMmhg",
+            "v_max": "SimulationMaxVelocityMS",
         }
         values = {column: [] for column in numeric}
         for curve in rows:
@@ -573,15 +614,13 @@ class BaffleDesignerLogic:
             status = curve.GetAttribute(ATTRIBUTE_PREFIX + "Status") or "not designed"
             error = curve.GetAttribute(ATTRIBUTE_PREFIX + "Error")
             status_column.InsertNextValue(f"{status}: {error}" if error else status)
-            simulation_column.InsertNextValue(simulation_note)
+            simulation_column.InsertNextValue(self.simulationSummary(curve) or simulation_note)
             for column, attribute in numeric.items():
                 text = curve.GetAttribute(ATTRIBUTE_PREFIX + attribute)
                 values[column].append(float(text) if text else float("nan"))
         table.AddColumn(name_column)
         for column in numeric:
             table.AddColumn(_vtk_double_array(column, values[column]))
-        for column in ("dp", "v_max"):
-            table.AddColumn(_vtk_double_array(column, [float("nan")] * len(rows)))
         table.AddColumn(status_column)
         table.AddColumn(simulation_column)
         node.SetAndObserveTable(table)
@@ -591,11 +630,40 @@ class BaffleDesignerLogic:
         node.SetColumnUnitLabel("v_max", "m/s")
         return node
 
+    @staticmethod
+    def simulationSummary(curve) -> str:
+        """'pass, steady (outdated)'-style text of the stored simulation result and the
+        latest run when that did not complete; '' when never simulated."""
+        attribute = lambda name: curve.GetAttribute(ATTRIBUTE_PREFIX + name)
+        parts = []
+        if attribute("SimulationVerdict"):
+            parts.append(f"{attribute('SimulationVerdict')}, {attribute('SimulationMode')}")
+            if attribute("SimulationStatus") == "outdated":
+                parts[-1] += " (outdated: redesigned since)"
+        last_run = attribute("SimulationLastRun")
+        if last_run and last_run != "completed":
+            parts.append(f"last run {last_run}")
+        return "; ".join(parts)
+
+    # ---- simulation (`baffle mesh` then `baffle simulate`, separate processes) -----------
+
+    def startSimulation(self, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
+        """Start meshing and simulating the candidate in work_dir; returns the running
+        simulation.SimulationJob (poll() it from a timer). `env`: the child processes'
+        environment (default: this process's). Raises BaffleDesignerError when it
+        cannot start."""
+        from BaffleDesignerLib import simulation  # it builds on this module
+
+        return simulation.SimulationJob(self, curve, executable, work_dir, env).start()
+
     # ---- volume mesh (the step before CFD; `baffle mesh` as a separate process) ----------
 
-    def volumeMeshCommand(self, curve, executable: str, work_dir: str, edge_length_mm: float = 0.95) -> List[str]:
+    def volumeMeshCommand(self, curve, executable: str, work_dir: str, edge_length_mm: float = 1.25) -> List[str]:
         """Write the candidate's domain (world coordinates) into work_dir and return the
-        `baffle mesh` command line that meshes it into work_dir/volume.vtu."""
+        `baffle mesh` command line that meshes it into work_dir/volume.vtu. The boundary
+        is remeshed at the edge length too: otherwise the design's finer surface
+        triangles set the size near the wall (the phantom meshes the same at 1.25 and
+        2 mm) and leave slivers (scaled Jacobian 0.003 against 0.15 remeshed)."""
         import os
 
         domain = curve.GetNodeReference(REF_DOMAIN)
@@ -610,7 +678,7 @@ class BaffleDesignerLogic:
             raise BaffleDesignerError(f"could not write {surface_path}")
         return [
             executable, "mesh", "--surface", surface_path, "--out", os.path.join(work_dir, "volume.vtu"),
-            "--edge-length-mm", repr(float(edge_length_mm)),
+            "--edge-length-mm", repr(float(edge_length_mm)), "--remesh-surface",
         ]
 
     def loadVolumeMesh(self, curve, work_dir: str):

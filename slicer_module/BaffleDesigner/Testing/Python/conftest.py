@@ -4,6 +4,7 @@ the built-in phantom. Patient data: $BAFFLE_DATA_DIR, else ../shared/data beside
 repository; tests that need it skip with a note when it is absent."""
 
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -18,6 +19,9 @@ slicer = pytest.importorskip("slicer", reason="slicer-core is not installed (pip
 if not hasattr(slicer, "vtkMRMLScene"):
     pytest.skip("`slicer` is not slicer-core's MRML package", allow_module_level=True)
 
+import vtk  # noqa: E402  (slicer-core's pinned vtk)
+from vtkmodules.util import numpy_support  # noqa: E402
+
 from BaffleDesignerLib import logic as bdlogic  # noqa: E402
 
 
@@ -31,6 +35,31 @@ def p2_inputs():
     if not (surface.exists() and points.exists()):
         pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
     return surface, points
+
+
+@pytest.fixture(scope="session")
+def executable():
+    """The built `baffle` command line program (BAFFLE_EXECUTABLE, PATH or target/release)."""
+    from BaffleDesignerLib import process
+
+    found = process.find_baffle_executable()
+    if not found:
+        pytest.skip("baffle executable not found: cargo build --release -p baffle-cli, or set BAFFLE_EXECUTABLE")
+    return found
+
+
+def has_subcommand(executable, name):
+    listing = subprocess.run([executable, "--help"], capture_output=True, text=True, check=True).stdout
+    return any(line.split()[:1] == [name] for line in listing.splitlines())
+
+
+def column(table_node, name):
+    """A table node's column: a list of str for string columns, else a numpy array."""
+    array = table_node.GetTable().GetColumnByName(name)
+    assert array is not None, f"table has no column {name!r}"
+    if isinstance(array, vtk.vtkStringArray):
+        return [array.GetValue(i) for i in range(array.GetNumberOfValues())]
+    return numpy_support.vtk_to_numpy(array).copy()
 
 
 @pytest.fixture
@@ -83,6 +112,11 @@ def p2_scene(scene):
 @pytest.fixture
 def phantom_scene(scene):
     """(scene, logic, model node, curve node) of the library's synthetic phantom."""
+    return phantom_candidate(scene)
+
+
+def phantom_candidate(scene):
+    """(scene, logic, model node, curve node) of the library's synthetic phantom in `scene`."""
     import baffle
     from baffle import vtk_adapters
 

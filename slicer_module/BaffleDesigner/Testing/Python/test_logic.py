@@ -9,7 +9,7 @@ import pytest
 import vtk
 from vtkmodules.util import numpy_support
 
-from conftest import bdlogic, curve_from_points, load_model, p2_inputs, slicer
+from conftest import bdlogic, column, curve_from_points, load_model, p2_inputs, slicer
 
 
 def points_of(polydata):
@@ -25,14 +25,6 @@ def open_and_nonmanifold_edges(polydata):
     edges.ManifoldEdgesOff()
     edges.Update()
     return edges.GetOutput().GetNumberOfCells()
-
-
-def column(table_node, name):
-    array = table_node.GetTable().GetColumnByName(name)
-    assert array is not None, f"table has no column {name!r}"
-    if isinstance(array, vtk.vtkStringArray):
-        return [array.GetValue(i) for i in range(array.GetNumberOfValues())]
-    return numpy_support.vtk_to_numpy(array).copy()
 
 
 def test_model_storage_node_puts_lps_file_into_ras_like_slicer(scene):

@@ -7,21 +7,8 @@ import time
 
 import pytest
 
-from conftest import bdlogic
+from conftest import bdlogic, has_subcommand
 from BaffleDesignerLib import process
-
-
-@pytest.fixture(scope="module")
-def executable():
-    found = process.find_baffle_executable()
-    if not found:
-        pytest.skip("baffle executable not found: cargo build --release -p baffle-cli, or set BAFFLE_EXECUTABLE")
-    return found
-
-
-def has_subcommand(executable, name):
-    listing = subprocess.run([executable, "--help"], capture_output=True, text=True, check=True).stdout
-    return any(line.split()[:1] == [name] for line in listing.splitlines())
 
 
 def test_design_progress_tags_are_parsed(executable, tmp_path):

@@ -1,0 +1,451 @@
+"""Simulate one candidate: `baffle mesh` (gmsh) then `baffle simulate` (the CFD worker),
+both as separate processes, driven without blocking: SimulationJob.poll() advances the
+chain and is called from a QTimer in the widget (or a loop in tests). Results are read
+and checked in full before any scene node changes, so a failed or cancelled run leaves
+the candidate's earlier results (and its design outputs) as they were.
+
+Units: `baffle simulate` writes peak.vtu in the solver's CGS units (points cm, velocity
+cm/s, pressure dyn/cm2); the scene gets mm, m/s and mmHg.
+"""
+
+import csv
+import json
+import math
+import os
+import re
+import time
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+import vtk
+from vtkmodules.util import numpy_support
+
+from BaffleDesignerLib import logic as bdlogic
+from BaffleDesignerLib import process
+
+# The paper's planning criterion: the LV-to-aorta pressure difference at peak flow.
+DP_THRESHOLD_MMHG = 10.0
+DYN_CM2_PER_MMHG = 1333.22  # as baffle-cfd
+MM_PER_CM = 10.0
+
+# Face roles of the designed domain (the library's default ModelFaceIDs).
+INLET_FACE_ID = 11  # VSD cap: flow from the LV
+OUTLET_FACE_ID = 16  # aortic-annulus cap
+
+MESH_STAGE, SIMULATE_STAGE = "volume mesh", "simulation"
+# Grace period between SIGTERM and SIGKILL: gmsh has nothing to save; the CFD worker
+# finishes its current step and writes the results so far.
+KILL_AFTER_S = {MESH_STAGE: 3.0, SIMULATE_STAGE: 60.0}
+
+# Summary table rows: (summary.json key, quantity, unit).
+SUMMARY_ROWS = (
+    ("dp_peak_mmhg", "Pressure difference at peak flow", "mmHg"),
+    ("max_velocity_m_s", "Max velocity at peak flow", "m/s"),
+    ("max_velocity_run_m_s", "Max velocity over the run", "m/s"),
+    ("q_peak_ml_s", "Peak flow", "mL/s"),
+    ("outlet_mean_pressure_mmhg", "Outlet pressure (mean over the run)", "mmHg"),
+    ("mass_imbalance", "Mass imbalance", "fraction"),
+    ("wall_time_s", "Wall time", "s"),
+)
+SUMMARY_INPUT_ROWS = (
+    ("q_mean_ml_s", "Mean flow (BSA x cardiac index)", "mL/s"),
+    ("resistance_dyn_s_cm5", "Outlet resistance", "dyn s/cm5"),
+    ("map_mmhg", "Mean arterial pressure", "mmHg"),
+    ("period_s", "Cardiac period", "s"),
+)
+COL_DP = "dp_mmhg"
+
+
+def verdict(dp_mmhg: float) -> str:
+    """'pass' when the peak pressure difference is below the 10 mmHg planning threshold."""
+    return "pass" if dp_mmhg < DP_THRESHOLD_MMHG else "fail"
+
+
+# ---- the case file --------------------------------------------------------------------
+
+
+def domain_face_ids(domain_polydata) -> List[int]:
+    labels = domain_polydata.GetCellData().GetArray("ModelFaceID")
+    if labels is None:
+        raise bdlogic.BaffleDesignerError("the domain model has no ModelFaceID cell array; design the baffle again")
+    return sorted({int(v) for v in numpy_support.vtk_to_numpy(labels).ravel()})
+
+
+def case_document(parameters: "bdlogic.DesignParameters", face_ids: List[int]) -> dict:
+    """The `baffle simulate` case for the volume mesh `baffle mesh` writes beside it
+    (volume.vtu, volume-faces.vtp, mm). Flow and outlet resistance are left for the CLI
+    to derive from BSA x cardiac index and SBP/DBP, as the paper does; it also checks
+    their physiological consistency (e.g. DBP below SBP) and says what is wrong."""
+    parameters.validate_cfd()
+    missing = [f for f in (INLET_FACE_ID, OUTLET_FACE_ID) if f not in face_ids]
+    if missing:
+        raise bdlogic.BaffleDesignerError(
+            f"the domain has no face {missing} (faces {face_ids}); the inflow is the VSD cap ({INLET_FACE_ID}) "
+            f"and the outflow the aortic-annulus cap ({OUTLET_FACE_ID})"
+        )
+    steady = parameters.flow_mode == "steady"
+    return {
+        "mesh": {"volume": "volume.vtu", "faces": "volume-faces.vtp", "format": "baffle", "units": "mm"},
+        "faces": {
+            "inlet": INLET_FACE_ID,
+            "outlets": [OUTLET_FACE_ID],
+            "walls": [f for f in face_ids if f not in (INLET_FACE_ID, OUTLET_FACE_ID)],
+        },
+        "inflow": {
+            "bsa_m2": parameters.cfd_bsa_m2(),
+            "cardiac_index_l_min_m2": parameters.cardiac_index_l_min_m2,
+            "heart_rate_bpm": parameters.heart_rate_bpm,
+            "profile": "plug",
+        },
+        "outlet": {"sbp_mmhg": parameters.systolic_mmhg, "dbp_mmhg": parameters.diastolic_mmhg},
+        # Steady: the flow held at Q_peak (a quick estimate of the peak pressure difference).
+        "time": {"mode": "steady" if steady else "transient"},
+        "output": {"vtu_every_steps": 0, "checkpoint_every_steps": 50},
+    }
+
+
+def write_case(path: str, document: dict) -> None:
+    with open(path, "w", encoding="utf-8") as handle:
+        json.dump(document, handle, indent=2)
+
+
+# ---- reading the results (no scene access) ---------------------------------------------
+
+
+@dataclass
+class SimulationResults:
+    """Everything loaded from one `baffle simulate` output directory, checked."""
+
+    summary: dict
+    dp_mmhg: float
+    max_velocity_m_s: float
+    fields: vtk.vtkUnstructuredGrid  # mm, velocity_m_s, speed_m_s, pressure_mmhg
+    series: Dict[str, np.ndarray]  # timeseries.csv columns plus dp_mmhg
+    series_order: List[str]
+
+    @property
+    def steady(self) -> bool:
+        return self.summary.get("mode") == "steady"
+
+    @property
+    def verdict(self) -> str:
+        return verdict(self.dp_mmhg)
+
+
+def _finite(summary: dict, key: str, path: str) -> float:
+    value = summary.get(key)
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise bdlogic.BaffleDesignerError(f"{path}: {key} is {value!r}, not a finite number")
+    return float(value)
+
+
+def read_summary(path: str) -> dict:
+    try:
+        with open(path, encoding="utf-8") as handle:
+            summary = json.load(handle)
+    except (OSError, ValueError) as error:
+        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+    if summary.get("status") != "completed":
+        raise bdlogic.BaffleDesignerError(
+            f"{path}: the simulation {summary.get('status')}: {summary.get('message') or 'no message'}"
+        )
+    return summary
+
+
+def read_fields(path: str) -> vtk.vtkUnstructuredGrid:
+    """peak.vtu in the scene's units: points mm, velocity_m_s (vector), speed_m_s, pressure_mmhg."""
+    if not os.path.exists(path):
+        raise bdlogic.BaffleDesignerError(f"{path} was not written")
+    reader = vtk.vtkXMLUnstructuredGridReader()
+    reader.SetFileName(path)
+    reader.Update()
+    source = reader.GetOutput()
+    velocity = source.GetPointData().GetArray("velocity")
+    pressure = source.GetPointData().GetArray("pressure")
+    if source.GetNumberOfCells() == 0 or velocity is None or pressure is None:
+        raise bdlogic.BaffleDesignerError(f"{path}: expected tetrahedra with point arrays velocity and pressure")
+    velocity_m_s = numpy_support.vtk_to_numpy(velocity).reshape(-1, 3) / 100.0
+    grid = vtk.vtkUnstructuredGrid()
+    grid.DeepCopy(source)
+    points = vtk.vtkPoints()
+    points.SetData(bdlogic._vtk_double_array("points", numpy_support.vtk_to_numpy(source.GetPoints().GetData()) * MM_PER_CM))
+    grid.SetPoints(points)
+    data = grid.GetPointData()
+    data.Initialize()
+    data.AddArray(bdlogic._vtk_double_array("velocity_m_s", velocity_m_s))
+    data.AddArray(bdlogic._vtk_double_array("speed_m_s", np.linalg.norm(velocity_m_s, axis=1)))
+    data.AddArray(bdlogic._vtk_double_array("pressure_mmhg", numpy_support.vtk_to_numpy(pressure) / DYN_CM2_PER_MMHG))
+    data.SetActiveScalars("speed_m_s")
+    data.SetActiveVectors("velocity_m_s")
+    return grid
+
+
+def read_series(path: str, dp_faces) -> Tuple[Dict[str, np.ndarray], List[str]]:
+    """timeseries.csv as numeric columns, plus dp_mmhg = p(first dp face) - p(second)."""
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except OSError as error:
+        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+    if len(rows) < 2:
+        raise bdlogic.BaffleDesignerError(f"{path}: no time steps")
+    header = rows[0]
+    try:
+        values = np.array([[float(v) for v in row] for row in rows[1:]], dtype=np.float64)
+    except ValueError as error:
+        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+    series = {name: values[:, k] for k, name in enumerate(header)}
+
+    def pressure_column(face_id):
+        pattern = re.compile(rf"^p_.*_{face_id}_mmhg$")
+        names = [name for name in header if pattern.match(name)]
+        if len(names) != 1:
+            raise bdlogic.BaffleDesignerError(f"{path}: no pressure column of face {face_id} in {header}")
+        return series[names[0]]
+
+    first, second = dp_faces
+    series[COL_DP] = pressure_column(first) - pressure_column(second)
+    return series, header + [COL_DP]
+
+
+def read_results(out_dir: str) -> SimulationResults:
+    summary_path = os.path.join(out_dir, "summary.json")
+    summary = read_summary(summary_path)
+    series, order = read_series(os.path.join(out_dir, "timeseries.csv"), summary.get("dp_faces") or (INLET_FACE_ID, OUTLET_FACE_ID))
+    return SimulationResults(
+        summary=summary,
+        dp_mmhg=_finite(summary, "dp_peak_mmhg", summary_path),
+        max_velocity_m_s=_finite(summary, "max_velocity_m_s", summary_path),
+        fields=read_fields(os.path.join(out_dir, "peak.vtu")),
+        series=series,
+        series_order=order,
+    )
+
+
+# ---- results into the scene -------------------------------------------------------------
+
+
+def _summary_table(results: SimulationResults) -> vtk.vtkTable:
+    quantity, unit = vtk.vtkStringArray(), vtk.vtkStringArray()
+    quantity.SetName("Quantity")
+    unit.SetName("Unit")
+    values = []
+    rows = [(results.summary, key, name, u) for key, name, u in SUMMARY_ROWS]
+    rows += [(results.summary.get("inputs", {}), key, name, u) for key, name, u in SUMMARY_INPUT_ROWS]
+    rows.append(({"threshold": DP_THRESHOLD_MMHG}, "threshold", "Planning threshold (pass below)", "mmHg"))
+    for source, key, name, u in rows:
+        value = source.get(key)
+        quantity.InsertNextValue(name)
+        unit.InsertNextValue(u)
+        values.append(float(value) if isinstance(value, (int, float)) else float("nan"))
+    table = vtk.vtkTable()
+    table.AddColumn(quantity)
+    table.AddColumn(bdlogic._vtk_double_array("Value", values))
+    table.AddColumn(unit)
+    return table
+
+
+def _series_table(results: SimulationResults) -> vtk.vtkTable:
+    table = vtk.vtkTable()
+    for name in results.series_order:
+        table.AddColumn(bdlogic._vtk_double_array(name, results.series[name]))
+    return table
+
+
+def store_results(logic, curve, results: SimulationResults, out_dir: str, outdated: bool = False) -> None:
+    """The checked results onto the candidate: summary table, peak fields model, time
+    series table and chart (node references on the curve), the verdict (attributes).
+    `outdated`: the candidate was redesigned while it ran."""
+    summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
+    summary_node.SetAndObserveTable(_summary_table(results))
+    summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
+
+    fields_node = logic._output_node(curve, bdlogic.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
+    fields_node.SetAndObserveMesh(results.fields)
+    display = fields_node.GetDisplayNode()
+    if display is not None:
+        display.SetActiveScalar("speed_m_s", vtk.vtkAssignAttribute.POINT_DATA)
+        display.SetAndObserveColorNodeID("vtkMRMLColorTableNodeFileViridis.txt")
+        display.SetScalarVisibility(True)
+        display.SetOpacity(0.5)
+
+    series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
+    series_node.SetAndObserveTable(_series_table(results))
+    _write_series_chart(logic, curve, series_node, results.steady)
+
+    for name, value in (
+        ("SimulationStatus", "outdated" if outdated else "completed"),
+        ("SimulationDpMmhg", results.dp_mmhg),
+        ("SimulationMaxVelocityMS", results.max_velocity_m_s),
+        ("SimulationVerdict", results.verdict),
+        ("SimulationMode", "steady" if results.steady else "pulsatile"),  # the GUI's words
+        ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
+        ("SimulationDir", out_dir),
+    ):
+        curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
+
+
+def _write_series_chart(logic, curve, table_node, steady: bool) -> None:
+    chart = logic._output_node(curve, bdlogic.REF_SIM_CHART, "vtkMRMLPlotChartNode", "simulation chart")
+    x_column, x_title = ("step", "iteration") if steady else ("time_s", "t (s)")
+    chart.SetTitle(f"{curve.GetName()}: {'steady solve at peak flow' if steady else 'pulsatile run'}")
+    chart.SetXAxisTitle(x_title)
+    chart.SetYAxisTitle("dp (mmHg), Q (mL/s)")
+    styles = (
+        (bdlogic.REF_SIM_SERIES_DP, COL_DP, (0.85, 0.25, 0.2)),
+        (bdlogic.REF_SIM_SERIES_FLOW, "inflow_ml_s", (0.2, 0.5, 0.95)),
+    )
+    for role, column, color in styles:
+        series = logic._output_node(curve, role, "vtkMRMLPlotSeriesNode", column)
+        series.SetAndObserveTableNodeID(table_node.GetID())
+        series.SetXColumnName(x_column)
+        series.SetYColumnName(column)
+        series.SetPlotType(series.PlotTypeScatter)
+        series.SetMarkerStyle(series.MarkerStyleNone)
+        series.SetColor(*color)
+        if not chart.HasPlotSeriesNodeID(series.GetID()):
+            chart.AddAndObservePlotSeriesNodeID(series.GetID())
+
+
+# ---- the job: mesh, then simulate -------------------------------------------------------
+
+
+class SimulationJob:
+    """Mesh and simulate one candidate in `work_dir` without blocking. start() checks the
+    inputs and starts `baffle mesh`; poll() (from a timer) starts `baffle simulate` when
+    the mesh is done and loads the results when the simulation is; cancel() stops the
+    running process. `state` is process.RUNNING / COMPLETED / FAILED / CANCELLED,
+    `message` says what happened (the program's own error line on failure)."""
+
+    def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
+        self.logic = logic
+        self.curve = curve
+        self.executable = executable
+        self.work_dir = work_dir
+        self.env = env  # of the child processes (in Slicer: without the launcher's Python settings)
+        self.out_dir = os.path.join(work_dir, "results")
+        self.stage = ""
+        self.state = ""
+        self.message = ""
+        self.run: Optional[process.CliProcess] = None
+        self.results: Optional[SimulationResults] = None
+        self._case: Optional[dict] = None
+        self._domain = None  # the domain polydata that was meshed
+        self._cancel_requested = False
+        self.started_at = 0.0
+        self.simulate_started_at = 0.0
+        self.finished_at = 0.0
+
+    def start(self) -> "SimulationJob":
+        """Raises BaffleDesignerError when the run cannot start (no executable, no
+        design, bad parameters); nothing in the scene changes then."""
+        bdlogic.BaffleDesignerLogic._check_curve(self.curve)
+        self._check_executable()
+        domain = self.curve.GetNodeReference(bdlogic.REF_DOMAIN)
+        if domain is None or domain.GetPolyData() is None:
+            raise bdlogic.BaffleDesignerError(f"{self.curve.GetName()}: design the baffle first (no domain model)")
+        parameters = self.logic.parameters(self.curve)
+        self._case = case_document(parameters, domain_face_ids(domain.GetPolyData()))
+        self._domain = (domain.GetPolyData(), domain.GetPolyData().GetMTime())
+        command = self.logic.volumeMeshCommand(self.curve, self.executable, self.work_dir, parameters.mesh_edge_length_mm)
+        self.started_at = time.monotonic()
+        self._start_stage(MESH_STAGE, command)
+        return self
+
+    def _check_executable(self) -> None:
+        if not self.executable:
+            raise bdlogic.BaffleDesignerError(
+                "the baffle command line program was not found (set BAFFLE_EXECUTABLE or put baffle on PATH)"
+            )
+        if not (os.path.isfile(self.executable) and os.access(self.executable, os.X_OK)):
+            raise bdlogic.BaffleDesignerError(f"the baffle command line program {self.executable} is not an executable file")
+
+    def _start_stage(self, stage: str, command: List[str]) -> None:
+        self.stage = stage
+        try:
+            self.run = process.CliProcess(command, cwd=self.work_dir, env=self.env).start()
+        except OSError as error:
+            raise bdlogic.BaffleDesignerError(f"could not start the {stage}: {error}") from error
+        self.state = process.RUNNING
+        self.message = f"{stage} running"
+
+    @property
+    def progress(self) -> Optional[float]:
+        """Fraction of the simulation done; None while meshing (gmsh reports no fractions)."""
+        if self.stage == SIMULATE_STAGE and self.run is not None:
+            return self.run.progress
+        return None
+
+    @property
+    def running(self) -> bool:
+        return self.state == process.RUNNING
+
+    def cancel(self) -> None:
+        if self.running:
+            self._cancel_requested = True
+            self.run.cancel(kill_after=KILL_AFTER_S[self.stage])
+
+    def poll(self) -> str:
+        """Advance the chain; call it from the GUI thread (it changes the scene at the end)."""
+        if not self.running or self.run.running:
+            return self.state
+        run = self.run
+        if run.state == process.CANCELLED or self._cancel_requested:
+            return self._finish(process.CANCELLED, f"{self.stage} cancelled; the earlier results are unchanged")
+        if run.state == process.FAILED:
+            return self._finish(process.FAILED, f"{self.stage} failed: {run.error_message()}")
+        try:
+            if self.stage == MESH_STAGE:
+                self._start_simulation()
+                return self.state
+            self.results = read_results(self.out_dir)
+        except bdlogic.BaffleDesignerError as error:
+            return self._finish(process.FAILED, str(error))
+        store_results(self.logic, self.curve, self.results, self.out_dir, outdated=self._redesigned())
+        return self._finish(process.COMPLETED, self._result_line())
+
+    def _result_line(self) -> str:
+        results = self.results
+        line = (
+            f"dp {results.dp_mmhg:.2f} mmHg ({results.verdict}: threshold {DP_THRESHOLD_MMHG:g} mmHg), "
+            f"v_max {results.max_velocity_m_s:.2f} m/s"
+        )
+        if not results.summary.get("converged", True):
+            line += "; the solver did not reach its residual target, treat the figures with care"
+        if self._redesigned():
+            line += "; the baffle was redesigned meanwhile, so these results are outdated"
+        return line
+
+    def _redesigned(self) -> bool:
+        """Whether the candidate's domain changed since it was meshed (a redesign while running)."""
+        node = self.curve.GetNodeReference(bdlogic.REF_DOMAIN)
+        polydata = node.GetPolyData() if node is not None else None
+        return polydata is not self._domain[0] or polydata.GetMTime() != self._domain[1]
+
+    def _start_simulation(self) -> None:
+        case_path = os.path.join(self.work_dir, "case.json")
+        try:
+            write_case(case_path, self._case)
+        except OSError as error:
+            raise bdlogic.BaffleDesignerError(f"could not write {case_path}: {error}") from error
+        self.simulate_started_at = time.monotonic()
+        self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", case_path, "--out", self.out_dir])
+
+    def _finish(self, state: str, message: str) -> str:
+        self.state = state
+        self.message = message
+        self.finished_at = time.monotonic()
+        # The outcome of the latest run; the stored results change only on completion.
+        last_run = state if state == process.COMPLETED else f"{state}: {message}"
+        self.curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "SimulationLastRun", last_run)
+        return state
+
+    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.05) -> str:
+        """Poll until the job has ended (tests and scripts; the GUI polls from a timer)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() == process.RUNNING:
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"simulation of {self.curve.GetName()} still running after {timeout} s ({self.stage})")
+            time.sleep(poll_interval)
+        return self.state
