@@ -16,12 +16,16 @@ fn fake_bin(name: &str, steps: usize, code: i32) -> PathBuf {
 }
 
 fn exported_case(name: &str) -> PathBuf {
+    exported_case_for(name, 3)
+}
+
+fn exported_case_for(name: &str, processes: usize) -> PathBuf {
     let dir = scratch(name);
     let mut settings = settings();
     settings.cycles = 1;
     settings.dt_s = 0.01;
     let mut options = options();
-    options.mpi_processes = 3;
+    options.mpi_processes = processes;
     export_case(&dir, &box_mesh(), &settings, &options).unwrap();
     dir
 }
@@ -93,4 +97,24 @@ fn cancel_stops_the_run_and_failures_show_the_log_tail() {
     let engine_bad = engine(&fake_bin("bin-bad", 3, 1));
     let e = run_case(&engine_bad, &dir, &mut |_, _| true).unwrap_err().to_string();
     assert!(e.contains("last time step 3 of 68") && e.contains("solver finished"), "{e}");
+}
+
+/// The stand-in svMultiPhysics started by this machine's own mpiexec, when it has one:
+/// the launch arguments against a real launcher (Debian's Open MPI refuses to run as root
+/// without --allow-run-as-root, so this fails if the option is missing or misplaced).
+#[test]
+fn the_machines_own_mpiexec_starts_the_engine() {
+    let bin = fake_bin("bin-real-mpi", 68, 0);
+    std::fs::remove_file(bin.join("mpiexec")).unwrap();
+    let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
+    let engine = match find_engine_in(&OsString::from(path)) {
+        Ok(engine) => engine,
+        Err(_) => return eprintln!("note: no mpiexec on PATH; the real launcher is not tested"),
+    };
+    assert_eq!(engine.svmultiphysics, bin.join("svMultiPhysics"));
+    // One process: Open MPI refuses more processes than cores unless told to oversubscribe.
+    let dir = exported_case_for("run-real-mpi", 1);
+    let report = run_case(&engine, &dir, &mut |_, _| true)
+        .unwrap_or_else(|e| panic!("{} could not start the engine: {e}", engine.mpiexec.display()));
+    assert_eq!(report.last_step, 68);
 }
