@@ -7,16 +7,17 @@
 
 #[path = "../../baffle-svmp/tests/common/mod.rs"]
 mod common;
+mod support;
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Output};
 
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::Waveform;
 use baffle_core::io::DataArray;
 use baffle_mesh::{write_faces_vtp, write_vtu, TetMesh};
 use common::*;
+use support::sigterm_after_progress_tags;
 
 const Q_MEAN_ML_S: f64 = 21.46;
 /// Recorded column order (not the mesh's face order, so the mapping is exercised).
@@ -229,19 +230,7 @@ fn sigterm_stops_the_engine_and_says_so() {
     let (case, _) = box_case("sigterm");
     let bin = standin_bin("cli-sigterm-bin", &StandIn { steps: Some(100_000_000), ..StandIn::default() });
     let out_dir = case.parent().unwrap().join("out");
-    let mut child = simulate_command(&case, &out_dir, &bin, &[]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
-    let mut stdout = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    let mut tags = 0;
-    while tags < 3 {
-        line.clear();
-        assert!(stdout.read_line(&mut line).unwrap() > 0, "baffle simulate ended early");
-        tags += usize::from(line.contains("<filter-progress>"));
-    }
-    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) }, 0);
-    let mut rest = String::new();
-    std::io::Read::read_to_string(&mut stdout, &mut rest).unwrap();
-    assert!(!child.wait().unwrap().success());
+    assert!(!sigterm_after_progress_tags(&mut simulate_command(&case, &out_dir, &bin, &[]), 3).success());
     let s = summary(&out_dir);
     assert_eq!(s["status"], "stopped", "{s}");
     assert!(s["message"].as_str().unwrap().contains("stopped by signal at svMultiPhysics step"), "{s}");
