@@ -144,6 +144,7 @@ pub fn run_case(
     progress: &mut dyn FnMut(f64, &str) -> bool,
 ) -> Result<RunReport, SvmpError> {
     let manifest = CaseManifest::read(case_dir)?;
+    clear_results(&case_dir.join(&manifest.results_dir))?;
     let log_path = case_dir.join(LOG_FILE);
     let err_path = case_dir.join(ERR_FILE);
     let mut log = std::fs::File::create(&log_path).map_err(|e| SvmpError::io(&log_path, e))?;
@@ -177,6 +178,15 @@ pub fn run_case(
         });
     }
     Ok(RunReport { last_step: tracker.last_step, elapsed_s: tracker.elapsed_s, log_file: log_path })
+}
+
+/// A run starts with no results folder, so a run that fails early cannot leave an earlier
+/// run's outputs to be read back as its own.
+fn clear_results(results: &Path) -> Result<(), SvmpError> {
+    match std::fs::remove_dir_all(results) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(SvmpError::io(results, format!("cannot clear: {e}"))),
+        _ => Ok(()),
+    }
 }
 
 /// End a cancelled run: SIGTERM first, which mpiexec forwards to the ranks (killing the

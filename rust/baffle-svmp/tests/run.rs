@@ -94,9 +94,13 @@ fn cancel_stops_the_run_and_failures_show_the_log_tail() {
     // It was asked to stop (SIGTERM, which mpiexec forwards to the ranks), not just killed.
     assert!(dir.join("standin.terminated").is_file());
 
+    // A failed run leaves no earlier run's outputs behind to be read back as its own.
+    std::fs::create_dir_all(dir.join("results")).unwrap();
+    std::fs::write(dir.join("results/B_NS_Pressure_average.txt"), "from an earlier run").unwrap();
     let engine_bad = engine(&fake_bin("bin-bad", 3, 1));
     let e = run_case(&engine_bad, &dir, &mut |_, _| true).unwrap_err().to_string();
     assert!(e.contains("last time step 3 of 68") && e.contains("solver finished"), "{e}");
+    assert!(!dir.join("results").exists());
 }
 
 /// The stand-in svMultiPhysics started by this machine's own mpiexec, when it has one:
