@@ -52,8 +52,13 @@ fn node_velocity(k: usize) -> [f64; 3] {
 }
 
 /// The box mesh as `baffle mesh` writes it, a case on it, and a directory of recorded
-/// svMultiPhysics outputs for it. Returns (case file, recorded dir).
+/// svMultiPhysics outputs of the transient run. Returns (case file, recorded dir).
 fn box_case(name: &str) -> (PathBuf, PathBuf) {
+    box_case_recorded(name, STEPS, PEAK_STEP)
+}
+
+/// As [`box_case`], outputs recorded for `steps` steps, results saved at `saved_step`.
+fn box_case_recorded(name: &str, steps: usize, saved_step: usize) -> (PathBuf, PathBuf) {
     let dir = scratch(&format!("cli-{name}"));
     let mesh = box_mesh();
     write_vtu(&dir.join("mesh.vtu"), &mesh, &[], &[]).unwrap();
@@ -70,8 +75,8 @@ fn box_case(name: &str) -> (PathBuf, PathBuf) {
     );
     std::fs::write(&case, text).unwrap();
     let recorded_dir = dir.join("recorded");
-    write_boundary_files(&recorded_dir, &COLUMNS, 0.01, STEPS, recorded);
-    write_result(&recorded_dir.join("result_016.vtu"), &mesh);
+    write_boundary_files(&recorded_dir, &COLUMNS, 0.01, steps, recorded);
+    write_result(&recorded_dir.join(format!("result_{saved_step:03}.vtu")), &mesh);
     (case, recorded_dir)
 }
 
@@ -236,4 +241,25 @@ fn sigterm_stops_the_engine_and_says_so() {
     assert!(s["message"].as_str().unwrap().contains("stopped by signal at svMultiPhysics step"), "{s}");
     // The engine was asked to stop too, not left running.
     assert!(out_dir.join("svmultiphysics/standin.terminated").is_file());
+}
+
+/// --steady: svMultiPhysics has no steady solver, so the export runs 1 s at constant peak
+/// inflow (100 steps of 10 ms) and saves the last step; the summary's peak is that step.
+#[test]
+fn steady_runs_read_back_at_the_last_step() {
+    let (case, recorded_dir) = box_case_recorded("steady", 100, 100);
+    let bin = standin_bin("cli-steady-bin", &StandIn { recorded: Some(&recorded_dir), ..StandIn::default() });
+    let out_dir = case.parent().unwrap().join("out");
+    let out = simulate(&case, &out_dir, &bin, &["--steady"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let s = summary(&out_dir);
+    assert_eq!((s["mode"].as_str(), s["steps_done"].as_u64()), (Some("steady"), Some(100)));
+    let (_, rows) = csv(&out_dir);
+    let q_peak = s["inputs"]["q_peak_ml_s"].as_f64().unwrap();
+    assert!(rows.iter().all(|r| r[2] == q_peak), "the prescribed inflow is the constant peak");
+    let last = &rows[99];
+    assert_eq!((s["peak_time_s"].as_f64(), s["dp_peak_mmhg"].as_f64()), (Some(last[1]), Some(last[11] - last[12])));
+    assert!(last[5] > 0.0 && s["max_velocity_m_s"].as_f64() == Some(last[5]));
+    let xml = std::fs::read_to_string(out_dir.join("svmultiphysics/solver.xml")).unwrap();
+    assert!(xml.contains("<Number_of_time_steps> 100 </Number_of_time_steps>"), "{xml}");
 }
