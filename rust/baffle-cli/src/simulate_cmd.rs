@@ -21,7 +21,8 @@ use std::time::Instant;
 pub struct SimulateArgs {
     /// Case file (JSON): mesh, face roles, fluid, inflow, outlet, time stepping, output.
     pub(crate) case: PathBuf,
-    /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json.
+    /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json
+    /// (with --engine svmultiphysics: summary.json, timeseries.csv, peak.vtu, svmultiphysics/).
     #[arg(long)]
     pub(crate) out: PathBuf,
     /// Steady run with the inflow fixed at Q_peak (overrides time.mode).
@@ -109,7 +110,7 @@ struct Checkpoint {
 }
 
 /// Write `bytes` to `path` via a temporary name in the same directory, then rename.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     let result = (|| -> std::io::Result<()> {
