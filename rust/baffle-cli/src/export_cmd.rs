@@ -2,13 +2,13 @@
 //! svMultiPhysics (the paper's solver), for a cluster run.
 
 use crate::case;
-use baffle_cfd::{FlowMesh, RunMode};
+use baffle_cfd::{CaseSettings, FlowMesh, RunMode};
 use baffle_core::Vec3;
 use baffle_mesh::{FaceSet, TetMesh};
-use baffle_svmp::{export_case, ExportOptions};
+use baffle_svmp::{export_case, ExportOptions, ExportedCase};
 use clap::Args;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct ExportArgs {
@@ -32,16 +32,29 @@ pub fn run_export(args: &ExportArgs) -> Result<(), String> {
     if args.steady {
         settings.mode = RunMode::Steady;
     }
+    export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
+    println!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display());
+    Ok(())
+}
+
+/// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
+/// first step); says how the inflow was fitted.
+pub(crate) fn export_to(
+    dir: &Path,
+    case: &case::Case,
+    mesh: &FlowMesh,
+    settings: &CaseSettings,
+    mpi_processes: usize,
+) -> Result<ExportedCase, String> {
     let planes = case.faces.planes.clone();
-    let tet_mesh = tet_mesh_mm(&mesh, &planes);
-    let options = ExportOptions { mpi_processes: args.mpi_processes, ..ExportOptions::new(face_names(&case.faces, &mesh), planes) };
-    let exported = export_case(&args.out, &tet_mesh, &settings, &options).map_err(|e| e.to_string())?;
+    let tet_mesh = tet_mesh_mm(mesh, &planes);
+    let options = ExportOptions { mpi_processes, ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
+    let exported = export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())?;
     match (exported.fourier_modes, exported.fourier_max_deviation_ml_s) {
         (Some(modes), Some(dev)) => println!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
         _ => println!("inflow: constant (steady)"),
     }
-    println!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display());
-    Ok(())
+    Ok(exported)
 }
 
 /// File-name-safe names by role: inflow, outlet_<id>, plane_<id>, wall_<id>.

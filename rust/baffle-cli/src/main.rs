@@ -13,6 +13,7 @@ mod case;
 mod export_cmd;
 mod mesh_cmd;
 mod simulate_cmd;
+mod simulate_svmp;
 
 #[derive(Parser)]
 #[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]

@@ -2,11 +2,13 @@
 //! embedded solver (baffle-cfd) and writes summary.json, timeseries.csv, .vtu fields
 //! and a checkpoint, all atomically. SIGTERM/SIGINT stop it at the end of the current
 //! time step with the results so far; `--resume` continues from the checkpoint.
+//! `--engine svmultiphysics` hands the same case to svMultiPhysics instead
+//! ([`crate::simulate_svmp`]); both engines' results go through [`Report`].
 
 use crate::case::{self, FlowInputs};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{simulate_from, CaseSettings, FlowMesh, RunMode, SolverState, StepResult};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -18,16 +20,17 @@ use std::time::Instant;
 #[command(after_help = format!("Example case (relative paths are relative to the case file):\n{}", case::EXAMPLE))]
 pub struct SimulateArgs {
     /// Case file (JSON): mesh, face roles, fluid, inflow, outlet, time stepping, output.
-    case: PathBuf,
-    /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json.
+    pub(crate) case: PathBuf,
+    /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json
+    /// (with --engine svmultiphysics: summary.json, timeseries.csv, peak.vtu, svmultiphysics/).
     #[arg(long)]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Steady run with the inflow fixed at Q_peak (overrides time.mode).
     #[arg(long)]
     steady: bool,
     /// Stop after this time step (overrides time.steps).
     #[arg(long)]
-    steps: Option<usize>,
+    pub(crate) steps: Option<usize>,
     /// Time step (s) (overrides time.dt_s).
     #[arg(long)]
     dt_s: Option<f64>,
@@ -36,25 +39,39 @@ pub struct SimulateArgs {
     cycles: Option<usize>,
     /// Write fields_<step>.vtu every N steps (overrides output.vtu_every_steps).
     #[arg(long)]
-    vtu_every: Option<usize>,
+    pub(crate) vtu_every: Option<usize>,
     /// Continue the transient run from OUT/checkpoint.json.
     #[arg(long)]
-    resume: bool,
+    pub(crate) resume: bool,
+    /// Solver: the embedded one, or svMultiPhysics (exported to OUT/svmultiphysics/ and
+    /// run there with mpiexec; needs svmultiphysics or svMultiPhysics, and mpiexec, on PATH).
+    #[arg(long, value_enum, default_value_t = Engine::Embedded)]
+    pub(crate) engine: Engine,
+    /// MPI processes of an svMultiPhysics run (default: the available cores).
+    #[arg(long)]
+    pub(crate) mpi_processes: Option<usize>,
 }
 
-/// One row of the time series (pressures in mmHg).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Engine {
+    Embedded,
+    Svmultiphysics,
+}
+
+/// One row of the time series (pressures in mmHg). NaN where an engine does not report
+/// a figure at that step (svMultiPhysics: residual, and velocity away from the peak).
 #[derive(Clone, Debug, Serialize, Deserialize)]
-struct Row {
-    step: usize,
-    time_s: f64,
-    prescribed_inflow_ml_s: f64,
-    inflow_ml_s: f64,
-    outflow_ml_s: f64,
-    max_velocity_m_s: f64,
-    residual: f64,
-    face_ids: Vec<i32>,
-    face_names: Vec<String>,
-    face_pressure_mmhg: Vec<f64>,
+pub(crate) struct Row {
+    pub step: usize,
+    pub time_s: f64,
+    pub prescribed_inflow_ml_s: f64,
+    pub inflow_ml_s: f64,
+    pub outflow_ml_s: f64,
+    pub max_velocity_m_s: f64,
+    pub residual: f64,
+    pub face_ids: Vec<i32>,
+    pub face_names: Vec<String>,
+    pub face_pressure_mmhg: Vec<f64>,
 }
 
 impl Row {
@@ -108,17 +125,41 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     })
 }
 
-struct Output<'a> {
-    dir: &'a Path,
-    mesh: &'a FlowMesh,
+pub(crate) struct Output<'a> {
+    pub dir: &'a Path,
+    pub mesh: &'a FlowMesh,
 }
 
 impl Output<'_> {
-    fn vtu(&self, name: &str, velocity: &[[f64; 3]], pressure: &[f64]) -> Result<(), String> {
+    pub(crate) fn vtu(&self, name: &str, velocity: &[[f64; 3]], pressure: &[f64]) -> Result<(), String> {
         baffle_cfd::vtu::write_solution_vtu(&self.dir.join(name), &self.mesh.points_cm, &self.mesh.tets, velocity, pressure)
             .map_err(|e| e.to_string())
     }
 
+    fn checkpoint(&self, cp: &Checkpoint) -> Result<(), String> {
+        let text = serde_json::to_string(cp).map_err(|e| e.to_string())?;
+        write_atomic(&self.dir.join("checkpoint.json"), text.as_bytes())
+    }
+}
+
+/// How a run ended, as summary.json says it.
+pub(crate) struct Ending {
+    pub status: &'static str,
+    pub message: Option<String>,
+    pub converged: bool,
+}
+
+/// The one writer of timeseries.csv and summary.json, for both engines: what the case
+/// asked for, and which engine answered.
+pub(crate) struct Report<'a> {
+    pub dir: &'a Path,
+    pub case: &'a case::Case,
+    pub settings: &'a CaseSettings,
+    pub flow: &'a FlowInputs,
+    pub engine: Engine,
+}
+
+impl Report<'_> {
     fn csv(&self, rows: &[Row]) -> Result<(), String> {
         let mut text = String::from("step,time_s,prescribed_inflow_ml_s,inflow_ml_s,outflow_ml_s,max_velocity_m_s,residual");
         if let Some(r) = rows.first() {
@@ -140,9 +181,28 @@ impl Output<'_> {
         write_atomic(&self.dir.join("timeseries.csv"), text.as_bytes())
     }
 
-    fn checkpoint(&self, cp: &Checkpoint) -> Result<(), String> {
-        let text = serde_json::to_string(cp).map_err(|e| e.to_string())?;
-        write_atomic(&self.dir.join("checkpoint.json"), text.as_bytes())
+    /// Write timeseries.csv and summary.json; returns the summary.
+    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, wall_time_s: f64) -> Result<serde_json::Value, String> {
+        let json = summary_json(self, rows, ending, wall_time_s);
+        self.csv(rows)?;
+        let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
+        write_atomic(&self.dir.join("summary.json"), text.as_bytes())?;
+        Ok(json)
+    }
+
+    /// The one-line account of a run on stdout.
+    pub(crate) fn print(&self, summary: &serde_json::Value, rows: usize, rows_this_run: usize, wall_time_s: f64) {
+        let (a, b) = dp_faces(self.case);
+        let number = |key: &str| summary[key].as_f64().unwrap_or(f64::NAN);
+        println!(
+            "{} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
+            summary["status"].as_str().unwrap_or_default(),
+            number("dp_peak_mmhg"),
+            number("max_velocity_m_s"),
+            number("q_peak_ml_s"),
+            wall_time_s,
+            self.dir.display()
+        );
     }
 }
 
@@ -154,16 +214,8 @@ fn dp_faces(case: &case::Case) -> (i32, i32) {
     }
 }
 
-fn summary_json(
-    case: &case::Case,
-    settings: &CaseSettings,
-    flow: &FlowInputs,
-    rows: &[Row],
-    status: &str,
-    message: Option<String>,
-    converged: bool,
-    wall_time_s: f64,
-) -> serde_json::Value {
+fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
+    let (case, settings, flow) = (report.case, report.settings, report.flow);
     let (a, b) = dp_faces(case);
     let outlet = case.faces.outlets[0];
     let steady = settings.mode == RunMode::Steady;
@@ -191,11 +243,16 @@ fn summary_json(
         if range > 0.0 { rms / range } else { rms }
     });
     let f = |v: f64| if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null };
+    let engine = match report.engine {
+        Engine::Embedded => "embedded",
+        Engine::Svmultiphysics => "svmultiphysics",
+    };
     serde_json::json!({
-        "status": status,
-        "message": message,
+        "engine": engine,
+        "status": ending.status,
+        "message": ending.message,
         "mode": if steady { "steady" } else { "transient" },
-        "converged": converged,
+        "converged": ending.converged,
         "steps_done": rows.len(),
         "last_step": last_step,
         "last_time_s": rows.last().map(|r| r.time_s),
@@ -225,13 +282,18 @@ fn summary_json(
     })
 }
 
-struct Progress {
+/// Slicer's progress tags on stdout, and a bar on stderr when it is a terminal.
+pub(crate) struct Progress {
     bar: bool,
     start: Instant,
 }
 
 impl Progress {
-    fn report(&self, fraction: f64, message: &str) {
+    pub(crate) fn new(start: Instant) -> Self {
+        Progress { bar: std::io::stderr().is_terminal(), start }
+    }
+
+    pub(crate) fn report(&self, fraction: f64, message: &str) {
         let fraction = fraction.clamp(0.0, 1.0);
         let mut out = std::io::stdout().lock();
         let _ = writeln!(out, "<filter-progress>{fraction:.4}</filter-progress>");
@@ -252,11 +314,21 @@ impl Progress {
             let _ = err.flush();
         }
     }
-    fn finish(&self) {
+    pub(crate) fn finish(&self) {
         if self.bar {
             eprintln!();
         }
     }
+}
+
+/// A flag raised by SIGTERM or SIGINT (instead of dying), so a run stops between steps
+/// with its results so far.
+pub(crate) fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        signal_hook::flag::register(signal, Arc::clone(&stop)).map_err(|e| format!("cannot install signal handler: {e}"))?;
+    }
+    Ok(stop)
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
@@ -285,6 +357,10 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     let mesh = case::load_mesh(&case)?;
     std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
     let output = Output { dir: &args.out, mesh: &mesh };
+    let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
+    if args.engine == Engine::Svmultiphysics {
+        return crate::simulate_svmp::run(args, &report, &output, start);
+    }
 
     let (mut rows, start_state, previous_wall) = if args.resume {
         let path = args.out.join("checkpoint.json");
@@ -314,11 +390,8 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
         (Vec::new(), None, 0.0)
     };
 
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        signal_hook::flag::register(signal, Arc::clone(&stop)).map_err(|e| format!("cannot install signal handler: {e}"))?;
-    }
-    let progress = Progress { bar: std::io::stderr().is_terminal(), start };
+    let stop = stop_on_signals()?;
+    let progress = Progress::new(start);
     let step_limit = case.time.steps.filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
     let peak_step_in_cycle = (flow.peak_time_in_cycle_s / settings.dt_s).round();
@@ -374,7 +447,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
                     rows: rows.clone(),
                     wall_time_s: previous_wall + start.elapsed().as_secs_f64(),
                 };
-                if let Err(e) = output.checkpoint(&cp).and_then(|_| output.csv(&rows)) {
+                if let Err(e) = output.checkpoint(&cp).and_then(|_| report.csv(&rows)) {
                     io_error = Some(e);
                     return false;
                 }
@@ -384,11 +457,6 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     });
     progress.finish();
     let wall = previous_wall + start.elapsed().as_secs_f64();
-    let write_summary = |rows: &[Row], status: &str, message: Option<String>, converged: bool| -> Result<(), String> {
-        let json = summary_json(&case, &settings, &flow, rows, status, message, converged, wall);
-        output.csv(rows)?;
-        write_atomic(&args.out.join("summary.json"), serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?.as_bytes())
-    };
     if let Some(e) = io_error {
         return Err(e);
     }
@@ -396,7 +464,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
         Ok(run) => run,
         Err(e) => {
             // Divergence or linear-solver failure: keep the steps done, name the failure.
-            write_summary(&rows, "failed", Some(e.to_string()), false)?;
+            report.write(&rows, &Ending { status: "failed", message: Some(e.to_string()), converged: false }, wall)?;
             return Err(format!("{e} (results of the {} steps before it in {})", rows.len(), args.out.display()));
         }
     };
@@ -411,21 +479,8 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
         (Some(t), false) => ("stopped", Some(format!("stopped at t = {t:.4} s"))),
         (None, _) => ("completed", None),
     };
-    write_summary(&rows, status, message.clone(), run.summary.converged)?;
-    let summary = summary_json(&case, &settings, &flow, &rows, status, message.clone(), run.summary.converged, wall);
-    println!(
-        "{} {} steps ({} this run): dp {:.3} mmHg (faces {} - {}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
-        status,
-        rows.len(),
-        rows.len() - first_row.min(rows.len()),
-        summary["dp_peak_mmhg"].as_f64().unwrap_or(f64::NAN),
-        dp_faces(&case).0,
-        dp_faces(&case).1,
-        summary["max_velocity_m_s"].as_f64().unwrap_or(f64::NAN),
-        summary["q_peak_ml_s"].as_f64().unwrap_or(f64::NAN),
-        wall,
-        args.out.display()
-    );
+    let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, wall)?;
+    report.print(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall);
     if steady && !run.summary.converged {
         eprintln!("baffle: warning: the steady solve did not reach its residual target");
     }

@@ -370,7 +370,13 @@ if [ -z "$SVMP" ]; then
   echo "run.sh: neither svmultiphysics nor svMultiPhysics is on PATH; set SVMP=/path/to/it" >&2
   exit 127
 fi
-exec mpiexec -n "${{NP:-{processes}}}" "$SVMP" {SOLVER_FILE}
+# Open MPI refuses to run as root (e.g. in a container) without --allow-run-as-root,
+# which MPICH does not know.
+ROOT_OPTION=
+if [ "$(id -u)" = 0 ] && mpiexec --version 2>/dev/null | grep -q -e 'Open MPI' -e OpenRTE; then
+  ROOT_OPTION=--allow-run-as-root
+fi
+exec mpiexec $ROOT_OPTION -n "${{NP:-{processes}}}" "$SVMP" {SOLVER_FILE}
 "#
     );
     write_text(&path, &script)?;

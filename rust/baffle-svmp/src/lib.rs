@@ -21,4 +21,4 @@ pub use export::{export_case, CaseManifest, ExportOptions, ExportedCase, FaceRol
 pub use fourier::FourierSeries;
 pub use mesh_export::MeshFiles;
 pub use results::{read_results, FaceSample, PeakFields, StepSample, SvmpSummary};
-pub use run::{find_engine, find_engine_in, run_case, Engine, RunReport, StepTracker};
+pub use run::{find_engine, find_engine_in, mpiexec_args, run_case, Engine, MpiFlavor, RunReport, StepTracker};

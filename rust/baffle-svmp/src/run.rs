@@ -1,10 +1,12 @@
 //! Running an exported case with svMultiPhysics out of process: find the executables,
-//! spawn `mpiexec -n N svmultiphysics solver.xml`, report progress from its step log.
+//! spawn `mpiexec [--allow-run-as-root] -n N svmultiphysics solver.xml`, report progress
+//! from its step log.
 
-use std::ffi::OsStr;
+use std::ffi::{OsStr, OsString};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
 
 use crate::export::CaseManifest;
 use crate::format::{parse_step_line, SOLVER_FILE};
@@ -16,6 +18,8 @@ pub const MPIEXEC_NAME: &str = "mpiexec";
 /// svMultiPhysics' stdout is copied to LOG_FILE in the case directory, stderr to ERR_FILE.
 pub const LOG_FILE: &str = "svmultiphysics.log";
 pub const ERR_FILE: &str = "svmultiphysics.err";
+/// How long a cancelled run gets to end after SIGTERM before it is killed.
+pub const STOP_GRACE: Duration = Duration::from_secs(10);
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Engine {
@@ -44,7 +48,7 @@ pub fn find_engine_in(path_var: &OsStr) -> Result<Engine, SvmpError> {
     match (svmp, mpiexec) {
         (Some(svmultiphysics), Some(mpiexec)) => Ok(Engine { svmultiphysics, mpiexec }),
         _ => Err(SvmpError::NotInstalled(format!(
-            "{} (searched: {}); the exported case is complete: run its run.sh where svMultiPhysics is installed",
+            "{} (searched: {})",
             missing.join(" and "),
             dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(":")
         ))),
@@ -66,6 +70,64 @@ fn is_executable(path: &Path) -> bool {
     path.is_file()
 }
 
+/// Which MPI implementation an `mpiexec` belongs to; only Open MPI needs telling that it
+/// may run as root.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MpiFlavor {
+    OpenMpi,
+    /// MPICH (Hydra), Intel MPI, or a launcher whose `--version` said nothing we know.
+    Other,
+}
+
+impl MpiFlavor {
+    /// From `mpiexec --version`: Open MPI 4 prints "mpiexec (OpenRTE) 4.1.4", Open MPI 5
+    /// "mpiexec (Open MPI) 5.0.3", both with a help URL on open-mpi.org. MPICH prints
+    /// "HYDRA build details:".
+    pub fn from_version_output(text: &str) -> Self {
+        let open_mpi = ["Open MPI", "OpenRTE", "open-mpi.org"].iter().any(|mark| text.contains(mark));
+        if open_mpi {
+            MpiFlavor::OpenMpi
+        } else {
+            MpiFlavor::Other
+        }
+    }
+
+    /// Runs `mpiexec --version`; a launcher that cannot say is treated as not Open MPI.
+    pub fn detect(mpiexec: &Path) -> Self {
+        let output = Command::new(mpiexec).arg("--version").stdin(Stdio::null()).output();
+        match output {
+            Ok(out) => {
+                let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+                MpiFlavor::from_version_output(&text)
+            }
+            Err(_) => MpiFlavor::Other,
+        }
+    }
+}
+
+/// The arguments of `mpiexec` for a run. Open MPI refuses to start as root unless told
+/// `--allow-run-as-root` (containers often run as root); MPICH does not know the option
+/// and would fail on it, so it is only added for Open MPI with effective uid 0.
+pub fn mpiexec_args(flavor: MpiFlavor, effective_uid: u32, processes: usize, svmultiphysics: &Path) -> Vec<OsString> {
+    let mut args: Vec<OsString> = Vec::new();
+    if flavor == MpiFlavor::OpenMpi && effective_uid == 0 {
+        args.push("--allow-run-as-root".into());
+    }
+    args.extend(["-n".into(), processes.to_string().into(), svmultiphysics.as_os_str().to_owned(), SOLVER_FILE.into()]);
+    args
+}
+
+#[cfg(unix)]
+fn effective_uid() -> u32 {
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    unsafe { libc::geteuid() }
+}
+
+#[cfg(not(unix))]
+fn effective_uid() -> u32 {
+    u32::MAX
+}
+
 /// How a finished run went.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunReport {
@@ -82,15 +144,14 @@ pub fn run_case(
     progress: &mut dyn FnMut(f64, &str) -> bool,
 ) -> Result<RunReport, SvmpError> {
     let manifest = CaseManifest::read(case_dir)?;
+    clear_results(&case_dir.join(&manifest.results_dir))?;
     let log_path = case_dir.join(LOG_FILE);
     let err_path = case_dir.join(ERR_FILE);
     let mut log = std::fs::File::create(&log_path).map_err(|e| SvmpError::io(&log_path, e))?;
     let err = std::fs::File::create(&err_path).map_err(|e| SvmpError::io(&err_path, e))?;
+    let flavor = MpiFlavor::detect(&engine.mpiexec);
     let mut child = Command::new(&engine.mpiexec)
-        .arg("-n")
-        .arg(manifest.mpi_processes.to_string())
-        .arg(&engine.svmultiphysics)
-        .arg(SOLVER_FILE)
+        .args(mpiexec_args(flavor, effective_uid(), manifest.mpi_processes, &engine.svmultiphysics))
         .current_dir(case_dir)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -104,8 +165,7 @@ pub fn run_case(
         writeln!(log, "{line}").map_err(|e| SvmpError::io(&log_path, e))?;
         if let Some((fraction, message)) = tracker.update(&line) {
             if !progress(fraction, &message) {
-                let _ = child.kill();
-                let _ = child.wait();
+                stop(&mut child);
                 return Err(SvmpError::Cancelled { step: tracker.last_step });
             }
         }
@@ -118,6 +178,34 @@ pub fn run_case(
         });
     }
     Ok(RunReport { last_step: tracker.last_step, elapsed_s: tracker.elapsed_s, log_file: log_path })
+}
+
+/// A run starts with no results folder, so a run that fails early cannot leave an earlier
+/// run's outputs to be read back as its own.
+fn clear_results(results: &Path) -> Result<(), SvmpError> {
+    match std::fs::remove_dir_all(results) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(SvmpError::io(results, format!("cannot clear: {e}"))),
+        _ => Ok(()),
+    }
+}
+
+/// End a cancelled run: SIGTERM first, which mpiexec forwards to the ranks (killing the
+/// launcher alone could leave them running), then SIGKILL after [`STOP_GRACE`].
+fn stop(child: &mut Child) {
+    #[cfg(unix)]
+    if let Ok(pid) = libc::pid_t::try_from(child.id()) {
+        // SAFETY: kill only sends a signal to our own child, which has not been reaped.
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+        let deadline = Instant::now() + STOP_GRACE;
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    let _ = child.kill();
+    let _ = child.wait();
 }
 
 /// Turns step-log lines into progress: one report per new time step.
@@ -155,4 +243,41 @@ fn log_tail(paths: &[&Path], lines: usize) -> String {
         out.extend(all[all.len().saturating_sub(lines)..].iter().map(|l| l.to_string()));
     }
     out.join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OPEN_MPI_4: &str = "mpiexec (OpenRTE) 4.1.4\n\nReport bugs to http://www.open-mpi.org/community/help/\n";
+    const OPEN_MPI_5: &str = "mpiexec (Open MPI) 5.0.3\n\nReport bugs to https://www.open-mpi.org/community/help/\n";
+    const MPICH: &str = "HYDRA build details:\n    Version:                                 4.0.2\n    Release Date:                            Thu Apr  7 12:34:45 CDT 2022\n";
+
+    fn strings(args: &[OsString]) -> Vec<String> {
+        args.iter().map(|a| a.to_string_lossy().into_owned()).collect()
+    }
+
+    #[test]
+    fn open_mpi_is_told_it_may_run_as_root_and_only_it() {
+        let svmp = Path::new("/opt/svmp/bin/svmultiphysics");
+        let plain = ["-n", "4", "/opt/svmp/bin/svmultiphysics", "solver.xml"];
+        for text in [OPEN_MPI_4, OPEN_MPI_5] {
+            let flavor = MpiFlavor::from_version_output(text);
+            assert_eq!(flavor, MpiFlavor::OpenMpi, "{text}");
+            let root = strings(&mpiexec_args(flavor, 0, 4, svmp));
+            assert_eq!(root[0], "--allow-run-as-root");
+            assert_eq!(root[1..], plain);
+            assert_eq!(strings(&mpiexec_args(flavor, 1000, 4, svmp)), plain);
+        }
+        for text in [MPICH, "", "mpiexec: unknown option --version"] {
+            let flavor = MpiFlavor::from_version_output(text);
+            assert_eq!(flavor, MpiFlavor::Other, "{text}");
+            assert_eq!(strings(&mpiexec_args(flavor, 0, 4, svmp)), plain, "MPICH has no --allow-run-as-root");
+        }
+    }
+
+    #[test]
+    fn a_launcher_that_cannot_be_asked_is_not_open_mpi() {
+        assert_eq!(MpiFlavor::detect(Path::new("/nonexistent/mpiexec")), MpiFlavor::Other);
+    }
 }

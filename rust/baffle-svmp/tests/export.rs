@@ -296,7 +296,7 @@ fn run_script_and_readme_say_how_to_run_it() {
     options.mpi_processes = 16;
     export_case(&dir, &box_mesh(), &settings(), &options).unwrap();
     let script = std::fs::read_to_string(dir.join("run.sh")).unwrap();
-    assert!(script.starts_with("#!/bin/sh") && script.contains(r#"mpiexec -n "${NP:-16}" "$SVMP" solver.xml"#), "{script}");
+    assert!(script.starts_with("#!/bin/sh") && script.contains(r#"mpiexec $ROOT_OPTION -n "${NP:-16}" "$SVMP" solver.xml"#), "{script}");
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
@@ -304,6 +304,29 @@ fn run_script_and_readme_say_how_to_run_it() {
     }
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
     assert!(readme.contains("sbatch --ntasks=16"), "{readme}");
+}
+
+/// run.sh run for real with the stand-in engine on PATH: NP, and Open MPI's root option
+/// exactly when root (MPICH never gets it).
+#[cfg(unix)]
+#[test]
+fn run_script_runs_the_case_with_the_processes_and_root_option() {
+    let root = unsafe { libc::geteuid() } == 0;
+    for (version, open_mpi) in [(OPEN_MPI_VERSION, true), (MPICH_VERSION, false)] {
+        let dir = scratch(if open_mpi { "script-run-ompi" } else { "script-run-mpich" });
+        let mut settings = settings();
+        settings.cycles = 1;
+        settings.dt_s = 0.01;
+        export_case(&dir, &box_mesh(), &settings, &options()).unwrap();
+        let bin = standin_bin(if open_mpi { "script-bin-ompi" } else { "script-bin-mpich" }, &StandIn { mpi_version: version, ..StandIn::default() });
+        let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
+        let out = std::process::Command::new(dir.join("run.sh")).env("PATH", path).env("NP", "7").output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(String::from_utf8_lossy(&out.stdout).contains(" NS 68-2"));
+        let args = std::fs::read_to_string(dir.join("mpiexec.args")).unwrap();
+        let option = if root && open_mpi { "--allow-run-as-root " } else { "" };
+        assert_eq!(args, format!("{option}-n 7 {} solver.xml\n", bin.join("svMultiPhysics").display()));
+    }
 }
 
 #[test]

@@ -3,7 +3,6 @@
 
 mod common;
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use baffle_svmp::{export_case, read_results};
@@ -33,28 +32,12 @@ fn recorded_values(q_ml_s: f64, t: f64) -> ([f64; 6], [f64; 6]) {
     (pressure, flux)
 }
 
-/// `B_NS_*` files in the current layout (txt.cpp): comments, face areas, "step time
-/// names" header, rows "step time values" in `%d %.10e` / `%.10e`.
+/// The recorded `B_NS_*` files of `steps` steps, columns in [`COLUMNS`] order.
 fn write_current_layout(results: &Path, settings: &baffle_cfd::CaseSettings, steps: usize) {
-    for (file, which) in [("B_NS_Pressure_average.txt", 0), ("B_NS_Velocity_flux.txt", 1)] {
-        let mut text = String::from(
-            "# svMultiPhysics boundary integral results file. \n# Format \n# ------ \n\
-             # face areas: [list of mesh face areas]  \n# step time [list of mesh face names] \n",
-        );
-        text.push_str("face areas:  2.500e-01  2.500e-01  7.500e-01  2.500e-01  2.500e-01  7.500e-01 \n");
-        text.push_str("step   time  ");
-        COLUMNS.iter().for_each(|c| text.push_str(&format!(" {c} ")));
-        text.push('\n');
-        for step in 1..=steps {
-            let t = step as f64 * settings.dt_s;
-            let (p, q) = recorded_values(settings.inflow.flow_ml_s(t), t);
-            let values = if which == 0 { p } else { q };
-            let _ = write!(text, " {step}   {t:.10e} ");
-            values.iter().for_each(|v| text.push_str(&format!(" {v:.10e} ")));
-            text.push('\n');
-        }
-        std::fs::write(results.join(file), text).unwrap();
-    }
+    write_boundary_files(results, &COLUMNS, settings.dt_s, steps, |t| {
+        let (p, q) = recorded_values(settings.inflow.flow_ml_s(t), t);
+        (p.to_vec(), q.to_vec())
+    });
 }
 
 #[test]

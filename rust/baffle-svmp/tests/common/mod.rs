@@ -1,8 +1,11 @@
-//! A hand-made box of tets (no gmsh) and the paper-default case on it.
+//! A hand-made box of tets (no gmsh), the paper-default case on it, and a stand-in
+//! svMultiPhysics with recorded outputs. Also compiled into baffle-cli's tests (through
+//! `#[path]`), so paths to this crate's test data go through [`test_data`].
 #![allow(dead_code)]
 
 use std::collections::{BTreeMap, HashMap};
-use std::path::PathBuf;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 use baffle_cfd::{CaseSettings, Outlet, Waveform};
 use baffle_core::Vec3;
@@ -117,4 +120,98 @@ pub fn scratch(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+/// `rust/baffle-svmp/tests/data`, from this crate's tests or a sibling crate's.
+pub fn test_data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../baffle-svmp/tests/data")
+}
+
+/// `mpiexec --version` of Open MPI 4 (Debian 12's) and of MPICH.
+pub const OPEN_MPI_VERSION: &str = "mpiexec (OpenRTE) 4.1.4";
+pub const MPICH_VERSION: &str = "HYDRA build details:";
+
+/// How the stand-in engine of `tests/data/standin` behaves.
+pub struct StandIn<'a> {
+    /// Time steps in its log (default: all of solver.xml's).
+    pub steps: Option<usize>,
+    pub exit_code: i32,
+    /// A directory of recorded svMultiPhysics outputs it copies into the results folder.
+    pub recorded: Option<&'a Path>,
+    /// What its mpiexec answers to `--version`.
+    pub mpi_version: &'a str,
+}
+
+impl Default for StandIn<'_> {
+    fn default() -> Self {
+        StandIn { steps: None, exit_code: 0, recorded: None, mpi_version: OPEN_MPI_VERSION }
+    }
+}
+
+/// A bin directory with `mpiexec` and `svMultiPhysics`: wrappers that set the stand-in's
+/// parameters and run `tests/data/standin/{mpiexec,svmultiphysics}`.
+pub fn standin_bin(name: &str, standin: &StandIn) -> PathBuf {
+    let bin = scratch(name).join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let scripts = test_data().join("standin");
+    let mpiexec = format!("STANDIN_MPI_VERSION='{}'", standin.mpi_version);
+    write_wrapper(&bin.join("mpiexec"), &mpiexec, &scripts.join("mpiexec"));
+    let mut svmp = format!("STANDIN_EXIT={}", standin.exit_code);
+    if let Some(steps) = standin.steps {
+        let _ = write!(svmp, " STANDIN_STEPS={steps}");
+    }
+    if let Some(dir) = standin.recorded {
+        let _ = write!(svmp, " STANDIN_RECORDED='{}'", dir.display());
+    }
+    write_wrapper(&bin.join("svMultiPhysics"), &svmp, &scripts.join("svmultiphysics"));
+    bin
+}
+
+fn write_wrapper(path: &Path, env: &str, script: &Path) {
+    std::fs::write(path, format!("#!/bin/sh\nexport {env}\nexec '{}' \"$@\"\n", script.display())).unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+}
+
+/// Recorded `B_NS_Pressure_average.txt` and `B_NS_Velocity_flux.txt` in svMultiPhysics'
+/// current layout (txt.cpp): '#' comments, "face areas:", a "step time names" header, then
+/// rows "step time values" in `%d %.10e` / `%.10e`, for steps 1..=steps at t = step dt.
+/// `values(t)` gives (pressure dyn/cm^2, outward flux mL/s) per column.
+pub fn write_boundary_files(
+    dir: &Path,
+    columns: &[&str],
+    dt_s: f64,
+    steps: usize,
+    values: impl Fn(f64) -> (Vec<f64>, Vec<f64>),
+) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (file, which) in [("B_NS_Pressure_average.txt", 0), ("B_NS_Velocity_flux.txt", 1)] {
+        let mut text = String::from(
+            "# svMultiPhysics boundary integral results file. \n# Format \n# ------ \n\
+             # face areas: [list of mesh face areas]  \n# step time [list of mesh face names] \n",
+        );
+        text.push_str("face areas: ");
+        columns.iter().for_each(|_| text.push_str(" 2.500e-01 "));
+        text.push_str("\nstep   time  ");
+        columns.iter().for_each(|c| text.push_str(&format!(" {c} ")));
+        text.push('\n');
+        for step in 1..=steps {
+            let t = step as f64 * dt_s;
+            let (p, q) = values(t);
+            let row = if which == 0 { p } else { q };
+            assert_eq!(row.len(), columns.len());
+            let _ = write!(text, " {step}   {t:.10e} ");
+            row.iter().for_each(|v| text.push_str(&format!(" {v:.10e} ")));
+            text.push('\n');
+        }
+        std::fs::write(dir.join(file), text).unwrap();
+    }
+}
+
+/// The value a recorded `%.10e` field reads back as.
+pub fn as_recorded(v: f64) -> f64 {
+    format!("{v:.10e}").parse().unwrap()
 }

@@ -1,0 +1,132 @@
+//! `baffle simulate --engine svmultiphysics`: the case exported as `baffle export-svmp`
+//! writes it (into OUT/svmultiphysics/), run there by svMultiPhysics out of process, and
+//! its outputs (`B_NS_*.txt`, the peak `result_*.vtu`) read back into the same rows, and
+//! so the same timeseries.csv and summary.json, as the embedded engine's.
+
+use crate::export_cmd::export_to;
+use crate::simulate_cmd::{stop_on_signals, Ending, Output, Progress, Report, Row, SimulateArgs};
+use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+use baffle_cfd::{FlowMesh, RunMode};
+use baffle_svmp::{find_engine, read_results, run_case, PeakFields, SvmpError, SvmpSummary};
+use std::path::Path;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+/// Where the svMultiPhysics case goes, under the output directory.
+pub const CASE_DIR: &str = "svmultiphysics";
+
+pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: Instant) -> Result<(), String> {
+    refuse_embedded_only_options(args)?;
+    let case_dir = args.out.join(CASE_DIR);
+    let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    export_to(&case_dir, report.case, output.mesh, report.settings, processes)?;
+    let engine = find_engine().map_err(|e| {
+        format!("{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed", case_dir.display())
+    })?;
+    let stop = stop_on_signals()?;
+    let progress = Progress::new(start);
+    let run = run_case(&engine, &case_dir, &mut |fraction, message| {
+        progress.report(fraction, message);
+        !stop.load(Ordering::SeqCst)
+    });
+    progress.finish();
+    let mut ending = ending_of(&run, stop.load(Ordering::SeqCst), &case_dir)?;
+    let rows = match read_results(&case_dir) {
+        Ok(summary) => rows_of(&summary, report, output)?,
+        Err(e) => {
+            // Nothing to read back (a run stopped or failed early): say both, keep the case.
+            // A completed run without readable results has failed.
+            let before = ending.message.take().map_or(String::new(), |m| format!("{m}; "));
+            let status = if ending.status == "completed" { "failed" } else { ending.status };
+            ending = Ending { status, message: Some(format!("{before}no results read back: {e}")), converged: false };
+            Vec::new()
+        }
+    };
+    let wall = start.elapsed().as_secs_f64();
+    let summary = report.write(&rows, &ending, wall)?;
+    report.print(&summary, rows.len(), rows.len(), wall);
+    match ending.status {
+        "completed" => Ok(()),
+        _ => Err(ending.message.unwrap_or_default()),
+    }
+}
+
+/// Options that steer the embedded solver's own loop; svMultiPhysics takes its run from
+/// solver.xml and always starts over.
+fn refuse_embedded_only_options(args: &SimulateArgs) -> Result<(), String> {
+    let given = [("--resume", args.resume), ("--steps", args.steps.is_some()), ("--vtu-every", args.vtu_every.is_some())];
+    match given.iter().find(|(_, set)| *set) {
+        Some((option, _)) => Err(format!(
+            "{option} applies to the embedded engine only; svMultiPhysics runs time.cycles cycles from the start"
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The summary's status from how the run went: a signal (ours, or Ctrl-C reaching
+/// mpiexec too) is a stop, a solver failure is a failure; other errors end the command.
+fn ending_of<T>(run: &Result<T, SvmpError>, signalled: bool, case_dir: &Path) -> Result<Ending, String> {
+    let stopped = |at: String| Ending {
+        status: "stopped",
+        message: Some(format!("stopped by signal {at}; the svMultiPhysics case is in {}", case_dir.display())),
+        converged: false,
+    };
+    match run {
+        Ok(_) => Ok(Ending { status: "completed", message: None, converged: true }),
+        Err(SvmpError::Cancelled { step }) => Ok(stopped(format!("at svMultiPhysics step {step}"))),
+        Err(SvmpError::RunFailed { .. }) if signalled => Ok(stopped("while svMultiPhysics ran".into())),
+        Err(e @ SvmpError::RunFailed { .. }) => Ok(Ending { status: "failed", message: Some(e.to_string()), converged: false }),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// The read-back steps as time-series rows, named as the embedded engine names the faces;
+/// the peak fields also become peak.vtu and that step's maximum velocity.
+fn rows_of(summary: &SvmpSummary, report: &Report, output: &Output) -> Result<Vec<Row>, String> {
+    for warning in &summary.warnings {
+        eprintln!("baffle: warning: {warning}");
+    }
+    let settings = report.settings;
+    let prescribed = |time_s: f64| match settings.mode {
+        RunMode::Steady => report.flow.q_peak_ml_s,
+        RunMode::Transient => settings.inflow.flow_ml_s(time_s),
+    };
+    let peak_velocity_m_s = match &summary.peak_fields {
+        Some(fields) => Some((fields.step, write_peak_fields(fields, output)?)),
+        None => None,
+    };
+    let mut rows = Vec::with_capacity(summary.steps.len());
+    for step in &summary.steps {
+        let face_names = step.faces.iter().map(|f| face_name(output.mesh, f.id)).collect::<Result<_, _>>()?;
+        rows.push(Row {
+            step: step.step,
+            time_s: step.time_s,
+            prescribed_inflow_ml_s: prescribed(step.time_s),
+            inflow_ml_s: step.inflow_ml_s,
+            outflow_ml_s: step.outflow_ml_s,
+            max_velocity_m_s: peak_velocity_m_s.filter(|(s, _)| *s == step.step).map_or(f64::NAN, |(_, v)| v),
+            residual: f64::NAN,
+            face_ids: step.faces.iter().map(|f| f.id).collect(),
+            face_names,
+            face_pressure_mmhg: step.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),
+        });
+    }
+    Ok(rows)
+}
+
+fn face_name(mesh: &FlowMesh, id: i32) -> Result<String, String> {
+    let face = mesh.faces.iter().find(|f| f.id == id);
+    face.map(|f| f.name.clone()).ok_or_else(|| format!("svMultiPhysics reported face {id}, which the mesh does not have"))
+}
+
+/// Write the peak fields as peak.vtu (as the embedded engine does); returns their
+/// largest speed (m/s).
+fn write_peak_fields(fields: &PeakFields, output: &Output) -> Result<f64, String> {
+    let n = output.mesh.points_cm.len();
+    if fields.velocity_cm_s.len() != n {
+        return Err(format!("{}: {} nodes, the case's mesh has {n}", fields.file.display(), fields.velocity_cm_s.len()));
+    }
+    output.vtu("peak.vtu", &fields.velocity_cm_s, &fields.pressure_dyn_cm2)?;
+    let speed = |v: &[f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    Ok(fields.velocity_cm_s.iter().map(speed).fold(0.0, f64::max) / 100.0)
+}
