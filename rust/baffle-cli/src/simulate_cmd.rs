@@ -338,16 +338,7 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
     let mean = |f: &dyn Fn(&Row) -> f64| if cycle.is_empty() { f64::NAN } else { cycle.iter().map(|r| f(r)).sum::<f64>() / cycle.len() as f64 };
     let inflow_sum: f64 = cycle.iter().map(|r| r.inflow_ml_s).sum();
     let outflow_sum: f64 = cycle.iter().map(|r| r.outflow_ml_s).sum();
-    // Cycle N-1 vs N of the inlet-outlet pressure difference: RMS difference over the range.
-    let periodicity = (!steady && period_steps > 0 && last_step >= 2 * period_steps).then(|| {
-        let end = last_step - last_step % period_steps;
-        let dp = |step: usize| rows.iter().find(|r| r.step == step).map(|r| r.pressure(case.faces.inlet) - r.pressure(outlet));
-        let last: Vec<f64> = (end - period_steps + 1..=end).filter_map(dp).collect();
-        let previous: Vec<f64> = (end - 2 * period_steps + 1..=end - period_steps).filter_map(dp).collect();
-        let range = last.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - last.iter().cloned().fold(f64::INFINITY, f64::min);
-        let rms = (last.iter().zip(&previous).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / last.len().max(1) as f64).sqrt();
-        if range > 0.0 { rms / range } else { rms }
-    });
+    let periodicity = if steady { None } else { periodicity_nrmsd(rows, period_steps, case.faces.inlet, outlet) };
     let f = |v: f64| if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null };
     let engine = match report.engine {
         Engine::Embedded => "embedded",
@@ -386,6 +377,18 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
             "viscosity_g_cm_s": settings.viscosity_g_cm_s,
         },
     })
+}
+
+/// Cycle N-1 vs N of the inlet-outlet pressure difference ([`baffle_cfd::periodicity_nrmsd`]).
+/// Rows are placed by step number (step k at index k-1), so the cycles are those of the
+/// run's time axis whatever rows a resume carried over; None when a step of the last two
+/// complete cycles is missing.
+fn periodicity_nrmsd(rows: &[Row], period_steps: usize, inlet: i32, outlet: i32) -> Option<f64> {
+    let mut dp = vec![f64::NAN; rows.iter().map(|r| r.step).max().unwrap_or(0)];
+    for r in rows.iter().filter(|r| r.step >= 1) {
+        dp[r.step - 1] = r.pressure(inlet) - r.pressure(outlet);
+    }
+    baffle_cfd::periodicity_nrmsd(&dp, period_steps).filter(|v| v.is_finite())
 }
 
 /// Slicer's progress tags on stdout, and a bar on stderr when it is a terminal.

@@ -1,7 +1,8 @@
 //! `baffle simulate` end to end on the phantom: design -> `baffle mesh` (gmsh) ->
 //! steady and short transient runs, SIGTERM with results so far and --resume (transient
-//! and steady), and a
-//! case naming a missing mesh. Set BAFFLE_SKIP_GMSH=1 to skip the gmsh-dependent parts.
+//! and steady), and a case naming a missing mesh. Set BAFFLE_SKIP_GMSH=1 to skip the
+//! gmsh-dependent parts. On straight tubes the tests write themselves (no gmsh):
+//! measurement planes against Hagen-Poiseuille, and periodicity over a resume.
 
 mod support;
 
@@ -255,4 +256,88 @@ fn the_same_case_exports_for_svmultiphysics() {
     assert!(xml.contains("<Time_step_size> 0.001 </Time_step_size>"), "{xml}");
     assert!(std::fs::read_to_string(dir.join("run.sh")).unwrap().contains("${NP:-2}"));
     std::fs::remove_dir_all(dir).ok();
+}
+
+/// A straight tube (radius 0.25 cm, length 3 cm; inlet 1, outlet 2, planes 100 + layer)
+/// written as `baffle mesh` writes meshes, and a case on it with the given `faces.planes`
+/// and `inflow` / `time` sections; returns the case file. No gmsh: seconds per run.
+fn tube_case(name: &str, rings: usize, layers: usize, planes: &[usize], inflow: &str, time: &str) -> PathBuf {
+    let dir = temp_dir(name);
+    support::write_flow_mesh(&dir, &baffle_cfd::test_meshes::tube(TUBE_RADIUS_CM, TUBE_LENGTH_CM, rings, layers, planes));
+    let ids: Vec<i32> = planes.iter().map(|&l| baffle_cfd::test_meshes::PLANE + l as i32).collect();
+    let text = format!(
+        r#"{{
+          "mesh": {{ "volume": "mesh.vtu", "units": "mm" }},
+          "faces": {{ "inlet": 1, "outlets": [2], "planes": {ids:?} }},
+          "inflow": {inflow},
+          "outlet": {{ "resistance_dyn_s_cm5": 4000 }},
+          "time": {time}
+        }}"#
+    );
+    let case = dir.join("case.json");
+    std::fs::write(&case, text).unwrap();
+    case
+}
+
+const TUBE_RADIUS_CM: f64 = 0.25;
+const TUBE_LENGTH_CM: f64 = 3.0;
+
+/// The values of column `name` of timeseries.csv.
+fn column(header: &[String], rows: &[Vec<f64>], name: &str) -> Vec<f64> {
+    let k = header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+    rows.iter().map(|r| r[k]).collect()
+}
+
+#[test]
+fn measurement_planes_give_the_hagen_poiseuille_pressure_drop() {
+    // Fully developed (Poiseuille) inflow at Re ~ 13: dp between planes at z = 1 and
+    // 2.5 cm is 8 mu L Q / (pi r^4), up to the discretization error of this mesh.
+    let (layers, (a, b)) = (18, (6, 15));
+    let case = tube_case("planes", 5, layers, &[a, b], r#"{ "q_mean_ml_s": 0.0613, "profile": "poiseuille" }"#, r#"{ "mode": "steady" }"#);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = summary(&out_dir);
+    let (plane_1, plane_2) = (100 + a as i32, 100 + b as i32);
+    assert_eq!(s["dp_faces"], serde_json::json!([plane_1, plane_2]));
+    let (header, rows) = csv(&out_dir);
+    assert_eq!(rows.len(), 1);
+    let p = |k: usize, id: i32| column(&header, &rows, &format!("p_plane{k}_{id}_mmhg"))[0];
+    let dp_csv = p(1, plane_1) - p(2, plane_2);
+    let dp = s["dp_peak_mmhg"].as_f64().unwrap();
+    assert!((dp - dp_csv).abs() <= 1e-12 * dp_csv.abs(), "summary {dp} vs timeseries {dp_csv}");
+    let q_ml_s = column(&header, &rows, "inflow_ml_s")[0];
+    let length_cm = TUBE_LENGTH_CM * (b - a) as f64 / layers as f64;
+    let exact = 8.0 * 0.04 * length_cm * q_ml_s / (std::f64::consts::PI * TUBE_RADIUS_CM.powi(4)) / baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+    println!("planes {plane_1}-{plane_2}: dp {dp:.6} mmHg, Hagen-Poiseuille {exact:.6} mmHg ({:+.2}%), Q {q_ml_s:.4} mL/s", 100.0 * (dp / exact - 1.0));
+    assert!(dp > 0.0 && (dp - exact).abs() < 0.05 * exact, "dp {dp} vs Hagen-Poiseuille {exact} mmHg");
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+}
+
+#[test]
+fn periodicity_of_a_short_period_run_matches_its_time_series() {
+    // Three 20-step cycles of the ejection waveform compressed to 20 ms, run as 25 steps
+    // and a --resume: the summary's figure is cycle 3 vs 2 of p(inlet) - p(outlet).
+    let period_steps = 20;
+    let case = tube_case("periodic", 3, 12, &[], r#"{ "q_mean_ml_s": 0.5, "period_s": 0.02 }"#, r#"{ "dt_s": 0.001, "cycles": 3 }"#);
+    let (case, out_dir) = (case.to_str().unwrap(), case.parent().unwrap().join("out"));
+    let out = out_dir.to_str().unwrap();
+    let first = baffle(&["simulate", case, "--out", out, "--steps", "25"]);
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    assert!(summary(&out_dir)["periodicity_nrmsd"].is_null(), "fewer than two cycles");
+    let rest = baffle(&["simulate", case, "--out", out, "--resume"]);
+    assert!(rest.status.success(), "{}", String::from_utf8_lossy(&rest.stderr));
+    let (header, rows) = csv(&out_dir);
+    let steps = column(&header, &rows, "step");
+    assert_eq!(steps, (1..=3 * period_steps).map(|k| k as f64).collect::<Vec<_>>());
+    let dp: Vec<f64> = column(&header, &rows, "p_inlet_1_mmhg").iter().zip(column(&header, &rows, "p_outlet_2_mmhg")).map(|(i, o)| i - o).collect();
+    // Steps 41-60 against 21-40, normalized by the swing of steps 41-60.
+    let (last, previous) = (&dp[2 * period_steps..], &dp[period_steps..2 * period_steps]);
+    let swing = last.iter().cloned().fold(f64::MIN, f64::max) - last.iter().cloned().fold(f64::MAX, f64::min);
+    let rms = (last.iter().zip(previous).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / period_steps as f64).sqrt();
+    let nrmsd = summary(&out_dir)["periodicity_nrmsd"].as_f64().expect("periodicity after two cycles");
+    println!("periodicity_nrmsd {nrmsd:.3e} (recomputed {:.3e}), swing {swing:.4} mmHg", rms / swing);
+    assert!(nrmsd.is_finite() && nrmsd < 0.05, "{nrmsd}");
+    assert!((nrmsd - rms / swing).abs() < 1e-9 * nrmsd.max(1e-12), "summary {nrmsd} vs timeseries {}", rms / swing);
+    std::fs::remove_dir_all(out_dir.parent().unwrap()).ok();
 }
