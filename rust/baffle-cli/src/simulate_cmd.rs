@@ -23,9 +23,16 @@ pub struct SimulateArgs {
     pub(crate) case: PathBuf,
     /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json
     /// (with --engine svmultiphysics: summary.json, timeseries.csv, peak.vtu, svmultiphysics/).
+    /// The .vtu files are in the solver's CGS units: points in cm, point arrays velocity
+    /// (cm/s) and pressure (dyn/cm^2; 1 mmHg = 1333.22 dyn/cm^2). summary.json and
+    /// timeseries.csv give pressures in mmHg, velocities in m/s, flows in mL/s.
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Steady run with the inflow fixed at Q_peak (overrides time.mode).
+    /// Steady run with the inflow held at Q_peak (overrides time.mode), a quick estimate
+    /// of the peak dp. summary.json: q_held_ml_s is the held flow, q_mean_ml_s the case's
+    /// mean flow; outlet_mean_pressure_mmhg is R x Q_peak, far above MAP because R = MAP /
+    /// Q_mean. dp is unaffected: with rigid walls the outlet pressure only offsets the
+    /// pressure field uniformly.
     #[arg(long)]
     steady: bool,
     /// Stop after this time step (overrides time.steps).
@@ -358,7 +365,10 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
         "dp_peak_mmhg": peak.map(|r| f(r.pressure(a) - r.pressure(b))),
         "max_velocity_m_s": peak.map(|r| f(r.max_velocity_m_s)),
         "max_velocity_run_m_s": f(rows.iter().map(|r| r.max_velocity_m_s).fold(f64::NAN, f64::max)),
-        "q_mean_ml_s": f(mean(&|r| r.inflow_ml_s)),
+        // Steady: the flow is held at Q_peak; that measured flow is q_held_ml_s, and
+        // q_mean_ml_s stays the case's mean flow (over a cycle it would be Q_peak).
+        "q_mean_ml_s": f(if steady { flow.q_mean_ml_s } else { mean(&|r| r.inflow_ml_s) }),
+        "q_held_ml_s": steady.then(|| f(mean(&|r| r.inflow_ml_s))),
         "q_peak_ml_s": peak.map(|r| f(r.inflow_ml_s)),
         "outlet_mean_pressure_mmhg": f(mean(&|r| r.pressure(outlet))),
         "mass_imbalance": f((inflow_sum - outflow_sum).abs() / inflow_sum.abs()),

@@ -102,6 +102,16 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     assert!((q_peak - 3.26 * 0.37 * 3.48 * 1000.0 / 60.0).abs() < 0.01 * q_peak, "{q_peak}");
     assert!(s["mass_imbalance"].as_f64().unwrap() < 1e-3);
     assert!(s["max_velocity_m_s"].as_f64().unwrap() > 0.1);
+    // The held flow is reported as such; q_mean_ml_s stays the case's mean flow, and the
+    // outlet pressure is R (from the mean flow) times the held flow.
+    let number = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert_eq!(number(&s["q_mean_ml_s"]), number(&s["inputs"]["q_mean_ml_s"]));
+    assert!((number(&s["q_mean_ml_s"]) - 0.37 * 3.48 * 1000.0 / 60.0).abs() < 0.01, "{s}");
+    let q_held = number(&s["q_held_ml_s"]);
+    assert!((q_held - q_peak).abs() < 1e-3 * q_peak, "held {q_held} vs peak {q_peak}");
+    let r_q_mmhg = number(&s["inputs"]["resistance_dyn_s_cm5"]) * q_held / baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+    let outlet = number(&s["outlet_mean_pressure_mmhg"]);
+    assert!((outlet - r_q_mmhg).abs() < 0.01 * r_q_mmhg && outlet > 2.0 * number(&s["inputs"]["map_mmhg"]), "outlet {outlet} vs R Q {r_q_mmhg}");
     let (header, rows) = csv(&out_dir);
     assert_eq!(rows.len(), 1);
     assert!(header.contains(&"p_inlet_11_mmhg".to_string()) && header.contains(&"p_outlet_16_mmhg".to_string()), "{header:?}");
@@ -184,6 +194,7 @@ fn short_transient_writes_the_time_series() {
     let s = summary(&out_dir);
     assert_eq!(s["steps_done"], 5);
     assert!(s["periodicity_nrmsd"].is_null(), "fewer than two cycles: no periodicity");
+    assert!(s["q_held_ml_s"].is_null(), "a transient run holds no flow");
     assert!(out_dir.join("checkpoint.json").is_file());
     std::fs::remove_dir_all(out_dir).ok();
 }
@@ -236,7 +247,9 @@ fn missing_mesh_is_named() {
     let out = baffle(&["simulate", dir.join("nope.json").to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("nope.json"));
     let help = baffle(&["simulate", "--help"]);
-    assert!(String::from_utf8_lossy(&help.stdout).contains(r#""faces": { "inlet": 11"#));
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains(r#""faces": { "inlet": 11"#));
+    assert!(help.contains("points in cm") && help.contains("(cm/s)") && help.contains("dyn/cm^2"), "units of the .vtu files: {help}");
     std::fs::remove_dir_all(dir).ok();
 }
 
