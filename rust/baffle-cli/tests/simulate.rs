@@ -217,6 +217,10 @@ fn sigterm_keeps_the_steps_done_and_resume_continues() {
     let (_, rows) = csv(&out_dir);
     assert_eq!(rows.len(), done);
     assert!(out_dir.join("checkpoint.json").is_file() && out_dir.join("final.vtu").is_file());
+    // A transient checkpoint does not start a steady solve.
+    let wrong = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--resume", "--steady"]);
+    let stderr = String::from_utf8_lossy(&wrong.stderr);
+    assert!(!wrong.status.success() && stderr.contains("checkpoint is of a transient run"), "{stderr}");
     // Continue for three more steps from the checkpoint.
     let limit = (done + 3).to_string();
     let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--resume", "--steps", &limit]);
@@ -306,6 +310,7 @@ fn measurement_planes_give_the_hagen_poiseuille_pressure_drop() {
     // Fully developed (Poiseuille) inflow at Re ~ 13: dp between planes at z = 1 and
     // 2.5 cm is 8 mu L Q / (pi r^4), up to the discretization error of this mesh.
     let (layers, (a, b)) = (18, (6, 15));
+    // Held at Q_peak = 3.26 x the mean flow: 0.2 mL/s.
     let case = tube_case("planes", 5, layers, &[a, b], r#"{ "q_mean_ml_s": 0.0613, "profile": "poiseuille" }"#, r#"{ "mode": "steady" }"#);
     let out_dir = case.parent().unwrap().join("out");
     let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
