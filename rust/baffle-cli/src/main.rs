@@ -155,6 +155,7 @@ impl From<Frame> for CoordinateSystem {
 }
 
 fn main() -> ExitCode {
+    restore_default_sigpipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Design(args) => run_design(&args),
@@ -169,6 +170,16 @@ fn main() -> ExitCode {
             eprintln!("baffle: error: {message}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Rust starts with SIGPIPE ignored, so printing to a closed pipe (`baffle mesh | head`)
+/// panics; the default action ends the command quietly, as other command-line tools.
+fn restore_default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first in main, before any thread exists; sets a standard disposition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 

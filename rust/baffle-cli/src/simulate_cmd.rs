@@ -7,7 +7,7 @@
 
 use crate::case::{self, FlowInputs};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
-use baffle_cfd::{simulate_from, CaseSettings, FlowMesh, RunMode, SolverState, StepResult};
+use baffle_cfd::{simulate_from, CaseSettings, FlowMesh, RunMode, SolverState, SteadyProgress, StepResult};
 use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
 use std::io::{IsTerminal, Write};
@@ -23,9 +23,16 @@ pub struct SimulateArgs {
     pub(crate) case: PathBuf,
     /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json
     /// (with --engine svmultiphysics: summary.json, timeseries.csv, peak.vtu, svmultiphysics/).
+    /// The .vtu files are in the solver's CGS units: points in cm, point arrays velocity
+    /// (cm/s) and pressure (dyn/cm^2; 1 mmHg = 1333.22 dyn/cm^2). summary.json and
+    /// timeseries.csv give pressures in mmHg, velocities in m/s, flows in mL/s.
     #[arg(long)]
     pub(crate) out: PathBuf,
-    /// Steady run with the inflow fixed at Q_peak (overrides time.mode).
+    /// Steady run with the inflow held at Q_peak (overrides time.mode), a quick estimate
+    /// of the peak dp. summary.json: q_held_ml_s is the held flow, q_mean_ml_s the case's
+    /// mean flow; outlet_mean_pressure_mmhg is R x Q_peak, far above MAP because R = MAP /
+    /// Q_mean. dp is unaffected: with rigid walls the outlet pressure only offsets the
+    /// pressure field uniformly.
     #[arg(long)]
     steady: bool,
     /// Stop after this time step (overrides time.steps).
@@ -40,7 +47,7 @@ pub struct SimulateArgs {
     /// Write fields_<step>.vtu every N steps (overrides output.vtu_every_steps).
     #[arg(long)]
     pub(crate) vtu_every: Option<usize>,
-    /// Continue the transient run from OUT/checkpoint.json.
+    /// Continue the run (transient, or with --steady the steady solve) from OUT/checkpoint.json.
     #[arg(long)]
     pub(crate) resume: bool,
     /// Solver: the embedded one, or svMultiPhysics (exported to OUT/svmultiphysics/ and
@@ -103,10 +110,116 @@ struct Checkpoint {
     time_s: f64,
     velocity_cm_s: Vec<[f64; 3]>,
     pressure_dyn_cm2: Vec<f64>,
+    /// Empty in steady checkpoints: a steady iterate is its own previous state.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     previous_velocity_cm_s: Vec<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     previous_pressure_dyn_cm2: Vec<f64>,
     rows: Vec<Row>,
     wall_time_s: f64,
+    /// Steady solves only; absent from transient checkpoints (and from those written
+    /// before steady solves could resume).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    steady: Option<SteadyCheckpoint>,
+}
+
+/// [`SteadyProgress`] as stored: the residual reference and the last relative residual,
+/// so a resumed solve takes the same pseudo steps and Newton switch.
+#[derive(Clone, Copy, Serialize, Deserialize)]
+struct SteadyCheckpoint {
+    reference_residual: f64,
+    relative_residual: f64,
+}
+
+impl From<SteadyProgress> for SteadyCheckpoint {
+    fn from(p: SteadyProgress) -> Self {
+        SteadyCheckpoint { reference_residual: p.reference_residual, relative_residual: p.relative_residual }
+    }
+}
+
+impl From<SteadyCheckpoint> for SteadyProgress {
+    fn from(p: SteadyCheckpoint) -> Self {
+        SteadyProgress { reference_residual: p.reference_residual, relative_residual: p.relative_residual }
+    }
+}
+
+impl Checkpoint {
+    fn of(state: &SolverState, case: &Path, dt_s: f64, rows: &[Row], wall_time_s: f64) -> Checkpoint {
+        let steady = state.steady.map(SteadyCheckpoint::from);
+        let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match steady {
+            Some(_) => (Vec::new(), Vec::new()),
+            None => (state.previous_velocity_cm_s.clone(), state.previous_pressure_dyn_cm2.clone()),
+        };
+        Checkpoint {
+            case: case.to_path_buf(),
+            dt_s,
+            n_nodes: state.pressure_dyn_cm2.len(),
+            step: state.step,
+            time_s: state.time_s,
+            velocity_cm_s: state.velocity_cm_s.clone(),
+            pressure_dyn_cm2: state.pressure_dyn_cm2.clone(),
+            previous_velocity_cm_s,
+            previous_pressure_dyn_cm2,
+            rows: rows.to_vec(),
+            wall_time_s,
+            steady,
+        }
+    }
+
+    /// Read OUT/checkpoint.json and check it continues this case: same mesh, same mode
+    /// and (transient) the same time step.
+    fn read(path: &Path, n_nodes: usize, settings: &CaseSettings) -> Result<Checkpoint, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e} (nothing to resume)", path.display()))?;
+        let cp: Checkpoint = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        let steady = settings.mode == RunMode::Steady;
+        match (cp.steady.is_some(), steady) {
+            (true, false) => {
+                return Err(format!(
+                    "{}: the checkpoint is of a steady solve (iteration {}); resume it with --steady, or start the transient run over without --resume",
+                    path.display(),
+                    cp.step
+                ))
+            }
+            (false, true) => {
+                return Err(format!(
+                    "{}: the checkpoint is of a transient run (step {}, t = {} s); resume it without --steady, or start the steady solve over without --resume",
+                    path.display(),
+                    cp.step,
+                    cp.time_s
+                ))
+            }
+            _ => {}
+        }
+        let dt_differs = !steady && (cp.dt_s - settings.dt_s).abs() > 1e-12 * settings.dt_s;
+        if cp.n_nodes != n_nodes || dt_differs {
+            return Err(format!(
+                "{}: checkpoint of {} nodes, dt {} s does not match this case ({n_nodes} nodes, dt {} s)",
+                path.display(),
+                cp.n_nodes,
+                cp.dt_s,
+                settings.dt_s
+            ));
+        }
+        Ok(cp)
+    }
+
+    /// The solver state to continue from, the rows so far and the wall time so far.
+    fn into_start(self) -> (SolverState, Vec<Row>, f64) {
+        let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match self.steady {
+            Some(_) => (self.velocity_cm_s.clone(), self.pressure_dyn_cm2.clone()),
+            None => (self.previous_velocity_cm_s, self.previous_pressure_dyn_cm2),
+        };
+        let state = SolverState {
+            step: self.step,
+            time_s: self.time_s,
+            velocity_cm_s: self.velocity_cm_s,
+            pressure_dyn_cm2: self.pressure_dyn_cm2,
+            previous_velocity_cm_s,
+            previous_pressure_dyn_cm2,
+            steady: self.steady.map(SteadyProgress::from),
+        };
+        (state, self.rows, self.wall_time_s)
+    }
 }
 
 /// Write `bytes` to `path` via a temporary name in the same directory, then rename.
@@ -232,16 +345,7 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
     let mean = |f: &dyn Fn(&Row) -> f64| if cycle.is_empty() { f64::NAN } else { cycle.iter().map(|r| f(r)).sum::<f64>() / cycle.len() as f64 };
     let inflow_sum: f64 = cycle.iter().map(|r| r.inflow_ml_s).sum();
     let outflow_sum: f64 = cycle.iter().map(|r| r.outflow_ml_s).sum();
-    // Cycle N-1 vs N of the inlet-outlet pressure difference: RMS difference over the range.
-    let periodicity = (!steady && period_steps > 0 && last_step >= 2 * period_steps).then(|| {
-        let end = last_step - last_step % period_steps;
-        let dp = |step: usize| rows.iter().find(|r| r.step == step).map(|r| r.pressure(case.faces.inlet) - r.pressure(outlet));
-        let last: Vec<f64> = (end - period_steps + 1..=end).filter_map(dp).collect();
-        let previous: Vec<f64> = (end - 2 * period_steps + 1..=end - period_steps).filter_map(dp).collect();
-        let range = last.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - last.iter().cloned().fold(f64::INFINITY, f64::min);
-        let rms = (last.iter().zip(&previous).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / last.len().max(1) as f64).sqrt();
-        if range > 0.0 { rms / range } else { rms }
-    });
+    let periodicity = if steady { None } else { periodicity_nrmsd(rows, period_steps, case.faces.inlet, outlet) };
     let f = |v: f64| if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null };
     let engine = match report.engine {
         Engine::Embedded => "embedded",
@@ -261,7 +365,10 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
         "dp_peak_mmhg": peak.map(|r| f(r.pressure(a) - r.pressure(b))),
         "max_velocity_m_s": peak.map(|r| f(r.max_velocity_m_s)),
         "max_velocity_run_m_s": f(rows.iter().map(|r| r.max_velocity_m_s).fold(f64::NAN, f64::max)),
-        "q_mean_ml_s": f(mean(&|r| r.inflow_ml_s)),
+        // Steady: the flow is held at Q_peak; that measured flow is q_held_ml_s, and
+        // q_mean_ml_s stays the case's mean flow (over a cycle it would be Q_peak).
+        "q_mean_ml_s": f(if steady { flow.q_mean_ml_s } else { mean(&|r| r.inflow_ml_s) }),
+        "q_held_ml_s": steady.then(|| f(mean(&|r| r.inflow_ml_s))),
         "q_peak_ml_s": peak.map(|r| f(r.inflow_ml_s)),
         "outlet_mean_pressure_mmhg": f(mean(&|r| r.pressure(outlet))),
         "mass_imbalance": f((inflow_sum - outflow_sum).abs() / inflow_sum.abs()),
@@ -280,6 +387,18 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
             "viscosity_g_cm_s": settings.viscosity_g_cm_s,
         },
     })
+}
+
+/// Cycle N-1 vs N of the inlet-outlet pressure difference ([`baffle_cfd::periodicity_nrmsd`]).
+/// Rows are placed by step number (step k at index k-1), so the cycles are those of the
+/// run's time axis whatever rows a resume carried over; None when a step of the last two
+/// complete cycles is missing.
+fn periodicity_nrmsd(rows: &[Row], period_steps: usize, inlet: i32, outlet: i32) -> Option<f64> {
+    let mut dp = vec![f64::NAN; rows.iter().map(|r| r.step).max().unwrap_or(0)];
+    for r in rows.iter().filter(|r| r.step >= 1) {
+        dp[r.step - 1] = r.pressure(inlet) - r.pressure(outlet);
+    }
+    baffle_cfd::periodicity_nrmsd(&dp, period_steps).filter(|v| v.is_finite())
 }
 
 /// Slicer's progress tags on stdout, and a bar on stderr when it is a terminal.
@@ -351,9 +470,6 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     }
     let (settings, flow) = case::settings(&case)?;
     let steady = settings.mode == RunMode::Steady;
-    if args.resume && steady {
-        return Err("--resume continues a transient run; steady runs start over".into());
-    }
     let mesh = case::load_mesh(&case)?;
     std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
     let output = Output { dir: &args.out, mesh: &mesh };
@@ -363,29 +479,8 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     }
 
     let (mut rows, start_state, previous_wall) = if args.resume {
-        let path = args.out.join("checkpoint.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e} (nothing to resume)", path.display()))?;
-        let cp: Checkpoint = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-        if cp.n_nodes != mesh.points_cm.len() || (cp.dt_s - settings.dt_s).abs() > 1e-12 * settings.dt_s {
-            return Err(format!(
-                "{}: checkpoint of {} nodes, dt {} s does not match this case ({} nodes, dt {} s)",
-                path.display(),
-                cp.n_nodes,
-                cp.dt_s,
-                mesh.points_cm.len(),
-                settings.dt_s
-            ));
-        }
-        let state = SolverState {
-            step: cp.step,
-            time_s: cp.time_s,
-            velocity_cm_s: cp.velocity_cm_s,
-            pressure_dyn_cm2: cp.pressure_dyn_cm2,
-            previous_velocity_cm_s: cp.previous_velocity_cm_s,
-            previous_pressure_dyn_cm2: cp.previous_pressure_dyn_cm2,
-            steady: None,
-        };
-        (cp.rows, Some(state), cp.wall_time_s)
+        let (state, rows, wall) = Checkpoint::read(&args.out.join("checkpoint.json"), mesh.points_cm.len(), &settings)?.into_start();
+        (rows, Some(state), wall)
     } else {
         (Vec::new(), None, 0.0)
     };
@@ -398,7 +493,6 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     let n_steps = if steady { settings.steady_max_iterations } else { step_limit.unwrap_or((settings.cycles as f64 * period_steps) as usize) };
     let cp_every = case.output.checkpoint_every_steps;
     let vtu_every = case.output.vtu_every_steps;
-    let case_path = args.case.clone();
     let mut io_error: Option<String> = None;
     let mut signalled = false;
     let mut limit_reached = false;
@@ -432,22 +526,12 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
         signalled = stop.load(Ordering::SeqCst);
         limit_reached = step_limit.is_some_and(|n| view.step >= n);
         let stopping = signalled || limit_reached;
-        if !steady && (stopping || (cp_every > 0 && view.step % cp_every == 0)) {
+        // Steady iterations have no rows yet (the solve reports its final iterate only).
+        if stopping || (cp_every > 0 && view.step % cp_every == 0) {
             if let Some(state) = view.state() {
-                let cp = Checkpoint {
-                    case: case_path.clone(),
-                    dt_s: settings.dt_s,
-                    n_nodes: state.pressure_dyn_cm2.len(),
-                    step: state.step,
-                    time_s: state.time_s,
-                    velocity_cm_s: state.velocity_cm_s.clone(),
-                    pressure_dyn_cm2: state.pressure_dyn_cm2.clone(),
-                    previous_velocity_cm_s: state.previous_velocity_cm_s.clone(),
-                    previous_pressure_dyn_cm2: state.previous_pressure_dyn_cm2.clone(),
-                    rows: rows.clone(),
-                    wall_time_s: previous_wall + start.elapsed().as_secs_f64(),
-                };
-                if let Err(e) = output.checkpoint(&cp).and_then(|_| report.csv(&rows)) {
+                let cp = Checkpoint::of(&state, &args.case, settings.dt_s, &rows, previous_wall + start.elapsed().as_secs_f64());
+                let written = output.checkpoint(&cp).and_then(|_| if steady { Ok(()) } else { report.csv(&rows) });
+                if let Err(e) = written {
                     io_error = Some(e);
                     return false;
                 }
@@ -473,10 +557,16 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
         output.vtu("peak.vtu", &run.summary.velocity_cm_s, &run.summary.pressure_dyn_cm2)?;
     }
     output.vtu("final.vtu", &run.summary.velocity_cm_s, &run.summary.pressure_dyn_cm2)?;
+    // A steady solve stops at an iteration, always at the peak time.
+    let at = |t: f64| match (&run.state, steady) {
+        (Some(state), true) => format!("steady iteration {}", state.step),
+        _ => format!("t = {t:.4} s"),
+    };
+    let resume = if steady { "--resume --steady" } else { "--resume" };
     let (status, message) = match (run.cancelled_at_s, signalled) {
-        (Some(t), true) => ("stopped", Some(format!("stopped by signal after t = {t:.4} s; continue with --resume"))),
+        (Some(t), true) => ("stopped", Some(format!("stopped by signal after {}; continue with {resume}", at(t)))),
         (Some(_), false) if limit_reached => ("completed", Some(format!("step limit {} reached", n_steps))),
-        (Some(t), false) => ("stopped", Some(format!("stopped at t = {t:.4} s"))),
+        (Some(t), false) => ("stopped", Some(format!("stopped at {}", at(t)))),
         (None, _) => ("completed", None),
     };
     let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, wall)?;

@@ -98,3 +98,24 @@ fn the_designed_phantom_domain_meshes_into_tetrahedra() {
     assert!(quality["min_scaled_jacobian"].as_f64().unwrap() > 0.0, "inverted or flat tetrahedra accepted");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `baffle ... | head`: a reader that has gone away ends the command quietly, as it does
+/// other command-line tools, not with Rust's "failed printing to stdout" panic (exit 101).
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = temp_dir("closed-stdout");
+    // The read end is closed before the command starts, so its first print hits EPIPE.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = Command::new(env!("CARGO_BIN_EXE_baffle"))
+        .args(["phantom", "--out", dir.to_str().unwrap()])
+        .stdout(writer)
+        .output()
+        .expect("run baffle");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.is_empty(), "{stderr}");
+    assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}", out.status);
+    std::fs::remove_dir_all(dir).ok();
+}

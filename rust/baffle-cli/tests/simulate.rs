@@ -1,6 +1,8 @@
 //! `baffle simulate` end to end on the phantom: design -> `baffle mesh` (gmsh) ->
-//! steady and short transient runs, SIGTERM with results so far and --resume, and a
-//! case naming a missing mesh. Set BAFFLE_SKIP_GMSH=1 to skip the gmsh-dependent parts.
+//! steady and short transient runs, SIGTERM with results so far and --resume (transient
+//! and steady), and a case naming a missing mesh. Set BAFFLE_SKIP_GMSH=1 to skip the
+//! gmsh-dependent parts. On straight tubes the tests write themselves (no gmsh):
+//! measurement planes against Hagen-Poiseuille, and periodicity over a resume.
 
 mod support;
 
@@ -61,13 +63,28 @@ fn csv(dir: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     (header, rows)
 }
 
+/// One uninterrupted steady run on the phantom, shared by the tests that check it and
+/// compare with it: (output directory, the command's output).
+fn steady_phantom_run() -> &'static (PathBuf, std::process::Output) {
+    static RUN: OnceLock<(PathBuf, std::process::Output)> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let out_dir = temp_dir("steady");
+        let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--steady"]);
+        (out_dir, out)
+    })
+}
+
+/// The `<filter-progress>` fractions a run printed, in order.
+fn progress_fractions(stdout: &str) -> Vec<f64> {
+    stdout.lines().filter_map(|l| l.strip_prefix("<filter-progress>")?.strip_suffix("</filter-progress>")?.parse().ok()).collect()
+}
+
 #[test]
 fn steady_phantom_gives_a_positive_pressure_drop() {
     if skip_gmsh() {
         return;
     }
-    let out_dir = temp_dir("steady");
-    let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--steady"]);
+    let (out_dir, out) = steady_phantom_run();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}\n{}", stdout, String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("<filter-progress>") && stdout.contains("</filter-progress>"), "{stdout}");
@@ -85,6 +102,16 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     assert!((q_peak - 3.26 * 0.37 * 3.48 * 1000.0 / 60.0).abs() < 0.01 * q_peak, "{q_peak}");
     assert!(s["mass_imbalance"].as_f64().unwrap() < 1e-3);
     assert!(s["max_velocity_m_s"].as_f64().unwrap() > 0.1);
+    // The held flow is reported as such; q_mean_ml_s stays the case's mean flow, and the
+    // outlet pressure is R (from the mean flow) times the held flow.
+    let number = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert_eq!(number(&s["q_mean_ml_s"]), number(&s["inputs"]["q_mean_ml_s"]));
+    assert!((number(&s["q_mean_ml_s"]) - 0.37 * 3.48 * 1000.0 / 60.0).abs() < 0.01, "{s}");
+    let q_held = number(&s["q_held_ml_s"]);
+    assert!((q_held - q_peak).abs() < 1e-3 * q_peak, "held {q_held} vs peak {q_peak}");
+    let r_q_mmhg = number(&s["inputs"]["resistance_dyn_s_cm5"]) * q_held / baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+    let outlet = number(&s["outlet_mean_pressure_mmhg"]);
+    assert!((outlet - r_q_mmhg).abs() < 0.01 * r_q_mmhg && outlet > 2.0 * number(&s["inputs"]["map_mmhg"]), "outlet {outlet} vs R Q {r_q_mmhg}");
     let (header, rows) = csv(&out_dir);
     assert_eq!(rows.len(), 1);
     assert!(header.contains(&"p_inlet_11_mmhg".to_string()) && header.contains(&"p_outlet_16_mmhg".to_string()), "{header:?}");
@@ -97,6 +124,47 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     // Atomic writes leave no temporary files.
     let leftovers: Vec<_> = std::fs::read_dir(&out_dir).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp")).collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn sigterm_stops_a_steady_solve_and_resume_finishes_it_on_the_same_path() {
+    if skip_gmsh() {
+        return;
+    }
+    let case = phantom_case().to_str().unwrap();
+    let out_dir = temp_dir("steady-sigterm");
+    let out = out_dir.to_str().unwrap();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_baffle"));
+    command.args(["simulate", case, "--out", out, "--steady"]);
+    let status = sigterm_after_progress_tags(&mut command, 1);
+    assert!(!status.success(), "a stopped solve is not a completed one");
+    let s = summary(&out_dir);
+    assert_eq!((s["status"].as_str(), s["converged"].as_bool()), (Some("stopped"), Some(false)), "{s}");
+    assert!(s["message"].as_str().unwrap().contains("--resume --steady"), "{s}");
+    let checkpoint: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("checkpoint.json")).unwrap()).unwrap();
+    let stopped_at = checkpoint["step"].as_u64().unwrap();
+    assert!(checkpoint["steady"]["reference_residual"].as_f64().unwrap() > 0.0, "steady progress saved");
+    // The steady checkpoint does not continue a transient run.
+    let wrong = baffle(&["simulate", case, "--out", out, "--resume"]);
+    let stderr = String::from_utf8_lossy(&wrong.stderr);
+    assert!(!wrong.status.success() && stderr.contains("checkpoint is of a steady solve") && stderr.contains("--steady"), "{stderr}");
+
+    let resumed = baffle(&["simulate", case, "--out", out, "--steady", "--resume"]);
+    let stdout = String::from_utf8_lossy(&resumed.stdout);
+    assert!(resumed.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&resumed.stderr));
+    // It continued at the next iteration (fraction = iteration / steady_max_iterations),
+    // not from the start, and reached the uninterrupted run's solution.
+    let (straight_dir, straight) = steady_phantom_run();
+    assert!(straight.status.success());
+    let (first_straight, first_resumed) = (progress_fractions(&String::from_utf8_lossy(&straight.stdout))[0], progress_fractions(&stdout)[0]);
+    let iteration = first_resumed / first_straight;
+    assert!((iteration - (stopped_at + 1) as f64).abs() < 0.5, "first tag {first_resumed} after iteration {stopped_at}");
+    let (s, reference) = (summary(&out_dir), summary(straight_dir));
+    assert_eq!((s["status"].as_str(), s["converged"].as_bool()), (Some("completed"), Some(true)), "{s}");
+    let dp = |s: &serde_json::Value| s["dp_peak_mmhg"].as_f64().unwrap();
+    println!("stopped after iteration {stopped_at}; dp {} mmHg resumed, {} uninterrupted", dp(&s), dp(&reference));
+    // The same iterations from the exact state (the checkpoint's floats round-trip).
+    assert!((dp(&s) - dp(&reference)).abs() <= 1e-12 * dp(&reference).abs(), "dp {} resumed vs {} uninterrupted", dp(&s), dp(&reference));
     std::fs::remove_dir_all(out_dir).ok();
 }
 
@@ -126,6 +194,7 @@ fn short_transient_writes_the_time_series() {
     let s = summary(&out_dir);
     assert_eq!(s["steps_done"], 5);
     assert!(s["periodicity_nrmsd"].is_null(), "fewer than two cycles: no periodicity");
+    assert!(s["q_held_ml_s"].is_null(), "a transient run holds no flow");
     assert!(out_dir.join("checkpoint.json").is_file());
     std::fs::remove_dir_all(out_dir).ok();
 }
@@ -148,6 +217,10 @@ fn sigterm_keeps_the_steps_done_and_resume_continues() {
     let (_, rows) = csv(&out_dir);
     assert_eq!(rows.len(), done);
     assert!(out_dir.join("checkpoint.json").is_file() && out_dir.join("final.vtu").is_file());
+    // A transient checkpoint does not start a steady solve.
+    let wrong = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--resume", "--steady"]);
+    let stderr = String::from_utf8_lossy(&wrong.stderr);
+    assert!(!wrong.status.success() && stderr.contains("checkpoint is of a transient run"), "{stderr}");
     // Continue for three more steps from the checkpoint.
     let limit = (done + 3).to_string();
     let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--resume", "--steps", &limit]);
@@ -178,7 +251,9 @@ fn missing_mesh_is_named() {
     let out = baffle(&["simulate", dir.join("nope.json").to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("nope.json"));
     let help = baffle(&["simulate", "--help"]);
-    assert!(String::from_utf8_lossy(&help.stdout).contains(r#""faces": { "inlet": 11"#));
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains(r#""faces": { "inlet": 11"#));
+    assert!(help.contains("points in cm") && help.contains("(cm/s)") && help.contains("dyn/cm^2"), "units of the .vtu files: {help}");
     std::fs::remove_dir_all(dir).ok();
 }
 
@@ -198,4 +273,89 @@ fn the_same_case_exports_for_svmultiphysics() {
     assert!(xml.contains("<Time_step_size> 0.001 </Time_step_size>"), "{xml}");
     assert!(std::fs::read_to_string(dir.join("run.sh")).unwrap().contains("${NP:-2}"));
     std::fs::remove_dir_all(dir).ok();
+}
+
+/// A straight tube (radius 0.25 cm, length 3 cm; inlet 1, outlet 2, planes 100 + layer)
+/// written as `baffle mesh` writes meshes, and a case on it with the given `faces.planes`
+/// and `inflow` / `time` sections; returns the case file. No gmsh: seconds per run.
+fn tube_case(name: &str, rings: usize, layers: usize, planes: &[usize], inflow: &str, time: &str) -> PathBuf {
+    let dir = temp_dir(name);
+    support::write_flow_mesh(&dir, &baffle_cfd::test_meshes::tube(TUBE_RADIUS_CM, TUBE_LENGTH_CM, rings, layers, planes));
+    let ids: Vec<i32> = planes.iter().map(|&l| baffle_cfd::test_meshes::PLANE + l as i32).collect();
+    let text = format!(
+        r#"{{
+          "mesh": {{ "volume": "mesh.vtu", "units": "mm" }},
+          "faces": {{ "inlet": 1, "outlets": [2], "planes": {ids:?} }},
+          "inflow": {inflow},
+          "outlet": {{ "resistance_dyn_s_cm5": 4000 }},
+          "time": {time}
+        }}"#
+    );
+    let case = dir.join("case.json");
+    std::fs::write(&case, text).unwrap();
+    case
+}
+
+const TUBE_RADIUS_CM: f64 = 0.25;
+const TUBE_LENGTH_CM: f64 = 3.0;
+
+/// The values of column `name` of timeseries.csv.
+fn column(header: &[String], rows: &[Vec<f64>], name: &str) -> Vec<f64> {
+    let k = header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+    rows.iter().map(|r| r[k]).collect()
+}
+
+#[test]
+fn measurement_planes_give_the_hagen_poiseuille_pressure_drop() {
+    // Fully developed (Poiseuille) inflow at Re ~ 13: dp between planes at z = 1 and
+    // 2.5 cm is 8 mu L Q / (pi r^4), up to the discretization error of this mesh.
+    let (layers, (a, b)) = (18, (6, 15));
+    // Held at Q_peak = 3.26 x the mean flow: 0.2 mL/s.
+    let case = tube_case("planes", 5, layers, &[a, b], r#"{ "q_mean_ml_s": 0.0613, "profile": "poiseuille" }"#, r#"{ "mode": "steady" }"#);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = summary(&out_dir);
+    let (plane_1, plane_2) = (100 + a as i32, 100 + b as i32);
+    assert_eq!(s["dp_faces"], serde_json::json!([plane_1, plane_2]));
+    let (header, rows) = csv(&out_dir);
+    assert_eq!(rows.len(), 1);
+    let p = |k: usize, id: i32| column(&header, &rows, &format!("p_plane{k}_{id}_mmhg"))[0];
+    let dp_csv = p(1, plane_1) - p(2, plane_2);
+    let dp = s["dp_peak_mmhg"].as_f64().unwrap();
+    assert!((dp - dp_csv).abs() <= 1e-12 * dp_csv.abs(), "summary {dp} vs timeseries {dp_csv}");
+    let q_ml_s = column(&header, &rows, "inflow_ml_s")[0];
+    let length_cm = TUBE_LENGTH_CM * (b - a) as f64 / layers as f64;
+    let exact = 8.0 * 0.04 * length_cm * q_ml_s / (std::f64::consts::PI * TUBE_RADIUS_CM.powi(4)) / baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+    println!("planes {plane_1}-{plane_2}: dp {dp:.6} mmHg, Hagen-Poiseuille {exact:.6} mmHg ({:+.2}%), Q {q_ml_s:.4} mL/s", 100.0 * (dp / exact - 1.0));
+    assert!(dp > 0.0 && (dp - exact).abs() < 0.05 * exact, "dp {dp} vs Hagen-Poiseuille {exact} mmHg");
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+}
+
+#[test]
+fn periodicity_of_a_short_period_run_matches_its_time_series() {
+    // Three 20-step cycles of the ejection waveform compressed to 20 ms, run as 25 steps
+    // and a --resume: the summary's figure is cycle 3 vs 2 of p(inlet) - p(outlet).
+    let period_steps = 20;
+    let case = tube_case("periodic", 3, 12, &[], r#"{ "q_mean_ml_s": 0.5, "period_s": 0.02 }"#, r#"{ "dt_s": 0.001, "cycles": 3 }"#);
+    let (case, out_dir) = (case.to_str().unwrap(), case.parent().unwrap().join("out"));
+    let out = out_dir.to_str().unwrap();
+    let first = baffle(&["simulate", case, "--out", out, "--steps", "25"]);
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    assert!(summary(&out_dir)["periodicity_nrmsd"].is_null(), "fewer than two cycles");
+    let rest = baffle(&["simulate", case, "--out", out, "--resume"]);
+    assert!(rest.status.success(), "{}", String::from_utf8_lossy(&rest.stderr));
+    let (header, rows) = csv(&out_dir);
+    let steps = column(&header, &rows, "step");
+    assert_eq!(steps, (1..=3 * period_steps).map(|k| k as f64).collect::<Vec<_>>());
+    let dp: Vec<f64> = column(&header, &rows, "p_inlet_1_mmhg").iter().zip(column(&header, &rows, "p_outlet_2_mmhg")).map(|(i, o)| i - o).collect();
+    // Steps 41-60 against 21-40, normalized by the swing of steps 41-60.
+    let (last, previous) = (&dp[2 * period_steps..], &dp[period_steps..2 * period_steps]);
+    let swing = last.iter().cloned().fold(f64::MIN, f64::max) - last.iter().cloned().fold(f64::MAX, f64::min);
+    let rms = (last.iter().zip(previous).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / period_steps as f64).sqrt();
+    let nrmsd = summary(&out_dir)["periodicity_nrmsd"].as_f64().expect("periodicity after two cycles");
+    println!("periodicity_nrmsd {nrmsd:.3e} (recomputed {:.3e}), swing {swing:.4} mmHg", rms / swing);
+    assert!(nrmsd.is_finite() && nrmsd < 0.05, "{nrmsd}");
+    assert!((nrmsd - rms / swing).abs() < 1e-9 * nrmsd.max(1e-12), "summary {nrmsd} vs timeseries {}", rms / swing);
+    std::fs::remove_dir_all(out_dir.parent().unwrap()).ok();
 }
