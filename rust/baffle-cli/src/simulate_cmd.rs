@@ -93,7 +93,7 @@ struct Checkpoint {
 }
 
 /// Write `bytes` to `path` via a temporary name in the same directory, then rename.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     let result = (|| -> std::io::Result<()> {
@@ -228,14 +228,18 @@ fn summary_json(
 struct Progress {
     bar: bool,
     start: Instant,
+    /// The part of the progress range this run fills (a stage of `baffle plan`); None: no tags.
+    tag_range: Option<(f64, f64)>,
 }
 
 impl Progress {
     fn report(&self, fraction: f64, message: &str) {
         let fraction = fraction.clamp(0.0, 1.0);
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "<filter-progress>{fraction:.4}</filter-progress>");
-        let _ = out.flush();
+        if let Some((lo, hi)) = self.tag_range {
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "<filter-progress>{:.4}</filter-progress>", lo + (hi - lo) * fraction);
+            let _ = out.flush();
+        }
         if self.bar {
             let width = 30;
             let done = (fraction * width as f64).round() as usize;
@@ -260,6 +264,11 @@ impl Progress {
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
+    run_simulate_tagged(args, Some((0.0, 1.0)))
+}
+
+/// `baffle simulate` with the progress tags mapped into `tag_range` (None: no tags).
+pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -> Result<(), String> {
     let start = Instant::now();
     let mut case = case::read_case(&args.case)?;
     if args.steady {
@@ -318,7 +327,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
         signal_hook::flag::register(signal, Arc::clone(&stop)).map_err(|e| format!("cannot install signal handler: {e}"))?;
     }
-    let progress = Progress { bar: std::io::stderr().is_terminal(), start };
+    let progress = Progress { bar: std::io::stderr().is_terminal(), start, tag_range };
     let step_limit = case.time.steps.filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
     let peak_step_in_cycle = (flow.peak_time_in_cycle_s / settings.dt_s).round();
