@@ -183,12 +183,14 @@ fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
     Ok(Series::line(&label, points, color))
 }
 
-fn verdict_text(dp_mmhg: f64) -> String {
-    if dp_mmhg < DP_THRESHOLD_MMHG {
+fn verdict_text(dp_mmhg: f64, converged: bool) -> String {
+    let verdict = if dp_mmhg < DP_THRESHOLD_MMHG {
         format!("PASSES: peak pressure difference {dp_mmhg:.2} mmHg is below the {DP_THRESHOLD_MMHG} mmHg planning threshold")
     } else {
         format!("FAILS: peak pressure difference {dp_mmhg:.2} mmHg is not below the {DP_THRESHOLD_MMHG} mmHg planning threshold")
-    }
+    };
+    // A number from an unconverged solve is shown, but not without saying so.
+    if converged { verdict } else { verdict + " (the solve did not reach its residual target)" }
 }
 
 fn profile_series(s_mm: &[f64], values: &[Option<f64>], reference: f64) -> Vec<(f64, f64)> {
@@ -265,7 +267,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let table = quantities(&design, &design_path, nominal, centerline_v_max)?;
     let dp = nominal.dp_mmhg()?;
     let passes = dp < DP_THRESHOLD_MMHG;
-    let verdict = verdict_text(dp);
+    let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
+    let verdict = verdict_text(dp, converged);
     let dp_cycle = dp_over_cycle(&nominal_dir, &nominal.summary, labels.0, labels.1)?;
 
     let run_rows: Vec<Value> = runs
@@ -289,7 +292,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         },
         "stages": records,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
-        "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "text": verdict },
+        "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
         "runs": run_rows,
         "centerline": {
             "s_mm": profile.s_mm, "pressure_mmhg": profile.pressure_mmhg, "speed_m_s": profile.speed_m_s,
