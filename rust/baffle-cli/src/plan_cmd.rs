@@ -226,6 +226,7 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
 
 pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
     let stages = plan_stages(args)?;
+    // Fail before the design, not at the first simulation, when the flow has no BSA.
     flow_bsa_m2(args)?;
     let out = &args.design.out;
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;

@@ -38,17 +38,20 @@ fn phantom_inputs() -> &'static Path {
     })
 }
 
-/// `baffle plan` on `surface`/`points`, steady, at the coarse 1.25 mm mesh.
-fn plan(surface: &Path, points: &Path, out: &Path, extra: &[&str], env: &[(&str, &str)]) -> Output {
+/// The quick run most tests use: steady, at the paper's coarse 1.25 mm mesh.
+const COARSE_STEADY: &[&str] = &["--steady", "--edge-length-mm", "1.25"];
+
+/// `baffle plan` on `surface`/`points` with p2's BSA and BP, plus `run_args`.
+fn plan(surface: &Path, points: &Path, out: &Path, run_args: &[&str], env: &[(&str, &str)]) -> Output {
     let mut args = vec!["plan", "--surface", surface.to_str().unwrap(), "--points", points.to_str().unwrap()];
-    args.extend_from_slice(&["--bsa", "0.37", "--bp", "107/78", "--steady", "--edge-length-mm", "1.25", "--out", out.to_str().unwrap()]);
-    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()]);
+    args.extend_from_slice(run_args);
     baffle(&args, env)
 }
 
-fn phantom_plan(out: &Path, extra: &[&str], env: &[(&str, &str)]) -> Output {
+fn phantom_plan(out: &Path, run_args: &[&str], env: &[(&str, &str)]) -> Output {
     let inputs = phantom_inputs();
-    plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), out, extra, env)
+    plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), out, run_args, env)
 }
 
 fn close(a: f64, b: f64) -> bool {
@@ -61,7 +64,7 @@ fn phantom_plan_reports_the_stages_own_figures() {
         return;
     }
     let out = temp_dir("phantom");
-    let run = phantom_plan(&out, &["--progress-tags"], &[]);
+    let run = phantom_plan(&out, &[COARSE_STEADY, &["--progress-tags"]].concat(), &[]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
     for stage in ["design", "mesh-nominal", "simulate-nominal"] {
@@ -150,7 +153,7 @@ fn a_suture_point_off_the_surface_fails_the_design_stage() {
     first[0] = serde_json::json!(first[0].as_f64().unwrap() + 40.0);
     let points = out.join("far.mrk.json");
     std::fs::write(&points, serde_json::to_string(&moved).unwrap()).unwrap();
-    let run = plan(&inputs.join("capped_ventricle.vtp"), &points, &out.join("plan"), &[], &[]);
+    let run = plan(&inputs.join("capped_ventricle.vtp"), &points, &out.join("plan"), COARSE_STEADY, &[]);
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("stage design failed") && stderr.contains("from the surface"), "stage and reason: {stderr}");
@@ -164,7 +167,7 @@ fn a_suture_point_off_the_surface_fails_the_design_stage() {
 #[test]
 fn a_missing_gmsh_fails_the_mesh_stage_and_keeps_the_design() {
     let out = temp_dir("no-gmsh");
-    let run = phantom_plan(&out, &[], &[("BAFFLE_GMSH", "/nonexistent/gmsh")]);
+    let run = phantom_plan(&out, COARSE_STEADY, &[("BAFFLE_GMSH", "/nonexistent/gmsh")]);
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("stage mesh-nominal failed") && stderr.contains("/nonexistent/gmsh"), "{stderr}");
@@ -202,12 +205,39 @@ fn p2_at_a_coarse_mesh_is_below_the_planning_threshold() {
     let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
     let inputs = data.join("p2/design_input");
     let out = temp_dir("p2");
-    let run = plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), &out, &[], &[]);
+    let run = plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), &out, COARSE_STEADY, &[]);
     assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     let report = read_json(&out.join("report.json"));
     let dp = report["quantities"]["dp_peak_mmhg"].as_f64().unwrap();
     eprintln!("p2 steady, 1.25 mm: dp {dp:.3} mmHg, v_max {} m/s", report["quantities"]["max_velocity_m_s"]);
     assert!(dp.is_finite() && dp > 0.0 && dp < 10.0, "p2 dp {dp} mmHg");
     assert_eq!(report["verdict"]["passes"], true);
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn a_pulsatile_plan_reports_dp_over_the_last_cycle() {
+    if skip_gmsh() {
+        return;
+    }
+    // A 0.1 s period (600 /min) keeps the run to 2 x 100 time steps; what is checked is
+    // the reporting of a cycle, not its physiology.
+    let out = temp_dir("pulsatile");
+    let run = phantom_plan(&out, &["--pulsatile", "--hr", "600", "--cycles", "2", "--edge-length-mm", "1.6"], &[]);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&out.join("report.json"));
+    let summary = read_json(&out.join("simulate-nominal/summary.json"));
+    assert_eq!(summary["mode"], "transient");
+    let cycle = &report["dp_over_cycle"];
+    let (times, dps) = (cycle["time_in_cycle_s"].as_array().unwrap(), cycle["dp_mmhg"].as_array().unwrap());
+    assert_eq!(times.len(), 100, "one cycle of 0.1 s at dt 1 ms");
+    let peak_dp = dps.iter().filter_map(|v| v.as_f64()).fold(f64::NEG_INFINITY, f64::max);
+    let reported = report["quantities"]["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(close(reported, summary["dp_peak_mmhg"].as_f64().unwrap()));
+    // dp at peak flow is at most the cycle's largest dp and of the same size.
+    assert!(reported <= peak_dp + 1e-9 && reported > 0.5 * peak_dp, "dp at peak {reported}, largest {peak_dp}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Pressure difference over the last cycle"));
+    check_html(&out.join("report.html"));
     std::fs::remove_dir_all(out).ok();
 }

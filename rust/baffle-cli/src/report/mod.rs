@@ -53,6 +53,7 @@ struct Run {
     flow: FlowCase,
     edge_length_mm: f64,
     quality: Value,
+    quality_path: std::path::PathBuf,
     summary: Value,
     summary_path: std::path::PathBuf,
 }
@@ -84,6 +85,7 @@ fn load_runs(out: &Path, stages: &[Stage]) -> Result<Vec<Run>, String> {
                 flow,
                 edge_length_mm: edge(level).unwrap_or(f64::NAN),
                 quality: read_json(&quality_path)?,
+                quality_path,
                 summary: read_json(&summary_path)?,
                 summary_path,
             });
@@ -103,7 +105,7 @@ struct Quantity {
 
 fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline_v_max_m_s: f64) -> Result<Vec<Quantity>, String> {
     let d = |key: &str| number(design, key, design_path);
-    let q = |key: &str| number(&nominal.quality, key, Path::new("mesh-quality.json"));
+    let q = |key: &str| number(&nominal.quality, key, &nominal.quality_path);
     let row = |key, label, value, unit, decimals| Quantity { key, label, value, unit, decimals };
     Ok(vec![
         row("target_area_mm2", "Target area", d("/target_area_mm2")?, "mm²", 1),
@@ -191,6 +193,16 @@ fn verdict_text(dp_mmhg: f64, converged: bool) -> String {
     };
     // A number from an unconverged solve is shown, but not without saying so.
     if converged { verdict } else { verdict + " (the solve did not reach its residual target)" }
+}
+
+/// "passes" / "fails" of one run, flagged when its solve did not converge.
+fn run_verdict(run: &Run) -> String {
+    let verdict = match run.dp_mmhg() {
+        Ok(dp) if dp < DP_THRESHOLD_MMHG => "passes",
+        Ok(_) => "fails",
+        Err(_) => "no result",
+    };
+    if run.summary["converged"].as_bool() == Some(true) { verdict.into() } else { format!("{verdict} (not converged)") }
 }
 
 fn profile_series(s_mm: &[f64], values: &[Option<f64>], reference: f64) -> Vec<(f64, f64)> {
@@ -338,6 +350,10 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     for (k, run) in runs.iter().filter(|r| r.level == "nominal").enumerate() {
         inflow.push(waveform_series(run, colors[k % 2])?);
     }
+    if let (true, Some(q_peak)) = (dp_cycle.is_empty(), nominal.summary["q_peak_ml_s"].as_f64()) {
+        let period = inflow[0].points.last().map_or(1.0, |p| p.0);
+        inflow.push(Series { dashed: true, ..Series::line("held in the steady run", vec![(0.0, q_peak), (period, q_peak)], "#555555") });
+    }
     html.figure(&line_chart("Inflow waveform (VSD)", "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
 
     html.heading("Pressure difference");
@@ -365,10 +381,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
                 r.quality["tetrahedra"].to_string(),
                 format_value(r.dp_mmhg().unwrap_or(f64::NAN), 3),
                 format_value(r.v_max_m_s().unwrap_or(f64::NAN), 3),
+                run_verdict(r),
             ]
         })
         .collect();
-    html.table(&["Run", "Mesh", "Cardiac index (L/min/m²)", "Tetrahedra", "dp (mmHg)", "v_max (m/s)"], &rows);
+    html.table(&["Run", "Mesh", "Cardiac index (L/min/m²)", "Tetrahedra", "dp (mmHg)", "v_max (m/s)", "10 mmHg verdict"], &rows);
     html.heading("Stages");
     let rows: Vec<Vec<String>> = records.iter().map(|r| vec![r.name.clone(), r.status.to_string(), format_value(r.wall_time_s.unwrap_or(f64::NAN), 1)]).collect();
     html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
