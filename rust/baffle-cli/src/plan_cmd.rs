@@ -200,7 +200,6 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
                 }
                 true
             })
-            .map(|_| ())
         }
         Step::Mesh { level, edge_length_mm } => {
             let domain = out.join("design").join("domain.vtp");
