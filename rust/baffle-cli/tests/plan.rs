@@ -111,6 +111,11 @@ fn phantom_plan_reports_the_stages_own_figures() {
     assert!(v_line > 0.0 && v_line <= q["max_velocity_m_s"].as_f64().unwrap() + 1e-9);
 
     check_html(&out.join("report.html"));
+    // Every stage wrote atomically: no temporary files are left in any subfolder.
+    for stage in ["design", "mesh-nominal", "simulate-nominal", "."] {
+        let names: Vec<String> = std::fs::read_dir(out.join(stage)).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        assert!(!names.iter().any(|n| n.contains(".tmp")), "{stage}: {names:?}");
+    }
     std::fs::remove_dir_all(out).ok();
 }
 
