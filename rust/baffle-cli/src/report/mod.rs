@@ -230,13 +230,13 @@ struct Html(String);
 
 impl Html {
     fn heading(&mut self, text: &str) {
-        let _ = write!(self.0, "<h2>{}</h2>\n", escape(text));
+        let _ = writeln!(self.0, "<h2>{}</h2>", escape(text));
     }
     fn para(&mut self, text: &str) {
-        let _ = write!(self.0, "<p>{}</p>\n", escape(text));
+        let _ = writeln!(self.0, "<p>{}</p>", escape(text));
     }
     fn figure(&mut self, svg: &str, caption: &str) {
-        let _ = write!(self.0, "<figure>{svg}<figcaption>{}</figcaption></figure>\n", escape(caption));
+        let _ = writeln!(self.0, "<figure>{svg}<figcaption>{}</figcaption></figure>", escape(caption));
     }
     fn table(&mut self, header: &[&str], rows: &[Vec<String>]) {
         self.0.push_str("<table><tr>");
@@ -326,7 +326,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         nominal.summary["mode"].as_str().unwrap_or("?"),
         args.edge_length_mm
     ));
-    let _ = write!(html.0, "<p class=\"{}\"><b>{}</b></p>\n", if passes { "pass" } else { "fail" }, escape(&verdict));
+    let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", if passes { "pass" } else { "fail" }, escape(&verdict));
     html.heading("The paper's quantities");
     let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
     html.table(&["Quantity", "Value", "Unit"], &rows);

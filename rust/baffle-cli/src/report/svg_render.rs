@@ -77,7 +77,7 @@ pub fn render_view(mesh: &TriMesh, view: &View, palette: &Palette, overlay: &[Ve
         let _ = write!(s, r##"<polygon points="{}" fill="#{r:02x}{g:02x}{b:02x}" stroke="#{r:02x}{g:02x}{b:02x}" stroke-width="0.4"/>"##, pts.join(" "));
     }
     if overlay.len() > 1 {
-        let pts: Vec<String> = overlay.iter().map(|p| screen(p)).map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
+        let pts: Vec<String> = overlay.iter().map(screen).map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
         let _ = write!(s, r##"<polyline points="{}" fill="none" stroke="#111" stroke-width="1.5" stroke-dasharray="4 3"/>"##, pts.join(" "));
     }
     s.push_str("</svg>");
