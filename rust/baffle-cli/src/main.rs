@@ -12,6 +12,8 @@ use std::process::ExitCode;
 mod case;
 mod export_cmd;
 mod mesh_cmd;
+mod plan_cmd;
+mod report;
 mod simulate_cmd;
 mod simulate_svmp;
 
@@ -37,6 +39,8 @@ enum Command {
     Simulate(simulate_cmd::SimulateArgs),
     /// Write the same case for svMultiPhysics (the paper's MPI solver), to run on a cluster.
     ExportSvmp(export_cmd::ExportArgs),
+    /// Design, mesh and simulate in one run, and write report.json and report.html.
+    Plan(plan_cmd::PlanArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
@@ -45,13 +49,15 @@ enum Command {
     },
 }
 
-#[derive(Args)]
+// Required-ness of --surface/--points is checked at run time (read_inputs), so that
+// `baffle plan` can offer other sources of the surface.
+#[derive(Args, Clone)]
 struct DesignArgs {
-    /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm.
-    #[arg(long, required_unless_present = "phantom")]
+    /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm (required unless --phantom).
+    #[arg(long)]
     surface: Option<PathBuf>,
-    /// Suture points: Slicer markups (.mrk.json), .fcsv, CSV (x,y,z per line) or JSON.
-    #[arg(long, required_unless_present = "phantom")]
+    /// Suture points: Slicer markups (.mrk.json), .fcsv, CSV (x,y,z per line) or JSON (required unless --phantom).
+    #[arg(long)]
     points: Option<PathBuf>,
     /// Use the built-in synthetic phantom as surface and points (BSA 0.37 m2 unless given).
     #[arg(long, conflicts_with_all = ["surface", "points"])]
@@ -117,7 +123,7 @@ struct DesignArgs {
     progress_tags: bool,
 }
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 struct TargetArgs {
     /// Target cross-section area (mm2).
     #[arg(long, group = "target_kind")]
@@ -162,6 +168,7 @@ fn main() -> ExitCode {
         Command::Mesh(args) => mesh_cmd::run_mesh(&args),
         Command::Simulate(args) => simulate_cmd::run_simulate(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),
+        Command::Plan(args) => plan_cmd::run_plan(&args),
         Command::Phantom { out } => write_phantom(&out),
     };
     match result {
@@ -201,6 +208,22 @@ fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<TargetA
 }
 
 fn run_design(args: &DesignArgs) -> Result<(), String> {
+    let tags = args.progress_tags;
+    design_reporting(args, &mut |fraction, stage| {
+        if tags {
+            print_progress_tag(fraction, stage);
+        }
+        true
+    })
+}
+
+/// A Slicer CLI progress tag and the stage it is in, on stdout.
+fn print_progress_tag(fraction: f64, stage: &str) {
+    println!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>");
+}
+
+/// `baffle design` with the progress sent to `progress`.
+fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     let (surface, points, default_bsa) = if args.phantom {
         let p = phantom_default();
         (p.surface, p.suture_points_mm, Some(p.bsa_m2))
@@ -224,14 +247,7 @@ fn run_design(args: &DesignArgs) -> Result<(), String> {
         centerline_spacing_mm: args.centerline_spacing_mm,
         ..DesignOptions::default()
     };
-    let tags = args.progress_tags;
-    let mut progress = |fraction: f64, stage: &str| {
-        if tags {
-            println!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>");
-        }
-        true
-    };
-    let result = design(&surface, &points, &target, &options, &mut progress).map_err(|e| e.to_string())?;
+    let result = design(&surface, &points, &target, &options, progress).map_err(|e| e.to_string())?;
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
     println!(

@@ -223,7 +223,7 @@ impl Checkpoint {
 }
 
 /// Write `bytes` to `path` via a temporary name in the same directory, then rename.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     let result = (|| -> std::io::Result<()> {
@@ -405,18 +405,22 @@ fn periodicity_nrmsd(rows: &[Row], period_steps: usize, inlet: i32, outlet: i32)
 pub(crate) struct Progress {
     bar: bool,
     start: Instant,
+    /// The part of the progress range this run fills (a stage of `baffle plan`); None: no tags.
+    tag_range: Option<(f64, f64)>,
 }
 
 impl Progress {
-    pub(crate) fn new(start: Instant) -> Self {
-        Progress { bar: std::io::stderr().is_terminal(), start }
+    pub(crate) fn new(start: Instant, tag_range: Option<(f64, f64)>) -> Self {
+        Progress { bar: std::io::stderr().is_terminal(), start, tag_range }
     }
 
     pub(crate) fn report(&self, fraction: f64, message: &str) {
         let fraction = fraction.clamp(0.0, 1.0);
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "<filter-progress>{fraction:.4}</filter-progress>");
-        let _ = out.flush();
+        if let Some((lo, hi)) = self.tag_range {
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "<filter-progress>{:.4}</filter-progress>", lo + (hi - lo) * fraction);
+            let _ = out.flush();
+        }
         if self.bar {
             let width = 30;
             let done = (fraction * width as f64).round() as usize;
@@ -451,6 +455,11 @@ pub(crate) fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
+    run_simulate_tagged(args, Some((0.0, 1.0)))
+}
+
+/// `baffle simulate` with the progress tags mapped into `tag_range` (None: no tags).
+pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -> Result<(), String> {
     let start = Instant::now();
     let mut case = case::read_case(&args.case)?;
     if args.steady {
@@ -486,7 +495,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
     };
 
     let stop = stop_on_signals()?;
-    let progress = Progress::new(start);
+    let progress = Progress::new(start, tag_range);
     let step_limit = case.time.steps.filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
     let peak_step_in_cycle = (flow.peak_time_in_cycle_s / settings.dt_s).round();

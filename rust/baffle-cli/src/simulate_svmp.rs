@@ -24,7 +24,7 @@ pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: 
         format!("{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed", case_dir.display())
     })?;
     let stop = stop_on_signals()?;
-    let progress = Progress::new(start);
+    let progress = Progress::new(start, Some((0.0, 1.0)));
     let run = run_case(&engine, &case_dir, &mut |fraction, message| {
         progress.report(fraction, message);
         !stop.load(Ordering::SeqCst)

@@ -1,0 +1,279 @@
+//! `baffle plan`: design -> mesh -> simulate in one run, each stage in its own
+//! subfolder of --out, then report.json and report.html (see `report`).
+//!
+//! The stages run the commands' own code (`design_reporting`, `run_mesh`,
+//! `run_simulate_tagged`) with the arguments a user would type for them, so the plan
+//! keeps each command's defaults and checks. A stage reads its inputs from the files
+//! of the stages before it, so what the report shows is what those files hold.
+
+use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
+use crate::{design_reporting, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
+use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
+use clap::{Args, FromArgMatches};
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    pub design: DesignArgs,
+    /// Per-structure segmentations to build the capped ventricle from (needs `baffle prepare`).
+    #[arg(long, conflicts_with_all = ["surface", "phantom"])]
+    pub segmentations: Option<PathBuf>,
+    /// Blood pressure SBP/DBP (mmHg), e.g. 107/78: the outlet resistance R = MAP / Q_mean.
+    #[arg(long, value_parser = parse_bp)]
+    pub bp: (f64, f64),
+    /// Heart rate (beats/min); default: the built-in period of 0.682 s.
+    #[arg(long)]
+    pub hr: Option<f64>,
+    /// Steady run with the inflow held at Q_peak (quick estimate).
+    #[arg(long, conflicts_with = "pulsatile")]
+    pub steady: bool,
+    /// Pulsatile run over --cycles cardiac cycles (the default, as the paper).
+    #[arg(long)]
+    pub pulsatile: bool,
+    /// Cardiac cycles of a pulsatile run (the last one is reported).
+    #[arg(long, default_value_t = 4)]
+    pub cycles: usize,
+    /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
+    #[arg(long, default_value_t = 0.95)]
+    pub edge_length_mm: f64,
+    /// Also mesh and simulate at the paper's coarse and fine sizes (1.25 / 0.75 mm,
+    /// scaled by --edge-length-mm / 0.95).
+    #[arg(long)]
+    pub mesh_study: bool,
+    /// Also simulate the nominal mesh at cardiac index 4.22 L/min/m2 (instead of 3.48).
+    #[arg(long)]
+    pub elevated_flow: bool,
+}
+
+fn parse_bp(text: &str) -> Result<(f64, f64), String> {
+    let parts: Vec<&str> = text.split('/').collect();
+    let numbers: Vec<f64> = parts.iter().filter_map(|p| p.trim().parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
+    match numbers[..] {
+        [sbp, dbp] if parts.len() == 2 && dbp > 0.0 && sbp > dbp => Ok((sbp, dbp)),
+        _ => Err(format!("expected SBP/DBP in mmHg with SBP > DBP > 0 (e.g. 107/78), got '{text}'")),
+    }
+}
+
+/// The nominal mesh size and the paper's mesh-study sizes (mm) at 0.95 mm nominal.
+const PAPER_NOMINAL_MM: f64 = 0.95;
+const PAPER_COARSE_MM: f64 = 1.25;
+const PAPER_FINE_MM: f64 = 0.75;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FlowCase {
+    Nominal,
+    Elevated,
+}
+
+impl FlowCase {
+    pub fn cardiac_index_l_min_m2(self) -> f64 {
+        match self {
+            FlowCase::Nominal => CARDIAC_INDEX_DEFAULT_L_MIN_M2,
+            FlowCase::Elevated => CARDIAC_INDEX_ELEVATED_L_MIN_M2,
+        }
+    }
+}
+
+/// What a stage does. A `prepare` stage (segmentations -> capped ventricle) goes in
+/// front of Design as one more variant and match arm.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Step {
+    Design,
+    Mesh { level: &'static str, edge_length_mm: f64 },
+    Simulate { level: &'static str, flow: FlowCase },
+}
+
+#[derive(Clone, Debug)]
+pub struct Stage {
+    /// Also the name of its subfolder of --out.
+    pub name: String,
+    pub step: Step,
+    /// Share of the progress range (rough relative run time).
+    weight: f64,
+}
+
+/// Outcome of one stage, for report.json.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StageRecord {
+    pub name: String,
+    pub status: &'static str,
+    pub wall_time_s: Option<f64>,
+    pub error: Option<String>,
+}
+
+/// (level, edge length mm) of each mesh: the nominal one first.
+fn mesh_levels(args: &PlanArgs) -> Vec<(&'static str, f64)> {
+    let nominal = args.edge_length_mm;
+    let mut levels = vec![("nominal", nominal)];
+    if args.mesh_study {
+        let scale = nominal / PAPER_NOMINAL_MM;
+        levels.push(("coarse", PAPER_COARSE_MM * scale));
+        levels.push(("fine", PAPER_FINE_MM * scale));
+    }
+    levels
+}
+
+pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
+    if args.segmentations.is_some() {
+        return Err("--segmentations needs `baffle prepare`, not in this build; give --surface (a capped ventricle)".into());
+    }
+    let simulate_weight = if args.steady { 4.0 } else { 4.0 * args.cycles as f64 };
+    let mut stages = vec![Stage { name: "design".into(), step: Step::Design, weight: 1.0 }];
+    for (level, edge_length_mm) in mesh_levels(args) {
+        stages.push(Stage { name: format!("mesh-{level}"), step: Step::Mesh { level, edge_length_mm }, weight: 1.0 });
+        stages.push(Stage { name: format!("simulate-{level}"), step: Step::Simulate { level, flow: FlowCase::Nominal }, weight: simulate_weight });
+    }
+    if args.elevated_flow {
+        let step = Step::Simulate { level: "nominal", flow: FlowCase::Elevated };
+        stages.push(Stage { name: "simulate-elevated".into(), step, weight: simulate_weight });
+    }
+    Ok(stages)
+}
+
+/// BSA (m2) for the flow: --bsa, or the phantom's.
+pub fn flow_bsa_m2(args: &PlanArgs) -> Result<f64, String> {
+    match (args.design.target.bsa, args.design.phantom) {
+        (Some(bsa), _) => Ok(bsa),
+        (None, true) => Ok(baffle_core::phantom::phantom_default().bsa_m2),
+        (None, false) => Err("baffle plan needs --bsa: the flow is BSA x cardiac index".into()),
+    }
+}
+
+/// Parse `argv` as the arguments of the command whose `Args` are `A`.
+fn command_args<A: Args + FromArgMatches>(name: &'static str, argv: &[OsString]) -> Result<A, String> {
+    let command = A::augment_args(clap::Command::new(name).no_binary_name(true));
+    let matches = command.try_get_matches_from(argv).map_err(|e| format!("{name} arguments: {e}"))?;
+    A::from_arg_matches(&matches).map_err(|e| format!("{name} arguments: {e}"))
+}
+
+pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
+    out.join(format!("mesh-{level}")).join("mesh.vtu")
+}
+
+/// The `baffle simulate` case of one run, its mesh given relative to the case file.
+fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, String> {
+    let d = &args.design;
+    let mesh_dir = PathBuf::from("..").join(format!("mesh-{level}"));
+    Ok(Case {
+        mesh: MeshSpec {
+            volume: mesh_dir.join("mesh.vtu"),
+            faces: Some(mesh_dir.join("mesh-faces.vtp")),
+            format: "baffle".into(),
+            units: Some("mm".into()),
+        },
+        faces: FaceRoles { inlet: d.vsd_label, outlets: vec![d.aortic_label], walls: vec![d.wall_label, d.baffle_label], planes: vec![] },
+        fluid: Default::default(),
+        inflow: Inflow {
+            bsa_m2: Some(flow_bsa_m2(args)?),
+            cardiac_index_l_min_m2: Some(flow.cardiac_index_l_min_m2()),
+            heart_rate_bpm: args.hr,
+            profile: Some("plug".into()),
+            ..Inflow::default()
+        },
+        outlet: OutletSpec { sbp_mmhg: Some(args.bp.0), dbp_mmhg: Some(args.bp.1), ..OutletSpec::default() },
+        time: TimeSpec { mode: if args.steady { "steady" } else { "transient" }.into(), cycles: args.cycles, ..TimeSpec::default() },
+        output: Default::default(),
+    })
+}
+
+fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
+    let path = dir.join("case.json");
+    let text = serde_json::to_string_pretty(case).map_err(|e| e.to_string())?;
+    crate::simulate_cmd::write_atomic(&path, text.as_bytes())?;
+    Ok(path)
+}
+
+/// Run one stage into `dir`, its progress tags mapped into `range`.
+fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> Result<(), String> {
+    let tags = args.design.progress_tags;
+    let out = &args.design.out;
+    match &stage.step {
+        Step::Design => {
+            let design = DesignArgs { out: dir.to_path_buf(), ..args.design.clone() };
+            let (lo, hi) = range;
+            design_reporting(&design, &mut |f, s| {
+                if tags {
+                    print_progress_tag(lo + (hi - lo) * f, &format!("design: {s}"));
+                }
+                true
+            })
+        }
+        Step::Mesh { level, edge_length_mm } => {
+            let domain = out.join("design").join("domain.vtp");
+            let argv: Vec<OsString> = vec![
+                "--surface".into(),
+                domain.into(),
+                "--edge-length-mm".into(),
+                edge_length_mm.to_string().into(),
+                "--remesh-surface".into(),
+                "--out".into(),
+                mesh_path(out, level).into(),
+            ];
+            mesh_cmd::run_mesh(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?)
+        }
+        Step::Simulate { level, flow } => {
+            let case_path = write_case(dir, &simulate_case(args, level, *flow)?)?;
+            let argv: Vec<OsString> = vec![case_path.into(), "--out".into(), dir.into()];
+            let simulate = command_args::<simulate_cmd::SimulateArgs>("simulate", &argv)?;
+            simulate_cmd::run_simulate_tagged(&simulate, tags.then_some(range))
+        }
+    }
+}
+
+pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
+    let stages = plan_stages(args)?;
+    // Fail before the design, not at the first simulation, when the flow has no BSA.
+    flow_bsa_m2(args)?;
+    let out = &args.design.out;
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let total: f64 = stages.iter().map(|s| s.weight).sum();
+    let mut records: Vec<StageRecord> =
+        stages.iter().map(|s| StageRecord { name: s.name.clone(), status: "not run", wall_time_s: None, error: None }).collect();
+    let mut done = 0.0;
+    for (k, stage) in stages.iter().enumerate() {
+        let range = (done / total, (done + stage.weight) / total);
+        println!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name);
+        if args.design.progress_tags {
+            print_progress_tag(range.0, &stage.name);
+        }
+        let dir = out.join(&stage.name);
+        let start = Instant::now();
+        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| run_stage(args, stage, &dir, range));
+        let record = &mut records[k];
+        record.wall_time_s = Some(start.elapsed().as_secs_f64());
+        if let Err(e) = result {
+            record.status = "failed";
+            record.error = Some(e.clone());
+            report::write_failure_json(out, &stage.name, &e, &records)?;
+            let kept: Vec<String> = stages[..k].iter().map(|s| out.join(&s.name).display().to_string()).collect();
+            let kept = if kept.is_empty() { "none".to_string() } else { kept.join(", ") };
+            return Err(format!("stage {} failed: {e}\n(finished stages' files kept: {kept})", stage.name));
+        }
+        record.status = "completed";
+        println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
+        done += stage.weight;
+    }
+    let verdict = report::write_reports(args, &stages, &records)?;
+    if args.design.progress_tags {
+        print_progress_tag(1.0, "report");
+    }
+    println!("{verdict}");
+    println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blood_pressure_is_sbp_over_dbp() {
+        assert_eq!(parse_bp("107/78").unwrap(), (107.0, 78.0));
+        for bad in ["78/107", "107", "107/78/1", "a/b", "107/0"] {
+            assert!(parse_bp(bad).unwrap_err().contains(bad), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,395 @@
+//! The plan's report: report.json and a self-contained report.html (inline SVG, no
+//! scripts, no external references), built only from the stages' own files.
+
+mod sampling;
+mod svg_plot;
+mod svg_render;
+
+use crate::plan_cmd::{flow_bsa_m2, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
+use crate::simulate_cmd::write_atomic;
+use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+use baffle_cfd::Waveform;
+use serde_json::{json, Value};
+use svg_plot::{escape, line_chart, Series};
+use std::fmt::Write;
+use std::path::Path;
+
+/// The planning threshold of the peak pressure difference (mmHg): below it passes.
+pub const DP_THRESHOLD_MMHG: f64 = 10.0;
+/// peak.vtu is in cm; the design's files in mm.
+const MM_PER_CM: f64 = 10.0;
+
+fn read_json(path: &Path) -> Result<Value, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn number(doc: &Value, key: &str, file: &Path) -> Result<f64, String> {
+    doc.pointer(key).and_then(Value::as_f64).filter(|v| v.is_finite()).ok_or_else(|| format!("{}: no finite {key}", file.display()))
+}
+
+/// A table value for report.json: counts as integers, non-finite as null.
+fn json_value(q: &Quantity) -> Value {
+    match q.value {
+        v if !v.is_finite() => Value::Null,
+        v if q.decimals == 0 => json!(v.round() as i64),
+        v => json!(v),
+    }
+}
+
+fn write_json(path: &Path, doc: &Value) -> Result<(), String> {
+    write_atomic(path, serde_json::to_string_pretty(doc).map_err(|e| e.to_string())?.as_bytes())
+}
+
+pub fn write_failure_json(out: &Path, stage: &str, error: &str, records: &[StageRecord]) -> Result<(), String> {
+    let doc = json!({ "status": "failed", "failed_stage": stage, "error": error, "stages": records });
+    write_json(&out.join("report.json"), &doc)
+}
+
+/// One simulation run with the mesh it ran on.
+struct Run {
+    stage: String,
+    level: &'static str,
+    flow: FlowCase,
+    edge_length_mm: f64,
+    quality: Value,
+    quality_path: std::path::PathBuf,
+    summary: Value,
+    summary_path: std::path::PathBuf,
+}
+
+impl Run {
+    fn dp_mmhg(&self) -> Result<f64, String> {
+        number(&self.summary, "/dp_peak_mmhg", &self.summary_path)
+    }
+    fn v_max_m_s(&self) -> Result<f64, String> {
+        number(&self.summary, "/max_velocity_m_s", &self.summary_path)
+    }
+}
+
+fn load_runs(out: &Path, stages: &[Stage]) -> Result<Vec<Run>, String> {
+    let edge = |level: &str| {
+        stages.iter().find_map(|s| match s.step {
+            Step::Mesh { level: l, edge_length_mm } if l == level => Some(edge_length_mm),
+            _ => None,
+        })
+    };
+    let mut runs = Vec::new();
+    for stage in stages {
+        if let Step::Simulate { level, flow } = stage.step {
+            let summary_path = out.join(&stage.name).join("summary.json");
+            let quality_path = mesh_path(out, level).with_file_name("mesh-quality.json");
+            runs.push(Run {
+                stage: stage.name.clone(),
+                level,
+                flow,
+                edge_length_mm: edge(level).unwrap_or(f64::NAN),
+                quality: read_json(&quality_path)?,
+                quality_path,
+                summary: read_json(&summary_path)?,
+                summary_path,
+            });
+        }
+    }
+    Ok(runs)
+}
+
+/// A row of the paper's table: key in report.json, label, value, unit, decimals.
+struct Quantity {
+    key: &'static str,
+    label: &'static str,
+    value: f64,
+    unit: &'static str,
+    decimals: usize,
+}
+
+fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline_v_max_m_s: f64) -> Result<Vec<Quantity>, String> {
+    let d = |key: &str| number(design, key, design_path);
+    let q = |key: &str| number(&nominal.quality, key, &nominal.quality_path);
+    let row = |key, label, value, unit, decimals| Quantity { key, label, value, unit, decimals };
+    Ok(vec![
+        row("target_area_mm2", "Target area", d("/target_area_mm2")?, "mm²", 1),
+        row("centerline_length_mm", "Centerline length", d("/centerline_length_mm")?, "mm", 2),
+        row("baffle_area_mm2", "Baffle area", d("/baffle_area_mm2")?, "mm²", 1),
+        row("baffle_triangles", "Baffle triangles", d("/baffle_triangles")?, "", 0),
+        row("tetrahedra", "Tetrahedra", q("/tetrahedra")?, "", 0),
+        row("min_scaled_jacobian", "Scaled Jacobian, min", q("/min_scaled_jacobian")?, "", 3),
+        row("p1_scaled_jacobian", "Scaled Jacobian, 1st percentile", q("/p1_scaled_jacobian")?, "", 3),
+        row("p99_aspect_ratio", "Aspect ratio, 99th percentile", q("/p99_aspect_ratio")?, "", 2),
+        row("dp_peak_mmhg", "Pressure difference at peak flow (VSD − aortic cap)", nominal.dp_mmhg()?, "mmHg", 2),
+        row("max_velocity_m_s", "v_max (domain)", nominal.v_max_m_s()?, "m/s", 3),
+        row("max_centerline_velocity_m_s", "v_max along the centerline", centerline_v_max_m_s, "m/s", 3),
+    ])
+}
+
+/// Pressure and speed at the centerline points (mm), from peak.vtu (cm, cm/s, dyn/cm²).
+struct CenterlineProfile {
+    s_mm: Vec<f64>,
+    pressure_mmhg: Vec<Option<f64>>,
+    speed_m_s: Vec<Option<f64>>,
+}
+
+fn centerline_profile(centerline_path: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
+    let centerline = baffle_core::io::read_polydata(centerline_path).map_err(|e| e.to_string())?;
+    let s_mm = match centerline.point_array("s_mm").and_then(|a| a.as_f64()) {
+        Some((1, values)) => values.to_vec(),
+        _ => return Err(format!("{}: no point array s_mm", centerline_path.display())),
+    };
+    let peak = baffle_mesh::read_vtu(peak_path).map_err(|e| e.to_string())?;
+    let field = |name: &str, components: usize| {
+        peak.point_data
+            .iter()
+            .find(|a| a.name == name)
+            .and_then(|a| a.as_f64())
+            .filter(|(c, _)| *c == components)
+            .map(|(_, v)| v.to_vec())
+            .ok_or_else(|| format!("{}: no point array {name} with {components} components", peak_path.display()))
+    };
+    let pressure = field("pressure", 1)?;
+    let velocity = field("velocity", 3)?;
+    let speed: Vec<f64> = velocity.chunks_exact(3).map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).collect();
+    let points: Vec<[f64; 3]> = peak.mesh.points_mm.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let locator = sampling::TetLocator::new(&points, &peak.mesh.tets);
+    let queries: Vec<[f64; 3]> = centerline.points.iter().map(|p| [p.x / MM_PER_CM, p.y / MM_PER_CM, p.z / MM_PER_CM]).collect();
+    Ok(CenterlineProfile {
+        s_mm,
+        pressure_mmhg: queries.iter().map(|&q| locator.interpolate(&pressure, q).map(|p| p / DYN_CM2_PER_MMHG)).collect(),
+        speed_m_s: queries.iter().map(|&q| locator.interpolate(&speed, q).map(|v| v / 100.0)).collect(),
+    })
+}
+
+/// (time in cycle, dp) over the last cycle of timeseries.csv; empty for a steady run.
+fn dp_over_cycle(run_dir: &Path, summary: &Value, inlet: i32, outlet: i32) -> Result<Vec<(f64, f64)>, String> {
+    if summary["mode"] == "steady" {
+        return Ok(Vec::new());
+    }
+    let path = run_dir.join("timeseries.csv");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let column = |name: String| header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()));
+    let (t, a, b) = (column("time_s".into())?, column(format!("p_inlet_{inlet}_mmhg"))?, column(format!("p_outlet_{outlet}_mmhg"))?);
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
+    let period = number(summary, "/inputs/period_s", &path)?;
+    let last = rows.last().map_or(0.0, |r| r[t]);
+    let start = (last - period).max(0.0);
+    Ok(rows.iter().filter(|r| r[t] > start + 1e-12).map(|r| (r[t] - start, r[a] - r[b])).collect())
+}
+
+fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
+    let q_mean = number(&run.summary, "/inputs/q_mean_ml_s", &run.summary_path)?;
+    let period = number(&run.summary, "/inputs/period_s", &run.summary_path)?;
+    let w = Waveform::Ejection { period_s: period, q_mean_ml_s: q_mean };
+    let points = (0..=200).map(|k| period * k as f64 / 200.0).map(|t| (t, w.flow_ml_s(t))).collect();
+    let label = format!("CI {:.2} L/min/m²", run.flow.cardiac_index_l_min_m2());
+    Ok(Series::line(&label, points, color))
+}
+
+fn verdict_text(dp_mmhg: f64, converged: bool) -> String {
+    let verdict = if dp_mmhg < DP_THRESHOLD_MMHG {
+        format!("PASSES: peak pressure difference {dp_mmhg:.2} mmHg is below the {DP_THRESHOLD_MMHG} mmHg planning threshold")
+    } else {
+        format!("FAILS: peak pressure difference {dp_mmhg:.2} mmHg is not below the {DP_THRESHOLD_MMHG} mmHg planning threshold")
+    };
+    // A number from an unconverged solve is shown, but not without saying so.
+    if converged { verdict } else { verdict + " (the solve did not reach its residual target)" }
+}
+
+/// "passes" / "fails" of one run, flagged when its solve did not converge.
+fn run_verdict(run: &Run) -> String {
+    let verdict = match run.dp_mmhg() {
+        Ok(dp) if dp < DP_THRESHOLD_MMHG => "passes",
+        Ok(_) => "fails",
+        Err(_) => "no result",
+    };
+    if run.summary["converged"].as_bool() == Some(true) { verdict.into() } else { format!("{verdict} (not converged)") }
+}
+
+fn profile_series(s_mm: &[f64], values: &[Option<f64>], reference: f64) -> Vec<(f64, f64)> {
+    s_mm.iter().zip(values).map(|(&s, v)| (s, v.map_or(f64::NAN, |v| v - reference))).collect()
+}
+
+fn section_area_chart(design: &Value) -> String {
+    let sections = design["sections"].as_array().cloned().unwrap_or_default();
+    let series_of = |key: &str| -> Vec<(f64, f64)> {
+        sections.iter().filter_map(|s| Some((s["s_mm"].as_f64()?, s[key].as_f64()?))).collect()
+    };
+    let finals = series_of("final_area_mm2");
+    let target = design["target_area_mm2"].as_f64().unwrap_or(f64::NAN);
+    let span: Vec<f64> = sections.iter().filter_map(|s| s["s_mm"].as_f64()).collect();
+    let (s0, s1) = (span.first().copied().unwrap_or(0.0), span.last().copied().unwrap_or(1.0));
+    let series = [
+        Series { markers: finals.len() < 40, ..Series::line("designed", finals, "#1f77b4") },
+        Series { dashed: true, ..Series::line("initial patch", series_of("raw_area_mm2"), "#999999") },
+        Series { dashed: true, ..Series::line("target", vec![(s0, target), (s1, target)], "#d62728") },
+    ];
+    line_chart("Section area along the centerline", "arc length from the VSD s (mm)", "area (mm²)", &series, true)
+}
+
+struct Html(String);
+
+impl Html {
+    fn heading(&mut self, text: &str) {
+        let _ = writeln!(self.0, "<h2>{}</h2>", escape(text));
+    }
+    fn para(&mut self, text: &str) {
+        let _ = writeln!(self.0, "<p>{}</p>", escape(text));
+    }
+    fn figure(&mut self, svg: &str, caption: &str) {
+        let _ = writeln!(self.0, "<figure>{svg}<figcaption>{}</figcaption></figure>", escape(caption));
+    }
+    fn table(&mut self, header: &[&str], rows: &[Vec<String>]) {
+        self.0.push_str("<table><tr>");
+        for h in header {
+            let _ = write!(self.0, "<th>{}</th>", escape(h));
+        }
+        self.0.push_str("</tr>\n");
+        for row in rows {
+            self.0.push_str("<tr>");
+            for cell in row {
+                let _ = write!(self.0, "<td>{}</td>", escape(cell));
+            }
+            self.0.push_str("</tr>\n");
+        }
+        self.0.push_str("</table>\n");
+    }
+}
+
+const STYLE: &str = "body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}\
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}\
+figure{display:inline-block;margin:0.5em}figcaption{font-size:0.85em;color:#555}\
+.pass{background:#dff0d8;padding:0.6em;border:1px solid #3c763d}.fail{background:#f2dede;padding:0.6em;border:1px solid #a94442}";
+
+fn format_value(v: f64, decimals: usize) -> String {
+    if v.is_finite() { format!("{v:.decimals$}") } else { "—".into() }
+}
+
+/// Write report.json and report.html from the stages' files; returns the verdict line.
+pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<String, String> {
+    let out = &args.design.out;
+    let labels = (args.design.vsd_label, args.design.aortic_label);
+    let design_dir = out.join("design");
+    let design_path = design_dir.join("report.json");
+    let design = read_json(&design_path)?;
+    let runs = load_runs(out, stages)?;
+    let nominal = runs.iter().find(|r| r.level == "nominal" && r.flow == FlowCase::Nominal).ok_or("no nominal simulation stage")?;
+    let nominal_dir = out.join(&nominal.stage);
+    let profile = centerline_profile(&design_dir.join("centerline.vtp"), &nominal_dir.join("peak.vtu"))?;
+    let centerline_v_max = profile.speed_m_s.iter().flatten().cloned().fold(f64::NAN, f64::max);
+    let table = quantities(&design, &design_path, nominal, centerline_v_max)?;
+    let dp = nominal.dp_mmhg()?;
+    let passes = dp < DP_THRESHOLD_MMHG;
+    let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
+    let verdict = verdict_text(dp, converged);
+    let dp_cycle = dp_over_cycle(&nominal_dir, &nominal.summary, labels.0, labels.1)?;
+
+    let run_rows: Vec<Value> = runs
+        .iter()
+        .map(|r| {
+            json!({
+                "stage": r.stage, "mesh": r.level, "edge_length_mm": r.edge_length_mm,
+                "cardiac_index_l_min_m2": r.flow.cardiac_index_l_min_m2(),
+                "tetrahedra": r.quality["tetrahedra"], "mode": r.summary["mode"], "converged": r.summary["converged"],
+                "dp_peak_mmhg": r.summary["dp_peak_mmhg"], "max_velocity_m_s": r.summary["max_velocity_m_s"],
+                "passes": r.dp_mmhg().map(|dp| dp < DP_THRESHOLD_MMHG).ok(),
+            })
+        })
+        .collect();
+    let report = json!({
+        "status": "completed",
+        "inputs": {
+            "surface": args.design.surface, "points": args.design.points, "phantom": args.design.phantom,
+            "bsa_m2": flow_bsa_m2(args).ok(), "sbp_mmhg": args.bp.0, "dbp_mmhg": args.bp.1,
+            "heart_rate_bpm": args.hr, "mode": nominal.summary["mode"], "edge_length_mm": args.edge_length_mm,
+        },
+        "stages": records,
+        "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
+        "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
+        "runs": run_rows,
+        "centerline": {
+            "s_mm": profile.s_mm, "pressure_mmhg": profile.pressure_mmhg, "speed_m_s": profile.speed_m_s,
+            "sampled_points": profile.pressure_mmhg.iter().flatten().count(),
+        },
+        "dp_over_cycle": { "time_in_cycle_s": dp_cycle.iter().map(|p| p.0).collect::<Vec<_>>(), "dp_mmhg": dp_cycle.iter().map(|p| p.1).collect::<Vec<_>>() },
+    });
+    write_json(&out.join("report.json"), &report)?;
+
+    let mut html = Html(String::new());
+    let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
+    let source = args.design.surface.as_ref().map_or("built-in phantom".to_string(), |p| p.display().to_string());
+    html.para(&format!(
+        "Surface {source}; BSA {} m²; BP {}/{} mmHg; {}; {} run, nominal mesh {} mm.",
+        flow_bsa_m2(args)?,
+        args.bp.0,
+        args.bp.1,
+        args.hr.map_or("default period 0.682 s".into(), |hr| format!("HR {hr} /min")),
+        nominal.summary["mode"].as_str().unwrap_or("?"),
+        args.edge_length_mm
+    ));
+    let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", if passes { "pass" } else { "fail" }, escape(&verdict));
+    html.heading("The paper's quantities");
+    let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
+    html.table(&["Quantity", "Value", "Unit"], &rows);
+
+    html.heading("Baffle and pathway");
+    let domain = baffle_core::io::read_surface_labeled(&design_dir.join("domain.vtp")).map_err(|e| e.to_string())?.mesh;
+    let d = &args.design;
+    let palette = svg_render::Palette(&[(d.wall_label, [205, 140, 130]), (d.baffle_label, [70, 130, 230]), (d.vsd_label, [90, 180, 90]), (d.aortic_label, [230, 190, 60])]);
+    let centerline = baffle_core::io::read_polydata(&design_dir.join("centerline.vtp")).map_err(|e| e.to_string())?.points;
+    for view in svg_render::axis_views() {
+        html.figure(&svg_render::render_view(&domain, &view, &palette, &centerline), &format!("view {}", view.name));
+    }
+    html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: centerline (hidden inside the pathway).");
+
+    html.heading("Section area");
+    html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
+
+    html.heading("Inflow");
+    let colors = ["#1f77b4", "#ff7f0e"];
+    let mut inflow: Vec<Series> = Vec::new();
+    for (k, run) in runs.iter().filter(|r| r.level == "nominal").enumerate() {
+        inflow.push(waveform_series(run, colors[k % 2])?);
+    }
+    if let (true, Some(q_peak)) = (dp_cycle.is_empty(), nominal.summary["q_peak_ml_s"].as_f64()) {
+        let period = inflow[0].points.last().map_or(1.0, |p| p.0);
+        inflow.push(Series { dashed: true, ..Series::line("held in the steady run", vec![(0.0, q_peak), (period, q_peak)], "#555555") });
+    }
+    html.figure(&line_chart("Inflow waveform (VSD)", "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
+
+    html.heading("Pressure difference");
+    if dp_cycle.is_empty() {
+        html.para(&format!("Steady run at Q_peak: dp = {dp:.3} mmHg (VSD cap − aortic cap)."));
+    } else {
+        let series = [Series::line("dp", dp_cycle.clone(), "#1f77b4"), Series { dashed: true, ..Series::line("10 mmHg", vec![(0.0, DP_THRESHOLD_MMHG), (dp_cycle.last().map_or(1.0, |p| p.0), DP_THRESHOLD_MMHG)], "#d62728") }];
+        html.figure(&line_chart("Pressure difference over the last cycle", "time in cycle (s)", "dp (mmHg)", &series, true), "VSD cap − aortic cap mean pressure.");
+    }
+    let reference = profile.pressure_mmhg.iter().rev().flatten().next().copied().unwrap_or(f64::NAN);
+    let series = [Series::line("pressure", profile_series(&profile.s_mm, &profile.pressure_mmhg, reference), "#1f77b4")];
+    html.figure(
+        &line_chart("Pressure along the centerline (peak flow)", "arc length from the VSD s (mm)", "p − p(aortic end) (mmHg)", &series, false),
+        &format!("Sampled from peak.vtu at {} of {} centerline points.", profile.pressure_mmhg.iter().flatten().count(), profile.s_mm.len()),
+    );
+
+    html.heading("Runs");
+    let rows: Vec<Vec<String>> = runs
+        .iter()
+        .map(|r| {
+            vec![
+                r.stage.clone(),
+                format!("{} ({:.2} mm)", r.level, r.edge_length_mm),
+                format!("{:.2}", r.flow.cardiac_index_l_min_m2()),
+                r.quality["tetrahedra"].to_string(),
+                format_value(r.dp_mmhg().unwrap_or(f64::NAN), 3),
+                format_value(r.v_max_m_s().unwrap_or(f64::NAN), 3),
+                run_verdict(r),
+            ]
+        })
+        .collect();
+    html.table(&["Run", "Mesh", "Cardiac index (L/min/m²)", "Tetrahedra", "dp (mmHg)", "v_max (m/s)", "10 mmHg verdict"], &rows);
+    html.heading("Stages");
+    let rows: Vec<Vec<String>> = records.iter().map(|r| vec![r.name.clone(), r.status.to_string(), format_value(r.wall_time_s.unwrap_or(f64::NAN), 1)]).collect();
+    html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
+    html.0.push_str("</body></html>\n");
+    write_atomic(&out.join("report.html"), html.0.as_bytes())?;
+    Ok(verdict)
+}

@@ -1,0 +1,248 @@
+//! `baffle plan` end to end: the phantom at a coarse mesh (report.json against the
+//! stages' own files, report.html well-formed and self-contained), failing stages that
+//! are named and keep the earlier stages' files, and p2 below the 10 mmHg threshold.
+//! Set BAFFLE_SKIP_GMSH=1 to skip the parts that mesh.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+fn baffle(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_baffle")).args(args).envs(env.iter().copied()).output().expect("run baffle")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("baffle-plan-{}-{name}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn skip_gmsh() -> bool {
+    std::env::var("BAFFLE_SKIP_GMSH").is_ok_and(|v| v == "1")
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+/// The phantom's input files, written once by `baffle phantom`.
+fn phantom_inputs() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = temp_dir("inputs");
+        let out = baffle(&["phantom", "--out", dir.to_str().unwrap()], &[]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        dir
+    })
+}
+
+/// The quick run most tests use: steady, at the paper's coarse 1.25 mm mesh.
+const COARSE_STEADY: &[&str] = &["--steady", "--edge-length-mm", "1.25"];
+
+/// `baffle plan` on `surface`/`points` with p2's BSA and BP, plus `run_args`.
+fn plan(surface: &Path, points: &Path, out: &Path, run_args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut args = vec!["plan", "--surface", surface.to_str().unwrap(), "--points", points.to_str().unwrap()];
+    args.extend_from_slice(&["--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()]);
+    args.extend_from_slice(run_args);
+    baffle(&args, env)
+}
+
+fn phantom_plan(out: &Path, run_args: &[&str], env: &[(&str, &str)]) -> Output {
+    let inputs = phantom_inputs();
+    plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), out, run_args, env)
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+}
+
+#[test]
+fn phantom_plan_reports_the_stages_own_figures() {
+    if skip_gmsh() {
+        return;
+    }
+    let out = temp_dir("phantom");
+    let run = phantom_plan(&out, &[COARSE_STEADY, &["--progress-tags"]].concat(), &[]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    for stage in ["design", "mesh-nominal", "simulate-nominal"] {
+        assert!(stdout.contains(&format!("plan: stage {stage} done in")), "no line for {stage}: {stdout}");
+    }
+    // Progress tags rise from 0 to 1 across all the stages.
+    let tags: Vec<f64> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("<filter-progress>")?.strip_suffix("</filter-progress>")?.parse().ok())
+        .collect();
+    assert!(tags.len() > 5 && tags.windows(2).all(|w| w[1] >= w[0] - 1e-9), "{tags:?}");
+    assert_eq!(tags.last().copied(), Some(1.0));
+
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["status"], "completed");
+    let q = &report["quantities"];
+    let dp = q["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(dp.is_finite() && dp > 0.0, "dp {dp}");
+    assert_eq!(report["verdict"]["passes"].as_bool().unwrap(), dp < 10.0);
+    assert_eq!(report["verdict"]["dp_peak_mmhg"].as_f64().unwrap(), dp);
+    // Every table value is the one in the stage's own file.
+    let design = read_json(&out.join("design/report.json"));
+    let quality = read_json(&out.join("mesh-nominal/mesh-quality.json"));
+    let summary = read_json(&out.join("simulate-nominal/summary.json"));
+    let sources = [
+        (&design, ["target_area_mm2", "centerline_length_mm", "baffle_area_mm2", "baffle_triangles"].as_slice()),
+        (&quality, ["tetrahedra", "min_scaled_jacobian", "p1_scaled_jacobian", "p99_aspect_ratio"].as_slice()),
+        (&summary, ["dp_peak_mmhg", "max_velocity_m_s"].as_slice()),
+    ];
+    for (file, keys) in sources {
+        for key in keys {
+            let (a, b) = (q[key].as_f64().unwrap_or(f64::NAN), file[key].as_f64().unwrap_or(f64::NAN));
+            assert!(close(a, b), "{key}: report {a} vs stage file {b}");
+        }
+    }
+    assert_eq!(q["tetrahedra"].as_u64(), quality["tetrahedra"].as_u64(), "counts are integers");
+    // The centerline pressure falls from the VSD to the aorta by about dp.
+    let c = &report["centerline"];
+    let pressure: Vec<f64> = c["pressure_mmhg"].as_array().unwrap().iter().filter_map(|v| v.as_f64()).collect();
+    assert!(pressure.len() as f64 >= 0.9 * c["s_mm"].as_array().unwrap().len() as f64, "{} sampled", pressure.len());
+    let drop = pressure[0] - pressure[pressure.len() - 1];
+    assert!(drop > 0.5 * dp && drop < 1.5 * dp, "centerline drop {drop} vs dp {dp}");
+    let v_line = q["max_centerline_velocity_m_s"].as_f64().unwrap();
+    assert!(v_line > 0.0 && v_line <= q["max_velocity_m_s"].as_f64().unwrap() + 1e-9);
+
+    check_html(&out.join("report.html"));
+    // Every stage wrote atomically: no temporary files are left in any subfolder.
+    for stage in ["design", "mesh-nominal", "simulate-nominal", "."] {
+        let names: Vec<String> = std::fs::read_dir(out.join(stage)).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        assert!(!names.iter().any(|n| n.contains(".tmp")), "{stage}: {names:?}");
+    }
+    std::fs::remove_dir_all(out).ok();
+}
+
+/// report.html parses as XML, holds the pictures and plots, the table rows and the
+/// verdict, and refers to nothing outside itself.
+fn check_html(path: &Path) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let options = roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() };
+    let doc = roxmltree::Document::parse_with_options(&text, options).unwrap_or_else(|e| panic!("report.html is not well-formed: {e}"));
+    let svgs = doc.descendants().filter(|n| n.has_tag_name("svg")).count();
+    assert!(svgs >= 6, "{svgs} SVGs (3 views, area, inflow, centerline pressure)");
+    for svg in doc.descendants().filter(|n| n.has_tag_name("svg")) {
+        let view_box: Vec<f64> = svg.attribute("viewBox").unwrap().split(' ').map(|v| v.parse().unwrap()).collect();
+        assert!(view_box.len() == 4 && view_box[2] > 0.0 && view_box[3] > 0.0, "{view_box:?}");
+    }
+    let cells: Vec<String> = doc.descendants().filter(|n| n.has_tag_name("td")).map(|n| n.text().unwrap_or("").to_string()).collect();
+    for row in ["Target area", "Centerline length", "Baffle area", "Baffle triangles", "Tetrahedra", "Scaled Jacobian, min", "Scaled Jacobian, 1st percentile", "Aspect ratio, 99th percentile", "v_max (domain)"] {
+        assert!(cells.iter().any(|c| c == row), "table row {row} missing");
+    }
+    assert!(cells.iter().any(|c| c.starts_with("Pressure difference at peak")));
+    assert!(text.contains("PASSES") || text.contains("FAILS"));
+    for node in doc.descendants().filter(|n| n.is_element()) {
+        assert!(!["script", "link", "img", "iframe", "object"].contains(&node.tag_name().name()), "<{}>", node.tag_name().name());
+        for attr in node.attributes() {
+            assert!(!["href", "src"].contains(&attr.name()), "{}={}", attr.name(), attr.value());
+        }
+    }
+    // The only URLs are the XML namespaces.
+    let without_namespaces = text.replace("http://www.w3.org/2000/svg", "").replace("http://www.w3.org/1999/xhtml", "");
+    assert!(!without_namespaces.contains("http") && !without_namespaces.contains("url("), "external reference");
+}
+
+#[test]
+fn a_suture_point_off_the_surface_fails_the_design_stage() {
+    let out = temp_dir("bad-points");
+    let inputs = phantom_inputs();
+    let markups = read_json(&inputs.join("suture_points.mrk.json"));
+    let mut moved = markups.clone();
+    let first = &mut moved["markups"][0]["controlPoints"][0]["position"];
+    first[0] = serde_json::json!(first[0].as_f64().unwrap() + 40.0);
+    let points = out.join("far.mrk.json");
+    std::fs::write(&points, serde_json::to_string(&moved).unwrap()).unwrap();
+    let run = plan(&inputs.join("capped_ventricle.vtp"), &points, &out.join("plan"), COARSE_STEADY, &[]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("stage design failed") && stderr.contains("from the surface"), "stage and reason: {stderr}");
+    let report = read_json(&out.join("plan/report.json"));
+    assert_eq!(report["status"], "failed");
+    assert_eq!(report["failed_stage"], "design");
+    assert!(!out.join("plan/mesh-nominal").exists(), "no stage after the failed one ran");
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn a_missing_gmsh_fails_the_mesh_stage_and_keeps_the_design() {
+    let out = temp_dir("no-gmsh");
+    let run = phantom_plan(&out, COARSE_STEADY, &[("BAFFLE_GMSH", "/nonexistent/gmsh")]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("stage mesh-nominal failed") && stderr.contains("/nonexistent/gmsh"), "{stderr}");
+    assert!(stderr.contains(&out.join("design").display().to_string()), "kept files not named: {stderr}");
+    for file in ["domain.vtp", "centerline.vtp", "report.json"] {
+        assert!(out.join("design").join(file).is_file(), "{file} of the finished design stage is gone");
+    }
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["failed_stage"], "mesh-nominal");
+    let stages = report["stages"].as_array().unwrap();
+    let status: Vec<&str> = stages.iter().map(|s| s["status"].as_str().unwrap()).collect();
+    assert_eq!(status, ["completed", "failed", "not run"]);
+    assert!(!out.join("report.html").exists());
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn segmentations_need_the_prepare_stage() {
+    let out = temp_dir("segmentations");
+    let inputs = phantom_inputs();
+    let run = baffle(
+        &["plan", "--segmentations", inputs.to_str().unwrap(), "--points", inputs.join("suture_points.mrk.json").to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()],
+        &[],
+    );
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("--segmentations needs `baffle prepare`"), "{}", String::from_utf8_lossy(&run.stderr));
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn p2_at_a_coarse_mesh_is_below_the_planning_threshold() {
+    if skip_gmsh() {
+        return;
+    }
+    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let inputs = data.join("p2/design_input");
+    let out = temp_dir("p2");
+    let run = plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), &out, COARSE_STEADY, &[]);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&out.join("report.json"));
+    let dp = report["quantities"]["dp_peak_mmhg"].as_f64().unwrap();
+    eprintln!("p2 steady, 1.25 mm: dp {dp:.3} mmHg, v_max {} m/s", report["quantities"]["max_velocity_m_s"]);
+    assert!(dp.is_finite() && dp > 0.0 && dp < 10.0, "p2 dp {dp} mmHg");
+    assert_eq!(report["verdict"]["passes"], true);
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn a_pulsatile_plan_reports_dp_over_the_last_cycle() {
+    if skip_gmsh() {
+        return;
+    }
+    // A 0.1 s period (600 /min) keeps the run to 2 x 100 time steps; what is checked is
+    // the reporting of a cycle, not its physiology.
+    let out = temp_dir("pulsatile");
+    let run = phantom_plan(&out, &["--pulsatile", "--hr", "600", "--cycles", "2", "--edge-length-mm", "1.6"], &[]);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&out.join("report.json"));
+    let summary = read_json(&out.join("simulate-nominal/summary.json"));
+    assert_eq!(summary["mode"], "transient");
+    let cycle = &report["dp_over_cycle"];
+    let (times, dps) = (cycle["time_in_cycle_s"].as_array().unwrap(), cycle["dp_mmhg"].as_array().unwrap());
+    assert_eq!(times.len(), 100, "one cycle of 0.1 s at dt 1 ms");
+    let peak_dp = dps.iter().filter_map(|v| v.as_f64()).fold(f64::NEG_INFINITY, f64::max);
+    let reported = report["quantities"]["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(close(reported, summary["dp_peak_mmhg"].as_f64().unwrap()));
+    // dp at peak flow is at most the cycle's largest dp and of the same size.
+    assert!(reported <= peak_dp + 1e-9 && reported > 0.5 * peak_dp, "dp at peak {reported}, largest {peak_dp}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Pressure difference over the last cycle"));
+    check_html(&out.join("report.html"));
+    std::fs::remove_dir_all(out).ok();
+}
