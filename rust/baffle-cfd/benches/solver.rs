@@ -24,7 +24,7 @@ use std::time::Instant;
 use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
 use baffle_cfd::test_meshes::{tube, INLET, OUTLET};
 use baffle_cfd::vtu::read_simvascular_mesh;
-use baffle_cfd::{simulate, CaseSettings, FlowMesh, Outlet, RunMode, Summary, Waveform};
+use baffle_cfd::{simulate, simulate_from, CaseSettings, FlowMesh, Outlet, RunMode, Summary, Waveform};
 
 const MMHG: f64 = 1333.22;
 const VSD_CAP: i32 = 11;
@@ -104,8 +104,9 @@ fn p2_case() -> Result<(FlowMesh, CaseSettings), Box<dyn std::error::Error>> {
     Ok((mesh, settings))
 }
 
-/// `steps` steps of the case's waveform from t0: the waveform shifted by t0 and run as
-/// one "cycle" of that length, so the run ends normally with its timing breakdown.
+/// `steps` steps of the case's waveform from t0: the waveform shifted by t0, one step
+/// longer than the window so that no step wraps around to the start ([`run_window`]
+/// stops after `steps`).
 fn window(settings: &CaseSettings, t0_s: f64, steps: usize) -> CaseSettings {
     let dt = settings.dt_s;
     let mut s = settings.clone();
@@ -131,40 +132,57 @@ fn run(mesh: &FlowMesh, settings: &CaseSettings) -> Result<(Summary, f64), Box<d
     Ok((summary, start.elapsed().as_secs_f64()))
 }
 
+/// The first `steps` steps of a [`window`] case.
+fn run_window(mesh: &FlowMesh, settings: &CaseSettings, steps: usize) -> Result<(Summary, f64), Box<dyn std::error::Error>> {
+    let start = Instant::now();
+    let run = simulate_from(mesh, settings, None, &mut |view| view.step < steps)?;
+    Ok((run.summary, start.elapsed().as_secs_f64()))
+}
+
+/// Runs of the two precisions alternate, so a change of the machine's load hits both.
 fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     let total_steps = (settings.cycles as f64 * settings.inflow.period_s() / settings.dt_s).round();
+    let mut per_step_s = vec![Vec::new(); o.precisions.len()];
+    let mut cases = Vec::new();
     for &mixed in &o.precisions {
         let mut s = window(settings, o.t0_s, o.steps);
         s.mixed_precision = mixed;
         if let Some(k) = o.picard {
             s.max_nonlinear_iterations = k;
         }
-        let mut per_step_s = Vec::new();
-        for k in 0..o.runs {
-            let (summary, _) = run(mesh, &s)?;
+        cases.push(s);
+    }
+    for k in 0..o.runs {
+        for (case, times) in cases.iter().zip(&mut per_step_s) {
+            let (summary, _) = run_window(mesh, case, o.steps)?;
             let t = &summary.timings;
+            let n = summary.steps.len() as f64;
             let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
-            let step_s = (t.total_s - t.setup_s) / summary.steps.len() as f64;
+            let step_s = (t.total_s - t.setup_s) / n;
             println!(
-                "  run {k}: {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step), last dp(11-16) {:.4} mmHg, load {}",
-                t.assembly_s / summary.steps.len() as f64,
-                t.preconditioner_s / summary.steps.len() as f64,
-                t.gmres_s / summary.steps.len() as f64,
-                gmres as f64 / summary.steps.len() as f64,
+                "  run {k} ({}): {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
+                if case.mixed_precision { "mixed" } else { "f64" },
+                t.assembly_s / n,
+                t.preconditioner_s / n,
+                t.gmres_s / n,
+                gmres as f64 / n,
+                1e3 * t.gmres_s / gmres.max(1) as f64,
                 dp_mmhg(&summary, summary.steps.len() - 1),
                 load_average()
             );
-            per_step_s.push(step_s);
+            times.push(step_s);
         }
-        let m = median(per_step_s.clone());
+    }
+    for (case, times) in cases.iter().zip(per_step_s) {
+        let m = median(times.clone());
         println!(
             "transient ({} precision, at most {} nonlinear iterations): median {m:.3} s per step over {} runs of {} steps (min {:.3}, max {:.3}); 4 cycles = {total_steps} steps ~ {:.1} min",
-            if mixed { "mixed f32/f64" } else { "f64" },
-            s.max_nonlinear_iterations,
+            if case.mixed_precision { "mixed f32/f64" } else { "f64" },
+            case.max_nonlinear_iterations,
             o.runs,
             o.steps,
-            per_step_s.iter().cloned().fold(f64::INFINITY, f64::min),
-            per_step_s.iter().cloned().fold(0.0, f64::max),
+            times.iter().cloned().fold(f64::INFINITY, f64::min),
+            times.iter().cloned().fold(0.0, f64::max),
             m * total_steps / 60.0
         );
     }
@@ -233,8 +251,8 @@ fn compare_schemes(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Res
     let mut picard = semi.clone();
     picard.max_nonlinear_iterations = 5;
     picard.nonlinear_tolerance = 1e-3;
-    let (a, wall_a) = run(mesh, &semi)?;
-    let (b, wall_b) = run(mesh, &picard)?;
+    let (a, wall_a) = run_window(mesh, &semi, o.steps)?;
+    let (b, wall_b) = run_window(mesh, &picard, o.steps)?;
     let mut worst_dp = 0.0f64;
     let mut worst_v = 0.0f64;
     for k in 0..a.steps.len() {
@@ -267,7 +285,7 @@ fn smoke() -> Result<(), Box<dyn std::error::Error>> {
     let mesh = tube(0.25, 2.0, 3, 10, &[]);
     let outlets = vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }];
     let settings = CaseSettings::new(INLET, Waveform::Ejection { period_s: 0.02, q_mean_ml_s: 1.0 }, outlets);
-    let (summary, wall) = run(&mesh, &window(&settings, 0.004, 5))?;
+    let (summary, wall) = run_window(&mesh, &window(&settings, 0.004, 5), 5)?;
     let mut steady = settings.clone();
     steady.mode = RunMode::Steady;
     let (steady_summary, steady_wall) = run(&mesh, &steady)?;
