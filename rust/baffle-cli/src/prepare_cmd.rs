@@ -3,15 +3,31 @@
 
 use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
-use baffle_prepare::{prepare, read_segmentations, PrepareOptions};
+use baffle_prepare::{pools_from_labelmap, prepare, read_labelmap, read_segmentations, BloodPools, LabelSurfaceOptions, PoolLabels, PrepareOptions};
 use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct PrepareArgs {
     /// Folder of closed per-structure surfaces in mm: LV, RV and aorta (.vtp, .vtk or .stl).
+    #[arg(long, required_unless_present = "labelmap", conflicts_with = "labelmap")]
+    segmentations: Option<PathBuf>,
+    /// Multi-label label map (.nrrd, .nii, .nii.gz); labels LV 1, RV 2, LA 3, RA 4,
+    /// myo 5, aorta 6, PA 7 unless remapped. Surfaces are made in LPS mm.
     #[arg(long)]
-    segmentations: PathBuf,
+    labelmap: Option<PathBuf>,
+    /// Label value of the LV blood pool in --labelmap.
+    #[arg(long, default_value_t = 1)]
+    lv_label: i32,
+    /// Label value of the RV blood pool in --labelmap.
+    #[arg(long, default_value_t = 2)]
+    rv_label: i32,
+    /// Label value of the aorta in --labelmap.
+    #[arg(long, default_value_t = 6)]
+    aorta_label: i32,
+    /// Skip the 3x3x3 median filter of each --labelmap label mask.
+    #[arg(long)]
+    no_median: bool,
     /// Output capped ventricle (.vtp): ModelFaceID 2 RV wall, 11 VSD cap, 16 aortic cap.
     /// A report (<stem>-report.json) is written beside it.
     #[arg(long)]
@@ -37,7 +53,7 @@ pub struct PrepareArgs {
 }
 
 pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
-    let pools = read_segmentations(&args.segmentations).map_err(|e| e.to_string())?;
+    let pools = read_pools(args)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,
         crop_margin_mm: args.crop_margin_mm,
@@ -58,4 +74,17 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
     );
     println!("wrote {}, {}", args.out.display(), report_path.display());
     Ok(())
+}
+
+fn read_pools(args: &PrepareArgs) -> Result<BloodPools, String> {
+    match (&args.segmentations, &args.labelmap) {
+        (Some(dir), _) => read_segmentations(dir).map_err(|e| e.to_string()),
+        (None, Some(file)) => {
+            let map = read_labelmap(file).map_err(|e| e.to_string())?;
+            let labels = PoolLabels { lv: args.lv_label, rv: args.rv_label, aorta: args.aorta_label };
+            let options = LabelSurfaceOptions { median: !args.no_median, ..LabelSurfaceOptions::default() };
+            pools_from_labelmap(&map, &labels, &options).map_err(|e| format!("{}: {e}", file.display()))
+        }
+        (None, None) => Err("give --segmentations DIR or --labelmap FILE".into()),
+    }
 }

@@ -16,7 +16,9 @@ pub mod interfaces;
 pub mod clip;
 pub mod caps;
 pub mod prepare;
+pub mod labelmap;
 
 pub use error::PrepareError;
 pub use input::{read_segmentations, BloodPools};
 pub use prepare::{prepare, PrepareOptions, PrepareReport};
+pub use labelmap::{pools_from_labelmap, read_labelmap, LabelMap, LabelSurfaceOptions, PoolLabels};
