@@ -258,15 +258,17 @@ mod tests {
         }).collect()
     }
 
+    /// A tube along z clipped by planes at heights `z`, with loops on the tube.
+    fn clip_tube(z: [f64; 2], names: [&str; 2]) -> Result<Clipped, String> {
+        let tube = capped_tube(Vec3::zeros(), Vec3::new(0.0, 0.0, 10.0), 2.0, 10, 32);
+        let loops = z.map(ring);
+        let cuts: Vec<Cut> = loops.iter().zip(names).map(|(l, name)| Cut { name, plane: best_fit_plane(l), loop_mm: l }).collect();
+        clip_between(&tube, &cuts, 1e-6)
+    }
+
     #[test]
     fn a_tube_clipped_at_two_planes_keeps_the_middle() {
-        let tube = capped_tube(Vec3::zeros(), Vec3::new(0.0, 0.0, 10.0), 2.0, 10, 32);
-        let (low, high) = (ring(2.3), ring(7.1));
-        let cuts = [
-            Cut { name: "low", plane: best_fit_plane(&low), loop_mm: &low },
-            Cut { name: "high", plane: best_fit_plane(&high), loop_mm: &high },
-        ];
-        let clipped = clip_between(&tube, &cuts, 1e-6).unwrap();
+        let clipped = clip_tube([2.3, 7.1], ["low", "high"]).unwrap();
         assert_eq!(clipped.rims.len(), 2);
         for (rim, z) in clipped.rims.iter().zip([2.3, 7.1]) {
             assert!(rim.iter().all(|&v| (clipped.mesh.points[v as usize].z - z).abs() < 1e-9));
@@ -277,13 +279,7 @@ mod tests {
 
     #[test]
     fn a_plane_missing_the_surface_is_named() {
-        let tube = capped_tube(Vec3::zeros(), Vec3::new(0.0, 0.0, 10.0), 2.0, 10, 32);
-        let (low, far) = (ring(2.3), ring(20.0));
-        let cuts = [
-            Cut { name: "VSD", plane: best_fit_plane(&low), loop_mm: &low },
-            Cut { name: "aortic", plane: best_fit_plane(&far), loop_mm: &far },
-        ];
-        let err = clip_between(&tube, &cuts, 1e-6).unwrap_err();
+        let err = clip_tube([2.3, 20.0], ["VSD", "aortic"]).unwrap_err();
         assert!(err.contains("aortic plane"), "{err}");
     }
 }

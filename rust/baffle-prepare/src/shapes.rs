@@ -6,31 +6,19 @@ use std::f64::consts::PI;
 
 /// A latitude-longitude sphere: `rings` bands pole to pole, `segments` around.
 pub fn uv_sphere(center: Vec3, radius_mm: f64, rings: usize, segments: usize) -> TriMesh {
-    let mut points = vec![center + Vec3::new(0.0, 0.0, radius_mm)];
-    for r in 1..rings {
-        let theta = PI * r as f64 / rings as f64;
-        for s in 0..segments {
-            let phi = 2.0 * PI * s as f64 / segments as f64;
-            points.push(center + radius_mm * Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()));
-        }
-    }
-    points.push(center - Vec3::new(0.0, 0.0, radius_mm));
-    let ring = |r: usize, s: usize| (1 + (r - 1) * segments + s % segments) as u32;
-    let south = (points.len() - 1) as u32;
-    let mut triangles = Vec::new();
-    for s in 0..segments {
-        triangles.push([0, ring(1, s), ring(1, s + 1)]);
-        triangles.push([south, ring(rings - 1, s + 1), ring(rings - 1, s)]);
-    }
-    for r in 1..rings - 1 {
-        for s in 0..segments {
-            let (a, b, c, d) = (ring(r, s), ring(r, s + 1), ring(r + 1, s), ring(r + 1, s + 1));
-            triangles.push([a, c, d]);
-            triangles.push([a, d, b]);
-        }
-    }
-    let n = triangles.len();
-    TriMesh::new(points, triangles, vec![0; n])
+    let circles: Vec<Vec<Vec3>> = (1..rings)
+        .map(|r| {
+            let theta = PI * r as f64 / rings as f64;
+            (0..segments)
+                .map(|s| {
+                    let phi = 2.0 * PI * s as f64 / segments as f64;
+                    center + radius_mm * Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+                })
+                .collect()
+        })
+        .collect();
+    let pole = Vec3::new(0.0, 0.0, radius_mm);
+    ring_stack(center + pole, &circles, center - pole)
 }
 
 /// A closed tube of radius `radius_mm` from `start` to `end`, flat ends.
@@ -40,27 +28,45 @@ pub fn capped_tube(start: Vec3, end: Vec3, radius_mm: f64, rings: usize, segment
     let helper = if w.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
     let u = w.cross(&helper).normalize();
     let v = w.cross(&u);
-    let mut points = vec![start, end];
-    for r in 0..=rings {
-        let c = start + axis * (r as f64 / rings as f64);
-        for s in 0..segments {
-            let phi = 2.0 * PI * s as f64 / segments as f64;
-            points.push(c + radius_mm * (phi.cos() * u + phi.sin() * v));
-        }
-    }
-    let ring = |r: usize, s: usize| (2 + r * segments + s % segments) as u32;
+    let circles: Vec<Vec<Vec3>> = (0..=rings)
+        .map(|r| {
+            let c = start + axis * (r as f64 / rings as f64);
+            (0..segments)
+                .map(|s| {
+                    let phi = 2.0 * PI * s as f64 / segments as f64;
+                    c + radius_mm * (phi.cos() * u + phi.sin() * v)
+                })
+                .collect()
+        })
+        .collect();
+    ring_stack(start, &circles, end)
+}
+
+/// A closed surface through equal-sized rings, fanned to `first` and `last`,
+/// wound outward.
+fn ring_stack(first: Vec3, rings: &[Vec<Vec3>], last: Vec3) -> TriMesh {
+    let segments = rings[0].len();
+    let mut points = vec![first];
+    rings.iter().for_each(|r| points.extend(r));
+    points.push(last);
+    let last_index = (points.len() - 1) as u32;
+    let at = |r: usize, s: usize| (1 + r * segments + s % segments) as u32;
     let mut triangles = Vec::new();
     for s in 0..segments {
-        triangles.push([0, ring(0, s + 1), ring(0, s)]);
-        triangles.push([1, ring(rings, s), ring(rings, s + 1)]);
-        for r in 0..rings {
-            let (a, b, c, d) = (ring(r, s), ring(r, s + 1), ring(r + 1, s), ring(r + 1, s + 1));
-            triangles.push([a, b, d]);
-            triangles.push([a, d, c]);
+        triangles.push([0, at(0, s), at(0, s + 1)]);
+        triangles.push([last_index, at(rings.len() - 1, s + 1), at(rings.len() - 1, s)]);
+        for r in 0..rings.len() - 1 {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
+            triangles.push([a, c, d]);
+            triangles.push([a, d, b]);
         }
     }
     let n = triangles.len();
-    TriMesh::new(points, triangles, vec![0; n])
+    let mut mesh = TriMesh::new(points, triangles, vec![0; n]);
+    if mesh.signed_volume_mm3() < 0.0 {
+        mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    }
+    mesh
 }
 
 /// An axis-aligned box, outward-wound.
