@@ -64,6 +64,9 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
     };
     options.smoothing.iterations = args.smoothing_iterations;
     let (mesh, report) = prepare(&pools, &options).map_err(|e| e.to_string())?;
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+    }
     write_trimesh_vtp(&args.out, &mesh).map_err(|e| e.to_string())?;
     let report_path = PathBuf::from(format!("{}-report.json", args.out.with_extension("").display()));
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;

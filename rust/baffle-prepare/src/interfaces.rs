@@ -17,24 +17,27 @@ pub struct Structure<'a> {
     pub bvh: &'a TriangleBvh,
 }
 
-/// The label of the structure nearest each triangle's centroid, or `unlabelled`
-/// where none is within `max_distance_mm` (the grid's crop faces).
-pub fn label_by_nearest(mesh: &TriMesh, structures: &[Structure], max_distance_mm: f64, unlabelled: i32) -> Vec<i32> {
+/// The label of the structure nearest each triangle's centroid, for the
+/// triangles within `keep_within_mm` of the first structure (the RV: only its
+/// neighbourhood can end up in the capped ventricle); `None` for the others.
+pub fn label_by_nearest(mesh: &TriMesh, structures: &[Structure], keep_within_mm: f64) -> Vec<Option<i32>> {
     (0..mesh.triangles.len())
         .into_par_iter()
         .map(|t| {
             let [a, b, c] = mesh.triangle_points(t);
             let centroid = (a + b + c) / 3.0;
-            let mut best = (max_distance_mm, unlabelled);
-            for s in structures {
+            let (first, others) = structures.split_first()?;
+            let hit = first.bvh.closest_point_within(first.surface, centroid, keep_within_mm)?;
+            let mut best = (hit.distance_mm, first.label);
+            for s in others {
                 // Bounded by the best so far: most queries prune to a few leaves.
                 if let Some(hit) = s.bvh.closest_point_within(s.surface, centroid, best.0) {
-                    if hit.distance_mm < best.0 || best.1 == unlabelled {
+                    if hit.distance_mm < best.0 {
                         best = (hit.distance_mm, s.label);
                     }
                 }
             }
-            best.1
+            Some(best.1)
         })
         .collect()
 }
@@ -213,9 +216,11 @@ mod tests {
         let a = uv_sphere(Vec3::zeros(), 1.0, 8, 16);
         let b = uv_sphere(Vec3::new(10.0, 0.0, 0.0), 1.0, 8, 16);
         let (ba, bb) = (TriangleBvh::new(&a).unwrap(), TriangleBvh::new(&b).unwrap());
-        let structures = [Structure { label: 1, surface: &a, bvh: &ba }, Structure { label: 2, surface: &b, bvh: &bb }];
         let probe = uv_sphere(Vec3::new(7.0, 0.0, 0.0), 0.5, 4, 8);
-        assert!(label_by_nearest(&probe, &structures, 5.0, 0).iter().all(|&l| l == 2));
-        assert!(label_by_nearest(&probe, &structures, 0.1, 0).iter().all(|&l| l == 0));
+        let first_a = [Structure { label: 1, surface: &a, bvh: &ba }, Structure { label: 2, surface: &b, bvh: &bb }];
+        assert!(label_by_nearest(&probe, &first_a, 7.0).iter().all(|&l| l == Some(2)));
+        assert!(label_by_nearest(&probe, &first_a, 5.0).iter().all(|&l| l.is_none()), "beyond 5 mm of the first structure");
+        let first_b = [Structure { label: 2, surface: &b, bvh: &bb }, Structure { label: 1, surface: &a, bvh: &ba }];
+        assert!(label_by_nearest(&probe, &first_b, 5.0).iter().all(|&l| l == Some(2)));
     }
 }

@@ -89,7 +89,8 @@ impl Sample {
 /// Decode `count` samples; float labels are rounded.
 fn decode(data: &[u8], sample: Sample, count: usize, little_endian: bool) -> Result<Vec<i32>, String> {
     let size = sample.size();
-    if data.len() < count * size {
+    let needed = count.checked_mul(size).ok_or_else(|| format!("{count} voxels of {size} bytes is more than memory holds"))?;
+    if data.len() < needed {
         return Err(format!("{} bytes of voxel data for {count} voxels of {size} bytes", data.len()));
     }
     let word = |c: &[u8]| -> [u8; 8] {
@@ -100,7 +101,7 @@ fn decode(data: &[u8], sample: Sample, count: usize, little_endian: bool) -> Res
         }
         w
     };
-    Ok(data[..count * size]
+    Ok(data[..needed]
         .chunks_exact(size)
         .map(|c| {
             let w = word(c);
@@ -183,10 +184,13 @@ pub fn parse_nrrd(bytes: &[u8]) -> Result<LabelMap, String> {
         "gzip" | "gz" => gunzip(payload).map_err(|e| e.to_string())?,
         other => return Err(format!("unsupported NRRD encoding '{other}'")),
     };
-    let count = dims.iter().product();
-    let labels = decode(&data, sample, count, little_endian)?;
+    let labels = decode(&data, sample, voxel_count(&dims)?, little_endian)?;
     let axes = Matrix3::from_columns(&directions);
     Ok(to_lps(LabelMap { dims, labels, origin_mm: origin, axes_mm: axes }, ras))
+}
+
+fn voxel_count(dims: &[usize; 3]) -> Result<usize, String> {
+    dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).ok_or_else(|| format!("image size {dims:?} overflows"))
 }
 
 /// Flip RAS coordinates to LPS (x and y change sign).
@@ -240,8 +244,7 @@ pub fn parse_nifti(bytes: &[u8]) -> Result<LabelMap, String> {
     let sample = nifti_sample(i16_at(70))?;
     let vox_offset = f32_at(108) as usize;
     let data = bytes.get(vox_offset..).ok_or("NIfTI vox_offset is beyond the file")?;
-    let count = dims.iter().product();
-    let raw = decode(data, sample, count, little_endian)?;
+    let raw = decode(data, sample, voxel_count(&dims)?, little_endian)?;
     let (slope, inter) = (f32_at(112), f32_at(116));
     let labels = if slope != 0.0 && (slope != 1.0 || inter != 0.0) {
         raw.iter().map(|&v| (v as f64 * slope + inter).round() as i32).collect()
@@ -456,6 +459,8 @@ mod tests {
         let four_d = String::from_utf8(nrrd_bytes(&map, "raw")).unwrap().replace("dimension: 3", "dimension: 4");
         assert!(parse_nrrd(four_d.as_bytes()).unwrap_err().contains("3D label map"));
         assert!(parse_nifti(&[0u8; 400]).unwrap_err().contains("NIfTI"));
+        let huge = String::from_utf8(nrrd_bytes(&map, "raw")).unwrap().replace("sizes: 4 3 2", "sizes: 4000000000 4000000000 4000000000");
+        assert!(parse_nrrd(huge.as_bytes()).unwrap_err().contains("overflows"));
         assert!(read_labelmap(Path::new("/nonexistent/seg.nrrd")).unwrap_err().to_string().contains("seg.nrrd"));
         let err = pools_from_labelmap(&map, &PoolLabels { lv: 42, ..PoolLabels::default() }, &LabelSurfaceOptions::default());
         assert!(err.unwrap_err().to_string().contains("LV label 42"));

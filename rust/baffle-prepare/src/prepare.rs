@@ -17,8 +17,11 @@ use std::time::Instant;
 const LV: i32 = 1;
 const RV: i32 = 2;
 const AORTA: i32 = 6;
-/// Label of the union's triangles on the grid's crop faces.
-const UNLABELLED: i32 = 0;
+/// The union within this fraction of the crop margin of the RV is kept for the
+/// loops and the clip (the crop faces lie at the full margin).
+const RV_NEIGHBOURHOOD: f64 = 0.6;
+/// Smallest crop margin (mm): the kept neighbourhood must hold the rims.
+const MIN_CROP_MARGIN_MM: f64 = 3.0;
 /// Empty voxels around the structures (the blur and the contour need two).
 const GRID_MARGIN_VOXELS: usize = 4;
 /// Largest grid `prepare` allocates (one byte per voxel, a few times over).
@@ -105,13 +108,16 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     let [lv_bvh, rv_bvh, aorta_bvh] = bvhs;
     let (lv_bvh, rv_bvh, aorta_bvh) = (lv_bvh?, rv_bvh?, aorta_bvh?);
     let structures = [
-        Structure { label: LV, surface: &pools.lv, bvh: &lv_bvh },
         Structure { label: RV, surface: &pools.rv, bvh: &rv_bvh },
+        Structure { label: LV, surface: &pools.lv, bvh: &lv_bvh },
         Structure { label: AORTA, surface: &pools.aorta, bvh: &aorta_bvh },
     ];
-    // Farther than this from every structure is the grid's crop face.
-    let crop_face_mm = 1.0 + GRID_MARGIN_VOXELS as f64 * options.voxel_mm;
-    let labels = label_by_nearest(&union, &structures, crop_face_mm, UNLABELLED);
+    // Only the RV's neighbourhood can be kept: the rest (and the grid's crop
+    // faces, farther out) is dropped before the loops and the clip.
+    let near = label_by_nearest(&union, &structures, RV_NEIGHBOURHOOD * options.crop_margin_mm);
+    let keep: Vec<bool> = near.iter().map(Option::is_some).collect();
+    let labels: Vec<i32> = near.into_iter().flatten().collect();
+    let union = union.submesh(&keep).0;
     let union_bvh = TriangleBvh::new(&union).map_err(|e| PrepareError::geometry("union surface", e))?;
     let find_loop = |pair: (i32, i32), names: (&'static str, &'static str), what: &'static str, b: &Structure, a: &TriMesh| {
         interface_loop(&union, &union_bvh, &labels, pair, &options.loops).ok_or_else(|| PrepareError::NoContact {
@@ -121,8 +127,8 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
             distance_mm: closest_approach_mm(a, b),
         })
     };
-    let vsd = find_loop((LV, RV), ("LV", "RV"), "VSD", &structures[1], &pools.lv)?;
-    let aortic = find_loop((RV, AORTA), ("RV", "aorta"), "aortic annulus", &structures[1], &pools.aorta)?;
+    let vsd = find_loop((LV, RV), ("LV", "RV"), "VSD", &structures[0], &pools.lv)?;
+    let aortic = find_loop((RV, AORTA), ("RV", "aorta"), "aortic annulus", &structures[0], &pools.aorta)?;
     let loops_ms = lap();
 
     let cuts = [cut("VSD", &vsd), cut("aortic annulus", &aortic)];
@@ -172,8 +178,8 @@ fn lap_timer() -> impl FnMut() -> f64 {
 
 fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
     let positive = |v: f64| v.is_finite() && v > 0.0;
-    if !(options.crop_margin_mm.is_finite() && options.crop_margin_mm >= 0.0) {
-        return Err(PrepareError::Option(format!("crop margin must be a number of mm >= 0, got {}", options.crop_margin_mm)));
+    if !(options.crop_margin_mm.is_finite() && options.crop_margin_mm >= MIN_CROP_MARGIN_MM) {
+        return Err(PrepareError::Option(format!("crop margin must be at least {MIN_CROP_MARGIN_MM} mm, got {}", options.crop_margin_mm)));
     }
     if !(options.closing_radius_mm.is_finite() && options.closing_radius_mm >= 0.0) {
         return Err(PrepareError::Option(format!("closing radius must be a number of mm >= 0, got {}", options.closing_radius_mm)));
