@@ -20,7 +20,7 @@ pub fn ear_clip(polygon: &[u32], uv: &[(f64, f64)]) -> Result<Vec<[u32; 3]>, Str
         let (a, b) = (p(polygon[i]), p(polygon[(i + 1) % polygon.len()]));
         a.0 * b.1 - b.0 * a.1
     }).sum();
-    if !(area2.abs() > 0.0) {
+    if area2 == 0.0 || !area2.is_finite() {
         return Err(format!("the cap outline of {} points encloses no area", polygon.len()));
     }
     let sense = area2.signum();
@@ -73,7 +73,7 @@ pub fn close_with_caps(clipped: &Clipped, planes: &[Plane], wall_label: i32, cap
         // The wall runs a->b along its rim; the cap must run b->a.
         let reversed: Vec<u32> = rim.iter().rev().copied().collect();
         let triangles = ring_cap(&mut mesh.points, &reversed, plane)?;
-        mesh.face_ids.extend(std::iter::repeat(label).take(triangles.len()));
+        mesh.face_ids.extend(std::iter::repeat_n(label, triangles.len()));
         mesh.triangles.extend(triangles);
     }
     Ok(mesh)

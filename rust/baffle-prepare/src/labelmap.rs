@@ -167,7 +167,7 @@ pub fn parse_nrrd(bytes: &[u8]) -> Result<LabelMap, String> {
     let sizes: Vec<usize> = field("sizes")?.split_whitespace().map(|s| s.parse().map_err(|_| format!("bad NRRD size '{s}'"))).collect::<Result<_, _>>()?;
     let dims: [usize; 3] = sizes.try_into().map_err(|_| "NRRD sizes must be 3 numbers")?;
     let sample = nrrd_sample(field("type")?)?;
-    let little_endian = fields.get("endian").map_or(true, |e| e == "little");
+    let little_endian = fields.get("endian").is_none_or(|e| e == "little");
     let directions: Vec<Vec3> = field("space directions")?.split_whitespace().map(nrrd_vector).collect::<Result<_, _>>()?;
     if directions.len() != 3 {
         return Err("NRRD space directions must be three vectors".into());
@@ -302,6 +302,12 @@ impl Default for LabelSurfaceOptions {
 /// binary mask, closing, 3x3x3 median, marching tetrahedra, Taubin smoothing.
 /// A label with no voxel is named.
 pub fn pools_from_labelmap(map: &LabelMap, labels: &PoolLabels, options: &LabelSurfaceOptions) -> Result<BloodPools, PrepareError> {
+    if voxel_count(&map.dims).ok() != Some(map.labels.len()) {
+        return Err(PrepareError::geometry("label map", format!("{} labels for a {:?} image", map.labels.len(), map.dims)));
+    }
+    if !(map.axes_mm.determinant().abs() > 0.0 && map.axes_mm.iter().chain(map.origin_mm.iter()).all(|v| v.is_finite())) {
+        return Err(PrepareError::geometry("label map", "the voxel axes are degenerate or not finite"));
+    }
     let surface = |name: &'static str, value: i32| label_surface(map, name, value, options);
     Ok(BloodPools { lv: surface("LV", labels.lv)?, rv: surface("RV", labels.rv)?, aorta: surface("aorta", labels.aorta)? })
 }
@@ -462,6 +468,8 @@ mod tests {
         let huge = String::from_utf8(nrrd_bytes(&map, "raw")).unwrap().replace("sizes: 4 3 2", "sizes: 4000000000 4000000000 4000000000");
         assert!(parse_nrrd(huge.as_bytes()).unwrap_err().contains("overflows"));
         assert!(read_labelmap(Path::new("/nonexistent/seg.nrrd")).unwrap_err().to_string().contains("seg.nrrd"));
+        let short = LabelMap { labels: vec![1; 5], ..map.clone() };
+        assert!(pools_from_labelmap(&short, &PoolLabels::default(), &LabelSurfaceOptions::default()).unwrap_err().to_string().contains("5 labels"));
         let err = pools_from_labelmap(&map, &PoolLabels { lv: 42, ..PoolLabels::default() }, &LabelSurfaceOptions::default());
         assert!(err.unwrap_err().to_string().contains("LV label 42"));
     }

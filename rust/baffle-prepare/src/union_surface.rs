@@ -46,8 +46,7 @@ pub fn union_surface(mask: &[bool], grid: &Grid, smoothing: &SmoothingOptions) -
 fn blur(mask: &[bool], grid: &Grid) -> Vec<u8> {
     let mut field: Vec<u8> = mask.iter().map(|&m| m as u8).collect();
     let strides = [1, grid.dims[0], grid.dims[0] * grid.dims[1]];
-    for axis in 0..3 {
-        let (stride, n) = (strides[axis], grid.dims[axis]);
+    for (&stride, &n) in strides.iter().zip(&grid.dims) {
         let src = field.clone();
         field.par_iter_mut().enumerate().for_each(|(idx, out)| {
             let coord = (idx / stride) % n;
