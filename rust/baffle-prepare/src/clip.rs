@@ -181,25 +181,26 @@ fn nearest_curve(mesh: &TriMesh, curves: &[Vec<(u32, u32)>], loop_mm: &[Vec3]) -
 fn keep_between(mesh: &TriMesh, edges: &HashMap<(u32, u32), Vec<u32>>, cut_edges: &[Vec<(u32, u32)>], cuts: &[Cut]) -> Result<Clipped, String> {
     let blocked: std::collections::HashSet<(u32, u32)> = cut_edges.iter().flatten().copied().collect();
     let component = components_across(mesh, edges, &blocked);
-    let touching = |curve: &Vec<(u32, u32)>| -> std::collections::HashSet<usize> {
+    let components_at = |curve: &Vec<(u32, u32)>| -> std::collections::HashSet<usize> {
         curve.iter().flat_map(|e| edges[e].iter().map(|&t| component[t as usize])).collect()
     };
-    let mut common = touching(&cut_edges[0]);
+    let mut common = components_at(&cut_edges[0]);
     for curve in &cut_edges[1..] {
-        let next = touching(curve);
+        let next = components_at(curve);
         common.retain(|c| next.contains(c));
     }
     let names: Vec<&str> = cuts.iter().map(|c| c.name).collect();
+    let touching = format!("do the {} cuts touch each other on the surface?", names.join(" and "));
     let kept = match common.len() {
         1 => *common.iter().next().unwrap_or(&0),
         0 => return Err(format!("no part of the surface lies between the {} cuts", names.join(" and "))),
-        n => return Err(format!("{n} parts of the surface lie between the {} cuts (expected 1)", names.join(" and "))),
+        n => return Err(format!("{n} parts of the surface lie between the {} cuts, expected 1 ({touching})", names.join(" and "))),
     };
     let keep: Vec<bool> = component.iter().map(|&c| c == kept).collect();
     let (sub, old_of_new) = mesh.submesh(&keep);
     let loops = sub.boundary_loops()?;
     if loops.len() != cut_edges.len() {
-        return Err(format!("the kept surface has {} openings, expected {} ({})", loops.len(), cut_edges.len(), names.join(", ")));
+        return Err(format!("the kept surface has {} openings, expected {} ({touching})", loops.len(), cut_edges.len()));
     }
     let rims = cut_edges
         .iter()
@@ -210,7 +211,7 @@ fn keep_between(mesh: &TriMesh, edges: &HashMap<(u32, u32), Vec<u32>>, cut_edges
                 .iter()
                 .find(|l| l.iter().any(|&v| old_of_new[v as usize] == a))
                 .cloned()
-                .ok_or_else(|| format!("the {} cut is not an opening of the kept surface", cut.name))
+                .ok_or_else(|| format!("the {} cut is not an opening of the kept surface ({touching})", cut.name))
         })
         .collect::<Result<Vec<_>, String>>()?;
     Ok(Clipped { mesh: sub, rims })
@@ -251,19 +252,37 @@ mod tests {
     use crate::shapes::capped_tube;
     use baffle_core::numerics::pca::best_fit_plane;
 
-    fn ring(z: f64) -> Vec<Vec3> {
-        (0..16).map(|k| {
-            let a = k as f64 * std::f64::consts::PI / 8.0;
-            Vec3::new(2.0 * a.cos(), 2.0 * a.sin(), z)
-        }).collect()
+    /// A loop on the tube in the plane z = z0 + slope * y.
+    fn tilted_ring(z0: f64, slope: f64) -> Vec<Vec3> {
+        (0..16)
+            .map(|k| {
+                let a = k as f64 * std::f64::consts::PI / 8.0;
+                Vec3::new(2.0 * a.cos(), 2.0 * a.sin(), z0 + slope * 2.0 * a.sin())
+            })
+            .collect()
     }
 
-    /// A tube along z clipped by planes at heights `z`, with loops on the tube.
-    fn clip_tube(z: [f64; 2], names: [&str; 2]) -> Result<Clipped, String> {
+    fn ring(z: f64) -> Vec<Vec3> {
+        tilted_ring(z, 0.0)
+    }
+
+    /// A tube along z clipped by the planes of two loops on it.
+    fn clip_tube_loops(loops: [Vec<Vec3>; 2], names: [&str; 2]) -> Result<Clipped, String> {
         let tube = capped_tube(Vec3::zeros(), Vec3::new(0.0, 0.0, 10.0), 2.0, 10, 32);
-        let loops = z.map(ring);
         let cuts: Vec<Cut> = loops.iter().zip(names).map(|(l, name)| Cut { name, plane: best_fit_plane(l), loop_mm: l }).collect();
         clip_between(&tube, &cuts, 1e-6)
+    }
+
+    /// A tube along z clipped by planes at heights `z`.
+    fn clip_tube(z: [f64; 2], names: [&str; 2]) -> Result<Clipped, String> {
+        clip_tube_loops(z.map(ring), names)
+    }
+
+    #[test]
+    fn cuts_that_cross_on_the_surface_are_an_error() {
+        // z = 3 + 0.6 y and z = 5 - 0.6 y meet at y = 1.67, on the tube (radius 2).
+        let err = clip_tube_loops([tilted_ring(3.0, 0.6), tilted_ring(5.0, -0.6)], ["VSD", "aortic"]).unwrap_err();
+        assert!(err.contains("touch"), "{err}");
     }
 
     #[test]
