@@ -80,8 +80,11 @@ pub struct PrepareTimings {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PrepareReport {
     pub voxel_mm: f64,
+    /// Voxels of the union grid along x, y, z (the RV's box plus the crop margin).
     pub grid_dims: [usize; 3],
+    /// Triangles of the smoothed union kept around the RV (before the clip).
     pub union_triangles: usize,
+    /// Triangles of the capped ventricle.
     pub triangles: usize,
     pub area_mm2: f64,
     pub volume_mm3: f64,
