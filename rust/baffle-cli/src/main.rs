@@ -13,6 +13,7 @@ mod case;
 mod export_cmd;
 mod mesh_cmd;
 mod plan_cmd;
+mod prepare_cmd;
 mod report;
 mod simulate_cmd;
 mod simulate_svmp;
@@ -33,6 +34,8 @@ enum Command {
     /// tangent), sections.vtp (raw and regularized baffle arcs), seam.vtp and
     /// report.json (target, per-section areas and amplitudes, step timings).
     Design(DesignArgs),
+    /// The capped ventricle (design input) from segmented LV, RV and aorta surfaces.
+    Prepare(prepare_cmd::PrepareArgs),
     /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
     Mesh(mesh_cmd::MeshArgs),
     /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
@@ -165,6 +168,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Design(args) => run_design(&args),
+        Command::Prepare(args) => prepare_cmd::run_prepare(&args),
         Command::Mesh(args) => mesh_cmd::run_mesh(&args),
         Command::Simulate(args) => simulate_cmd::run_simulate(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),

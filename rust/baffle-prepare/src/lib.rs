@@ -1,0 +1,24 @@
+//! The capped ventricle, the design input of `baffle design`, from segmented blood
+//! pools (Martinez et al., section 2.2.2). One module per step:
+//! [`voxelize`] (inside/outside masks), [`union_surface`] (one manifold surface
+//! without internal walls), [`interfaces`] (labels by nearest structure, VSD and
+//! aortic loops), [`clip`] (cut along both loops, keep the RV between them),
+//! [`caps`] (planar caps and the final remesh), joined by [`prepare::prepare`].
+//!
+//! Units: millimetres, in the frame of the input surfaces.
+
+pub mod shapes;
+pub mod voxelize;
+pub mod union_surface;
+pub mod error;
+pub mod input;
+pub mod interfaces;
+pub mod clip;
+pub mod caps;
+pub mod prepare;
+pub mod labelmap;
+
+pub use error::PrepareError;
+pub use input::{read_segmentations, BloodPools};
+pub use prepare::{prepare, PrepareOptions, PrepareReport};
+pub use labelmap::{pools_from_labelmap, read_labelmap, LabelMap, LabelSurfaceOptions, PoolLabels};

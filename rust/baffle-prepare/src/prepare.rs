@@ -1,0 +1,255 @@
+//! The whole of paper section 2.2.2: blood pools in, capped ventricle out.
+
+use crate::caps::{close_with_caps, remesh_wall};
+use crate::clip::{clip_between, Cut};
+use crate::error::PrepareError;
+use crate::input::BloodPools;
+use crate::interfaces::{interface_loop, label_by_nearest, InterfaceLoop, LoopOptions, Structure};
+use crate::union_surface::{union_surface, SmoothingOptions};
+use crate::voxelize::{close_mask, voxelize, Grid};
+use baffle_core::mesh::manifold_report;
+use baffle_core::spatial::{Aabb, TriangleBvh};
+use baffle_core::{FaceLabels, TriMesh, Vec3};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Labels of the blood pools while the union is labelled (the segmentations' `ModelFaceID`s).
+const LV: i32 = 1;
+const RV: i32 = 2;
+const AORTA: i32 = 6;
+/// The union within this fraction of the crop margin of the RV is kept for the
+/// loops and the clip (the crop faces lie at the full margin).
+const RV_NEIGHBOURHOOD: f64 = 0.6;
+/// Smallest crop margin (mm): the kept neighbourhood must hold the rims.
+const MIN_CROP_MARGIN_MM: f64 = 3.0;
+/// Empty voxels around the structures (the blur and the contour need two).
+const GRID_MARGIN_VOXELS: usize = 4;
+/// Largest grid `prepare` allocates (one byte per voxel, a few times over).
+const MAX_VOXELS: usize = 300_000_000;
+
+#[derive(Clone, Debug)]
+pub struct PrepareOptions {
+    /// Voxel edge of the union grid (mm).
+    pub voxel_mm: f64,
+    /// The grid covers the RV with this margin (mm); the LV and aorta beyond it
+    /// are cut off (they are clipped away anyway).
+    pub crop_margin_mm: f64,
+    /// Radius of the morphological closing of the union mask (mm, rounded to voxels).
+    pub closing_radius_mm: f64,
+    pub smoothing: SmoothingOptions,
+    pub loops: LoopOptions,
+    /// Target edge of the final isotropic remesh (mm); `None` keeps the contour's triangles.
+    pub remesh_edge_mm: Option<f64>,
+    /// Output labels: `wall`, `vsd_cap` and `aortic_cap` are used.
+    pub labels: FaceLabels,
+}
+
+impl Default for PrepareOptions {
+    fn default() -> Self {
+        PrepareOptions {
+            voxel_mm: 0.3,
+            crop_margin_mm: 5.0,
+            closing_radius_mm: 0.6,
+            smoothing: SmoothingOptions::default(),
+            loops: LoopOptions::default(),
+            remesh_edge_mm: Some(0.5),
+            labels: FaceLabels::default(),
+        }
+    }
+}
+
+/// One planar cap of the result.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CapReport {
+    pub label: i32,
+    pub centroid_mm: [f64; 3],
+    pub normal: [f64; 3],
+    pub area_mm2: f64,
+}
+
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PrepareTimings {
+    pub voxelize_ms: f64,
+    pub union_surface_ms: f64,
+    pub loops_ms: f64,
+    pub clip_ms: f64,
+    pub caps_ms: f64,
+    pub total_ms: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PrepareReport {
+    pub voxel_mm: f64,
+    /// Voxels of the union grid along x, y, z (the RV's box plus the crop margin).
+    pub grid_dims: [usize; 3],
+    /// Triangles of the smoothed union kept around the RV (before the clip).
+    pub union_triangles: usize,
+    /// Triangles of the capped ventricle.
+    pub triangles: usize,
+    pub area_mm2: f64,
+    pub volume_mm3: f64,
+    pub vsd_cap: CapReport,
+    pub aortic_cap: CapReport,
+    pub timings: PrepareTimings,
+}
+
+/// The capped ventricle: closed, manifold, outward-wound, labelled RV wall, VSD cap
+/// and aortic-annulus cap.
+pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh, PrepareReport), PrepareError> {
+    validate(options)?;
+    let start = Instant::now();
+    let mut lap = lap_timer();
+    let grid = union_grid(pools, options.voxel_mm, options.crop_margin_mm)?;
+    let closing_voxels = (options.closing_radius_mm / options.voxel_mm).round() as usize;
+    let mask = close_mask(&union_mask(pools, &grid), &grid, closing_voxels);
+    let voxelize_ms = lap();
+    let union = union_surface(&mask, &grid, &options.smoothing).map_err(|m| PrepareError::geometry("union surface", m))?;
+    drop(mask);
+    let union_surface_ms = lap();
+
+    let bvhs = [&pools.lv, &pools.rv, &pools.aorta].map(|m| TriangleBvh::new(m).map_err(|e| PrepareError::geometry("structures", e)));
+    let [lv_bvh, rv_bvh, aorta_bvh] = bvhs;
+    let (lv_bvh, rv_bvh, aorta_bvh) = (lv_bvh?, rv_bvh?, aorta_bvh?);
+    let structures = [
+        Structure { label: RV, surface: &pools.rv, bvh: &rv_bvh },
+        Structure { label: LV, surface: &pools.lv, bvh: &lv_bvh },
+        Structure { label: AORTA, surface: &pools.aorta, bvh: &aorta_bvh },
+    ];
+    // Only the RV's neighbourhood can be kept: the rest (and the grid's crop
+    // faces, farther out) is dropped before the loops and the clip.
+    let near = label_by_nearest(&union, &structures, RV_NEIGHBOURHOOD * options.crop_margin_mm);
+    let keep: Vec<bool> = near.iter().map(Option::is_some).collect();
+    let labels: Vec<i32> = near.into_iter().flatten().collect();
+    let union = union.submesh(&keep).0;
+    let union_bvh = TriangleBvh::new(&union).map_err(|e| PrepareError::geometry("union surface", e))?;
+    let find_loop = |pair: (i32, i32), names: (&'static str, &'static str), what: &'static str, b: &Structure, a: &TriMesh| {
+        interface_loop(&union, &union_bvh, &labels, pair, &options.loops).ok_or_else(|| PrepareError::NoContact {
+            a: names.0,
+            b: names.1,
+            what,
+            distance_mm: closest_approach_mm(a, b),
+        })
+    };
+    let vsd = find_loop((LV, RV), ("LV", "RV"), "VSD", &structures[0], &pools.lv)?;
+    let aortic = find_loop((RV, AORTA), ("RV", "aorta"), "aortic annulus", &structures[0], &pools.aorta)?;
+    let loops_ms = lap();
+
+    let cuts = [cut("VSD", &vsd), cut("aortic annulus", &aortic)];
+    let clipped = clip_between(&union, &cuts, 0.05 * options.voxel_mm).map_err(|m| PrepareError::geometry("clip", m))?;
+    let clip_ms = lap();
+
+    let l = &options.labels;
+    let planes = [vsd.plane, aortic.plane];
+    let wall = match options.remesh_edge_mm {
+        Some(edge) => remesh_wall(&clipped, &planes, edge).map_err(|m| PrepareError::geometry("remesh", m))?,
+        None => clipped,
+    };
+    let capped = close_with_caps(&wall, &planes, l.wall, &[l.vsd_cap, l.aortic_cap]).map_err(|m| PrepareError::geometry("caps", m))?;
+    check_result(&capped)?;
+    let caps_ms = lap();
+
+    let report = PrepareReport {
+        voxel_mm: options.voxel_mm,
+        grid_dims: grid.dims,
+        union_triangles: union.triangles.len(),
+        triangles: capped.triangles.len(),
+        area_mm2: capped.area_mm2(),
+        volume_mm3: capped.signed_volume_mm3(),
+        vsd_cap: cap_report(&capped, l.vsd_cap)?,
+        aortic_cap: cap_report(&capped, l.aortic_cap)?,
+        timings: PrepareTimings {
+            voxelize_ms,
+            union_surface_ms,
+            loops_ms,
+            clip_ms,
+            caps_ms,
+            total_ms: start.elapsed().as_secs_f64() * 1e3,
+        },
+    };
+    Ok((capped, report))
+}
+
+fn lap_timer() -> impl FnMut() -> f64 {
+    let mut last = Instant::now();
+    move || {
+        let now = Instant::now();
+        let ms = (now - last).as_secs_f64() * 1e3;
+        last = now;
+        ms
+    }
+}
+
+fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(options.crop_margin_mm.is_finite() && options.crop_margin_mm >= MIN_CROP_MARGIN_MM) {
+        return Err(PrepareError::Option(format!("crop margin must be at least {MIN_CROP_MARGIN_MM} mm, got {}", options.crop_margin_mm)));
+    }
+    if !(options.closing_radius_mm.is_finite() && options.closing_radius_mm >= 0.0) {
+        return Err(PrepareError::Option(format!("closing radius must be a number of mm >= 0, got {}", options.closing_radius_mm)));
+    }
+    if !positive(options.voxel_mm) {
+        return Err(PrepareError::Option(format!("voxel size must be a positive number of mm, got {}", options.voxel_mm)));
+    }
+    if let Some(e) = options.remesh_edge_mm.filter(|&e| !positive(e)) {
+        return Err(PrepareError::Option(format!("remesh edge must be a positive number of mm, got {e}")));
+    }
+    let l = &options.labels;
+    if l.wall == l.vsd_cap || l.wall == l.aortic_cap || l.vsd_cap == l.aortic_cap {
+        return Err(PrepareError::Option(format!("the wall, VSD and aortic labels must differ, got {}, {}, {}", l.wall, l.vsd_cap, l.aortic_cap)));
+    }
+    Ok(())
+}
+
+/// A grid over the RV and `margin_mm` around it; its outer voxels are left empty
+/// so the union closes inside it.
+fn union_grid(pools: &BloodPools, voxel_mm: f64, margin_mm: f64) -> Result<Grid, PrepareError> {
+    let bounds = Aabb::from_points(&pools.rv.points).expanded(margin_mm);
+    let grid = Grid::covering(bounds.min, bounds.max, voxel_mm, GRID_MARGIN_VOXELS);
+    let voxels = grid.dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d));
+    match voxels {
+        Some(n) if n <= MAX_VOXELS => Ok(grid),
+        _ => Err(PrepareError::Option(format!(
+            "a {voxel_mm} mm grid over the structures ({:.0} x {:.0} x {:.0} mm) has more than {MAX_VOXELS} voxels; use a coarser voxel",
+            bounds.max.x - bounds.min.x,
+            bounds.max.y - bounds.min.y,
+            bounds.max.z - bounds.min.z
+        ))),
+    }
+}
+
+fn union_mask(pools: &BloodPools, grid: &Grid) -> Vec<bool> {
+    let masks: Vec<Vec<bool>> = [&pools.lv, &pools.rv, &pools.aorta].par_iter().map(|m| voxelize(m, grid)).collect();
+    let [nx, ny, nz] = grid.dims;
+    let m = GRID_MARGIN_VOXELS;
+    let interior = |c: usize, n: usize| c >= m && c + m < n;
+    (0..grid.voxel_count())
+        .into_par_iter()
+        .map(|i| interior(i % nx, nx) && interior((i / nx) % ny, ny) && interior(i / (nx * ny), nz) && masks.iter().any(|mask| mask[i]))
+        .collect()
+}
+
+/// Smallest distance (mm) from a point of `a` to the surface of `b`.
+fn closest_approach_mm(a: &TriMesh, b: &Structure) -> f64 {
+    a.points.par_iter().filter_map(|&p| b.bvh.closest_point(b.surface, p).map(|h| h.distance_mm)).reduce(|| f64::INFINITY, f64::min)
+}
+
+fn cut<'a>(name: &'a str, lp: &'a InterfaceLoop) -> Cut<'a> {
+    Cut { name, plane: lp.plane, loop_mm: &lp.points_mm }
+}
+
+fn check_result(mesh: &TriMesh) -> Result<(), PrepareError> {
+    let report = manifold_report(mesh);
+    if !report.is_closed_manifold() || report.inconsistently_wound_edges > 0 {
+        return Err(PrepareError::geometry("result", format!("the capped surface is not closed and consistently wound: {report:?}")));
+    }
+    if mesh.signed_volume_mm3() <= 0.0 {
+        return Err(PrepareError::geometry("result", "the capped surface is wound inward"));
+    }
+    Ok(())
+}
+
+fn cap_report(mesh: &TriMesh, label: i32) -> Result<CapReport, PrepareError> {
+    let (c, n, area_mm2) = mesh.label_centroid_normal(label).ok_or_else(|| PrepareError::geometry("caps", format!("no triangle carries label {label}")))?;
+    let arr = |v: Vec3| [v.x, v.y, v.z];
+    Ok(CapReport { label, centroid_mm: arr(c), normal: arr(n), area_mm2 })
+}

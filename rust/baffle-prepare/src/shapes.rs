@@ -1,0 +1,99 @@
+//! Closed, outward-wound test shapes (spheres, capped tubes, boxes) for the
+//! synthetic LV / RV / aorta case the tests use when no patient data is present.
+
+use baffle_core::{TriMesh, Vec3};
+use std::f64::consts::PI;
+
+/// A latitude-longitude sphere: `rings` bands pole to pole, `segments` around.
+pub fn uv_sphere(center: Vec3, radius_mm: f64, rings: usize, segments: usize) -> TriMesh {
+    let circles: Vec<Vec<Vec3>> = (1..rings)
+        .map(|r| {
+            let theta = PI * r as f64 / rings as f64;
+            (0..segments)
+                .map(|s| {
+                    let phi = 2.0 * PI * s as f64 / segments as f64;
+                    center + radius_mm * Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+                })
+                .collect()
+        })
+        .collect();
+    let pole = Vec3::new(0.0, 0.0, radius_mm);
+    ring_stack(center + pole, &circles, center - pole)
+}
+
+/// A closed tube of radius `radius_mm` from `start` to `end`, flat ends.
+pub fn capped_tube(start: Vec3, end: Vec3, radius_mm: f64, rings: usize, segments: usize) -> TriMesh {
+    let axis = end - start;
+    let w = axis.normalize();
+    let helper = if w.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+    let u = w.cross(&helper).normalize();
+    let v = w.cross(&u);
+    let circles: Vec<Vec<Vec3>> = (0..=rings)
+        .map(|r| {
+            let c = start + axis * (r as f64 / rings as f64);
+            (0..segments)
+                .map(|s| {
+                    let phi = 2.0 * PI * s as f64 / segments as f64;
+                    c + radius_mm * (phi.cos() * u + phi.sin() * v)
+                })
+                .collect()
+        })
+        .collect();
+    ring_stack(start, &circles, end)
+}
+
+/// A closed surface through equal-sized rings, fanned to `first` and `last`,
+/// wound outward.
+fn ring_stack(first: Vec3, rings: &[Vec<Vec3>], last: Vec3) -> TriMesh {
+    let segments = rings[0].len();
+    let mut points = vec![first];
+    rings.iter().for_each(|r| points.extend(r));
+    points.push(last);
+    let last_index = (points.len() - 1) as u32;
+    let at = |r: usize, s: usize| (1 + r * segments + s % segments) as u32;
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        triangles.push([0, at(0, s), at(0, s + 1)]);
+        triangles.push([last_index, at(rings.len() - 1, s + 1), at(rings.len() - 1, s)]);
+        for r in 0..rings.len() - 1 {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
+            triangles.push([a, c, d]);
+            triangles.push([a, d, b]);
+        }
+    }
+    let n = triangles.len();
+    let mut mesh = TriMesh::new(points, triangles, vec![0; n]);
+    if mesh.signed_volume_mm3() < 0.0 {
+        mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    }
+    mesh
+}
+
+/// An axis-aligned box, outward-wound.
+pub fn box_mesh(lo: Vec3, hi: Vec3) -> TriMesh {
+    let points: Vec<Vec3> =
+        (0..8).map(|c| Vec3::new(if c & 1 == 0 { lo.x } else { hi.x }, if c & 2 == 0 { lo.y } else { hi.y }, if c & 4 == 0 { lo.z } else { hi.z })).collect();
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let triangles: Vec<[u32; 3]> = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+    TriMesh::new(points, triangles, vec![0; 12])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use baffle_core::mesh::manifold_report;
+
+    #[test]
+    fn shapes_are_closed_and_outward() {
+        for mesh in [
+            uv_sphere(Vec3::zeros(), 2.0, 12, 24),
+            capped_tube(Vec3::zeros(), Vec3::new(1.0, 2.0, 3.0), 1.0, 4, 16),
+            box_mesh(Vec3::zeros(), Vec3::new(1.0, 2.0, 3.0)),
+        ] {
+            let r = manifold_report(&mesh);
+            assert!(r.is_closed_manifold() && r.inconsistently_wound_edges == 0, "{r:?}");
+            assert!(mesh.signed_volume_mm3() > 0.0);
+        }
+        assert!((box_mesh(Vec3::zeros(), Vec3::new(1.0, 2.0, 3.0)).signed_volume_mm3() - 6.0).abs() < 1e-12);
+    }
+}
