@@ -5,7 +5,7 @@
 //! ILU(0) on a reverse Cuthill-McKee ordering, split into one row partition per
 //! thread (block Jacobi of ILU(0)) so factorization and triangular solves run in
 //! parallel. Measured on p2's published mesh (25,680 nodes, 147,013 tets, 102,720
-//! unknowns; 2 threads, release, linear tolerance 1e-4; example `p2_timing`):
+//! unknowns; 2 threads, release, linear tolerance 1e-4; previous session, f64):
 //!   - transient, dt = 1 ms, impulsive start at 58 mL/s: 3 Picard iterations per
 //!     step, ~43 GMRES iterations per solve, 2.0-2.8 s per step;
 //!   - the same with one partition (1 thread): ~36 GMRES iterations per solve but
@@ -33,18 +33,30 @@
 //! 60 iterations (1.6e-3; dp 6.31 mmHg, v_max 239 cm/s at that point).
 //!
 //! Transient: linear extrapolation 2 u_n - u_(n-1) is the initial guess of every step;
-//! with `max_nonlinear_iterations` = 1 the step is semi-implicit (one linear solve with
-//! the extrapolated convection velocity, no residual re-assembly afterwards). p2, 31
-//! steps from t = 0.1 s: 0.91 s per step (assembly 0.13, ILU 0.05, GMRES 0.72 s for
-//! ~43 iterations, i.e. ~17 ms per GMRES iteration under load), vs 2.0-2.8 s with 3
-//! Picard iterations: 4 cycles would take ~41 min, not yet the 30 min target. GMRES
-//! orthogonalization is classical Gram-Schmidt in two fused passes with one
-//! conditional re-orthogonalization (DGKS, 0.7) instead of modified Gram-Schmidt;
-//! its speed-up was not A/B-measured (the shared machine was loaded), iteration counts
-//! were unchanged (43-47 per step). Not yet tried: ILU reuse across steps, f32 ILU,
-//! a block (Schur) preconditioner.
-//! Peak resident memory 188-195 MB. The semi-implicit scheme passes the Womersley test
-//! (verification.rs: alpha 4, amplitude +1.8%, phase -0.9%).
+//! with `max_nonlinear_iterations` = 1 (the default) the step is semi-implicit (one
+//! linear solve with the extrapolated convection velocity, no residual re-assembly
+//! afterwards). Accuracy, p2 from rest at t = 0 through peak flow (180 steps, bench
+//! `--compare-schemes --t0 0 --steps 180`): semi-implicit vs Picard iterated to 1e-3
+//! (2-4 iterations a step) differ by at most ~0.3% in dp(11-16) (e.g. 5.738 vs 5.755
+//! mmHg at t = 0.110 s; 7.364 vs 7.367 mmHg at peak flow, t = 0.165 s) and by < 0.1
+//! cm/s in v_max, while the run took 760 s vs 2089 s on the loaded machine. The
+//! semi-implicit scheme passes the Womersley test (verification.rs: alpha 4,
+//! amplitude +1.8%, phase -0.9%).
+//!
+//! Mixed precision (`mixed_precision`, default on): the ILU(0) factors are stored in
+//! f32 and the inner GMRES runs on f32 copies of the matrix and vectors, with the
+//! residual re-formed in f64 after each inner solve (`linear::solve_refined`; a stalled
+//! round falls back to f64 GMRES, as happens for the steady Stokes systems of the tube
+//! tests at tolerance 1e-8). The kernels are memory-bound: on p2, semi-implicit, 10
+//! steps from t = 0.1 s, 3 runs each alternating (bench `--picard 1 --precision both`,
+//! load average ~3 on the 2 cores): median 1.150 s per step (19-20 ms per GMRES
+//! iteration) vs 1.377 s (25-26 ms) in f64, the same ~40 GMRES iterations a step and
+//! the same dp to 4 decimals. At that load 4 cycles (2728 steps) project to ~52 min;
+//! the 30-minute target is not met on this shared machine (the previous session's
+//! quiet-machine f64 figure was 0.91 s per step). GMRES orthogonalization is classical
+//! Gram-Schmidt in two fused passes with one conditional re-orthogonalization (DGKS,
+//! 0.7). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner,
+//! generalized-alpha time stepping (backward Euler here). Peak resident memory 171-236 MB.
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as

@@ -15,6 +15,11 @@ use crate::fourier::fit_within;
 use crate::mesh_export::{mesh_in_cm, write_mesh_complete, MeshFiles};
 use crate::SvmpError;
 
+/// svMultiPhysics runs Newton iterations to `Tolerance` each step, as the paper did; the
+/// embedded solver's one-solve (semi-implicit) steps are its own choice and are not
+/// handed on: the export asks for at least this many.
+pub const SVMP_MIN_NEWTON_ITERATIONS: usize = 3;
+
 /// The manifest baffle writes next to `solver.xml` so results can be read back anywhere
 /// (e.g. after the directory returns from a cluster).
 pub const MANIFEST_FILE: &str = "baffle_case.json";
@@ -334,7 +339,7 @@ fn solver_spec(
         density_g_cm3: settings.density_g_cm3,
         viscosity_g_cm_s: settings.viscosity_g_cm_s,
         backflow_stabilization: settings.backflow_stabilization,
-        max_nonlinear_iterations: settings.max_nonlinear_iterations,
+        max_nonlinear_iterations: settings.max_nonlinear_iterations.max(SVMP_MIN_NEWTON_ITERATIONS),
         nonlinear_tolerance: settings.nonlinear_tolerance,
         linear_tolerance: settings.linear_tolerance,
         faces: mesh_files
