@@ -463,34 +463,21 @@ impl<'a> Solver<'a> {
             let singular = |row: usize| CfdError::Diverged { step, time_s, residual: res, reason: format!("singular pivot block at node {row} in ILU(0)") };
             let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
             let parts = || problem.parts.clone();
+            let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
+            let (tol, restart, max_iterations) = (s.linear_tolerance, s.gmres_restart, s.max_linear_iterations);
             let t2;
             let out = if s.mixed_precision {
                 let ilu = BlockIlu::<f32>::factor(&problem.pattern, vals, parts()).map_err(singular)?;
                 let vals_low: Vec<f32> = convert(vals);
                 t2 = Instant::now();
-                solve_refined(
-                    &|v, y| Self::apply_operator(problem, vals, v, y),
-                    &|v, z| ilu.apply(&problem.pattern, v, z),
-                    &|v, y| Self::apply_operator(problem, &vals_low, v, y),
-                    &|v, z| ilu.apply(&problem.pattern, v, z),
-                    &r,
-                    &mut dx,
-                    s.linear_tolerance,
-                    s.gmres_restart,
-                    s.max_linear_iterations,
-                )
+                let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, &vals_low, v, y);
+                let apply_m = |v: &[f64], z: &mut [f64]| ilu.apply(&problem.pattern, v, z);
+                let apply_m_low = |v: &[f32], z: &mut [f32]| ilu.apply(&problem.pattern, v, z);
+                solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
             } else {
                 let ilu = BlockIlu::<f64>::factor(&problem.pattern, vals, parts()).map_err(singular)?;
                 t2 = Instant::now();
-                gmres(
-                    &|v, y| Self::apply_operator(problem, vals, v, y),
-                    &|v, z| ilu.apply(&problem.pattern, v, z),
-                    &r,
-                    &mut dx,
-                    s.linear_tolerance,
-                    s.gmres_restart,
-                    s.max_linear_iterations,
-                )
+                gmres(&apply_a, &|v, z| ilu.apply(&problem.pattern, v, z), &r, &mut dx, tol, restart, max_iterations)
             };
             self.timings.preconditioner_s += (t2 - t1).as_secs_f64();
             self.timings.gmres_s += t2.elapsed().as_secs_f64();
