@@ -23,6 +23,9 @@ else
   step "skipping the benchmark smoke run: rust/baffle-cli/benches/design.rs does not exist yet"
 fi
 
+step "cargo bench -p baffle-cfd --bench solver -- --smoke"
+cargo bench -p baffle-cfd --bench solver -- --smoke
+
 step "cmake configure + build + ctest ($build_dir)"
 cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build_dir" --parallel "$jobs"
