@@ -1,6 +1,7 @@
 //! `baffle plan` end to end: the phantom at a coarse mesh (report.json against the
 //! stages' own files, report.html well-formed and self-contained), failing stages that
-//! are named and keep the earlier stages' files, and p2 below the 10 mmHg threshold.
+//! are named and keep the earlier stages' files, p2 below the 10 mmHg threshold, and
+//! p2 from its segmentations through the prepare stage.
 //! Set BAFFLE_SKIP_GMSH=1 to skip the parts that mesh.
 
 use std::path::{Path, PathBuf};
@@ -190,15 +191,81 @@ fn a_missing_gmsh_fails_the_mesh_stage_and_keeps_the_design() {
 }
 
 #[test]
-fn segmentations_need_the_prepare_stage() {
-    let out = temp_dir("segmentations");
+fn the_ventricle_comes_from_exactly_one_source() {
+    let out = temp_dir("two-sources");
     let inputs = phantom_inputs();
-    let run = baffle(
-        &["plan", "--segmentations", inputs.to_str().unwrap(), "--points", inputs.join("suture_points.mrk.json").to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()],
-        &[],
-    );
+    let (surface, points) = (inputs.join("capped_ventricle.vtp"), inputs.join("suture_points.mrk.json"));
+    let common = ["--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()];
+    let both = baffle(&[&["plan", "--surface", surface.to_str().unwrap(), "--segmentations", inputs.to_str().unwrap()], &common[..]].concat(), &[]);
+    assert!(!both.status.success());
+    let stderr = String::from_utf8_lossy(&both.stderr);
+    assert!(stderr.contains("one source of the ventricle") && stderr.contains("--surface and --segmentations"), "{stderr}");
+    let none = baffle(&[&["plan"], &common[..]].concat(), &[]);
+    assert!(!none.status.success());
+    let stderr = String::from_utf8_lossy(&none.stderr);
+    assert!(stderr.contains("--segmentations DIR") && stderr.contains("--labelmap FILE"), "{stderr}");
+    assert!(!out.join("report.json").exists(), "nothing ran");
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
+    let out = temp_dir("bad-segmentations");
+    let segmentations = out.join("segmentations");
+    std::fs::create_dir_all(&segmentations).unwrap();
+    let points = phantom_inputs().join("suture_points.mrk.json");
+    let plan_out = out.join("plan");
+    let args = ["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", plan_out.to_str().unwrap()];
+    let run = baffle(&args, &[]);
     assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("--segmentations needs `baffle prepare`"), "{}", String::from_utf8_lossy(&run.stderr));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("stage prepare failed") && stderr.contains("LV.vtp"), "stage and reason: {stderr}");
+    let report = read_json(&plan_out.join("report.json"));
+    assert_eq!(report["failed_stage"], "prepare");
+    let status: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["status"].as_str().unwrap()).collect();
+    assert_eq!(status, ["failed", "not run", "not run", "not run"]);
+    assert!(!plan_out.join("prepare").exists() && !plan_out.join("design").exists(), "files of a failed or unrun stage");
+    std::fs::remove_dir_all(out).ok();
+}
+
+/// p2's paper inputs (BSA 0.37 m2, BP 107/78, HR 133) with `source` as the ventricle.
+fn p2_plan(source: &[&str], points: &Path, out: &Path) -> Output {
+    let mut args = vec!["plan"];
+    args.extend_from_slice(source);
+    args.extend_from_slice(&["--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--hr", "133", "--out", out.to_str().unwrap()]);
+    args.extend_from_slice(COARSE_STEADY);
+    baffle(&args, &[])
+}
+
+#[test]
+fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
+    if skip_gmsh() {
+        return;
+    }
+    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let out = temp_dir("p2-segmentations");
+    let segmentations = data.join("p2/segmentations");
+    let run = p2_plan(&["--segmentations", segmentations.to_str().unwrap()], &data.join("p2/design_input/suture_points.mrk.json"), &out);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&out.join("report.json"));
+    let stages = report["stages"].as_array().unwrap();
+    assert_eq!((stages[0]["name"].as_str(), stages[0]["status"].as_str()), (Some("prepare"), Some("completed")));
+    // The caps in the report are the prepare stage's own.
+    let prepared = read_json(&out.join("prepare/capped_ventricle-report.json"));
+    for cap in ["vsd_cap", "aortic_cap"] {
+        let area = report["prepare"][cap]["area_mm2"].as_f64().unwrap();
+        assert!(area > 0.0 && close(area, prepared[cap]["area_mm2"].as_f64().unwrap()), "{cap} {area}");
+        assert_eq!(report["prepare"][cap]["centroid_mm"], prepared[cap]["centroid_mm"]);
+    }
+    let q = &report["quantities"];
+    let dp = q["dp_peak_mmhg"].as_f64().unwrap();
+    let times: Vec<String> = stages.iter().map(|s| format!("{} {:.1} s", s["name"].as_str().unwrap(), s["wall_time_s"].as_f64().unwrap())).collect();
+    eprintln!("p2 from segmentations, steady, 1.25 mm: dp {dp:.3} mmHg, v_max {} m/s; {}", q["max_velocity_m_s"], times.join(", "));
+    assert!(dp.is_finite() && dp > 0.0, "p2 dp {dp} mmHg");
+    assert_eq!(report["verdict"]["passes"].as_bool().unwrap(), dp < 10.0);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Capped ventricle (prepare stage)") && html.contains("VSD cap"));
+    check_html(&out.join("report.html"));
     std::fs::remove_dir_all(out).ok();
 }
 
