@@ -307,6 +307,21 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
 mod tests {
     use super::*;
 
+    fn stage_names(source: &[&str]) -> Vec<String> {
+        let mut argv: Vec<OsString> = source.iter().map(OsString::from).collect();
+        argv.extend(["--points", "p.mrk.json", "--bsa", "0.37", "--bp", "107/78", "--out", "o"].map(OsString::from));
+        let args = command_args::<PlanArgs>("plan", &argv).unwrap();
+        plan_stages(&args).unwrap().into_iter().map(|s| s.name).collect()
+    }
+
+    #[test]
+    fn segmentations_or_a_label_map_put_a_prepare_stage_first() {
+        let rest = ["design", "mesh-nominal", "simulate-nominal"];
+        assert_eq!(stage_names(&["--segmentations", "seg"]), [&["prepare"][..], &rest].concat());
+        assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8"]), [&["prepare"][..], &rest].concat());
+        assert_eq!(stage_names(&["--surface", "capped.vtp"]), rest);
+    }
+
     #[test]
     fn blood_pressure_is_sbp_over_dbp() {
         assert_eq!(parse_bp("107/78").unwrap(), (107.0, 78.0));
