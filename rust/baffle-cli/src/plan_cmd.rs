@@ -1,8 +1,10 @@
-//! `baffle plan`: design -> mesh -> simulate in one run, each stage in its own
-//! subfolder of --out, then report.json and report.html (see `report`).
+//! `baffle plan`: [prepare ->] design -> mesh -> simulate in one run, each stage in
+//! its own subfolder of --out, then report.json and report.html (see `report`). The
+//! prepare stage runs when the ventricle is given as --segmentations or --labelmap
+//! instead of --surface.
 //!
-//! The stages run the commands' own code (`design_reporting`, `run_mesh`,
-//! `run_simulate_tagged`) with the arguments a user would type for them, so the plan
+//! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
+//! `run_mesh`, `run_simulate_tagged`) with the arguments a user would type for them, so the plan
 //! keeps each command's defaults and checks. A stage reads its inputs from the files
 //! of the stages before it, so what the report shows is what those files hold.
 
