@@ -42,7 +42,8 @@ enum Command {
     Simulate(simulate_cmd::SimulateArgs),
     /// Write the same case for svMultiPhysics (the paper's MPI solver), to run on a cluster.
     ExportSvmp(export_cmd::ExportArgs),
-    /// Design, mesh and simulate in one run, and write report.json and report.html.
+    /// Prepare (from --segmentations or --labelmap), design, mesh and simulate in one run,
+    /// and write report.json and report.html.
     Plan(plan_cmd::PlanArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {

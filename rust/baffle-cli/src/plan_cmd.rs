@@ -1,12 +1,15 @@
-//! `baffle plan`: design -> mesh -> simulate in one run, each stage in its own
-//! subfolder of --out, then report.json and report.html (see `report`).
+//! `baffle plan`: [prepare ->] design -> mesh -> simulate in one run, each stage in
+//! its own subfolder of --out, then report.json and report.html (see `report`). The
+//! prepare stage runs when the ventricle is given as --segmentations or --labelmap
+//! instead of --surface.
 //!
-//! The stages run the commands' own code (`design_reporting`, `run_mesh`,
-//! `run_simulate_tagged`) with the arguments a user would type for them, so the plan
+//! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
+//! `run_mesh`, `run_simulate_tagged`) with the arguments a user would type for them, so the plan
 //! keeps each command's defaults and checks. A stage reads its inputs from the files
 //! of the stages before it, so what the report shows is what those files hold.
 
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
+use crate::prepare_cmd::{self, PrepareSource};
 use crate::{design_reporting, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use clap::{Args, FromArgMatches};
@@ -18,9 +21,10 @@ use std::time::Instant;
 pub struct PlanArgs {
     #[command(flatten)]
     pub design: DesignArgs,
-    /// Per-structure segmentations to build the capped ventricle from (needs `baffle prepare`).
-    #[arg(long, conflicts_with_all = ["surface", "phantom"])]
-    pub segmentations: Option<PathBuf>,
+    /// Build the capped ventricle from segmentations or a label map first (a `prepare`
+    /// stage), instead of --surface.
+    #[command(flatten)]
+    pub prepare: PrepareSource,
     /// Blood pressure SBP/DBP (mmHg), e.g. 107/78: the outlet resistance R = MAP / Q_mean.
     #[arg(long, value_parser = parse_bp)]
     pub bp: (f64, f64),
@@ -77,10 +81,11 @@ impl FlowCase {
     }
 }
 
-/// What a stage does. A `prepare` stage (segmentations -> capped ventricle) goes in
-/// front of Design as one more variant and match arm.
+/// What a stage does.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Step {
+    /// Segmentations or a label map -> the capped ventricle (`baffle prepare`).
+    Prepare,
     Design,
     Mesh { level: &'static str, edge_length_mm: f64 },
     Simulate { level: &'static str, flow: FlowCase },
@@ -116,12 +121,38 @@ fn mesh_levels(args: &PlanArgs) -> Vec<(&'static str, f64)> {
     levels
 }
 
-pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
-    if args.segmentations.is_some() {
-        return Err("--segmentations needs `baffle prepare`, not in this build; give --surface (a capped ventricle)".into());
+/// The source of the capped ventricle: exactly one of --surface, --segmentations,
+/// --labelmap and --phantom.
+fn check_one_surface_source(args: &PlanArgs) -> Result<(), String> {
+    let given: Vec<&str> = [
+        ("--surface", args.design.surface.is_some()),
+        ("--segmentations", args.prepare.segmentations.is_some()),
+        ("--labelmap", args.prepare.labelmap.is_some()),
+        ("--phantom", args.design.phantom),
+    ]
+    .into_iter()
+    .filter_map(|(flag, present)| present.then_some(flag))
+    .collect();
+    match given.len() {
+        1 => Ok(()),
+        0 => Err("baffle plan needs the ventricle: give one of --surface FILE, --segmentations DIR, --labelmap FILE or --phantom".into()),
+        _ => Err(format!("baffle plan takes one source of the ventricle, got {}", given.join(" and "))),
     }
+}
+
+/// The capped ventricle a prepare stage writes.
+pub fn prepared_surface_path(out: &Path) -> PathBuf {
+    out.join("prepare").join("capped_ventricle.vtp")
+}
+
+pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
+    check_one_surface_source(args)?;
     let simulate_weight = if args.steady { 4.0 } else { 4.0 * args.cycles as f64 };
-    let mut stages = vec![Stage { name: "design".into(), step: Step::Design, weight: 1.0 }];
+    let mut stages = Vec::new();
+    if args.prepare.is_given() {
+        stages.push(Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 });
+    }
+    stages.push(Stage { name: "design".into(), step: Step::Design, weight: 1.0 });
     for (level, edge_length_mm) in mesh_levels(args) {
         stages.push(Stage { name: format!("mesh-{level}"), step: Step::Mesh { level, edge_length_mm }, weight: 1.0 });
         stages.push(Stage { name: format!("simulate-{level}"), step: Step::Simulate { level, flow: FlowCase::Nominal }, weight: simulate_weight });
@@ -191,8 +222,15 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
     let tags = args.design.progress_tags;
     let out = &args.design.out;
     match &stage.step {
+        Step::Prepare => {
+            let argv: Vec<OsString> = vec!["--out".into(), prepared_surface_path(out).into()];
+            let mut prepare = command_args::<prepare_cmd::PrepareArgs>("prepare", &argv)?;
+            prepare.source = args.prepare.clone();
+            prepare_cmd::prepare_to_file(&prepare).map(|_| ())
+        }
         Step::Design => {
-            let design = DesignArgs { out: dir.to_path_buf(), ..args.design.clone() };
+            let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
+            let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), ..args.design.clone() };
             let (lo, hi) = range;
             design_reporting(&design, &mut |f, s| {
                 if tags {
@@ -245,6 +283,8 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
         let record = &mut records[k];
         record.wall_time_s = Some(start.elapsed().as_secs_f64());
         if let Err(e) = result {
+            // A failed stage's folder goes if it holds nothing (remove_dir only removes empty ones).
+            let _ = std::fs::remove_dir(&dir);
             record.status = "failed";
             record.error = Some(e.clone());
             report::write_failure_json(out, &stage.name, &e, &records)?;
@@ -268,6 +308,21 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn stage_names(source: &[&str]) -> Vec<String> {
+        let mut argv: Vec<OsString> = source.iter().map(OsString::from).collect();
+        argv.extend(["--points", "p.mrk.json", "--bsa", "0.37", "--bp", "107/78", "--out", "o"].map(OsString::from));
+        let args = command_args::<PlanArgs>("plan", &argv).unwrap();
+        plan_stages(&args).unwrap().into_iter().map(|s| s.name).collect()
+    }
+
+    #[test]
+    fn segmentations_or_a_label_map_put_a_prepare_stage_first() {
+        let rest = ["design", "mesh-nominal", "simulate-nominal"];
+        assert_eq!(stage_names(&["--segmentations", "seg"]), [&["prepare"][..], &rest].concat());
+        assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8"]), [&["prepare"][..], &rest].concat());
+        assert_eq!(stage_names(&["--surface", "capped.vtp"]), rest);
+    }
 
     #[test]
     fn blood_pressure_is_sbp_over_dbp() {

@@ -3,35 +3,51 @@
 
 use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
-use baffle_prepare::{pools_from_labelmap, prepare, read_labelmap, read_segmentations, BloodPools, LabelSurfaceOptions, PoolLabels, PrepareOptions};
+use crate::simulate_cmd::write_atomic;
+use baffle_prepare::{pools_from_labelmap, prepare, read_labelmap, read_segmentations, BloodPools, LabelSurfaceOptions, PoolLabels, PrepareOptions, PrepareReport};
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-#[derive(Args)]
-pub struct PrepareArgs {
+/// Where the blood pools come from: per-structure surfaces or a label map (also
+/// `baffle plan`'s arguments for its prepare stage).
+#[derive(Args, Clone, Debug)]
+pub struct PrepareSource {
     /// Folder of closed per-structure surfaces in mm: LV, RV and aorta (.vtp, .vtk or .stl).
-    #[arg(long, required_unless_present = "labelmap", conflicts_with = "labelmap")]
-    segmentations: Option<PathBuf>,
+    #[arg(long, conflicts_with = "labelmap")]
+    pub segmentations: Option<PathBuf>,
     /// Multi-label label map (.nrrd, .nii, .nii.gz); labels LV 1, RV 2, LA 3, RA 4,
     /// myo 5, aorta 6, PA 7 unless remapped. Surfaces are made in LPS mm.
     #[arg(long)]
-    labelmap: Option<PathBuf>,
+    pub labelmap: Option<PathBuf>,
     /// Label value of the LV blood pool in --labelmap.
     #[arg(long, default_value_t = 1)]
-    lv_label: i32,
+    pub lv_label: i32,
     /// Label value of the RV blood pool in --labelmap.
     #[arg(long, default_value_t = 2)]
-    rv_label: i32,
+    pub rv_label: i32,
     /// Label value of the aorta in --labelmap.
     #[arg(long, default_value_t = 6)]
-    aorta_label: i32,
+    pub aorta_label: i32,
     /// Skip the 3x3x3 median filter of each --labelmap label mask.
     #[arg(long)]
-    no_median: bool,
+    pub no_median: bool,
+}
+
+impl PrepareSource {
+    /// Whether a segmentation folder or a label map was given.
+    pub fn is_given(&self) -> bool {
+        self.segmentations.is_some() || self.labelmap.is_some()
+    }
+}
+
+#[derive(Args)]
+pub struct PrepareArgs {
+    #[command(flatten)]
+    pub source: PrepareSource,
     /// Output capped ventricle (.vtp): ModelFaceID 2 RV wall, 11 VSD cap, 16 aortic cap.
     /// A report (<stem>-report.json) is written beside it.
     #[arg(long)]
-    out: PathBuf,
+    pub out: PathBuf,
     /// Voxel edge of the union grid (mm).
     #[arg(long, default_value_t = 0.3)]
     voxel_mm: f64,
@@ -53,7 +69,24 @@ pub struct PrepareArgs {
 }
 
 pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
-    let pools = read_pools(args)?;
+    let (report, report_path) = prepare_to_file(args)?;
+    println!(
+        "{} triangles, {:.0} mm3; VSD cap {:.1} mm2, aortic cap {:.1} mm2; {:.0} ms",
+        report.triangles, report.volume_mm3, report.vsd_cap.area_mm2, report.aortic_cap.area_mm2, report.timings.total_ms
+    );
+    println!("wrote {}, {}", args.out.display(), report_path.display());
+    Ok(())
+}
+
+/// The report written beside the capped ventricle `out`: `<stem>-report.json`.
+pub fn report_path(out: &Path) -> PathBuf {
+    PathBuf::from(format!("{}-report.json", out.with_extension("").display()))
+}
+
+/// Build the capped ventricle and write it and its report (each written whole or
+/// not at all); returns the report and its path.
+pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), String> {
+    let pools = read_pools(&args.source)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,
         crop_margin_mm: args.crop_margin_mm,
@@ -67,25 +100,36 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
     if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
     }
-    write_trimesh_vtp(&args.out, &mesh).map_err(|e| e.to_string())?;
-    let report_path = PathBuf::from(format!("{}-report.json", args.out.with_extension("").display()));
+    write_vtp_atomic(&args.out, &mesh)?;
+    let report_path = report_path(&args.out);
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-    std::fs::write(&report_path, text).map_err(|e| format!("{}: {e}", report_path.display()))?;
-    println!(
-        "{} triangles, {:.0} mm3; VSD cap {:.1} mm2, aortic cap {:.1} mm2; {:.0} ms",
-        report.triangles, report.volume_mm3, report.vsd_cap.area_mm2, report.aortic_cap.area_mm2, report.timings.total_ms
-    );
-    println!("wrote {}, {}", args.out.display(), report_path.display());
-    Ok(())
+    if let Err(e) = write_atomic(&report_path, text.as_bytes()) {
+        // A capped ventricle without its report is half a result: keep neither.
+        let _ = std::fs::remove_file(&args.out);
+        return Err(e);
+    }
+    Ok((report, report_path))
 }
 
-fn read_pools(args: &PrepareArgs) -> Result<BloodPools, String> {
-    match (&args.segmentations, &args.labelmap) {
+/// Write `mesh` to a temporary file beside `path`, then rename it into place.
+fn write_vtp_atomic(path: &Path, mesh: &baffle_core::TriMesh) -> Result<(), String> {
+    let partial = path.with_extension("tmp.vtp");
+    let result = write_trimesh_vtp(&partial, mesh)
+        .map_err(|e| e.to_string())
+        .and_then(|_| std::fs::rename(&partial, path).map_err(|e| format!("{}: {e}", path.display())));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    result
+}
+
+fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {
+    match (&source.segmentations, &source.labelmap) {
         (Some(dir), _) => read_segmentations(dir).map_err(|e| e.to_string()),
         (None, Some(file)) => {
             let map = read_labelmap(file).map_err(|e| e.to_string())?;
-            let labels = PoolLabels { lv: args.lv_label, rv: args.rv_label, aorta: args.aorta_label };
-            let options = LabelSurfaceOptions { median: !args.no_median, ..LabelSurfaceOptions::default() };
+            let labels = PoolLabels { lv: source.lv_label, rv: source.rv_label, aorta: source.aorta_label };
+            let options = LabelSurfaceOptions { median: !source.no_median, ..LabelSurfaceOptions::default() };
             pools_from_labelmap(&map, &labels, &options).map_err(|e| format!("{}: {e}", file.display()))
         }
         (None, None) => Err("give --segmentations DIR or --labelmap FILE".into()),

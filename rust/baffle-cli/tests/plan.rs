@@ -1,6 +1,7 @@
 //! `baffle plan` end to end: the phantom at a coarse mesh (report.json against the
 //! stages' own files, report.html well-formed and self-contained), failing stages that
-//! are named and keep the earlier stages' files, and p2 below the 10 mmHg threshold.
+//! are named and keep the earlier stages' files, p2 below the 10 mmHg threshold, and
+//! a synthetic heart and p2 from their segmentations through the prepare stage.
 //! Set BAFFLE_SKIP_GMSH=1 to skip the parts that mesh.
 
 use std::path::{Path, PathBuf};
@@ -190,15 +191,153 @@ fn a_missing_gmsh_fails_the_mesh_stage_and_keeps_the_design() {
 }
 
 #[test]
-fn segmentations_need_the_prepare_stage() {
-    let out = temp_dir("segmentations");
+fn the_ventricle_comes_from_exactly_one_source() {
+    let out = temp_dir("two-sources");
     let inputs = phantom_inputs();
-    let run = baffle(
-        &["plan", "--segmentations", inputs.to_str().unwrap(), "--points", inputs.join("suture_points.mrk.json").to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()],
-        &[],
-    );
+    let (surface, points) = (inputs.join("capped_ventricle.vtp"), inputs.join("suture_points.mrk.json"));
+    let common = ["--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", out.to_str().unwrap()];
+    let both = baffle(&[&["plan", "--surface", surface.to_str().unwrap(), "--segmentations", inputs.to_str().unwrap()], &common[..]].concat(), &[]);
+    assert!(!both.status.success());
+    let stderr = String::from_utf8_lossy(&both.stderr);
+    assert!(stderr.contains("one source of the ventricle") && stderr.contains("--surface and --segmentations"), "{stderr}");
+    let none = baffle(&[&["plan"], &common[..]].concat(), &[]);
+    assert!(!none.status.success());
+    let stderr = String::from_utf8_lossy(&none.stderr);
+    assert!(stderr.contains("--segmentations DIR") && stderr.contains("--labelmap FILE"), "{stderr}");
+    assert!(!out.join("report.json").exists(), "nothing ran");
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
+    let out = temp_dir("bad-segmentations");
+    let segmentations = out.join("segmentations");
+    std::fs::create_dir_all(&segmentations).unwrap();
+    let points = phantom_inputs().join("suture_points.mrk.json");
+    let plan_out = out.join("plan");
+    let args = ["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", plan_out.to_str().unwrap()];
+    let run = baffle(&args, &[]);
     assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("--segmentations needs `baffle prepare`"), "{}", String::from_utf8_lossy(&run.stderr));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("stage prepare failed") && stderr.contains("LV.vtp"), "stage and reason: {stderr}");
+    let report = read_json(&plan_out.join("report.json"));
+    assert_eq!(report["failed_stage"], "prepare");
+    let status: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["status"].as_str().unwrap()).collect();
+    assert_eq!(status, ["failed", "not run", "not run", "not run"]);
+    assert!(!plan_out.join("prepare").exists() && !plan_out.join("design").exists(), "files of a failed or unrun stage");
+    std::fs::remove_dir_all(out).ok();
+}
+
+/// A synthetic heart as segment files, as the prepare test writes it: LV and RV
+/// spheres overlapping (the VSD faces -x at x = 8.6), an aorta tube leaving the RV's
+/// top (the aortic cap at z = 8.1); and a suture loop on the RV sphere 46 degrees
+/// around the quarter circle from the VSD's direction (-x) to the aorta's (+z), so
+/// that it encloses both caps.
+fn synthetic_heart(dir: &Path) -> PathBuf {
+    use baffle_core::io::write_trimesh_vtp;
+    use baffle_core::Vec3;
+    use baffle_prepare::shapes::{capped_tube, uv_sphere};
+    let (rv_center, rv_radius) = (Vec3::new(16.0, 0.0, 0.0), 9.0);
+    write_trimesh_vtp(&dir.join("LV.vtp"), &uv_sphere(Vec3::zeros(), 10.0, 32, 64)).unwrap();
+    write_trimesh_vtp(&dir.join("RV.vtp"), &uv_sphere(rv_center, rv_radius, 32, 64)).unwrap();
+    write_trimesh_vtp(&dir.join("aorta.vtp"), &capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 12, 48)).unwrap();
+    let rho = 46f64.to_radians();
+    let (side, vsd, aorta) = (Vec3::y(), -Vec3::x(), Vec3::z());
+    let arc = |t: f64| Vec3::new(-t.cos(), 0.0, t.sin());
+    let around = |center: Vec3, away: Vec3, phi: f64| center * rho.cos() + (away * phi.cos() + side * phi.sin()) * rho.sin();
+    let quarter = std::f64::consts::FRAC_PI_2;
+    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() + side * rho.sin()).collect();
+    directions.extend((1..4).map(|k| around(aorta, Vec3::x(), quarter - std::f64::consts::PI * k as f64 / 4.0)));
+    directions.extend((0..=5).rev().map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() - side * rho.sin()));
+    directions.extend((1..4).map(|k| around(vsd, -Vec3::z(), -quarter + std::f64::consts::PI * k as f64 / 4.0)));
+    let points: Vec<serde_json::Value> = directions
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let p = rv_center + d.normalize() * rv_radius;
+            serde_json::json!({ "id": (i + 1).to_string(), "label": format!("BC-{}", i + 1), "position": [p.x, p.y, p.z], "positionStatus": "defined" })
+        })
+        .collect();
+    let markups = serde_json::json!({ "markups": [{ "type": "Fiducial", "coordinateSystem": "LPS", "controlPoints": points }] });
+    let path = dir.join("suture_points.mrk.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&markups).unwrap()).unwrap();
+    path
+}
+
+/// The prepare stage ran first, and the report's caps are its own report's.
+fn check_prepare_stage(out: &Path, report: &serde_json::Value) {
+    let stages = report["stages"].as_array().unwrap();
+    assert_eq!((stages[0]["name"].as_str(), stages[0]["status"].as_str()), (Some("prepare"), Some("completed")));
+    assert!(stages[0]["wall_time_s"].as_f64().unwrap() > 0.0);
+    let prepared = read_json(&out.join("prepare/capped_ventricle-report.json"));
+    for cap in ["vsd_cap", "aortic_cap"] {
+        let area = report["prepare"][cap]["area_mm2"].as_f64().unwrap();
+        assert!(area > 0.0 && close(area, prepared[cap]["area_mm2"].as_f64().unwrap()), "{cap} {area}");
+        assert_eq!(report["prepare"][cap]["centroid_mm"], prepared[cap]["centroid_mm"]);
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Capped ventricle (prepare stage)") && html.contains("<td>VSD cap</td>"));
+    check_html(&out.join("report.html"));
+}
+
+#[test]
+fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
+    if skip_gmsh() {
+        return;
+    }
+    let out = temp_dir("synthetic");
+    let segmentations = out.join("segmentations");
+    std::fs::create_dir_all(&segmentations).unwrap();
+    let points = synthetic_heart(&segmentations);
+    let plan_out = out.join("plan");
+    // BSA 0.2 m2: a 37.7 mm2 target, below the 52 mm2 aortic cap of the 4 mm tube.
+    let mut args = vec!["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap()];
+    args.extend_from_slice(&["--bsa", "0.2", "--bp", "107/78", "--out", plan_out.to_str().unwrap()]);
+    args.extend_from_slice(COARSE_STEADY);
+    let run = baffle(&args, &[]);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&plan_out.join("report.json"));
+    check_prepare_stage(&plan_out, &report);
+    // The caps of the spheres and the tube: the VSD circle of radius 5.1 mm at x = 8.6,
+    // the aortic one of radius 4 mm (a 48-gon) at the RV's top.
+    let vsd = &report["prepare"]["vsd_cap"];
+    assert!((vsd["centroid_mm"][0].as_f64().unwrap() - 8.6).abs() < 0.5, "{vsd}");
+    let aortic_area = report["prepare"]["aortic_cap"]["area_mm2"].as_f64().unwrap();
+    assert!((aortic_area - 16.0 * std::f64::consts::PI).abs() < 0.15 * 16.0 * std::f64::consts::PI, "aortic cap {aortic_area} mm2");
+    let dp = report["quantities"]["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(dp.is_finite() && dp > 0.0, "dp {dp}");
+    assert_eq!(report["verdict"]["passes"].as_bool().unwrap(), dp < 10.0);
+    std::fs::remove_dir_all(out).ok();
+}
+
+/// p2's paper inputs (BSA 0.37 m2, BP 107/78, HR 133) with `source` as the ventricle.
+fn p2_plan(source: &[&str], points: &Path, out: &Path) -> Output {
+    let mut args = vec!["plan"];
+    args.extend_from_slice(source);
+    args.extend_from_slice(&["--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--hr", "133", "--out", out.to_str().unwrap()]);
+    args.extend_from_slice(COARSE_STEADY);
+    baffle(&args, &[])
+}
+
+#[test]
+fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
+    if skip_gmsh() {
+        return;
+    }
+    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let out = temp_dir("p2-segmentations");
+    let segmentations = data.join("p2/segmentations");
+    let run = p2_plan(&["--segmentations", segmentations.to_str().unwrap()], &data.join("p2/design_input/suture_points.mrk.json"), &out);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&out.join("report.json"));
+    check_prepare_stage(&out, &report);
+    let stages = report["stages"].as_array().unwrap();
+    let q = &report["quantities"];
+    let dp = q["dp_peak_mmhg"].as_f64().unwrap();
+    let times: Vec<String> = stages.iter().map(|s| format!("{} {:.1} s", s["name"].as_str().unwrap(), s["wall_time_s"].as_f64().unwrap())).collect();
+    eprintln!("p2 from segmentations, steady, 1.25 mm: dp {dp:.3} mmHg, v_max {} m/s; {}", q["max_velocity_m_s"], times.join(", "));
+    assert!(dp.is_finite() && dp > 0.0, "p2 dp {dp} mmHg");
+    assert_eq!(report["verdict"]["passes"].as_bool().unwrap(), dp < 10.0);
     std::fs::remove_dir_all(out).ok();
 }
 

@@ -264,6 +264,38 @@ fn format_value(v: f64, decimals: usize) -> String {
     if v.is_finite() { format!("{v:.decimals$}") } else { "—".into() }
 }
 
+/// The prepare stage's report (cap areas and centroids) and wall time, if it ran.
+fn prepare_summary(out: &Path, records: &[StageRecord]) -> Result<Option<Value>, String> {
+    let Some(record) = records.iter().find(|r| r.name == "prepare") else { return Ok(None) };
+    let path = crate::prepare_cmd::report_path(&crate::plan_cmd::prepared_surface_path(out));
+    let doc = read_json(&path)?;
+    let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
+    Ok(Some(json!({
+        "report": path, "wall_time_s": record.wall_time_s, "triangles": doc["triangles"],
+        "vsd_cap": cap("vsd_cap"), "aortic_cap": cap("aortic_cap"),
+    })))
+}
+
+/// The HTML rows of the prepare stage's caps: name, label, area, centroid.
+fn prepare_rows(prepare: &Value) -> Vec<Vec<String>> {
+    let cap_row = |name: &str, cap: &Value| {
+        let centroid: Vec<String> = cap["centroid_mm"].as_array().into_iter().flatten().map(|c| format_value(c.as_f64().unwrap_or(f64::NAN), 2)).collect();
+        vec![name.to_string(), cap["label"].to_string(), format_value(cap["area_mm2"].as_f64().unwrap_or(f64::NAN), 1), format!("({})", centroid.join(", "))]
+    };
+    vec![cap_row("VSD cap", &prepare["vsd_cap"]), cap_row("Aortic cap", &prepare["aortic_cap"])]
+}
+
+/// What the ventricle came from, for the report's first line.
+fn surface_source(args: &PlanArgs) -> String {
+    let p = &args.prepare;
+    match (&p.segmentations, &p.labelmap, &args.design.surface) {
+        (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", dir.display()),
+        (None, Some(file), _) => format!("Label map {} (prepare stage)", file.display()),
+        (None, None, Some(surface)) => format!("Surface {}", surface.display()),
+        (None, None, None) => "Surface: built-in phantom".into(),
+    }
+}
+
 /// Write report.json and report.html from the stages' files; returns the verdict line.
 pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<String, String> {
     let out = &args.design.out;
@@ -282,6 +314,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
     let verdict = verdict_text(dp, converged);
     let dp_cycle = dp_over_cycle(&nominal_dir, &nominal.summary, labels.0, labels.1)?;
+    let prepare = prepare_summary(out, records)?;
 
     let run_rows: Vec<Value> = runs
         .iter()
@@ -299,10 +332,12 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         "status": "completed",
         "inputs": {
             "surface": args.design.surface, "points": args.design.points, "phantom": args.design.phantom,
+            "segmentations": args.prepare.segmentations, "labelmap": args.prepare.labelmap,
             "bsa_m2": flow_bsa_m2(args).ok(), "sbp_mmhg": args.bp.0, "dbp_mmhg": args.bp.1,
             "heart_rate_bpm": args.hr, "mode": nominal.summary["mode"], "edge_length_mm": args.edge_length_mm,
         },
         "stages": records,
+        "prepare": prepare,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
         "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
         "runs": run_rows,
@@ -316,9 +351,9 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
 
     let mut html = Html(String::new());
     let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
-    let source = args.design.surface.as_ref().map_or("built-in phantom".to_string(), |p| p.display().to_string());
     html.para(&format!(
-        "Surface {source}; BSA {} m²; BP {}/{} mmHg; {}; {} run, nominal mesh {} mm.",
+        "{}; BSA {} m²; BP {}/{} mmHg; {}; {} run, nominal mesh {} mm.",
+        surface_source(args),
         flow_bsa_m2(args)?,
         args.bp.0,
         args.bp.1,
@@ -331,6 +366,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
     html.table(&["Quantity", "Value", "Unit"], &rows);
 
+    if let Some(prepare) = &prepare {
+        html.heading("Capped ventricle (prepare stage)");
+        html.table(&["Cap", "ModelFaceID", "Area (mm²)", "Centroid (mm)"], &prepare_rows(prepare));
+        html.para(&format!("Built from the segmentations in {} s.", format_value(prepare["wall_time_s"].as_f64().unwrap_or(f64::NAN), 1)));
+    }
     html.heading("Baffle and pathway");
     let domain = baffle_core::io::read_surface_labeled(&design_dir.join("domain.vtp")).map_err(|e| e.to_string())?.mesh;
     let d = &args.design;
