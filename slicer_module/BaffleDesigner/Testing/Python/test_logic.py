@@ -249,15 +249,6 @@ def test_transformed_model_is_designed_in_world_coordinates(phantom_scene):
     np.testing.assert_allclose(moved.domain.points.mean(axis=0), untransformed.domain.points.mean(axis=0) + shift, atol=0.05)
 
 
-def test_segmentation_input_reports_the_missing_prepare_step(phantom_scene):
-    scene, logic, model, curve = phantom_scene
-    segmentation = scene.AddNewNodeByClass("vtkMRMLSegmentationNode", "RV")
-    logic.setSurfaceNode(curve, segmentation)
-    with pytest.raises(bdlogic.BaffleDesignerError, match="prepare step"):
-        logic.design(curve)
-    assert "prepare step" in curve.GetAttribute("BaffleDesigner.Error")
-
-
 def test_input_errors_are_clear(phantom_scene):
     scene, logic, model, curve = phantom_scene
     unlabeled = scene.AddNewNodeByClass("vtkMRMLModelNode", "no labels")
