@@ -192,6 +192,31 @@ def require_executable(executable: Optional[str]) -> None:
         raise BaffleDesignerError(f"the baffle command line program {executable} is not an executable file")
 
 
+def read_written_file(reader, path: str):
+    """The output of a VTK reader for `path`, a file a child process was to write."""
+    import os
+
+    if not os.path.exists(path):
+        raise BaffleDesignerError(f"{path} was not written")
+    reader.SetFileName(path)
+    reader.Update()
+    return reader.GetOutput()
+
+
+class CandidateJob(process.PolledJob):
+    """A command line job for one candidate: the logic and curve it works for, the
+    program, its work folder and its environment (None: this process's; in Slicer the
+    startup environment, without the launcher's Python settings)."""
+
+    def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
+        super().__init__()
+        self.logic = logic
+        self.curve = curve
+        self.executable = executable
+        self.work_dir = work_dir
+        self.env = env
+
+
 def _vtk_double_array(name: str, values) -> vtk.vtkDoubleArray:
     array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=1)
     array.SetName(name)
@@ -774,12 +799,7 @@ class BaffleDesignerLogic:
 
         volume_path = os.path.join(work_dir, "volume.vtu")
         quality_path = os.path.join(work_dir, "volume-quality.json")
-        if not os.path.exists(volume_path):
-            raise BaffleDesignerError(f"{volume_path} was not written")
-        reader = vtk.vtkXMLUnstructuredGridReader()
-        reader.SetFileName(volume_path)
-        reader.Update()
-        grid = reader.GetOutput()
+        grid = read_written_file(vtk.vtkXMLUnstructuredGridReader(), volume_path)
         if grid.GetNumberOfCells() == 0:
             raise BaffleDesignerError(f"{volume_path} holds no cells")
         node = self._output_node(curve, REF_VOLUME_MESH, "vtkMRMLModelNode", "volume mesh")

@@ -143,12 +143,7 @@ def flip_lps_ras(polydata: vtk.vtkPolyData) -> vtk.vtkPolyData:
 
 def read_prepared(path: str) -> vtk.vtkPolyData:
     """The capped ventricle `baffle prepare` wrote (LPS), checked, in RAS."""
-    if not os.path.exists(path):
-        raise bdlogic.BaffleDesignerError(f"{path} was not written")
-    reader = vtk.vtkXMLPolyDataReader()
-    reader.SetFileName(path)
-    reader.Update()
-    polydata = reader.GetOutput()
+    polydata = bdlogic.read_written_file(vtk.vtkXMLPolyDataReader(), path)
     labels = polydata.GetCellData().GetArray("ModelFaceID")
     if polydata.GetNumberOfPolys() == 0 or labels is None:
         raise bdlogic.BaffleDesignerError(f"{path}: expected a surface with a ModelFaceID cell array")
@@ -199,19 +194,14 @@ def prepared_node(curve, digest: str):
 # ---- the job ------------------------------------------------------------------------------
 
 
-class PrepareJob(process.PolledJob):
+class PrepareJob(bdlogic.CandidateJob):
     """`baffle prepare` for one candidate whose ventricle is a segmentation, without
     blocking: start() exports the segments and starts the process, poll() (from a timer)
     loads the capped ventricle when it is done, cancel() stops it. A failed or cancelled
     run leaves the scene as it was; the work folder is removed after a successful load."""
 
     def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
-        super().__init__()
-        self.logic = logic
-        self.curve = curve
-        self.executable = executable
-        self.work_dir = work_dir
-        self.env = env
+        super().__init__(logic, curve, executable, work_dir, env)
         self.stage = STAGE
         self.node = None  # the loaded model node
         self._segmentation = None

@@ -155,12 +155,7 @@ def read_summary(path: str) -> dict:
 
 def read_fields(path: str) -> vtk.vtkUnstructuredGrid:
     """peak.vtu in the scene's units: points mm, velocity_m_s (vector), speed_m_s, pressure_mmhg."""
-    if not os.path.exists(path):
-        raise bdlogic.BaffleDesignerError(f"{path} was not written")
-    reader = vtk.vtkXMLUnstructuredGridReader()
-    reader.SetFileName(path)
-    reader.Update()
-    source = reader.GetOutput()
+    source = bdlogic.read_written_file(vtk.vtkXMLUnstructuredGridReader(), path)
     velocity = source.GetPointData().GetArray("velocity")
     pressure = source.GetPointData().GetArray("pressure")
     if source.GetNumberOfCells() == 0 or velocity is None or pressure is None:
@@ -311,7 +306,7 @@ def _write_series_chart(logic, curve, table_node, steady: bool) -> None:
 # ---- the job: mesh, then simulate -------------------------------------------------------
 
 
-class SimulationJob(process.PolledJob):
+class SimulationJob(bdlogic.CandidateJob):
     """Mesh and simulate one candidate in `work_dir` without blocking. start() checks the
     inputs and starts `baffle mesh`; poll() (from a timer) starts `baffle simulate` when
     the mesh is done and loads the results when the simulation is; cancel() stops the
@@ -319,12 +314,7 @@ class SimulationJob(process.PolledJob):
     `message` says what happened (the program's own error line on failure)."""
 
     def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
-        super().__init__()
-        self.logic = logic
-        self.curve = curve
-        self.executable = executable
-        self.work_dir = work_dir
-        self.env = env  # of the child processes (in Slicer: without the launcher's Python settings)
+        super().__init__(logic, curve, executable, work_dir, env)
         self.out_dir = os.path.join(work_dir, "results")
         self.results: Optional[SimulationResults] = None
         self._case: Optional[dict] = None

@@ -10,7 +10,7 @@ import pytest
 import vtk
 from vtkmodules.util import numpy_support
 
-from conftest import bdlogic, column, data_dir, has_subcommand, load_closed_curve, load_model, p2_inputs, slicer
+from conftest import bdlogic, column, data_dir, has_subcommand, load_closed_curve, load_model, p2_inputs, slicer, translation_node
 from BaffleDesignerLib import prepare, process
 from test_logic import open_and_nonmanifold_edges
 
@@ -184,12 +184,7 @@ def test_segments_are_exported_in_world_lps_and_a_move_needs_a_new_prepare(scene
     parameters = bdlogic.DesignParameters()
     before = prepare.fingerprint(segmentation, parameters)
     shift = np.array([5.0, -3.0, 2.0])  # RAS
-    transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")
-    matrix = vtk.vtkMatrix4x4()
-    for axis in range(3):
-        matrix.SetElement(axis, 3, shift[axis])
-    transform.SetMatrixTransformToParent(matrix)
-    segmentation.SetAndObserveTransformNodeID(transform.GetID())
+    segmentation.SetAndObserveTransformNodeID(translation_node(scene, shift).GetID())
     assert prepare.fingerprint(segmentation, parameters) != before
 
     prepare.export_segments(segmentation, prepare.segment_ids(segmentation, parameters), str(tmp_path))
