@@ -345,7 +345,7 @@ class BaffleDesignerLogic:
         from BaffleDesignerLib import prepare
 
         segmentation = self.surfaceNode(curve)
-        return prepare.prepared_node(curve, prepare.fingerprint(segmentation, self.parameters(curve)))
+        return prepare.prepared_node(self.scene, curve, prepare.fingerprint(segmentation, self.parameters(curve)))
 
     def needsPrepare(self, curve) -> bool:
         surface = self.surfaceNode(curve)

@@ -161,9 +161,18 @@ def read_report(path: str) -> dict:
         raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
 
 
+def _shared(logic, curve, node) -> bool:
+    """Whether another candidate designs on `node` too."""
+    return any(c is not curve and c.GetNodeReferenceID(bdlogic.REF_PREPARED) == node.GetID() for c in logic.candidates())
+
+
 def store_prepared(logic, curve, segmentation_node, polydata, report: dict, digest: str):
-    """The capped ventricle onto the candidate (REF_PREPARED model node) with its figures."""
+    """The capped ventricle onto the candidate (REF_PREPARED model node, its figures as
+    node attributes). A model that other candidates share is left to them."""
     node = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    if node is not None and _shared(logic, curve, node):
+        curve.SetNodeReferenceID(bdlogic.REF_PREPARED, None)
+        node = None
     if node is None or not node.IsA("vtkMRMLModelNode"):
         node = logic._output_node(curve, bdlogic.REF_PREPARED, "vtkMRMLModelNode", "capped ventricle")
         display = node.GetDisplayNode()
@@ -179,15 +188,27 @@ def store_prepared(logic, curve, segmentation_node, polydata, report: dict, dige
         ("PrepareAorticCapAreaMm2", report.get("aortic_cap", {}).get("area_mm2")),
         ("PrepareTimeMs", report.get("timings", {}).get("total_ms")),
     ):
-        curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
+        node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
     return node
 
 
-def prepared_node(curve, digest: str):
-    """The candidate's prepared model if it was made from the same inputs, else None."""
-    node = curve.GetNodeReference(bdlogic.REF_PREPARED)
-    if node is not None and node.GetAttribute(FINGERPRINT_ATTRIBUTE) == digest and node.GetPolyData() is not None:
-        return node
+def _made_from(node, digest: str) -> bool:
+    return node is not None and node.GetAttribute(FINGERPRINT_ATTRIBUTE) == digest and node.GetPolyData() is not None
+
+
+def prepared_node(scene, curve, digest: str):
+    """The capped ventricle made from the same inputs: the candidate's own, else one that
+    another candidate on the same segmentation made (then referenced from this one too,
+    so several candidates share one prepare run), else None."""
+    own = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    if _made_from(own, digest):
+        return own
+    nodes = scene.GetNodesByClass("vtkMRMLModelNode")
+    for i in range(nodes.GetNumberOfItems()):
+        node = nodes.GetItemAsObject(i)
+        if node.GetAttribute(bdlogic.ROLE_ATTRIBUTE) == bdlogic.REF_PREPARED and _made_from(node, digest):
+            curve.SetNodeReferenceID(bdlogic.REF_PREPARED, node.GetID())
+            return node
     return None
 
 

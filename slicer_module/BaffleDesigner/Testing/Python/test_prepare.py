@@ -10,7 +10,7 @@ import pytest
 import vtk
 from vtkmodules.util import numpy_support
 
-from conftest import bdlogic, column, data_dir, has_subcommand, load_closed_curve, load_model, p2_inputs, slicer, translation_node
+from conftest import bdlogic, column, curve_from_points, data_dir, has_subcommand, load_closed_curve, load_model, p2_inputs, slicer, translation_node
 from BaffleDesignerLib import prepare, process
 from test_logic import open_and_nonmanifold_edges
 
@@ -73,7 +73,7 @@ def test_prepared_ventricle_is_closed_and_labelled(prepared):
     assert open_and_nonmanifold_edges(polydata) == 0
     assert logic.surfaceNode(curve) is segmentation  # the input stays the segmentation
     assert logic.prepare_count == 1 and not logic.needsPrepare(curve)
-    assert float(curve.GetAttribute("BaffleDesigner.PrepareVsdCapAreaMm2")) > 0
+    assert float(node.GetAttribute("BaffleDesigner.PrepareVsdCapAreaMm2")) > 0
     print(f"prepare + design from the segmentation: {seconds:.1f} s, {polydata.GetNumberOfPolys()} triangles")
 
 
@@ -124,6 +124,23 @@ def test_redesign_and_drag_reuse_the_prepared_ventricle(prepared):
     parameters.lv_segment = "LV"
     logic.setParameters(curve, parameters)
     assert not logic.needsPrepare(curve)
+
+
+def test_candidates_on_one_segmentation_share_the_prepared_ventricle(prepared):
+    scene, logic, segmentation, curve, result, _ = prepared
+    second = curve_from_points(scene, logic.suturePointsWorld(curve), "BC second")
+    logic.setSurfaceNode(second, segmentation)
+    logic.setParameters(second, logic.parameters(curve))
+    assert not logic.needsPrepare(second)
+    logic.design(second, allow_prepare=False)
+    shared = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    assert second.GetNodeReference(bdlogic.REF_PREPARED) is shared and logic.prepare_count == 1
+    polydata = shared.GetPolyData()
+    # Re-preparing one candidate leaves the other's ventricle alone.
+    prepare.store_prepared(logic, second, segmentation, vtk.vtkPolyData(), {}, "other inputs")
+    assert second.GetNodeReference(bdlogic.REF_PREPARED) is not shared
+    assert curve.GetNodeReference(bdlogic.REF_PREPARED) is shared and shared.GetPolyData() is polydata
+    scene.RemoveNode(second)
 
 
 def test_a_missing_aorta_segment_is_named(scene, executable):
