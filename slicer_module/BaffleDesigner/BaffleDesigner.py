@@ -20,6 +20,7 @@ from slicer.ScriptedLoadableModule import (
 from slicer.util import VTKObservationMixin
 
 from BaffleDesignerLib import logic as bdlogic
+from BaffleDesignerLib import prepare as bdprepare
 from BaffleDesignerLib import process as bdprocess
 from BaffleDesignerLib import simulation as bdsimulation
 
@@ -35,7 +36,9 @@ class BaffleDesigner(ScriptedLoadableModule):
 Designs the area-constrained intraventricular baffle for DORV repair (after Martinez et al.,
 "Semi-Automated Generation and Hemodynamic Assessment of Surgical Baffle Geometry for
 Biventricular Repair") from the capped right ventricle (model with ModelFaceID 2/11/16) and
-BafflePlanner's closed curve of suture points. Each closed curve is one candidate: its
+BafflePlanner's closed curve of suture points. The ventricle can also be a segmentation with
+LV, RV and aorta segments: Design then runs the library's prepare step (`baffle prepare`) on
+their closed surfaces and designs on the capped ventricle it returns. Each closed curve is one candidate: its
 target, outputs (baffle, domain, centerline, sections, area table and chart) and results are
 kept on the curve node, so one scene can hold several candidates to compare.
 """
@@ -49,6 +52,7 @@ TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
 FLOW_MODES = ("steady", "pulsatile")
 SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
+PREPARE = "prepare"
 
 
 def childEnvironment():
@@ -93,6 +97,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
 
         self.ui.curveSelector.connect("currentNodeChanged(vtkMRMLNode*)", self.onCurveSelected)
         self.ui.surfaceSelector.connect("currentNodeChanged(vtkMRMLNode*)", self.onSurfaceSelected)
+        for comboBox in self.segmentComboBoxes():
+            comboBox.connect("currentTextChanged(QString)", self.onParametersChanged)
         self.ui.targetModeComboBox.connect("currentIndexChanged(int)", self.onParametersChanged)
         for spinBox in self.parameterSpinBoxes():
             spinBox.connect("valueChanged(double)", self.onParametersChanged)
@@ -108,12 +114,16 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.compareButton.connect("clicked(bool)", self.onCompare)
 
         self.executable = bdprocess.find_baffle_executable()
+        self.logic.executable = self.executable
+        self.logic.child_env = childEnvironment()
+        self.logic.work_root = slicer.app.temporaryPath
         _, self.simulateReason = bdprocess.simulate_availability(self.executable)
         _, self.volumeMeshReason = bdprocess.subcommand_availability(self.executable, "mesh")
         self.ui.cancelButton.enabled = False
         self.ui.progressBar.setRange(0, 1000)
 
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.StartCloseEvent, self.onSceneStartClose)
+        self.updateSegmentChoices(self.ui.surfaceSelector.currentNode())
         self.onCurveSelected(self.ui.curveSelector.currentNode())
 
     def parameterSpinBoxes(self):
@@ -122,6 +132,28 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.ui.bsaSpinBox, self.ui.heightSpinBox, self.ui.weightSpinBox, self.ui.zScoreSpinBox,
             self.ui.areaSpinBox, self.ui.diameterSpinBox,
         )
+
+    def segmentComboBoxes(self):
+        """The LV, RV and aorta segment choices, in DesignParameters' order."""
+        return (self.ui.lvSegmentComboBox, self.ui.rvSegmentComboBox, self.ui.aortaSegmentComboBox)
+
+    def updateSegmentChoices(self, node):
+        """Offer the segmentation's segment names; a model hides the choices."""
+        isSegmentation = node is not None and node.IsA("vtkMRMLSegmentationNode")
+        names = []
+        if isSegmentation:
+            segmentation = node.GetSegmentation()
+            names = [segmentation.GetNthSegment(i).GetName() for i in range(segmentation.GetNumberOfSegments())]
+        wasUpdating, self._updatingGUI = self._updatingGUI, True
+        try:
+            for comboBox, label in zip(self.segmentComboBoxes(), (self.ui.lvSegmentLabel, self.ui.rvSegmentLabel, self.ui.aortaSegmentLabel)):
+                text = comboBox.currentText
+                comboBox.clear()
+                comboBox.addItems(names)
+                comboBox.setEditText(text)
+                comboBox.visible = label.visible = isSegmentation
+        finally:
+            self._updatingGUI = wasUpdating
 
     def cfdSpinBoxes(self):
         return (
@@ -161,6 +193,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             cardiac_index_l_min_m2=self.ui.cardiacIndexSpinBox.value,
             flow_mode=FLOW_MODES[max(0, self.ui.flowModeComboBox.currentIndex)],
             mesh_edge_length_mm=self.ui.meshEdgeLengthSpinBox.value,
+            lv_segment=self.ui.lvSegmentComboBox.currentText,
+            rv_segment=self.ui.rvSegmentComboBox.currentText,
+            aorta_segment=self.ui.aortaSegmentComboBox.currentText,
         )
 
     def onCurveSelected(self, curve):
@@ -197,6 +232,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             surface = self.logic.surfaceNode(curve)
             if surface is not None:
                 self.ui.surfaceSelector.setCurrentNode(surface)
+            self.updateSegmentChoices(self.ui.surfaceSelector.currentNode())
+            for comboBox, name in zip(self.segmentComboBoxes(), (parameters.lv_segment, parameters.rv_segment, parameters.aorta_segment)):
+                comboBox.setEditText(name)
             self.ui.autoUpdateCheckBox.checked = self.logic.isAutoUpdating(curve)
             self.setStatus("\n".join(filter(None, (self.curveSummary(curve), self.simulationLine(curve)))))
         except bdlogic.BaffleDesignerError as error:
@@ -205,6 +243,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self._updatingGUI = False
 
     def onSurfaceSelected(self, node):
+        self.updateSegmentChoices(node)
         if self._updatingGUI or self.curve is None:
             return
         self.logic.setSurfaceNode(self.curve, node)
@@ -263,18 +302,32 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         return f"dp {float(dp):.2f} mmHg, v_max {v_max:.2f} m/s: {self.logic.simulationSummary(curve)}"
 
     def onDesign(self):
-        if self.curve is None:
+        """Design the candidate; a segmentation that needs the prepare step gets it first,
+        as a separate process (progress, Cancel), and the design follows when it is done."""
+        if self.curve is None or self.run is not None:
             return
         try:
             self.logic.setSurfaceNode(self.curve, self.ui.surfaceSelector.currentNode())
             self.logic.setParameters(self.curve, self.parametersFromGUI())
+            if self.logic.needsPrepare(self.curve):
+                self.runDir = self.workDirectory(PREPARE)
+                job = self.logic.startPrepare(self.curve, self.executable, self.runDir, env=childEnvironment())
+                self.startRun(PREPARE, job)
+                return
+        except (bdlogic.BaffleDesignerError, OSError) as error:
+            self.showError("Baffle design failed", str(error))
+            return
+        self.designNow(self.curve)
+
+    def designNow(self, curve):
+        try:
             with slicer.util.WaitCursor():
-                self.logic.design(self.curve, progress=self.onDesignProgress)
+                self.logic.design(curve, progress=self.onDesignProgress, allow_prepare=False)
         except bdlogic.BaffleDesignerError as error:
             self.showError("Baffle design failed", str(error))
             return
-        self.setStatus(self.curveSummary(self.curve))
-        self.showOutputs(self.curve)
+        self.setStatus(self.curveSummary(curve))
+        self.showOutputs(curve)
 
     def onDesignProgress(self, fraction, stage):
         self.ui.progressBar.value = int(1000 * fraction)
@@ -359,6 +412,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         """Fraction done, or None when the running step reports none (gmsh)."""
         if isinstance(run, bdsimulation.SimulationJob):
             return run.progress
+        if isinstance(run, bdprepare.PrepareJob):
+            return None  # `baffle prepare` reports no fractions
         return run.progress if run.progress_updates else None
 
     def onProcessTimer(self):
@@ -367,7 +422,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.processTimer.stop()
             return
         try:
-            state = run.poll() if isinstance(run, bdsimulation.SimulationJob) else run.state
+            polled = isinstance(run, (bdsimulation.SimulationJob, bdprepare.PrepareJob))
+            state = run.poll() if polled else run.state
         except Exception as error:  # a bug while loading must not leave the timer firing
             logging.exception("BaffleDesigner: %s", self.runKind)
             run.cancel()
@@ -385,6 +441,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.endRun()
         if self.runKind == SIMULATION:
             self.reportSimulationEnd(run, state)
+        elif self.runKind == PREPARE:
+            self.reportPrepareEnd(run, state)
         else:
             self.reportVolumeMeshEnd(run, state)
 
@@ -404,6 +462,17 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.setStatus(f"{curve.GetName()}: {job.message}")  # the results, or why they were not loaded
         if state == bdprocess.COMPLETED:
             self.showOutputs(curve, bdlogic.REF_SIM_CHART, bdlogic.REF_SIM_SUMMARY)
+
+    def reportPrepareEnd(self, job, state):
+        """The prepared ventricle is loaded: design on it; else say why not."""
+        curve = self.runCurve
+        if state == bdprocess.FAILED:
+            self.showError("The prepare step failed", job.message)
+        elif state == bdprocess.CANCELLED:
+            self.setStatus(f"{curve.GetName()}: {job.message}")
+        else:
+            self.setStatus(f"{curve.GetName()}: {job.message}")
+            self.designNow(curve)
 
     def reportVolumeMeshEnd(self, run, state):
         curve = self.runCurve
@@ -451,6 +520,8 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.test_phantom_design_and_drag()
         self.setUp()
         self.test_patient_design_and_compare()
+        self.setUp()
+        self.test_patient_segmentation_prepare_and_design()
         self.setUp()
         self.test_phantom_simulate_cancel_and_errors()
 
@@ -508,11 +579,12 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         logic.cleanup()
         self.delayDisplay("Phantom test passed")
 
+    def _patientFolder(self, *parts):
+        data = os.environ.get("BAFFLE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data"))
+        return os.path.join(data, "p2", *parts)
+
     def test_patient_design_and_compare(self):
-        folder = os.path.join(
-            os.environ.get("BAFFLE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data")),
-            "p2", "design_input",
-        )
+        folder = self._patientFolder("design_input")
         if not os.path.exists(os.path.join(folder, "capped_ventricle.vtp")):
             self.delayDisplay(f"Patient data not found at {folder} (set BAFFLE_DATA_DIR): skipped")
             return
@@ -526,6 +598,69 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         table = logic.updateCompareTable()
         self.assertEqual(table.GetNumberOfRows(), 1)
         self.delayDisplay("Patient test passed")
+
+    def _segmentationFromModels(self, folder, structures):
+        """As a user would: load each surface (LPS file -> RAS model) and import it into
+        one segmentation as a closed-surface segment named after the model."""
+        segmentation = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLSegmentationNode", "p2 blood pools")
+        segmentation.SetSourceRepresentationToClosedSurface()
+        for structure in structures:
+            model = slicer.util.loadModel(os.path.join(folder, f"{structure}.vtp"))
+            model.SetName(structure)
+            self.assertTrue(slicer.modules.segmentations.logic().ImportModelToSegmentationNode(model, segmentation))
+            slicer.mrmlScene.RemoveNode(model)
+        return segmentation
+
+    def _capCentroids(self, polydata):
+        """{label: area-weighted centroid} of the caps 11 and 16."""
+        import numpy as np
+        from vtk.util import numpy_support
+
+        points = numpy_support.vtk_to_numpy(polydata.GetPoints().GetData()).astype(float)
+        triangles = numpy_support.vtk_to_numpy(polydata.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+        labels = numpy_support.vtk_to_numpy(polydata.GetCellData().GetArray("ModelFaceID")).ravel()
+        a, b, c = (points[triangles[:, k]] for k in range(3))
+        areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        centers = (a + b + c) / 3.0
+        return {l: (areas[labels == l, None] * centers[labels == l]).sum(0) / areas[labels == l].sum() for l in (11, 16)}
+
+    def test_patient_segmentation_prepare_and_design(self):
+        import numpy as np
+
+        folder = self._patientFolder("segmentations")
+        executable = bdprocess.find_baffle_executable()
+        available, reason = bdprocess.subcommand_availability(executable, "prepare")
+        if not (available and os.path.exists(os.path.join(folder, "LV.vtp"))):
+            self.delayDisplay(f"Segmentation test skipped: {reason or 'no patient data at ' + folder}")
+            return
+        self.delayDisplay("p2: LV, RV, aorta segments -> baffle prepare -> design")
+        curve = slicer.util.loadMarkups(self._patientFolder("design_input", "suture_points.mrk.json"))
+        logic = BaffleDesignerLogic()
+        logic.executable, logic.child_env, logic.work_root = executable, childEnvironment(), slicer.app.temporaryPath
+
+        partial = self._segmentationFromModels(folder, ("LV", "RV"))
+        logic.setSurfaceNode(curve, partial)
+        with self.assertRaises(bdlogic.BaffleDesignerError) as raised:
+            logic.design(curve)
+        self.assertIn("no segment named 'aorta' for the aorta", str(raised.exception))
+
+        segmentation = self._segmentationFromModels(folder, ("LV", "RV", "aorta"))
+        logic.setSurfaceNode(curve, segmentation)
+        logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=0.37))
+        self.assertTrue(logic.needsPrepare(curve))
+        job = logic.startPrepare(curve)
+        self.assertEqual(self._waitFor(job, 300), bdprocess.COMPLETED, job.message)
+        prepared = curve.GetNodeReference(bdlogic.REF_PREPARED).GetPolyData()
+        labels = prepared.GetCellData().GetArray("ModelFaceID")
+        self.assertEqual({int(labels.GetValue(i)) for i in range(labels.GetNumberOfTuples())}, {2, 11, 16})
+        published = slicer.util.loadModel(self._patientFolder("design_input", "capped_ventricle.vtp"))  # RAS too
+        ours, theirs = self._capCentroids(prepared), self._capCentroids(published.GetPolyData())
+        for label in (11, 16):
+            self.assertLess(float(np.linalg.norm(ours[label] - theirs[label])), 1.5, f"cap {label}")
+        self.assertFalse(logic.needsPrepare(curve))
+        self._check_outputs(curve, logic.design(curve, allow_prepare=False))
+        logic.cleanup()
+        self.delayDisplay("Segmentation test passed")
 
     def _startSimulation(self, logic, curve, executable):
         return logic.startSimulation(curve, executable, tempfile.mkdtemp(dir=slicer.app.temporaryPath),

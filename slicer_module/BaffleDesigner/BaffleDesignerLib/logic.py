@@ -5,7 +5,10 @@ into the scene. Depends only on `slicer` MRML classes, `vtk`, numpy and the proj
 Frames: everything here is in Slicer's world frame (RAS, mm). The ventricle model node's
 polydata is taken to world through its parent transforms, the suture points are the curve's
 world control point positions, and the outputs are written in world coordinates. The
-library is frame-agnostic as long as surface and points agree.
+library is frame-agnostic as long as surface and points agree. The one exception is a
+segmentation ventricle: its segments go to `baffle prepare` as files in LPS (as Slicer
+writes model files, and as the prepare step's label-map path works), and the capped
+ventricle it writes is turned back into RAS (BaffleDesignerLib.prepare).
 
 Per-candidate state lives on the suture curve node, as BafflePlanner does: the target and
 CFD parameters and the latest results are node attributes ("BaffleDesigner.*"), the input
@@ -26,6 +29,8 @@ from vtkmodules.util import numpy_support
 import baffle
 from baffle import vtk_adapters
 
+from BaffleDesignerLib import process
+
 ATTRIBUTE_PREFIX = "BaffleDesigner."
 CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
 ROLE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Role"
@@ -41,6 +46,7 @@ REF_CHART = "BaffleDesignerAreaChart"
 REF_SERIES_FINAL = "BaffleDesignerSeriesFinalArea"
 REF_SERIES_RAW = "BaffleDesignerSeriesRawArea"
 REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
+REF_PREPARED = "BaffleDesignerPreparedVentricle"  # capped ventricle made from a segmentation
 REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
 REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
 # Simulation results (BaffleDesignerLib.simulation).
@@ -86,7 +92,9 @@ class DesignParameters:
     BSA + z-score), "area" (explicit mm2) or "diameter" (explicit annulus diameter mm).
     The CFD step uses the blood pressure, heart rate, cardiac index (CO = BSA x CI), the
     flow mode (FLOW_MODES) and the volume mesh edge length; its BSA is bsa_m2, or the
-    Haycock BSA in the height_weight mode."""
+    Haycock BSA in the height_weight mode. When the ventricle is a segmentation node,
+    lv_segment / rv_segment / aorta_segment name its segments (case-insensitive) that
+    `baffle prepare` joins into the capped ventricle."""
 
     target_mode: str = "bsa"
     bsa_m2: float = 0.37
@@ -101,6 +109,9 @@ class DesignParameters:
     cardiac_index_l_min_m2: float = 3.48  # the paper's normal cardiac index
     flow_mode: str = "steady"
     mesh_edge_length_mm: float = 1.25  # the coarsest of the paper's meshes (1.25 / 0.95 / 0.75)
+    lv_segment: str = "LV"
+    rv_segment: str = "RV"
+    aorta_segment: str = "aorta"
 
     def validate(self) -> None:
         if self.target_mode not in TARGET_MODES:
@@ -117,6 +128,9 @@ class DesignParameters:
                 raise BaffleDesignerError(f"{name} must be a positive number, not {value}")
         if not math.isfinite(self.z_score):
             raise BaffleDesignerError("z_score must be a finite number")
+        for name in ("lv_segment", "rv_segment", "aorta_segment"):
+            if not getattr(self, name).strip():
+                raise BaffleDesignerError(f"{name} must name a segment")
 
     def cfd_bsa_m2(self) -> float:
         """The BSA the flow is scaled with: Haycock's from height and weight in that mode
@@ -166,6 +180,41 @@ class DesignParameters:
             except ValueError as error:
                 raise BaffleDesignerError(f"{node.GetName()}: attribute {ATTRIBUTE_PREFIX + f.name} = {text!r}: {error}")
         return parameters
+
+
+def require_executable(executable: Optional[str]) -> None:
+    """Errors unless `executable` is the path of an executable file."""
+    import os
+
+    if not executable:
+        raise BaffleDesignerError("the baffle command line program was not found (set BAFFLE_EXECUTABLE or put baffle on PATH)")
+    if not (os.path.isfile(executable) and os.access(executable, os.X_OK)):
+        raise BaffleDesignerError(f"the baffle command line program {executable} is not an executable file")
+
+
+def read_written_file(reader, path: str):
+    """The output of a VTK reader for `path`, a file a child process was to write."""
+    import os
+
+    if not os.path.exists(path):
+        raise BaffleDesignerError(f"{path} was not written")
+    reader.SetFileName(path)
+    reader.Update()
+    return reader.GetOutput()
+
+
+class CandidateJob(process.PolledJob):
+    """A command line job for one candidate: the logic and curve it works for, the
+    program, its work folder and its environment (None: this process's; in Slicer the
+    startup environment, without the launcher's Python settings)."""
+
+    def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
+        super().__init__()
+        self.logic = logic
+        self.curve = curve
+        self.executable = executable
+        self.work_dir = work_dir
+        self.env = env
 
 
 def _vtk_double_array(name: str, values) -> vtk.vtkDoubleArray:
@@ -235,6 +284,13 @@ class BaffleDesignerLogic:
         self._observations: Dict[str, List[Tuple[object, int]]] = {}
         self._pending: Dict[str, float] = {}
         self.design_count = 0
+        self.prepare_count = 0
+        # `baffle prepare` runs for segmentation inputs: the program (None: found on first
+        # use), its environment (None: this process's) and the folder of its work folders
+        # (None: the system's temporary folder).
+        self.executable: Optional[str] = None
+        self.child_env: Optional[dict] = None
+        self.work_root: Optional[str] = None
 
     # ---- inputs and parameters -------------------------------------------------------
 
@@ -281,19 +337,71 @@ class BaffleDesignerLogic:
             )
         return np.asarray(points, dtype=np.float64)
 
+    # ---- segmentation input: the prepare step (BaffleDesignerLib.prepare) ---------------
+
+    def preparedVentricle(self, curve):
+        """The capped ventricle prepared from the candidate's segmentation as it is now
+        (same segments, surfaces and transform), or None when it needs preparing."""
+        from BaffleDesignerLib import prepare
+
+        segmentation = self.surfaceNode(curve)
+        return prepare.prepared_node(self.scene, curve, prepare.fingerprint(segmentation, self.parameters(curve)))
+
+    def needsPrepare(self, curve) -> bool:
+        surface = self.surfaceNode(curve)
+        return surface is not None and surface.IsA("vtkMRMLSegmentationNode") and self.preparedVentricle(curve) is None
+
+    def startPrepare(self, curve, executable: Optional[str] = None, work_dir: Optional[str] = None, env: Optional[dict] = None):
+        """Start `baffle prepare` on the candidate's segmentation; returns the running
+        prepare.PrepareJob (poll() it from a timer). Defaults: the logic's executable,
+        a new folder under work_root, the logic's child_env."""
+        import tempfile
+
+        from BaffleDesignerLib import prepare
+
+        if executable is None:
+            executable = self.executable or process.find_baffle_executable()
+        if work_dir is None:
+            work_dir = tempfile.mkdtemp(prefix="BaffleDesigner-prepare-", dir=self.work_root)
+        job = prepare.PrepareJob(self, curve, executable, work_dir, self.child_env if env is None else env).start()
+        self.prepare_count += 1
+        return job
+
+    def prepareVentricle(self, curve, progress=None, poll_interval: float = 0.05):
+        """Run `baffle prepare` for the candidate and wait for it; progress(fraction, stage)
+        is called while it runs (no fractions: 0) and cancels it by returning False.
+        Returns the prepared model node; BaffleDesignerError says why it failed."""
+        job = self.startPrepare(curve)
+        while job.poll() == process.RUNNING:
+            if progress is not None and progress(0.0, f"{job.stage}: baffle prepare") is False:
+                job.cancel()
+            time.sleep(poll_interval)
+        if job.state != process.COMPLETED:
+            raise BaffleDesignerError(job.message)
+        return job.node
+
+    def ventricleModel(self, curve, allow_prepare: bool = True, progress=None):
+        """The model node the candidate is designed on: the selected model, or the capped
+        ventricle prepared from the selected segmentation (prepared now when it is missing
+        or outdated and allow_prepare; else an error saying to prepare it)."""
+        surface = self.surfaceNode(curve)
+        if surface is None or not surface.IsA("vtkMRMLSegmentationNode"):
+            return surface
+        prepared = self.preparedVentricle(curve)
+        if prepared is not None:
+            return prepared
+        if not allow_prepare:
+            raise BaffleDesignerError(
+                f"{surface.GetName()}: the segmentation is not prepared for this candidate, or changed since; "
+                "press Design to run the prepare step"
+            )
+        return self.prepareVentricle(curve, progress=progress)
+
     @staticmethod
     def surfacePolyDataWorld(surface_node) -> vtk.vtkPolyData:
-        """The ventricle surface in world coordinates; segmentations need the library's
-        prepare step, which this build does not have yet."""
+        """The ventricle model's surface in world coordinates."""
         if surface_node is None:
             raise BaffleDesignerError("select the ventricle (a model node with ModelFaceID, or a segmentation)")
-        if surface_node.IsA("vtkMRMLSegmentationNode"):
-            raise BaffleDesignerError(
-                f"{surface_node.GetName()}: segmentation input needs the library's prepare step "
-                "(`baffle prepare`, capping and labelling the ventricle), which is not available yet in this "
-                "build; export a capped model with a ModelFaceID cell array (2 wall, 11 VSD cap, 16 aortic cap) "
-                "and select that model"
-            )
         if not surface_node.IsA("vtkMRMLModelNode"):
             raise BaffleDesignerError(f"{surface_node.GetName()}: {surface_node.GetClassName()} is not a model or segmentation")
         polydata = surface_node.GetPolyData()
@@ -317,21 +425,23 @@ class BaffleDesignerLogic:
 
     # ---- design ----------------------------------------------------------------------
 
-    def design(self, curve, progress=None) -> "baffle.DesignResult":
+    def design(self, curve, progress=None, allow_prepare: bool = True) -> "baffle.DesignResult":
         """Design the candidate of `curve` and update its output nodes. On failure the
         previous outputs stay, the curve's Status/Error attributes say why, and
-        BaffleDesignerError carries the library's message."""
+        BaffleDesignerError carries the library's message. A segmentation ventricle is
+        prepared first when needed (see ventricleModel)."""
         self._check_curve(curve)
         curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
         started = time.perf_counter()
         try:
             parameters = self.parameters(curve)
-            surface = self.surfacePolyDataWorld(self.surfaceNode(curve))
             points = self.suturePointsWorld(curve)
+            model = self.ventricleModel(curve, allow_prepare, progress)
+            surface = self.surfacePolyDataWorld(model)
             try:
                 mesh = vtk_adapters.polydata_to_mesh(surface)
             except ValueError as error:
-                raise BaffleDesignerError(f"{self.surfaceNode(curve).GetName()}: {error}") from error
+                raise BaffleDesignerError(f"{model.GetName()}: {error}") from error
             try:
                 result = baffle.design(
                     mesh.points, mesh.triangles, mesh.labels, points, progress=progress, **parameters.design_kwargs()
@@ -547,7 +657,7 @@ class BaffleDesignerLogic:
             if curve is None:
                 continue
             try:
-                self.design(curve)
+                self.design(curve, allow_prepare=False)  # live: never a prepare run
                 done[curve_id] = None
             except BaffleDesignerError as error:
                 done[curve_id] = str(error)
@@ -689,12 +799,7 @@ class BaffleDesignerLogic:
 
         volume_path = os.path.join(work_dir, "volume.vtu")
         quality_path = os.path.join(work_dir, "volume-quality.json")
-        if not os.path.exists(volume_path):
-            raise BaffleDesignerError(f"{volume_path} was not written")
-        reader = vtk.vtkXMLUnstructuredGridReader()
-        reader.SetFileName(volume_path)
-        reader.Update()
-        grid = reader.GetOutput()
+        grid = read_written_file(vtk.vtkXMLUnstructuredGridReader(), volume_path)
         if grid.GetNumberOfCells() == 0:
             raise BaffleDesignerError(f"{volume_path} holds no cells")
         node = self._output_node(curve, REF_VOLUME_MESH, "vtkMRMLModelNode", "volume mesh")

@@ -190,3 +190,51 @@ class CliProcess:
                 if "error" in line.lower():
                     return line.strip()
             return self.error_lines[-1].strip() if self.error_lines else f"exit code {self.returncode}"
+
+
+class PolledJob:
+    """Base of the jobs a GUI timer advances with poll(): one CliProcess at a time (`run`),
+    `state` (RUNNING / COMPLETED / FAILED / CANCELLED) and `message`; wait() polls until
+    the end (tests and scripts). Subclasses define poll() and call finish()."""
+
+    def __init__(self):
+        self.run: Optional[CliProcess] = None
+        self.stage = ""
+        self.state = ""
+        self.message = ""
+        self.started_at = 0.0
+        self.finished_at = 0.0
+
+    def start_process(self, command: List[str], cwd: Optional[str] = None, env: Optional[dict] = None) -> None:
+        """Start the current stage's process (OSError when it cannot be started)."""
+        if not self.started_at:
+            self.started_at = time.monotonic()
+        self.run = CliProcess(command, cwd=cwd, env=env).start()
+        self.state = RUNNING
+        self.message = f"{self.stage} running"
+
+    @property
+    def running(self) -> bool:
+        return self.state == RUNNING
+
+    def cancel_process(self, kill_after: float) -> None:
+        if self.running:
+            self.run.cancel(kill_after=kill_after)
+
+    def poll(self) -> str:
+        raise NotImplementedError
+
+    def finish(self, state: str, message: str) -> str:
+        self.state = state
+        self.message = message
+        self.finished_at = time.monotonic()
+        return state
+
+    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.05) -> str:
+        """Poll until the job has ended."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() == RUNNING:
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"{self.stage} still running after {timeout} s")
+            time.sleep(poll_interval)
+        return self.state

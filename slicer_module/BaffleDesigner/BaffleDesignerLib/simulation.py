@@ -155,12 +155,7 @@ def read_summary(path: str) -> dict:
 
 def read_fields(path: str) -> vtk.vtkUnstructuredGrid:
     """peak.vtu in the scene's units: points mm, velocity_m_s (vector), speed_m_s, pressure_mmhg."""
-    if not os.path.exists(path):
-        raise bdlogic.BaffleDesignerError(f"{path} was not written")
-    reader = vtk.vtkXMLUnstructuredGridReader()
-    reader.SetFileName(path)
-    reader.Update()
-    source = reader.GetOutput()
+    source = bdlogic.read_written_file(vtk.vtkXMLUnstructuredGridReader(), path)
     velocity = source.GetPointData().GetArray("velocity")
     pressure = source.GetPointData().GetArray("pressure")
     if source.GetNumberOfCells() == 0 or velocity is None or pressure is None:
@@ -311,7 +306,7 @@ def _write_series_chart(logic, curve, table_node, steady: bool) -> None:
 # ---- the job: mesh, then simulate -------------------------------------------------------
 
 
-class SimulationJob:
+class SimulationJob(bdlogic.CandidateJob):
     """Mesh and simulate one candidate in `work_dir` without blocking. start() checks the
     inputs and starts `baffle mesh`; poll() (from a timer) starts `baffle simulate` when
     the mesh is done and loads the results when the simulation is; cancel() stops the
@@ -319,29 +314,19 @@ class SimulationJob:
     `message` says what happened (the program's own error line on failure)."""
 
     def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
-        self.logic = logic
-        self.curve = curve
-        self.executable = executable
-        self.work_dir = work_dir
-        self.env = env  # of the child processes (in Slicer: without the launcher's Python settings)
+        super().__init__(logic, curve, executable, work_dir, env)
         self.out_dir = os.path.join(work_dir, "results")
-        self.stage = ""
-        self.state = ""
-        self.message = ""
-        self.run: Optional[process.CliProcess] = None
         self.results: Optional[SimulationResults] = None
         self._case: Optional[dict] = None
         self._domain = None  # the domain polydata that was meshed
         self._cancel_requested = False
-        self.started_at = 0.0
         self.simulate_started_at = 0.0
-        self.finished_at = 0.0
 
     def start(self) -> "SimulationJob":
         """Raises BaffleDesignerError when the run cannot start (no executable, no
         design, bad parameters); nothing in the scene changes then."""
         bdlogic.BaffleDesignerLogic._check_curve(self.curve)
-        self._check_executable()
+        bdlogic.require_executable(self.executable)
         domain = self.curve.GetNodeReference(bdlogic.REF_DOMAIN)
         if domain is None or domain.GetPolyData() is None:
             raise bdlogic.BaffleDesignerError(f"{self.curve.GetName()}: design the baffle first (no domain model)")
@@ -353,22 +338,12 @@ class SimulationJob:
         self._start_stage(MESH_STAGE, command)
         return self
 
-    def _check_executable(self) -> None:
-        if not self.executable:
-            raise bdlogic.BaffleDesignerError(
-                "the baffle command line program was not found (set BAFFLE_EXECUTABLE or put baffle on PATH)"
-            )
-        if not (os.path.isfile(self.executable) and os.access(self.executable, os.X_OK)):
-            raise bdlogic.BaffleDesignerError(f"the baffle command line program {self.executable} is not an executable file")
-
     def _start_stage(self, stage: str, command: List[str]) -> None:
         self.stage = stage
         try:
-            self.run = process.CliProcess(command, cwd=self.work_dir, env=self.env).start()
+            self.start_process(command, cwd=self.work_dir, env=self.env)
         except OSError as error:
             raise bdlogic.BaffleDesignerError(f"could not start the {stage}: {error}") from error
-        self.state = process.RUNNING
-        self.message = f"{stage} running"
 
     @property
     def progress(self) -> Optional[float]:
@@ -376,10 +351,6 @@ class SimulationJob:
         if self.stage == SIMULATE_STAGE and self.run is not None:
             return self.run.progress
         return None
-
-    @property
-    def running(self) -> bool:
-        return self.state == process.RUNNING
 
     def cancel(self) -> None:
         if self.running:
@@ -433,19 +404,7 @@ class SimulationJob:
         self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", case_path, "--out", self.out_dir])
 
     def _finish(self, state: str, message: str) -> str:
-        self.state = state
-        self.message = message
-        self.finished_at = time.monotonic()
         # The outcome of the latest run; the stored results change only on completion.
         last_run = state if state == process.COMPLETED else f"{state}: {message}"
         self.curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "SimulationLastRun", last_run)
-        return state
-
-    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.05) -> str:
-        """Poll until the job has ended (tests and scripts; the GUI polls from a timer)."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while self.poll() == process.RUNNING:
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"simulation of {self.curve.GetName()} still running after {timeout} s ({self.stage})")
-            time.sleep(poll_interval)
-        return self.state
+        return self.finish(state, message)

@@ -90,6 +90,16 @@ def load_closed_curve(scene, path, name="BC"):
     return curve
 
 
+def translation_node(scene, shift):
+    """A linear transform node that moves its children by `shift` (mm, RAS)."""
+    transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")
+    matrix = vtk.vtkMatrix4x4()
+    for axis in range(3):
+        matrix.SetElement(axis, 3, float(shift[axis]))
+    transform.SetMatrixTransformToParent(matrix)
+    return transform
+
+
 def curve_from_points(scene, points, name):
     curve = scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)
     for p in np.asarray(points, dtype=float):

@@ -9,7 +9,7 @@ import pytest
 import vtk
 from vtkmodules.util import numpy_support
 
-from conftest import bdlogic, column, curve_from_points, load_model, p2_inputs, slicer
+from conftest import bdlogic, column, curve_from_points, load_model, p2_inputs, slicer, translation_node
 
 
 def points_of(polydata):
@@ -235,27 +235,13 @@ def test_transformed_model_is_designed_in_world_coordinates(phantom_scene):
     scene, logic, model, curve = phantom_scene
     untransformed = logic.design(curve)
     shift = np.array([12.0, -5.0, 3.0])
-    transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")
-    matrix = vtk.vtkMatrix4x4()
-    for axis in range(3):
-        matrix.SetElement(axis, 3, shift[axis])
-    transform.SetMatrixTransformToParent(matrix)
-    model.SetAndObserveTransformNodeID(transform.GetID())
+    model.SetAndObserveTransformNodeID(translation_node(scene, shift).GetID())
     for i in range(curve.GetNumberOfControlPoints()):
         p = [0.0] * 3
         curve.GetNthControlPointPositionWorld(i, p)
         curve.SetNthControlPointPositionWorld(i, *(np.array(p) + shift))
     moved = logic.design(curve)
     np.testing.assert_allclose(moved.domain.points.mean(axis=0), untransformed.domain.points.mean(axis=0) + shift, atol=0.05)
-
-
-def test_segmentation_input_reports_the_missing_prepare_step(phantom_scene):
-    scene, logic, model, curve = phantom_scene
-    segmentation = scene.AddNewNodeByClass("vtkMRMLSegmentationNode", "RV")
-    logic.setSurfaceNode(curve, segmentation)
-    with pytest.raises(bdlogic.BaffleDesignerError, match="prepare step"):
-        logic.design(curve)
-    assert "prepare step" in curve.GetAttribute("BaffleDesigner.Error")
 
 
 def test_input_errors_are_clear(phantom_scene):
