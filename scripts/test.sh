@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs every test of the project: Rust (cargo test + the benchmark's smoke mode),
+# Runs every test of the project: Rust (cargo test + the design and solver benchmarks' smoke modes),
 # the C/C++/VTK integration tests (CMake + ctest, incl. valgrind) and the Python
 # package's tests (pip install ./python + pytest) and the 3D Slicer module's tests on
 # slicer-core (scripts/test_slicer.sh). Exits non-zero on any failure.
