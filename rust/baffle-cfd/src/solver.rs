@@ -52,8 +52,12 @@
 //! load average ~3 on the 2 cores): median 1.150 s per step (19-20 ms per GMRES
 //! iteration) vs 1.377 s (25-26 ms) in f64, the same ~40 GMRES iterations a step and
 //! the same dp to 4 decimals. At that load 4 cycles (2728 steps) project to ~52 min;
-//! the 30-minute target is not met on this shared machine (the previous session's
-//! quiet-machine f64 figure was 0.91 s per step). GMRES orthogonalization is classical
+//! the 30-minute target is not met. Against the code before this change (commit
+//! c69b820, its p2_timing example, same 10-step window, semi-implicit, same machine,
+//! quiet: load < 2 from the runs themselves): 1.61-1.67 s per step (31.5 ms per GMRES
+//! iteration) before, 1.216-1.237 s (21-22 ms) now with mixed precision and
+//! 1.346-1.433 s (26-27 ms) with f64; this machine runs that old code 1.8x slower
+//! than the previous session's (0.91 s per step there). GMRES orthogonalization is classical
 //! Gram-Schmidt in two fused passes with one conditional re-orthogonalization (DGKS,
 //! 0.7). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner,
 //! generalized-alpha time stepping (backward Euler here). Peak resident memory 171-236 MB.
