@@ -24,7 +24,7 @@ use std::time::Instant;
 use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
 use baffle_cfd::test_meshes::{tube, INLET, OUTLET};
 use baffle_cfd::vtu::read_simvascular_mesh;
-use baffle_cfd::{simulate, simulate_from, CaseSettings, FlowMesh, Outlet, RunMode, Summary, Waveform};
+use baffle_cfd::{periodicity_nrmsd, simulate, simulate_from, CaseSettings, FlowMesh, Outlet, RunMode, Summary, Waveform};
 
 const MMHG: f64 = 1333.22;
 const VSD_CAP: i32 = 11;
@@ -226,9 +226,7 @@ fn full(mesh: &FlowMesh, settings: &CaseSettings) -> Result<(), Box<dyn std::err
     let last_cycle = summary.steps.len() - period_steps..summary.steps.len();
     let peak = last_cycle.clone().max_by(|&a, &b| summary.steps[a].inflow_ml_s.total_cmp(&summary.steps[b].inflow_ml_s)).unwrap_or(0);
     let dp: Vec<f64> = (0..summary.steps.len()).map(|k| dp_mmhg(&summary, k)).collect();
-    let (c3, c4) = (&dp[last_cycle.start - period_steps..last_cycle.start], &dp[last_cycle.clone()]);
-    let range = c4.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - c4.iter().cloned().fold(f64::INFINITY, f64::min);
-    let nrmsd = (c3.iter().zip(c4).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / c4.len() as f64).sqrt() / range;
+    let nrmsd = periodicity_nrmsd(&dp, period_steps).unwrap_or(f64::NAN);
     let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
     println!(
         "full 4-cycle run: {} steps in {:.1} min ({:.3} s/step, {:.1} GMRES it/step); peak flow {:.1} mL/s at t = {:.3} s: dp(11-16) {:.3} mmHg, vmax {:.1} cm/s; periodicity NRMSD cycle 3 vs 4 {:.2e}",
