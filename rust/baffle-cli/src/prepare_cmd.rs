@@ -100,7 +100,8 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
     if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
     }
-    write_vtp_atomic(&args.out, &mesh)?;
+    // write_trimesh_vtp writes through a temporary name and renames: atomic already.
+    write_trimesh_vtp(&args.out, &mesh).map_err(|e| e.to_string())?;
     let report_path = report_path(&args.out);
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     if let Err(e) = write_atomic(&report_path, text.as_bytes()) {
@@ -109,18 +110,6 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
         return Err(e);
     }
     Ok((report, report_path))
-}
-
-/// Write `mesh` to a temporary file beside `path`, then rename it into place.
-fn write_vtp_atomic(path: &Path, mesh: &baffle_core::TriMesh) -> Result<(), String> {
-    let partial = path.with_extension("tmp.vtp");
-    let result = write_trimesh_vtp(&partial, mesh)
-        .map_err(|e| e.to_string())
-        .and_then(|_| std::fs::rename(&partial, path).map_err(|e| format!("{}: {e}", path.display())));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&partial);
-    }
-    result
 }
 
 fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {
