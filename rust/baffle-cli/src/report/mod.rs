@@ -12,6 +12,7 @@ use baffle_cfd::Waveform;
 use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
+use baffle_core::io::PolyData;
 use std::path::Path;
 
 /// The planning threshold of the peak pressure difference (mmHg): below it passes.
@@ -129,8 +130,7 @@ struct CenterlineProfile {
     speed_m_s: Vec<Option<f64>>,
 }
 
-fn centerline_profile(centerline_path: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
-    let centerline = baffle_core::io::read_polydata(centerline_path).map_err(|e| e.to_string())?;
+fn centerline_profile(centerline: &PolyData, centerline_path: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
     let s_mm = match centerline.point_array("s_mm").and_then(|a| a.as_f64()) {
         Some((1, values)) => values.to_vec(),
         _ => return Err(format!("{}: no point array s_mm", centerline_path.display())),
@@ -306,7 +306,9 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let runs = load_runs(out, stages)?;
     let nominal = runs.iter().find(|r| r.level == "nominal" && r.flow == FlowCase::Nominal).ok_or("no nominal simulation stage")?;
     let nominal_dir = out.join(&nominal.stage);
-    let profile = centerline_profile(&design_dir.join("centerline.vtp"), &nominal_dir.join("peak.vtu"))?;
+    let centerline_path = design_dir.join("centerline.vtp");
+    let centerline = baffle_core::io::read_polydata(&centerline_path).map_err(|e| e.to_string())?;
+    let profile = centerline_profile(&centerline, &centerline_path, &nominal_dir.join("peak.vtu"))?;
     let centerline_v_max = profile.speed_m_s.iter().flatten().cloned().fold(f64::NAN, f64::max);
     let table = quantities(&design, &design_path, nominal, centerline_v_max)?;
     let dp = nominal.dp_mmhg()?;
@@ -375,9 +377,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let domain = baffle_core::io::read_surface_labeled(&design_dir.join("domain.vtp")).map_err(|e| e.to_string())?.mesh;
     let d = &args.design;
     let palette = svg_render::Palette(&[(d.wall_label, [205, 140, 130]), (d.baffle_label, [70, 130, 230]), (d.vsd_label, [90, 180, 90]), (d.aortic_label, [230, 190, 60])]);
-    let centerline = baffle_core::io::read_polydata(&design_dir.join("centerline.vtp")).map_err(|e| e.to_string())?.points;
     for view in svg_render::axis_views() {
-        html.figure(&svg_render::render_view(&domain, &view, &palette, &centerline), &format!("view {}", view.name));
+        html.figure(&svg_render::render_view(&domain, &view, &palette, &centerline.points), &format!("view {}", view.name));
     }
     html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: centerline (hidden inside the pathway).");
 
