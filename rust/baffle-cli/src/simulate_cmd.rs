@@ -144,11 +144,12 @@ impl From<SteadyCheckpoint> for SteadyProgress {
 }
 
 impl Checkpoint {
-    fn of(state: &SolverState, case: &Path, dt_s: f64, rows: &[Row], wall_time_s: f64) -> Checkpoint {
+    fn of(state: SolverState, case: &Path, dt_s: f64, rows: &[Row], wall_time_s: f64) -> Checkpoint {
         let steady = state.steady.map(SteadyCheckpoint::from);
+        // A steady iterate is its own previous state: those fields are not kept.
         let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match steady {
             Some(_) => (Vec::new(), Vec::new()),
-            None => (state.previous_velocity_cm_s.clone(), state.previous_pressure_dyn_cm2.clone()),
+            None => (state.previous_velocity_cm_s, state.previous_pressure_dyn_cm2),
         };
         Checkpoint {
             case: case.to_path_buf(),
@@ -156,8 +157,8 @@ impl Checkpoint {
             n_nodes: state.pressure_dyn_cm2.len(),
             step: state.step,
             time_s: state.time_s,
-            velocity_cm_s: state.velocity_cm_s.clone(),
-            pressure_dyn_cm2: state.pressure_dyn_cm2.clone(),
+            velocity_cm_s: state.velocity_cm_s,
+            pressure_dyn_cm2: state.pressure_dyn_cm2,
             previous_velocity_cm_s,
             previous_pressure_dyn_cm2,
             rows: rows.to_vec(),
@@ -484,7 +485,7 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
     let output = Output { dir: &args.out, mesh: &mesh };
     let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
     if args.engine == Engine::Svmultiphysics {
-        return crate::simulate_svmp::run(args, &report, &output, start);
+        return crate::simulate_svmp::run(args, &report, &output, start, tag_range);
     }
 
     let (mut rows, start_state, previous_wall) = if args.resume {
@@ -538,7 +539,7 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
         // Steady iterations have no rows yet (the solve reports its final iterate only).
         if stopping || (cp_every > 0 && view.step % cp_every == 0) {
             if let Some(state) = view.state() {
-                let cp = Checkpoint::of(&state, &args.case, settings.dt_s, &rows, previous_wall + start.elapsed().as_secs_f64());
+                let cp = Checkpoint::of(state, &args.case, settings.dt_s, &rows, previous_wall + start.elapsed().as_secs_f64());
                 let written = output.checkpoint(&cp).and_then(|_| if steady { Ok(()) } else { report.csv(&rows) });
                 if let Err(e) = written {
                     io_error = Some(e);

@@ -15,7 +15,7 @@ use std::time::Instant;
 /// Where the svMultiPhysics case goes, under the output directory.
 pub const CASE_DIR: &str = "svmultiphysics";
 
-pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: Instant) -> Result<(), String> {
+pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: Instant, tag_range: Option<(f64, f64)>) -> Result<(), String> {
     refuse_embedded_only_options(args)?;
     let case_dir = args.out.join(CASE_DIR);
     let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -24,7 +24,7 @@ pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: 
         format!("{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed", case_dir.display())
     })?;
     let stop = stop_on_signals()?;
-    let progress = Progress::new(start, Some((0.0, 1.0)));
+    let progress = Progress::new(start, tag_range);
     let run = run_case(&engine, &case_dir, &mut |fraction, message| {
         progress.report(fraction, message);
         !stop.load(Ordering::SeqCst)
