@@ -334,7 +334,6 @@ class SimulationJob(bdlogic.CandidateJob):
         self._case = case_document(parameters, domain_face_ids(domain.GetPolyData()))
         self._domain = (domain.GetPolyData(), domain.GetPolyData().GetMTime())
         command = self.logic.volumeMeshCommand(self.curve, self.executable, self.work_dir, parameters.mesh_edge_length_mm)
-        self.started_at = time.monotonic()
         self._start_stage(MESH_STAGE, command)
         return self
 

@@ -4,7 +4,6 @@ the built-in phantom. Patient data: $BAFFLE_DATA_DIR, else ../shared/data beside
 repository; tests that need it skip with a note when it is absent."""
 
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -49,8 +48,9 @@ def executable():
 
 
 def has_subcommand(executable, name):
-    listing = subprocess.run([executable, "--help"], capture_output=True, text=True, check=True).stdout
-    return any(line.split()[:1] == [name] for line in listing.splitlines())
+    from BaffleDesignerLib import process
+
+    return process.subcommand_availability(executable, name)[0]
 
 
 def column(table_node, name):
