@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs every test of the project: Rust (cargo test + the design and solver benchmarks' smoke modes),
+# Runs every test of the project: Rust (cargo test + the design and solver benchmarks' smoke modes, one pass of the kernel bench),
 # the C/C++/VTK integration tests (CMake + ctest, incl. valgrind) and the Python
 # package's tests (pip install ./python + pytest) and the 3D Slicer module's tests on
 # slicer-core (scripts/test_slicer.sh). Exits non-zero on any failure.
@@ -25,6 +25,8 @@ fi
 
 step "cargo bench -p baffle-cfd --bench solver -- --smoke"
 cargo bench -p baffle-cfd --bench solver -- --smoke
+step "cargo bench -p baffle-cfd --bench kernels -- --reps 1 (p2's pattern: the kernels still run)"
+cargo bench -p baffle-cfd --bench kernels -- --reps 1
 
 step "cmake configure + build + ctest ($build_dir)"
 cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release

@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::sparse::{axpy, convert, invert4, mul4, mulv4, norm, BlockPattern, Scalar, B, BB};
+use crate::sparse::{axpy, block, dot_serial, invert4, mul4, norm, BlockAcc, BlockPattern, Scalar, B, BB};
 
 /// Block-Jacobi over contiguous row partitions of block ILU(0): each partition is
 /// factored and solved independently (couplings between partitions are dropped),
@@ -14,8 +14,61 @@ use crate::sparse::{axpy, convert, invert4, mul4, mulv4, norm, BlockPattern, Sca
 /// factorization runs in f64; the factors are stored in precision T.
 pub struct BlockIlu<T: Scalar = f64> {
     parts: Vec<Range<usize>>,
-    lu: Vec<T>,
+    lower: Triangle<T>,
+    upper: Triangle<T>,
     diag_inv: Vec<[T; BB]>,
+    /// The f64 factorization's working copy, kept so refactoring every step does not
+    /// allocate (and page-fault in) a fresh copy of the matrix.
+    work: Vec<f64>,
+    work_inv: Vec<[f64; BB]>,
+}
+
+/// The strictly lower (or upper) blocks of the factors that lie inside their row's
+/// partition, stored row after row in the order a triangular sweep reads them: the
+/// forward sweep then streams L alone and the backward sweep U alone, instead of each
+/// dragging the whole matrix through the cache.
+struct Triangle<T> {
+    /// Row i's blocks are `row_ptr[i]..row_ptr[i + 1]` (global row numbers).
+    row_ptr: Vec<usize>,
+    cols: Vec<u32>,
+    /// Position of each block in the full pattern, to refill `vals` after refactoring.
+    source: Vec<usize>,
+    vals: Vec<T>,
+}
+
+impl<T: Scalar> Triangle<T> {
+    fn new(pattern: &BlockPattern, parts: &[Range<usize>], lower: bool) -> Self {
+        let mut t = Triangle { row_ptr: vec![0], cols: Vec::new(), source: Vec::new(), vals: Vec::new() };
+        for rows in parts {
+            for i in rows.clone() {
+                let blocks = if lower { pattern.row_ptr[i]..pattern.diag[i] } else { pattern.diag[i] + 1..pattern.row_ptr[i + 1] };
+                for p in blocks.filter(|&p| rows.contains(&(pattern.cols[p] as usize))) {
+                    t.cols.push(pattern.cols[p]);
+                    t.source.push(p);
+                }
+                t.row_ptr.push(t.cols.len());
+            }
+        }
+        t
+    }
+
+    fn fill(&mut self, lu: &[f64]) {
+        self.vals.resize(self.source.len() * BB, T::default());
+        self.vals.par_chunks_mut(BB).zip(&self.source).with_min_len(1024).for_each(|(v, &p)| {
+            v.iter_mut().zip(&lu[p * BB..(p + 1) * BB]).for_each(|(a, b)| *a = T::from_f64(*b));
+        });
+    }
+
+    /// sum over row i's blocks of block x z_col (z holds the partition starting at row r0).
+    #[inline]
+    fn row_product<V: Scalar>(&self, i: usize, z: &[V], r0: usize) -> [f64; B] {
+        let mut acc = BlockAcc::<T>::default();
+        for p in self.row_ptr[i]..self.row_ptr[i + 1] {
+            let k = self.cols[p] as usize - r0;
+            acc.add(block(&self.vals, p), &z[k * B..(k + 1) * B]);
+        }
+        acc.sum()
+    }
 }
 
 /// Split rows into `n` contiguous ranges of about equal block count.
@@ -51,29 +104,60 @@ fn split_by<'a, T>(mut data: &'a mut [T], bounds: &[usize], stride: usize) -> Ve
 impl<T: Scalar> BlockIlu<T> {
     /// Factor. Err(row) if a pivot block is singular.
     pub fn factor(pattern: &BlockPattern, vals: &[f64], parts: Vec<Range<usize>>) -> Result<Self, usize> {
-        let mut lu = vals.to_vec();
-        let mut diag_inv = vec![[0.0; BB]; pattern.n_rows()];
+        let (lower, upper) = (Triangle::new(pattern, &parts, true), Triangle::new(pattern, &parts, false));
+        let mut ilu = BlockIlu { parts, lower, upper, diag_inv: Vec::new(), work: Vec::new(), work_inv: Vec::new() };
+        ilu.refactor(pattern, vals)?;
+        Ok(ilu)
+    }
+
+    /// Factor new values on the same pattern and partitions, reusing the storage.
+    pub fn refactor(&mut self, pattern: &BlockPattern, vals: &[f64]) -> Result<(), usize> {
+        self.work.clear();
+        self.work.extend_from_slice(vals);
+        self.work_inv.resize(pattern.n_rows(), [0.0; BB]);
+        let parts = &self.parts;
         let block_bounds: Vec<usize> = std::iter::once(0).chain(parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
         let row_bounds: Vec<usize> = std::iter::once(0).chain(parts.iter().map(|r| r.end)).collect();
-        let lu_parts = split_by(&mut lu, &block_bounds, BB);
-        let inv_parts = split_by(&mut diag_inv, &row_bounds, 1);
+        let lu_parts = split_by(&mut self.work, &block_bounds, BB);
+        let inv_parts = split_by(&mut self.work_inv, &row_bounds, 1);
         lu_parts
             .into_par_iter()
             .zip(inv_parts)
             .zip(parts.par_iter())
             .map(|((lu_p, inv_p), rows)| factor_part(pattern, lu_p, inv_p, rows.clone()))
             .collect::<Result<Vec<()>, usize>>()?;
-        let diag_inv = diag_inv.iter().map(|d| d.map(T::from_f64)).collect();
-        Ok(BlockIlu { parts, lu: convert(&lu), diag_inv })
+        self.lower.fill(&self.work);
+        self.upper.fill(&self.work);
+        self.diag_inv.clear();
+        self.diag_inv.extend(self.work_inv.iter().map(|d| d.map(T::from_f64)));
+        Ok(())
     }
 
     /// z = M^-1 r.
-    pub fn apply<V: Scalar>(&self, pattern: &BlockPattern, r: &[V], z: &mut [V]) {
+    pub fn apply<V: Scalar>(&self, r: &[V], z: &mut [V]) {
         let row_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| r.end)).collect();
         let z_parts = split_by(z, &row_bounds, B);
-        z_parts.into_par_iter().zip(self.parts.par_iter()).for_each(|(z_p, rows)| {
-            solve_part(pattern, &self.lu, &self.diag_inv, rows.clone(), r, z_p);
-        });
+        z_parts.into_par_iter().zip(self.parts.par_iter()).for_each(|(z_p, rows)| self.solve_part(rows.clone(), r, z_p));
+    }
+
+    /// Forward then backward sweep of one partition; `z` holds that partition's rows.
+    fn solve_part<V: Scalar>(&self, rows: Range<usize>, r: &[V], z: &mut [V]) {
+        let r0 = rows.start;
+        // Forward: z_i = r_i - sum_(k<i) L_ik z_k (unit lower blocks).
+        for i in rows.clone() {
+            let s = self.lower.row_product(i, z, r0);
+            for c in 0..B {
+                z[(i - r0) * B + c] = V::from_f64(r[i * B + c].to_f64() - s[c]);
+            }
+        }
+        // Backward: z_i = D_i^-1 (z_i - sum_(j>i) U_ij z_j).
+        for i in rows.rev() {
+            let s = self.upper.row_product(i, z, r0);
+            let y: [f64; B] = [0, 1, 2, 3].map(|c| z[(i - r0) * B + c].to_f64() - s[c]);
+            let mut d = BlockAcc::<T>::default();
+            d.add(&self.diag_inv[i], &y);
+            z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&d.sum().map(V::from_f64));
+        }
     }
 }
 
@@ -93,7 +177,7 @@ fn factor_part(pattern: &BlockPattern, lu: &mut [f64], inv: &mut [[f64; BB]], ro
             if k < rows.start {
                 continue;
             }
-            let l = mul4(&lu[(p - base) * BB..(p - base + 1) * BB], &inv[k - rows.start]);
+            let l = mul4(block(lu, p - base), &inv[k - rows.start]);
             lu[(p - base) * BB..(p - base + 1) * BB].copy_from_slice(&l);
             for q in pattern.diag[k] + 1..pattern.row_ptr[k + 1] {
                 let j = pattern.cols[q] as usize;
@@ -101,7 +185,7 @@ fn factor_part(pattern: &BlockPattern, lu: &mut [f64], inv: &mut [[f64; BB]], ro
                     continue;
                 }
                 let target = marker[j - rows.start];
-                let update = mul4(&l, &lu[(q - base) * BB..(q - base + 1) * BB]);
+                let update = mul4(&l, block(lu, q - base));
                 for (t, u) in lu[(target - base) * BB..(target - base + 1) * BB].iter_mut().zip(update) {
                     *t -= u;
                 }
@@ -117,37 +201,6 @@ fn factor_part(pattern: &BlockPattern, lu: &mut [f64], inv: &mut [[f64; BB]], ro
         }
     }
     Ok(())
-}
-
-fn solve_part<T: Scalar, V: Scalar>(pattern: &BlockPattern, lu: &[T], inv: &[[T; BB]], rows: Range<usize>, r: &[V], z: &mut [V]) {
-    let r0 = rows.start;
-    for i in rows.clone() {
-        let mut y = [0, 1, 2, 3].map(|c| r[i * B + c].to_f64());
-        for p in pattern.row_ptr[i]..pattern.diag[i] {
-            let k = pattern.cols[p] as usize;
-            if k >= r0 {
-                let lz = mulv4(&lu[p * BB..(p + 1) * BB], &z[(k - r0) * B..(k - r0 + 1) * B]);
-                for c in 0..B {
-                    y[c] -= lz[c];
-                }
-            }
-        }
-        z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&y.map(V::from_f64));
-    }
-    for i in rows.clone().rev() {
-        let mut y = [0, 1, 2, 3].map(|c| z[(i - r0) * B + c].to_f64());
-        for p in pattern.diag[i] + 1..pattern.row_ptr[i + 1] {
-            let j = pattern.cols[p] as usize;
-            if j < rows.end {
-                let ux = mulv4(&lu[p * BB..(p + 1) * BB], &z[(j - r0) * B..(j - r0 + 1) * B]);
-                for c in 0..B {
-                    y[c] -= ux[c];
-                }
-            }
-        }
-        let x = mulv4(&inv[i], &y);
-        z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&x.map(V::from_f64));
-    }
 }
 
 /// Outcome of a GMRES solve.
@@ -272,7 +325,7 @@ fn orthogonalize<T: Scalar>(basis: &[Vec<T>], w: &mut [T]) -> Vec<f64> {
             let off = ci * CHUNK;
             basis
                 .iter()
-                .map(|v| v[off..off + wc.len()].iter().zip(wc).map(|(a, b)| a.to_f64() * b.to_f64()).sum::<f64>())
+                .map(|v| dot_serial(&v[off..off + wc.len()], wc))
                 .collect::<Vec<f64>>()
         })
         .reduce(|| vec![0.0; k], |mut a, b| {
@@ -364,7 +417,7 @@ pub fn solve_refined(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sparse::spmv;
+    use crate::sparse::{convert, spmv};
 
     /// A 1D chain of nodes with diagonally dominant nonsymmetric 4x4 blocks.
     fn chain(n: usize) -> (BlockPattern, Vec<f64>) {
@@ -397,7 +450,7 @@ mod tests {
             let mut x = vec![0.0; n * B];
             let out = gmres(
                 &|v, y| spmv(&pattern, &vals, v, y),
-                &|r, z| ilu.apply(&pattern, r, z),
+                &|r, z| ilu.apply(r, z),
                 &b,
                 &mut x,
                 1e-10,
@@ -424,9 +477,9 @@ mod tests {
         let mut x = vec![0.0; n * B];
         let out = solve_refined(
             &|v, y| spmv(&pattern, &vals, v, y),
-            &|r, z| ilu.apply(&pattern, r, z),
+            &|r, z| ilu.apply(r, z),
             &|v, y| spmv(&pattern, &vals_low, v, y),
-            &|r, z| ilu.apply(&pattern, r, z),
+            &|r, z| ilu.apply(r, z),
             &b,
             &mut x,
             1e-11,
@@ -441,7 +494,7 @@ mod tests {
         let err = x.iter().zip(&x_true).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(err < 1e-6, "max error {err}");
         // A zero right-hand side needs no iteration.
-        let out = solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &|r, z| ilu.apply(&pattern, r, z), &|v, y| spmv(&pattern, &vals_low, v, y), &|r, z| ilu.apply(&pattern, r, z), &vec![0.0; n * B], &mut x, 1e-8, 30, 500);
+        let out = solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &|r, z| ilu.apply(r, z), &|v, y| spmv(&pattern, &vals_low, v, y), &|r, z| ilu.apply(r, z), &vec![0.0; n * B], &mut x, 1e-8, 30, 500);
         assert_eq!((out.iterations, out.converged), (0, true));
         assert!(x.iter().all(|&v| v == 0.0));
     }
@@ -451,8 +504,8 @@ mod tests {
         let (pattern, vals) = chain(200);
         let r: Vec<f64> = (0..200 * B).map(|i| (i as f64 * 0.11).cos()).collect();
         let (mut z64, mut z32) = (vec![0.0; r.len()], vec![0.0; r.len()]);
-        BlockIlu::<f64>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap().apply(&pattern, &r, &mut z64);
-        BlockIlu::<f32>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap().apply(&pattern, &r, &mut z32);
+        BlockIlu::<f64>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap().apply(&r, &mut z64);
+        BlockIlu::<f32>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap().apply(&r, &mut z32);
         let diff = z64.iter().zip(&z32).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         let scale = z64.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(diff < 1e-6 * scale, "{diff} vs {scale}");
@@ -467,7 +520,7 @@ mod tests {
         let mut b = vec![0.0; 16];
         spmv(&pattern, &vals, &x_true, &mut b);
         let mut x = vec![0.0; 16];
-        ilu.apply(&pattern, &b, &mut x);
+        ilu.apply(&b, &mut x);
         assert!(x.iter().zip(&x_true).all(|(a, b)| (a - b).abs() < 1e-10), "{x:?}");
     }
 
@@ -492,8 +545,22 @@ mod tests {
         let mut b = vec![0.0; 32];
         spmv(&pattern, &vals, &x_true, &mut b);
         let mut x = vec![0.0; 32];
-        ilu.apply(&pattern, &b, &mut x);
+        ilu.apply(&b, &mut x);
         assert!(x.iter().zip(&x_true).all(|(a, b)| (a - b).abs() < 1e-10), "{x:?}");
+    }
+
+    #[test]
+    fn refactoring_in_place_equals_a_fresh_factorization() {
+        let (pattern, vals) = chain(120);
+        let scaled_vals: Vec<f64> = vals.iter().enumerate().map(|(k, v)| v * (1.0 + 0.01 * (k % 7) as f64)).collect();
+        let mut reused = BlockIlu::<f32>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap();
+        reused.refactor(&pattern, &scaled_vals).unwrap();
+        let fresh = BlockIlu::<f32>::factor(&pattern, &scaled_vals, partitions(&pattern, 2)).unwrap();
+        let r: Vec<f64> = (0..120 * B).map(|i| (i as f64 * 0.23).sin()).collect();
+        let (mut a, mut b) = (vec![0.0; r.len()], vec![0.0; r.len()]);
+        reused.apply(&r, &mut a);
+        fresh.apply(&r, &mut b);
+        assert_eq!(a, b);
     }
 
     #[test]

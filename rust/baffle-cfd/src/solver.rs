@@ -64,6 +64,16 @@
 //! Steady estimate with mixed precision (bench `--steady --runs 3`, load ~4): median
 //! 90.5 s, 24 iterations, 1481 GMRES iterations, dp(11-16) 7.381 mmHg as in f64.
 //!
+//! Kernels (bench `kernels`: p2's pattern, minimum of 9 repetitions, 2 threads, load ~5
+//! from other jobs, before -> after, 2026-12-01): ILU(0) application f32 19.4-24.4 ->
+//! 9.5-12.0 ms, f64 21.7-25.4 -> 13.3-18.2 ms, by storing L and U apart in sweep order
+//! (`linear::Triangle`); block SpMV f32 5.6-7.0 -> 4.1-5.0 ms and 40 f32 GMRES
+//! iterations 1.54-1.94 -> 0.89-0.91 s, by 4-lane block accumulators that compute in
+//! the matrix's precision (`sparse::BlockAcc`) and 8-lane dot products; the f32 matrix
+//! copy and the ILU storage are reused across steps. In the solver bench (p2, 8 steps
+//! from t = 0.1 s, same load) GMRES went from 42.4-47.1 to 35.2-35.3 ms per iteration
+//! with the same 42.1 iterations a step and the same dp to 4 decimals.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
@@ -76,7 +86,7 @@ use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKin
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
-use crate::sparse::{convert, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
+use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
 
 /// Pressure and flow on one face at one step.
@@ -337,7 +347,21 @@ struct Solver<'a> {
     settings: &'a CaseSettings,
     vals: Vec<f64>,
     rhs: Vec<f64>,
+    /// f32 copy of `vals` for the mixed-precision inner solves, and the ILU(0) factors
+    /// of either precision: kept across steps so refactoring reuses their storage.
+    vals_low: Vec<f32>,
+    ilu_low: Option<BlockIlu<f32>>,
+    ilu: Option<BlockIlu<f64>>,
     timings: Timings,
+}
+
+/// The ILU(0) factors of `vals`, refactored in `slot`'s storage (factored anew on the first call).
+fn refactored<'s, T: Scalar>(slot: &'s mut Option<BlockIlu<T>>, problem: &Problem, vals: &[f64]) -> Result<&'s BlockIlu<T>, usize> {
+    match slot {
+        Some(ilu) => ilu.refactor(&problem.pattern, vals)?,
+        None => *slot = Some(BlockIlu::factor(&problem.pattern, vals, problem.parts.clone())?),
+    }
+    Ok(slot.as_ref().expect("factored above"))
 }
 
 /// What one step's Picard loop did.
@@ -468,22 +492,22 @@ impl<'a> Solver<'a> {
             let t1 = Instant::now();
             let singular = |row: usize| CfdError::Diverged { step, time_s, residual: res, reason: format!("singular pivot block at node {row} in ILU(0)") };
             let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
-            let parts = || problem.parts.clone();
             let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
             let (tol, restart, max_iterations) = (s.linear_tolerance, s.gmres_restart, s.max_linear_iterations);
             let t2;
             let out = if s.mixed_precision {
-                let ilu = BlockIlu::<f32>::factor(&problem.pattern, vals, parts()).map_err(singular)?;
-                let vals_low: Vec<f32> = convert(vals);
+                let ilu = refactored(&mut self.ilu_low, problem, vals).map_err(singular)?;
+                convert_into(vals, &mut self.vals_low);
                 t2 = Instant::now();
-                let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, &vals_low, v, y);
-                let apply_m = |v: &[f64], z: &mut [f64]| ilu.apply(&problem.pattern, v, z);
-                let apply_m_low = |v: &[f32], z: &mut [f32]| ilu.apply(&problem.pattern, v, z);
+                let vals_low = &self.vals_low;
+                let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
+                let apply_m = |v: &[f64], z: &mut [f64]| ilu.apply(v, z);
+                let apply_m_low = |v: &[f32], z: &mut [f32]| ilu.apply(v, z);
                 solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
             } else {
-                let ilu = BlockIlu::<f64>::factor(&problem.pattern, vals, parts()).map_err(singular)?;
+                let ilu = refactored(&mut self.ilu, problem, vals).map_err(singular)?;
                 t2 = Instant::now();
-                gmres(&apply_a, &|v, z| ilu.apply(&problem.pattern, v, z), &r, &mut dx, tol, restart, max_iterations)
+                gmres(&apply_a, &|v, z| ilu.apply(v, z), &r, &mut dx, tol, restart, max_iterations)
             };
             self.timings.preconditioner_s += (t2 - t1).as_secs_f64();
             self.timings.gmres_s += t2.elapsed().as_secs_f64();
@@ -805,7 +829,16 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
     let problem = Problem::new(mesh, settings)?;
     let n_blocks = problem.pattern.cols.len();
     let n_dofs = problem.order.len() * B;
-    let mut solver = Solver { problem, settings, vals: vec![0.0; n_blocks * BB], rhs: vec![0.0; n_dofs], timings: Timings::default() };
+    let mut solver = Solver {
+        problem,
+        settings,
+        vals: vec![0.0; n_blocks * BB],
+        rhs: vec![0.0; n_dofs],
+        vals_low: Vec::new(),
+        ilu_low: None,
+        ilu: None,
+        timings: Timings::default(),
+    };
     solver.timings.setup_s = start_time.elapsed().as_secs_f64();
     let outcome = match settings.mode {
         RunMode::Transient => solver.transient(start, observer)?,
