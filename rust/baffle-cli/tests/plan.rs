@@ -226,7 +226,7 @@ fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
     let report = read_json(&plan_out.join("report.json"));
     assert_eq!(report["failed_stage"], "prepare");
     let status: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["status"].as_str().unwrap()).collect();
-    assert_eq!(status, ["failed", "not run", "not run", "not run"]);
+    assert_eq!(status, ["failed", "not run", "not run", "not run", "not run"], "prepare, design, extend, mesh, simulate");
     assert!(!plan_out.join("prepare").exists() && !plan_out.join("design").exists(), "files of a failed or unrun stage");
     std::fs::remove_dir_all(out).ok();
 }
