@@ -27,7 +27,9 @@ pub struct PlanArgs {
     #[command(flatten)]
     pub design: DesignArgs,
     /// Build the capped ventricle from segmentations or a label map first (a `prepare`
-    /// stage), instead of --surface.
+    /// stage), instead of --surface; the CFD then runs on the extended domain (an
+    /// `extend` stage after the design: mid-LV inflow cap 20, STJ outflow cap 21, dp
+    /// between the VSD and aortic caps as interior planes).
     #[command(flatten)]
     pub prepare: PrepareSource,
     /// Blood pressure SBP/DBP (mmHg), e.g. 107/78: the outlet resistance R = MAP / Q_mean.

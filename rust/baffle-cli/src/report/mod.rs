@@ -359,8 +359,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let passes = dp < DP_THRESHOLD_MMHG;
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
     let verdict = verdict_text(dp, converged);
-    let domain = domain_summary(args, out, records)?;
-    let dp_faces = if domain["extended"] == true {
+    let cfd_domain = domain_summary(args, out, records)?;
+    let dp_faces = if cfd_domain["extended"] == true {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
     } else {
         (format!("inlet_{}", labels.0), format!("outlet_{}", labels.1))
@@ -390,7 +390,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         },
         "stages": records,
         "prepare": prepare,
-        "domain": domain,
+        "domain": cfd_domain,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
         "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
         "runs": run_rows,
@@ -415,7 +415,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         args.edge_length_mm
     ));
     let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", if passes { "pass" } else { "fail" }, escape(&verdict));
-    html.para(&domain_text(&domain));
+    html.para(&domain_text(&cfd_domain));
     html.heading("The paper's quantities");
     let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
     html.table(&["Quantity", "Value", "Unit"], &rows);
@@ -447,7 +447,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         let period = inflow[0].points.last().map_or(1.0, |p| p.0);
         inflow.push(Series { dashed: true, ..Series::line("held in the steady run", vec![(0.0, q_peak), (period, q_peak)], "#555555") });
     }
-    html.figure(&line_chart("Inflow waveform (VSD)", "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
+    let inflow_title = if cfd_domain["extended"] == true { "Inflow waveform (mid-LV cap)" } else { "Inflow waveform (VSD cap)" };
+    html.figure(&line_chart(inflow_title, "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
 
     html.heading("Pressure difference");
     if dp_cycle.is_empty() {
