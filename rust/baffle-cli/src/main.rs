@@ -11,6 +11,7 @@ use std::process::ExitCode;
 
 mod case;
 mod export_cmd;
+mod extend_cmd;
 mod mesh_cmd;
 mod plan_cmd;
 mod prepare_cmd;
@@ -36,6 +37,10 @@ enum Command {
     Design(DesignArgs),
     /// The capped ventricle (design input) from segmented LV, RV and aorta surfaces.
     Prepare(prepare_cmd::PrepareArgs),
+    /// The extended CFD domain (paper 2.5): the designed domain plus the LV back to a
+    /// mid-LV plane (inflow cap, 20) and the aorta up to the sinotubular junction
+    /// (outflow cap, 21); the VSD and aortic caps stay inside as measurement planes.
+    Extend(extend_cmd::ExtendArgs),
     /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
     Mesh(mesh_cmd::MeshArgs),
     /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
@@ -170,6 +175,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Design(args) => run_design(&args),
         Command::Prepare(args) => prepare_cmd::run_prepare(&args),
+        Command::Extend(args) => extend_cmd::run_extend(&args),
         Command::Mesh(args) => mesh_cmd::run_mesh(&args),
         Command::Simulate(args) => simulate_cmd::run_simulate(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),

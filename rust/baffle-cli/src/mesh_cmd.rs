@@ -2,7 +2,7 @@
 //! separate process, with the paper's quality figures.
 
 use baffle_core::io::read_surface_labeled;
-use baffle_mesh::{mesh_surface, write_faces_vtp, write_vtu, MeshOptions};
+use baffle_mesh::{mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshOptions};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -21,6 +21,10 @@ pub struct MeshArgs {
     /// Remesh the boundary at the edge length first (labels and rims kept).
     #[arg(long)]
     remesh_surface: bool,
+    /// ModelFaceIDs of the surface that lie inside the domain (measurement planes, e.g.
+    /// 11,16 in `baffle extend`'s output): meshed as conforming interior face sets.
+    #[arg(long, value_delimiter = ',')]
+    interior_labels: Vec<i32>,
     /// gmsh executable (default: $BAFFLE_GMSH, then gmsh on PATH, then the Python wheel).
     #[arg(long)]
     gmsh: Option<PathBuf>,
@@ -31,13 +35,15 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), String> {
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the faces need labels", args.surface.display()));
     }
+    let (boundary, interior_surfaces) = split_interior_labels(&labeled.mesh, &args.interior_labels).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let options = MeshOptions {
         edge_length_mm: args.edge_length_mm,
+        interior_surfaces,
         gmsh_executable: args.gmsh.clone(),
         remesh_surface: args.remesh_surface,
         ..MeshOptions::default()
     };
-    let (mesh, quality) = mesh_surface(&labeled.mesh, &options).map_err(|e| e.to_string())?;
+    let (mesh, quality) = mesh_surface(&boundary, &options).map_err(|e| e.to_string())?;
     write_vtu(&args.out, &mesh, &[], &[]).map_err(|e| e.to_string())?;
     let stem = args.out.with_extension("");
     let faces_path = PathBuf::from(format!("{}-faces.vtp", stem.display()));

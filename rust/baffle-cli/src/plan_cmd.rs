@@ -1,7 +1,11 @@
 //! `baffle plan`: [prepare ->] design -> mesh -> simulate in one run, each stage in
 //! its own subfolder of --out, then report.json and report.html (see `report`). The
 //! prepare stage runs when the ventricle is given as --segmentations or --labelmap
-//! instead of --surface.
+//! instead of --surface; it is then followed, after the design, by an `extend` stage
+//! (paper 2.5: the LV back to a mid-LV plane and the aorta up to the sinotubular
+//! junction), and the CFD runs on that extended domain: inflow at the mid-LV cap, outflow
+//! at the STJ cap, dp between the VSD and aortic caps as interior planes. From --surface
+//! (no LV or aorta known) the domain stays the designed one, inflow at the VSD cap.
 //!
 //! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
 //! `run_mesh`, `run_simulate_tagged`) with the arguments a user would type for them, so the plan
@@ -10,7 +14,8 @@
 
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::prepare_cmd::{self, PrepareSource};
-use crate::{design_reporting, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
+use crate::{design_reporting, extend_cmd, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
+use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use clap::{Args, FromArgMatches};
 use std::ffi::OsString;
@@ -22,7 +27,9 @@ pub struct PlanArgs {
     #[command(flatten)]
     pub design: DesignArgs,
     /// Build the capped ventricle from segmentations or a label map first (a `prepare`
-    /// stage), instead of --surface.
+    /// stage), instead of --surface; the CFD then runs on the extended domain (an
+    /// `extend` stage after the design: mid-LV inflow cap 20, STJ outflow cap 21, dp
+    /// between the VSD and aortic caps as interior planes).
     #[command(flatten)]
     pub prepare: PrepareSource,
     /// Blood pressure SBP/DBP (mmHg), e.g. 107/78: the outlet resistance R = MAP / Q_mean.
@@ -87,6 +94,8 @@ pub enum Step {
     /// Segmentations or a label map -> the capped ventricle (`baffle prepare`).
     Prepare,
     Design,
+    /// The designed domain -> the extended CFD domain (`baffle extend`).
+    Extend,
     Mesh { level: &'static str, edge_length_mm: f64 },
     Simulate { level: &'static str, flow: FlowCase },
 }
@@ -140,6 +149,16 @@ fn check_one_surface_source(args: &PlanArgs) -> Result<(), String> {
     }
 }
 
+/// The extended domain an extend stage writes.
+pub fn extended_surface_path(out: &Path) -> PathBuf {
+    out.join("extend").join("extended.vtp")
+}
+
+/// Whether the CFD runs on the extended domain: the LV and aorta are known (a prepare stage).
+pub fn is_extended(args: &PlanArgs) -> bool {
+    args.prepare.is_given()
+}
+
 /// The capped ventricle a prepare stage writes.
 pub fn prepared_surface_path(out: &Path) -> PathBuf {
     out.join("prepare").join("capped_ventricle.vtp")
@@ -153,6 +172,9 @@ pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
         stages.push(Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 });
     }
     stages.push(Stage { name: "design".into(), step: Step::Design, weight: 1.0 });
+    if is_extended(args) {
+        stages.push(Stage { name: "extend".into(), step: Step::Extend, weight: 1.0 });
+    }
     for (level, edge_length_mm) in mesh_levels(args) {
         stages.push(Stage { name: format!("mesh-{level}"), step: Step::Mesh { level, edge_length_mm }, weight: 1.0 });
         stages.push(Stage { name: format!("simulate-{level}"), step: Step::Simulate { level, flow: FlowCase::Nominal }, weight: simulate_weight });
@@ -186,7 +208,6 @@ pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
 
 /// The `baffle simulate` case of one run, its mesh given relative to the case file.
 fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, String> {
-    let d = &args.design;
     let mesh_dir = PathBuf::from("..").join(format!("mesh-{level}"));
     Ok(Case {
         mesh: MeshSpec {
@@ -195,7 +216,7 @@ fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, S
             format: "baffle".into(),
             units: Some("mm".into()),
         },
-        faces: FaceRoles { inlet: d.vsd_label, outlets: vec![d.aortic_label], walls: vec![d.wall_label, d.baffle_label], planes: vec![] },
+        faces: face_roles(args),
         fluid: Default::default(),
         inflow: Inflow {
             bsa_m2: Some(flow_bsa_m2(args)?),
@@ -208,6 +229,18 @@ fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, S
         time: TimeSpec { mode: if args.steady { "steady" } else { "transient" }.into(), cycles: args.cycles, ..TimeSpec::default() },
         output: Default::default(),
     })
+}
+
+/// Extended: inflow cap in, STJ cap out, dp between the VSD and aortic caps (interior);
+/// otherwise in at the VSD cap, out at the aortic cap.
+fn face_roles(args: &PlanArgs) -> FaceRoles {
+    let d = &args.design;
+    let walls = vec![d.wall_label, d.baffle_label];
+    if is_extended(args) {
+        FaceRoles { inlet: INFLOW_CAP_LABEL, outlets: vec![OUTFLOW_CAP_LABEL], walls, planes: vec![d.vsd_label, d.aortic_label] }
+    } else {
+        FaceRoles { inlet: d.vsd_label, outlets: vec![d.aortic_label], walls, planes: vec![] }
+    }
 }
 
 fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
@@ -239,17 +272,26 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
                 true
             })
         }
-        Step::Mesh { level, edge_length_mm } => {
+        Step::Extend => {
             let domain = out.join("design").join("domain.vtp");
-            let argv: Vec<OsString> = vec![
-                "--surface".into(),
-                domain.into(),
-                "--edge-length-mm".into(),
-                edge_length_mm.to_string().into(),
-                "--remesh-surface".into(),
-                "--out".into(),
-                mesh_path(out, level).into(),
-            ];
+            let d = &args.design;
+            let mut argv: Vec<OsString> = vec!["--domain".into(), domain.into(), "--out".into(), extended_surface_path(out).into()];
+            for (flag, label) in [("--wall-label", d.wall_label), ("--baffle-label", d.baffle_label), ("--vsd-label", d.vsd_label), ("--aortic-label", d.aortic_label)] {
+                argv.extend([flag.into(), label.to_string().into()]);
+            }
+            let mut extend = command_args::<extend_cmd::ExtendArgs>("extend", &argv)?;
+            extend.source = args.prepare.clone();
+            extend_cmd::extend_to_file(&extend).map(|_| ())
+        }
+        Step::Mesh { level, edge_length_mm } => {
+            let mut argv: Vec<OsString> = vec!["--edge-length-mm".into(), edge_length_mm.to_string().into(), "--out".into(), mesh_path(out, level).into()];
+            if is_extended(args) {
+                // The interior caps share the boundary's rim points: the boundary is meshed as built.
+                let interior = format!("{},{}", args.design.vsd_label, args.design.aortic_label);
+                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--interior-labels".into(), interior.into()]);
+            } else {
+                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into(), "--remesh-surface".into()]);
+            }
             mesh_cmd::run_mesh(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?)
         }
         Step::Simulate { level, flow } => {
@@ -319,8 +361,9 @@ mod tests {
     #[test]
     fn segmentations_or_a_label_map_put_a_prepare_stage_first() {
         let rest = ["design", "mesh-nominal", "simulate-nominal"];
-        assert_eq!(stage_names(&["--segmentations", "seg"]), [&["prepare"][..], &rest].concat());
-        assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8"]), [&["prepare"][..], &rest].concat());
+        let extended = ["design", "extend", "mesh-nominal", "simulate-nominal"];
+        assert_eq!(stage_names(&["--segmentations", "seg"]), [&["prepare"][..], &extended].concat());
+        assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8"]), [&["prepare"][..], &extended].concat());
         assert_eq!(stage_names(&["--surface", "capped.vtp"]), rest);
     }
 

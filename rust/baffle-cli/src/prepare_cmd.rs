@@ -112,7 +112,7 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
     Ok((report, report_path))
 }
 
-fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {
+pub(crate) fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {
     match (&source.segmentations, &source.labelmap) {
         (Some(dir), _) => read_segmentations(dir).map_err(|e| e.to_string()),
         (None, Some(file)) => {

@@ -81,6 +81,9 @@ fn phantom_plan_reports_the_stages_own_figures() {
 
     let report = read_json(&out.join("report.json"));
     assert_eq!(report["status"], "completed");
+    // From --surface no LV or aorta is known: the designed domain, and the report says so.
+    assert_eq!(report["domain"]["extended"], false);
+    assert!(report["domain"]["note"].as_str().unwrap().contains("--surface"), "{}", report["domain"]);
     let q = &report["quantities"];
     let dp = q["dp_peak_mmhg"].as_f64().unwrap();
     assert!(dp.is_finite() && dp > 0.0, "dp {dp}");
@@ -223,7 +226,7 @@ fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
     let report = read_json(&plan_out.join("report.json"));
     assert_eq!(report["failed_stage"], "prepare");
     let status: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["status"].as_str().unwrap()).collect();
-    assert_eq!(status, ["failed", "not run", "not run", "not run"]);
+    assert_eq!(status, ["failed", "not run", "not run", "not run", "not run"], "prepare, design, extend, mesh, simulate");
     assert!(!plan_out.join("prepare").exists() && !plan_out.join("design").exists(), "files of a failed or unrun stage");
     std::fs::remove_dir_all(out).ok();
 }
@@ -280,6 +283,27 @@ fn check_prepare_stage(out: &Path, report: &serde_json::Value) {
     check_html(&out.join("report.html"));
 }
 
+/// From segmentations, the extend stage ran after the design, the mesh has the VSD and
+/// aortic caps as interior faces, and the run went from the inflow to the STJ cap with
+/// dp between those interior caps.
+fn check_extend_stage(out: &Path, report: &serde_json::Value) {
+    let names: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();
+    assert_eq!(names[..3], ["prepare", "design", "extend"], "{names:?}");
+    let domain = &report["domain"];
+    assert_eq!(domain["extended"], true, "{domain}");
+    assert!(domain["inflow_cap"]["area_mm2"].as_f64().unwrap() > 0.0 && domain["outflow_cap"]["area_mm2"].as_f64().unwrap() > 0.0, "{domain}");
+    assert!(domain["volume_mm3"].as_f64().unwrap() > domain["designed_volume_mm3"].as_f64().unwrap(), "{domain}");
+    let case = read_json(&out.join("simulate-nominal/case.json"));
+    assert_eq!(case["faces"]["inlet"], 20);
+    assert_eq!(case["faces"]["outlets"], serde_json::json!([21]));
+    assert_eq!(case["faces"]["planes"], serde_json::json!([11, 16]));
+    let summary = read_json(&out.join("simulate-nominal/summary.json"));
+    let dp = summary["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(dp.is_finite(), "dp {dp}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("extended domain (paper 2.5)"), "the report names the extended domain");
+}
+
 #[test]
 fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
     if skip_gmsh() {
@@ -298,6 +322,7 @@ fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
     assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     let report = read_json(&plan_out.join("report.json"));
     check_prepare_stage(&plan_out, &report);
+    check_extend_stage(&plan_out, &report);
     // The caps of the spheres and the tube: the VSD circle of radius 5.1 mm at x = 8.6,
     // the aortic one of radius 4 mm (a 48-gon) at the RV's top.
     let vsd = &report["prepare"]["vsd_cap"];
@@ -331,6 +356,7 @@ fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
     assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     let report = read_json(&out.join("report.json"));
     check_prepare_stage(&out, &report);
+    check_extend_stage(&out, &report);
     let stages = report["stages"].as_array().unwrap();
     let q = &report["quantities"];
     let dp = q["dp_peak_mmhg"].as_f64().unwrap();

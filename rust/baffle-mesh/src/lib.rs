@@ -17,7 +17,7 @@ pub mod vtu;
 
 pub use error::MeshError;
 pub use gmsh::{find_gmsh, GmshCommand, GMSH_ENV};
-pub use mesher::{mesh_surface, MeshOptions};
+pub use mesher::{mesh_surface, split_interior_labels, MeshOptions};
 pub use quality::{quality_report, QualityReport};
 pub use tetmesh::{FaceSet, TetMesh};
 pub use vtu::{read_simvascular, read_vtu, write_faces_vtp, write_vtu, VtuData};

@@ -143,7 +143,7 @@ fn resample_closed(polyline: &[Vec3], count: usize) -> Vec<Vec3> {
 
 /// Triangulate the band between two closed rings running the same way (outer
 /// first in each triangle's winding), always advancing along the shorter diagonal.
-fn zip_rings(points: &[Vec3], outer: &[u32], inner: &[u32], out: &mut Vec<[u32; 3]>) {
+pub(crate) fn zip_rings(points: &[Vec3], outer: &[u32], inner: &[u32], out: &mut Vec<[u32; 3]>) {
     let p = |v: u32| points[v as usize];
     let (n, m) = (outer.len(), inner.len());
     let start = (0..m).min_by(|&a, &b| (p(inner[a]) - p(outer[0])).norm().total_cmp(&(p(inner[b]) - p(outer[0])).norm())).unwrap_or(0);

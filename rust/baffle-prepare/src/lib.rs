@@ -4,6 +4,8 @@
 //! without internal walls), [`interfaces`] (labels by nearest structure, VSD and
 //! aortic loops), [`clip`] (cut along both loops, keep the RV between them),
 //! [`caps`] (planar caps and the final remesh), joined by [`prepare::prepare`].
+//! [`extend`] grows a designed domain into the extended CFD domain (paper 2.5): the LV
+//! back to a mid-LV plane and the aorta up to the sinotubular junction.
 //!
 //! Units: millimetres, in the frame of the input surfaces.
 
@@ -17,8 +19,10 @@ pub mod clip;
 pub mod caps;
 pub mod prepare;
 pub mod labelmap;
+pub mod extend;
 
 pub use error::PrepareError;
 pub use input::{read_segmentations, BloodPools};
 pub use prepare::{prepare, PrepareOptions, PrepareReport};
 pub use labelmap::{pools_from_labelmap, read_labelmap, LabelMap, LabelSurfaceOptions, PoolLabels};
+pub use extend::{extend, ExtendOptions, ExtendReport, Extended};

@@ -99,13 +99,9 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     validate(options)?;
     let start = Instant::now();
     let mut lap = lap_timer();
-    let grid = union_grid(pools, options.voxel_mm, options.crop_margin_mm)?;
-    let closing_voxels = (options.closing_radius_mm / options.voxel_mm).round() as usize;
-    let mask = close_mask(&union_mask(pools, &grid), &grid, closing_voxels);
-    let voxelize_ms = lap();
-    let union = union_surface(&mask, &grid, &options.smoothing).map_err(|m| PrepareError::geometry("union surface", m))?;
-    drop(mask);
-    let union_surface_ms = lap();
+    let bounds = Aabb::from_points(&pools.rv.points).expanded(options.crop_margin_mm);
+    let (union, grid, voxelize_ms) = union_within(pools, &bounds, options)?;
+    let union_surface_ms = lap() - voxelize_ms;
 
     let bvhs = [&pools.lv, &pools.rv, &pools.aorta].map(|m| TriangleBvh::new(m).map_err(|e| PrepareError::geometry("structures", e)));
     let [lv_bvh, rv_bvh, aorta_bvh] = bvhs;
@@ -169,7 +165,7 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     Ok((capped, report))
 }
 
-fn lap_timer() -> impl FnMut() -> f64 {
+pub(crate) fn lap_timer() -> impl FnMut() -> f64 {
     let mut last = Instant::now();
     move || {
         let now = Instant::now();
@@ -179,7 +175,7 @@ fn lap_timer() -> impl FnMut() -> f64 {
     }
 }
 
-fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
+pub(crate) fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
     let positive = |v: f64| v.is_finite() && v > 0.0;
     if !(options.crop_margin_mm.is_finite() && options.crop_margin_mm >= MIN_CROP_MARGIN_MM) {
         return Err(PrepareError::Option(format!("crop margin must be at least {MIN_CROP_MARGIN_MM} mm, got {}", options.crop_margin_mm)));
@@ -200,10 +196,21 @@ fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
     Ok(())
 }
 
-/// A grid over the RV and `margin_mm` around it; its outer voxels are left empty
-/// so the union closes inside it.
-fn union_grid(pools: &BloodPools, voxel_mm: f64, margin_mm: f64) -> Result<Grid, PrepareError> {
-    let bounds = Aabb::from_points(&pools.rv.points).expanded(margin_mm);
+/// The smoothed union surface of the blood pools within `bounds` (mm), made with
+/// `options`' voxel, closing and smoothing (the pools beyond `bounds` are cut off, the
+/// cut closed flat at the grid's edge); also its grid and the voxelizing time (ms).
+pub(crate) fn union_within(pools: &BloodPools, bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
+    let start = Instant::now();
+    let grid = union_grid(bounds, options.voxel_mm)?;
+    let closing_voxels = (options.closing_radius_mm / options.voxel_mm).round() as usize;
+    let mask = close_mask(&union_mask(pools, &grid), &grid, closing_voxels);
+    let voxelize_ms = start.elapsed().as_secs_f64() * 1e3;
+    let union = union_surface(&mask, &grid, &options.smoothing).map_err(|m| PrepareError::geometry("union surface", m))?;
+    Ok((union, grid, voxelize_ms))
+}
+
+/// A grid over `bounds`; its outer voxels are left empty so the union closes inside it.
+fn union_grid(bounds: &Aabb, voxel_mm: f64) -> Result<Grid, PrepareError> {
     let grid = Grid::covering(bounds.min, bounds.max, voxel_mm, GRID_MARGIN_VOXELS);
     let voxels = grid.dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d));
     match voxels {
@@ -248,7 +255,7 @@ fn check_result(mesh: &TriMesh) -> Result<(), PrepareError> {
     Ok(())
 }
 
-fn cap_report(mesh: &TriMesh, label: i32) -> Result<CapReport, PrepareError> {
+pub(crate) fn cap_report(mesh: &TriMesh, label: i32) -> Result<CapReport, PrepareError> {
     let (c, n, area_mm2) = mesh.label_centroid_normal(label).ok_or_else(|| PrepareError::geometry("caps", format!("no triangle carries label {label}")))?;
     let arr = |v: Vec3| [v.x, v.y, v.z];
     Ok(CapReport { label, centroid_mm: arr(c), normal: arr(n), area_mm2 })

@@ -159,7 +159,8 @@ fn centerline_profile(centerline: &PolyData, centerline_path: &Path, peak_path: 
 }
 
 /// (time in cycle, dp) over the last cycle of timeseries.csv; empty for a steady run.
-fn dp_over_cycle(run_dir: &Path, summary: &Value, inlet: i32, outlet: i32) -> Result<Vec<(f64, f64)>, String> {
+/// `faces`: the timeseries' names of the two faces dp is taken between (first minus second).
+fn dp_over_cycle(run_dir: &Path, summary: &Value, faces: (&str, &str)) -> Result<Vec<(f64, f64)>, String> {
     if summary["mode"] == "steady" {
         return Ok(Vec::new());
     }
@@ -168,7 +169,7 @@ fn dp_over_cycle(run_dir: &Path, summary: &Value, inlet: i32, outlet: i32) -> Re
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
     let column = |name: String| header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()));
-    let (t, a, b) = (column("time_s".into())?, column(format!("p_inlet_{inlet}_mmhg"))?, column(format!("p_outlet_{outlet}_mmhg"))?);
+    let (t, a, b) = (column("time_s".into())?, column(format!("p_{}_mmhg", faces.0))?, column(format!("p_{}_mmhg", faces.1))?);
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
     let period = number(summary, "/inputs/period_s", &path)?;
     let last = rows.last().map_or(0.0, |r| r[t]);
@@ -285,6 +286,49 @@ fn prepare_rows(prepare: &Value) -> Vec<Vec<String>> {
     vec![cap_row("VSD cap", &prepare["vsd_cap"]), cap_row("Aortic cap", &prepare["aortic_cap"])]
 }
 
+/// The CFD domain: the extend stage's figures, or why the designed domain was kept.
+fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Result<Value, String> {
+    let Some(record) = records.iter().find(|r| r.name == "extend").filter(|_| crate::plan_cmd::is_extended(args)) else {
+        return Ok(json!({
+            "extended": false,
+            "note": "the designed domain (VSD cap to aortic-annulus cap) as CFD domain, plug inflow at the VSD cap: with --surface no LV or aorta is known to extend it (give --segmentations or --labelmap)",
+        }));
+    };
+    let path = crate::prepare_cmd::report_path(&crate::plan_cmd::extended_surface_path(out));
+    let doc = read_json(&path)?;
+    let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
+    Ok(json!({
+        "extended": true,
+        "note": "extended domain (paper 2.5): plug inflow at the mid-LV cap, outflow at the STJ cap; dp between the VSD and aortic-annulus caps as interior planes",
+        "report": path, "wall_time_s": record.wall_time_s, "triangles": doc["triangles"], "volume_mm3": doc["volume_mm3"],
+        "designed_volume_mm3": doc["designed_volume_mm3"], "baffle_area_relative_change": doc["baffle_area_relative_change"],
+        "inflow_cap": cap("inflow_cap"), "outflow_cap": cap("outflow_cap"),
+        "mid_lv_distance_from_vsd_mm": doc["mid_lv_plane"]["distance_from_vsd_mm"],
+        "stj_found": doc["stj"]["found"], "stj_distance_from_annulus_mm": doc["stj"]["distance_from_annulus_mm"], "stj_note": doc["stj"]["note"],
+    }))
+}
+
+/// The report's paragraph on the CFD domain.
+fn domain_text(domain: &Value) -> String {
+    if domain["extended"] != true {
+        return format!("CFD domain: {}.", domain["note"].as_str().unwrap_or_default());
+    }
+    let n = |key: &str| format_value(domain[key].as_f64().unwrap_or(f64::NAN), 1);
+    let area = |cap: &str| format_value(domain[cap]["area_mm2"].as_f64().unwrap_or(f64::NAN), 1);
+    format!(
+        "CFD domain: {}. Inflow cap {} mm² at {} mm beyond the VSD (parallel to it, through the LV's centroid); outflow cap {} mm² at {} mm above the annulus ({}). Volume {} mm³ (designed {} mm³); baffle area change {:.1e}.",
+        domain["note"].as_str().unwrap_or_default(),
+        area("inflow_cap"),
+        n("mid_lv_distance_from_vsd_mm"),
+        area("outflow_cap"),
+        n("stj_distance_from_annulus_mm"),
+        domain["stj_note"].as_str().unwrap_or_default(),
+        format_value(domain["volume_mm3"].as_f64().unwrap_or(f64::NAN), 0),
+        format_value(domain["designed_volume_mm3"].as_f64().unwrap_or(f64::NAN), 0),
+        domain["baffle_area_relative_change"].as_f64().unwrap_or(f64::NAN)
+    )
+}
+
 /// What the ventricle came from, for the report's first line.
 fn surface_source(args: &PlanArgs) -> String {
     let p = &args.prepare;
@@ -315,7 +359,13 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let passes = dp < DP_THRESHOLD_MMHG;
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
     let verdict = verdict_text(dp, converged);
-    let dp_cycle = dp_over_cycle(&nominal_dir, &nominal.summary, labels.0, labels.1)?;
+    let cfd_domain = domain_summary(args, out, records)?;
+    let dp_faces = if cfd_domain["extended"] == true {
+        (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
+    } else {
+        (format!("inlet_{}", labels.0), format!("outlet_{}", labels.1))
+    };
+    let dp_cycle = dp_over_cycle(&nominal_dir, &nominal.summary, (&dp_faces.0, &dp_faces.1))?;
     let prepare = prepare_summary(out, records)?;
 
     let run_rows: Vec<Value> = runs
@@ -340,6 +390,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         },
         "stages": records,
         "prepare": prepare,
+        "domain": cfd_domain,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
         "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
         "runs": run_rows,
@@ -364,6 +415,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         args.edge_length_mm
     ));
     let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", if passes { "pass" } else { "fail" }, escape(&verdict));
+    html.para(&domain_text(&cfd_domain));
     html.heading("The paper's quantities");
     let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
     html.table(&["Quantity", "Value", "Unit"], &rows);
@@ -395,7 +447,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         let period = inflow[0].points.last().map_or(1.0, |p| p.0);
         inflow.push(Series { dashed: true, ..Series::line("held in the steady run", vec![(0.0, q_peak), (period, q_peak)], "#555555") });
     }
-    html.figure(&line_chart("Inflow waveform (VSD)", "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
+    let inflow_title = if cfd_domain["extended"] == true { "Inflow waveform (mid-LV cap)" } else { "Inflow waveform (VSD cap)" };
+    html.figure(&line_chart(inflow_title, "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
 
     html.heading("Pressure difference");
     if dp_cycle.is_empty() {

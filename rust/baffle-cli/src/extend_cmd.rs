@@ -1,0 +1,94 @@
+//! `baffle extend`: the extended CFD domain (paper section 2.5): the designed domain
+//! plus the LV back to a mid-LV plane and the aortic root up to the sinotubular
+//! junction, with inflow and outflow caps; the VSD and aortic caps stay inside it as
+//! measurement planes.
+
+use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
+use crate::simulate_cmd::write_atomic;
+use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
+use baffle_core::FaceLabels;
+use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
+use baffle_prepare::PrepareOptions;
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct ExtendArgs {
+    /// Designed domain (domain.vtp from `baffle design`): closed, mm, ModelFaceID.
+    #[arg(long)]
+    pub domain: PathBuf,
+    /// The LV and aorta blood pools (the RV is read too, as `prepare` reads them).
+    #[command(flatten)]
+    pub source: PrepareSource,
+    /// Output extended surface (.vtp): the designed domain's faces unchanged (its VSD and
+    /// aortic caps now inside: mesh with `baffle mesh --interior-labels 11,16`), the LV
+    /// and aortic walls (wall label), the inflow and outflow caps. The report
+    /// (<stem>-report.json) is written beside it.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// ModelFaceID of the new inflow cap (mid-LV plane).
+    #[arg(long, default_value_t = INFLOW_CAP_LABEL)]
+    pub inflow_label: i32,
+    /// ModelFaceID of the new outflow cap (sinotubular junction).
+    #[arg(long, default_value_t = OUTFLOW_CAP_LABEL)]
+    pub outflow_label: i32,
+    /// ModelFaceID of the domain's walls (the extension's walls get it too).
+    #[arg(long, default_value_t = FaceLabels::default().wall)]
+    pub wall_label: i32,
+    /// ModelFaceID of the domain's baffle.
+    #[arg(long, default_value_t = FaceLabels::default().baffle)]
+    pub baffle_label: i32,
+    /// ModelFaceID of the domain's VSD cap.
+    #[arg(long, default_value_t = FaceLabels::default().vsd_cap)]
+    pub vsd_label: i32,
+    /// ModelFaceID of the domain's aortic-annulus cap.
+    #[arg(long, default_value_t = FaceLabels::default().aortic_cap)]
+    pub aortic_label: i32,
+    /// Voxel edge of the union grid the LV and aorta are cut from (mm).
+    #[arg(long, default_value_t = PrepareOptions::default().voxel_mm)]
+    pub voxel_mm: f64,
+    /// Target edge of the extension's triangles (mm); default: the designed caps' rim edge.
+    #[arg(long)]
+    pub remesh_edge_mm: Option<f64>,
+}
+
+pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
+    let (r, report) = extend_to_file(args)?;
+    println!(
+        "{} triangles ({} designed), {:.0} mm3 (designed {:.0}); inflow cap {:.1} mm2 {:.1} mm beyond the VSD, outflow cap {:.1} mm2 {:.1} mm above the annulus; baffle area change {:+.2e}",
+        r.triangles, r.designed_triangles, r.volume_mm3, r.designed_volume_mm3, r.inflow_cap.area_mm2, r.mid_lv_plane.distance_from_vsd_mm,
+        r.outflow_cap.area_mm2, r.stj.distance_from_annulus_mm, r.baffle_area_relative_change
+    );
+    println!("outflow: {}", r.stj.note);
+    println!("wrote {}, {}", args.out.display(), report.display());
+    Ok(())
+}
+
+/// Build the extended domain and write it and its report (each whole or not at all).
+pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), String> {
+    let labeled = read_surface_labeled(&args.domain).map_err(|e| e.to_string())?;
+    if !labeled.has_model_face_id {
+        return Err(format!("{}: no ModelFaceID cell array; the designed domain's caps need their labels", args.domain.display()));
+    }
+    let pools = read_pools(&args.source)?;
+    let options = ExtendOptions {
+        union: PrepareOptions { voxel_mm: args.voxel_mm, ..PrepareOptions::default() },
+        labels: FaceLabels { wall: args.wall_label, baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label },
+        inflow_label: args.inflow_label,
+        outflow_label: args.outflow_label,
+        remesh_edge_mm: args.remesh_edge_mm,
+        ..ExtendOptions::default()
+    };
+    let extended = extend(&labeled.mesh, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+    }
+    write_trimesh_vtp(&args.out, &extended.surface).map_err(|e| e.to_string())?;
+    let report = report_path(&args.out);
+    let text = serde_json::to_string_pretty(&extended.report).map_err(|e| e.to_string())?;
+    if let Err(e) = write_atomic(&report, text.as_bytes()) {
+        let _ = std::fs::remove_file(&args.out);
+        return Err(e);
+    }
+    Ok((extended.report, report))
+}

@@ -1,0 +1,89 @@
+//! `baffle extend` (paper 2.5): p2 from its segmentations through prepare, design and
+//! extend as commands, then meshed by gmsh at 1.25 mm with the VSD and aortic caps as
+//! conforming interior faces; and the errors that name a missing LV or a bad domain.
+//! Set BAFFLE_SKIP_GMSH=1 to skip the meshing.
+
+use baffle_core::io::read_surface_labeled;
+use baffle_mesh::{mesh_surface, split_interior_labels, MeshOptions};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn baffle(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_baffle")).args(args).output().expect("run baffle")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("baffle-extend-{}-{name}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn ok(run: Output) -> String {
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    String::from_utf8_lossy(&run.stdout).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn p2_extended_domain_meshes_with_conforming_interior_caps() {
+    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let out = temp_dir("p2");
+    let segmentations = data.join("p2/segmentations");
+    let capped = out.join("capped.vtp");
+    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
+    let points = data.join("p2/design_input/suture_points.mrk.json");
+    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.37", "--out", s(&out.join("design"))]));
+    let extended = out.join("extended.vtp");
+    let stdout = ok(baffle(&["extend", "--domain", s(&out.join("design/domain.vtp")), "--segmentations", s(&segmentations), "--out", s(&extended)]));
+    eprintln!("{stdout}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("extended-report.json")).unwrap()).unwrap();
+    assert!(report["baffle_area_relative_change"].as_f64().unwrap().abs() < 1e-3, "{}", report["baffle_area_relative_change"]);
+    assert_eq!(report["interior_labels"], serde_json::json!([11, 16]));
+    if std::env::var("BAFFLE_SKIP_GMSH").is_ok_and(|v| v == "1") {
+        return;
+    }
+    let surface = read_surface_labeled(&extended).unwrap().mesh;
+    let (boundary, interior) = split_interior_labels(&surface, &[11, 16]).unwrap();
+    let cap_triangles: Vec<usize> = interior.iter().map(|c| c.triangles.len()).collect();
+    let options = MeshOptions { edge_length_mm: 1.25, interior_surfaces: interior, ..MeshOptions::default() };
+    let (mesh, quality) = mesh_surface(&boundary, &options).unwrap_or_else(|e| panic!("gmsh on p2's extended domain: {e}"));
+    for (label, count) in [11, 16].into_iter().zip(cap_triangles) {
+        let set = mesh.faces.iter().find(|f| f.id == label).unwrap_or_else(|| panic!("no face set {label}"));
+        assert!(set.interior, "face {label} is not interior");
+        assert_eq!(set.triangles.len(), count, "face {label}: the cap's triangles are its interior faces");
+    }
+    for label in [20, 21] {
+        assert!(mesh.faces.iter().any(|f| f.id == label && !f.interior), "no boundary face {label}");
+    }
+    eprintln!("p2 extended, 1.25 mm: {} tetrahedra, scaled Jacobian min {:.3}", quality.tetrahedra, quality.min_scaled_jacobian);
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn a_missing_lv_and_a_domain_without_caps_are_named() {
+    let out = temp_dir("errors");
+    let phantom = out.join("phantom");
+    ok(baffle(&["phantom", "--out", s(&phantom)]));
+    let empty = out.join("segmentations");
+    std::fs::create_dir_all(&empty).unwrap();
+    let capped = phantom.join("capped_ventricle.vtp");
+    let run = baffle(&["extend", "--domain", s(&capped), "--segmentations", s(&empty), "--out", s(&out.join("x.vtp"))]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && stderr.contains("LV surface not found"), "{stderr}");
+    assert!(!out.join("x.vtp").exists());
+    // With pools present, a domain without the named cap label.
+    use baffle_core::io::write_trimesh_vtp;
+    use baffle_core::Vec3;
+    use baffle_prepare::shapes::{capped_tube, uv_sphere};
+    write_trimesh_vtp(&empty.join("LV.vtp"), &uv_sphere(Vec3::zeros(), 10.0, 16, 32)).unwrap();
+    write_trimesh_vtp(&empty.join("RV.vtp"), &uv_sphere(Vec3::new(16.0, 0.0, 0.0), 9.0, 16, 32)).unwrap();
+    write_trimesh_vtp(&empty.join("aorta.vtp"), &capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 8, 24)).unwrap();
+    let run = baffle(&["extend", "--domain", s(&capped), "--segmentations", s(&empty), "--aortic-label", "99", "--out", s(&out.join("x.vtp"))]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && stderr.contains("no aortic-annulus cap (no triangle labelled 99)"), "{stderr}");
+    std::fs::remove_dir_all(out).ok();
+}

@@ -1,0 +1,603 @@
+//! The extended CFD domain [paper 2.5]: the designed domain (VSD cap to aortic-annulus
+//! cap), plus the LV cavity from the VSD back to a plane through the mid-LV cavity, plus
+//! the aortic root from the annulus up to the sinotubular junction (STJ), each closed by
+//! a new flat cap (inflow, outflow). The VSD and aortic-annulus caps stay, unchanged, as
+//! interior surfaces (measurement planes); nothing of the designed domain is moved.
+//!
+//! Choices:
+//! - The mid-LV plane is parallel to the VSD cap's plane, through the LV blood pool's
+//!   volume centroid. Parallel planes never cross, so the inflow cap cannot touch the VSD
+//!   cap, and the inflow faces the VSD as the LV's outflow does in DORV; a short-axis
+//!   plane would need the LV's long axis, ill-defined on small rounded LVs, and can cross
+//!   a large VSD.
+//! - The STJ: cross-sections of the aorta surface parallel to the annulus cap, every
+//!   `step_mm` along the cap's outward normal (each section the one nearest the previous
+//!   one's centroid), smoothed; the first area minimum after the first maximum (the
+//!   sinuses) that lies `min_drop` below that maximum; the sections end where one step
+//!   changes the area by more than `max_step_change` (a branch or the arch). Without
+//!   such a minimum, the outflow cap is
+//!   `fallback_diameters` annulus diameters above the annulus, and the report says so.
+//! - The LV and aortic parts are cut from the union of the pools (made as `prepare`
+//!   makes it, on a grid covering the extension) by the same clip as `prepare`, along
+//!   the designed caps' own planes. Each part is remeshed at the designed rims' edge
+//!   length, its first row of triangles at the designed cap is dropped and the gap is
+//!   zipped to the designed cap's rim, so that rim is shared (3 faces meet there: the
+//!   designed wall, the interior cap, the extension).
+//!
+//! The extension's walls carry the wall label. The result's first points and triangles
+//! are the designed domain's, bit-identical.
+
+use crate::caps::{close_with_caps, remesh_wall, zip_rings};
+use crate::clip::{clip_between, Clipped, Cut};
+use crate::error::PrepareError;
+use crate::input::BloodPools;
+use crate::prepare::{cap_report, lap_timer, union_within, validate, CapReport, PrepareOptions};
+use baffle_core::mesh::{edge_key, manifold_report};
+use baffle_core::numerics::pca::{best_fit_plane, Plane};
+use baffle_core::sections::{cut_mesh, Contour};
+use baffle_core::spatial::{Aabb, TriangleBvh};
+use baffle_core::{FaceLabels, TriMesh, Vec3};
+use std::collections::{HashMap, HashSet};
+
+/// Default `ModelFaceID` of the inflow cap (the mid-LV plane).
+pub const INFLOW_CAP_LABEL: i32 = 20;
+/// Default `ModelFaceID` of the outflow cap (the STJ).
+pub const OUTFLOW_CAP_LABEL: i32 = 21;
+/// The mid-LV plane must lie at least this far beyond the VSD cap (mm).
+const MIN_LV_DEPTH_MM: f64 = 1.0;
+/// Cap points farther than this from their best-fit plane (mm) make the cap non-planar.
+const PLANAR_TOLERANCE_MM: f64 = 1e-6;
+
+#[derive(Clone, Debug)]
+pub struct StjOptions {
+    /// Spacing of the aortic cross-sections (mm).
+    pub step_mm: f64,
+    /// Sections are searched up to this many annulus diameters above the annulus.
+    pub search_diameters: f64,
+    /// The STJ minimum must lie this fraction below the sinus maximum.
+    pub min_drop: f64,
+    /// Half-width of the window a maximum or minimum must dominate (mm).
+    pub window_mm: f64,
+    /// Without a minimum, the outflow cap lies this many annulus diameters above the annulus.
+    pub fallback_diameters: f64,
+    /// The search stops where one step changes the section area by more than this
+    /// fraction (a branch or the arch enters the plane): a minimum needs a gradual rise after it.
+    pub max_step_change: f64,
+}
+
+impl Default for StjOptions {
+    fn default() -> Self {
+        StjOptions { step_mm: 0.25, search_diameters: 2.5, min_drop: 0.05, window_mm: 1.5, fallback_diameters: 1.0, max_step_change: 0.1 }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct ExtendOptions {
+    /// How the union of the pools is made (voxel, closing, smoothing; `crop_margin_mm`
+    /// around the extension): `prepare`'s defaults.
+    pub union: PrepareOptions,
+    /// The designed domain's labels; the extension's walls get `labels.wall`.
+    pub labels: FaceLabels,
+    pub inflow_label: i32,
+    pub outflow_label: i32,
+    /// Target edge of the extension's remesh (mm); `None`: the designed caps' mean rim edge.
+    pub remesh_edge_mm: Option<f64>,
+    pub stj: StjOptions,
+}
+
+impl Default for ExtendOptions {
+    fn default() -> Self {
+        ExtendOptions {
+            union: PrepareOptions::default(),
+            labels: FaceLabels::default(),
+            inflow_label: INFLOW_CAP_LABEL,
+            outflow_label: OUTFLOW_CAP_LABEL,
+            remesh_edge_mm: None,
+            stj: StjOptions::default(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct MidLvPlaneReport {
+    pub rule: &'static str,
+    pub point_mm: [f64; 3],
+    /// Unit normal, from the VSD toward the LV.
+    pub normal: [f64; 3],
+    /// Distance of the plane beyond the VSD cap's plane (mm).
+    pub distance_from_vsd_mm: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StjReport {
+    /// Whether an area minimum was found; if not, the outflow cap is at the fallback height.
+    pub found: bool,
+    pub note: String,
+    /// Height of the outflow cap above the annulus cap's plane (mm).
+    pub distance_from_annulus_mm: f64,
+    /// Equivalent diameter of the annulus cap (mm).
+    pub annulus_diameter_mm: f64,
+    pub sinus_max_area_mm2: f64,
+    pub sinus_max_distance_mm: f64,
+    pub stj_area_mm2: f64,
+    /// (height mm, smoothed section area mm2) of each searched section.
+    pub profile: Vec<[f64; 2]>,
+}
+
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ExtendTimings {
+    pub planes_ms: f64,
+    pub union_ms: f64,
+    pub extensions_ms: f64,
+    pub checks_ms: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ExtendReport {
+    /// The first `designed_triangles` triangles (and their points) are the designed domain's.
+    pub designed_triangles: usize,
+    pub triangles: usize,
+    pub lv_extension_triangles: usize,
+    pub aortic_extension_triangles: usize,
+    pub designed_volume_mm3: f64,
+    pub volume_mm3: f64,
+    pub baffle_area_before_mm2: f64,
+    pub baffle_area_after_mm2: f64,
+    /// (after - before) / before.
+    pub baffle_area_relative_change: f64,
+    /// The designed caps, now interior measurement planes: their labels.
+    pub interior_labels: [i32; 2],
+    pub vsd_cap: CapReport,
+    pub aortic_cap: CapReport,
+    pub inflow_cap: CapReport,
+    pub outflow_cap: CapReport,
+    pub mid_lv_plane: MidLvPlaneReport,
+    pub stj: StjReport,
+    pub remesh_edge_mm: f64,
+    pub timings: ExtendTimings,
+}
+
+/// The extended domain: designed domain first (unchanged), then the LV and aortic parts.
+#[derive(Clone, Debug)]
+pub struct Extended {
+    pub surface: TriMesh,
+    pub report: ExtendReport,
+}
+
+/// One planar cap of the designed domain.
+struct DesignedCap {
+    /// Best-fit plane, normal outward (out of the designed domain).
+    plane: Plane,
+    /// Rim as domain point indices, in the cap triangles' winding.
+    rim: Vec<u32>,
+    area_mm2: f64,
+}
+
+/// The extended domain of `domain` (a closed, outward designed domain in mm with the
+/// VSD and aortic caps of `options.labels`) with the LV and aorta of `pools`.
+pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
+    validate_options(options)?;
+    let mut lap = lap_timer();
+    let l = &options.labels;
+    check_domain(domain)?;
+    let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
+    let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
+    let (mid_lv, lv_loop) = mid_lv_plane(&pools.lv, &vsd.plane)?;
+    let (stj, stj_report, stj_loop) = sinotubular_junction(&pools.aorta, &annulus, &options.stj)?;
+    let planes_ms = lap();
+
+    let bounds = extension_bounds(domain, pools, &mid_lv, &stj, options.union.crop_margin_mm);
+    let (union, _, _) = union_within(pools, &bounds, &options.union)?;
+    let union_ms = lap();
+
+    let edge_mm = options.remesh_edge_mm.unwrap_or_else(|| mean_rim_edge_mm(domain, &[&vsd.rim, &annulus.rim]));
+    let snap_mm = 0.05 * options.union.voxel_mm;
+    let mut surface = domain.clone();
+    let lv_part = Extension { name: "LV", near: &vsd, near_name: "VSD", far: mid_lv, far_name: "mid-LV", far_loop: &lv_loop, far_label: options.inflow_label };
+    let lv_triangles = lv_part.attach(&mut surface, &union, edge_mm, snap_mm, l.wall)?;
+    let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label };
+    let ao_triangles = ao_part.attach(&mut surface, &union, edge_mm, snap_mm, l.wall)?;
+    let extensions_ms = lap();
+
+    check_extended(&surface, domain.triangles.len(), &[l.vsd_cap, l.aortic_cap])?;
+    let baffle_area = |m: &TriMesh| (0..m.triangles.len()).filter(|&t| m.face_ids[t] == l.baffle).map(|t| m.triangle_area_mm2(t)).sum::<f64>();
+    let (before, after) = (baffle_area(domain), baffle_area(&surface));
+    let report = ExtendReport {
+        designed_triangles: domain.triangles.len(),
+        triangles: surface.triangles.len(),
+        lv_extension_triangles: lv_triangles,
+        aortic_extension_triangles: ao_triangles,
+        designed_volume_mm3: domain.signed_volume_mm3(),
+        volume_mm3: wall_only(&surface, &[l.vsd_cap, l.aortic_cap]).signed_volume_mm3(),
+        baffle_area_before_mm2: before,
+        baffle_area_after_mm2: after,
+        baffle_area_relative_change: if before > 0.0 { (after - before) / before } else { 0.0 },
+        interior_labels: [l.vsd_cap, l.aortic_cap],
+        vsd_cap: cap_report(&surface, l.vsd_cap)?,
+        aortic_cap: cap_report(&surface, l.aortic_cap)?,
+        inflow_cap: cap_report(&surface, options.inflow_label)?,
+        outflow_cap: cap_report(&surface, options.outflow_label)?,
+        mid_lv_plane: MidLvPlaneReport {
+            rule: "parallel to the VSD cap, through the LV blood pool's volume centroid",
+            point_mm: arr(mid_lv.centroid),
+            normal: arr(mid_lv.normal),
+            distance_from_vsd_mm: vsd.plane.signed_distance_mm(&mid_lv.centroid),
+        },
+        stj: stj_report,
+        remesh_edge_mm: edge_mm,
+        timings: ExtendTimings { planes_ms, union_ms, extensions_ms, checks_ms: lap() },
+    };
+    Ok(Extended { surface, report })
+}
+
+fn arr(v: Vec3) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+fn validate_options(options: &ExtendOptions) -> Result<(), PrepareError> {
+    validate(&options.union)?;
+    let l = &options.labels;
+    let used = [l.wall, l.baffle, l.vsd_cap, l.aortic_cap];
+    for (name, label) in [("inflow", options.inflow_label), ("outflow", options.outflow_label)] {
+        if used.contains(&label) || label <= 0 {
+            return Err(PrepareError::Option(format!("the {name} cap label must be positive and differ from the domain's labels {used:?}, got {label}")));
+        }
+    }
+    if options.inflow_label == options.outflow_label {
+        return Err(PrepareError::Option(format!("the inflow and outflow cap labels must differ, both are {}", options.inflow_label)));
+    }
+    let s = &options.stj;
+    let positive = [s.step_mm, s.search_diameters, s.window_mm, s.fallback_diameters, s.max_step_change, options.remesh_edge_mm.unwrap_or(1.0)];
+    if positive.iter().any(|v| !(v.is_finite() && *v > 0.0)) || !(0.0..1.0).contains(&s.min_drop) {
+        return Err(PrepareError::Option(format!("STJ search and remesh settings must be positive (min drop in [0, 1)), got {s:?}, edge {:?}", options.remesh_edge_mm)));
+    }
+    Ok(())
+}
+
+fn check_domain(domain: &TriMesh) -> Result<(), PrepareError> {
+    let r = manifold_report(domain);
+    if !r.is_closed_manifold() || r.inconsistently_wound_edges > 0 {
+        return Err(PrepareError::geometry("designed domain", format!("it must be closed and consistently wound: {r:?}")));
+    }
+    if domain.signed_volume_mm3() <= 0.0 {
+        return Err(PrepareError::geometry("designed domain", "it must be wound outward (positive volume)"));
+    }
+    Ok(())
+}
+
+/// The cap labelled `label`: one planar disk with a single rim.
+fn designed_cap(domain: &TriMesh, label: i32, name: &str) -> Result<DesignedCap, PrepareError> {
+    let keep: Vec<bool> = domain.face_ids.iter().map(|&l| l == label).collect();
+    let (cap, old_of_new) = domain.submesh(&keep);
+    if cap.triangles.is_empty() {
+        return Err(PrepareError::geometry("designed domain", format!("it has no {name} cap (no triangle labelled {label})")));
+    }
+    let loops = cap.boundary_loops().map_err(|e| PrepareError::geometry("designed domain", format!("the {name} cap: {e}")))?;
+    let [rim] = &loops[..] else {
+        return Err(PrepareError::geometry("designed domain", format!("the {name} cap has {} rims, expected 1", loops.len())));
+    };
+    let (_, outward, area_mm2) = cap.label_centroid_normal(label).unwrap_or((Vec3::zeros(), Vec3::z(), 0.0));
+    let plane = oriented(best_fit_plane(&cap.points), outward);
+    let off = cap.points.iter().map(|p| plane.signed_distance_mm(p).abs()).fold(0.0, f64::max);
+    if off > PLANAR_TOLERANCE_MM.max(1e-9 * domain.bbox_diagonal_mm()) {
+        return Err(PrepareError::geometry("designed domain", format!("the {name} cap is not planar ({off:.2e} mm off its plane)")));
+    }
+    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2 })
+}
+
+/// `plane` with its normal turned toward `direction` (still right-handed).
+fn oriented(plane: Plane, direction: Vec3) -> Plane {
+    if plane.normal.dot(&direction) >= 0.0 {
+        return plane;
+    }
+    Plane { normal: -plane.normal, axis_v: -plane.axis_v, ..plane }
+}
+
+/// A plane with `normal` through `point`, axes from `like`.
+fn parallel_plane(like: &Plane, point: Vec3) -> Plane {
+    Plane { centroid: point, ..*like }
+}
+
+/// Centroid of the volume a closed, consistently wound surface encloses.
+fn volume_centroid(mesh: &TriMesh) -> Option<Vec3> {
+    let (mut volume, mut moment) = (0.0, Vec3::zeros());
+    for t in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.triangle_points(t);
+        let v = a.dot(&b.cross(&c)) / 6.0;
+        volume += v;
+        moment += v * (a + b + c) / 4.0;
+    }
+    (volume.abs() > 0.0 && volume.is_finite()).then(|| moment / volume)
+}
+
+/// The mid-LV plane and the LV's section in it (the far cut's loop).
+fn mid_lv_plane(lv: &TriMesh, vsd: &Plane) -> Result<(Plane, Vec<Vec3>), PrepareError> {
+    let centroid = volume_centroid(lv).ok_or_else(|| PrepareError::geometry("mid-LV plane", "the LV surface encloses no volume"))?;
+    let depth = vsd.signed_distance_mm(&centroid);
+    if depth < MIN_LV_DEPTH_MM {
+        return Err(PrepareError::geometry(
+            "mid-LV plane",
+            format!("the LV cavity's centroid lies {depth:.1} mm beyond the VSD cap's plane (need {MIN_LV_DEPTH_MM} mm toward the LV): the mid-LV plane would not cut the LV behind the VSD"),
+        ));
+    }
+    let plane = parallel_plane(vsd, centroid);
+    let section = largest_contour(cut_mesh(lv, plane.centroid, plane.normal), &plane.normal)
+        .ok_or_else(|| PrepareError::geometry("mid-LV plane", "the plane through the LV cavity's centroid misses the LV surface"))?;
+    Ok((plane, section.points))
+}
+
+fn largest_contour(contours: Vec<Contour>, normal: &Vec3) -> Option<Contour> {
+    contours.into_iter().max_by(|a, b| a.signed_area_mm2(normal).abs().total_cmp(&b.signed_area_mm2(normal).abs()))
+}
+
+/// The STJ plane (parallel to the annulus cap), its report and the aorta's section there.
+fn sinotubular_junction(aorta: &TriMesh, annulus: &DesignedCap, opts: &StjOptions) -> Result<(Plane, StjReport, Vec<Vec3>), PrepareError> {
+    let diameter_mm = 2.0 * (annulus.area_mm2 / std::f64::consts::PI).sqrt();
+    let n = annulus.plane.normal;
+    let steps = (opts.search_diameters * diameter_mm / opts.step_mm).ceil() as usize;
+    let mut track = annulus.plane.centroid;
+    let mut heights = Vec::new();
+    let mut sections: Vec<Contour> = Vec::new();
+    for k in 1..=steps {
+        let h = k as f64 * opts.step_mm;
+        let origin = annulus.plane.centroid + h * n;
+        let reference = track + (origin - track).dot(&n) * n;
+        let nearest = cut_mesh(aorta, origin, n).into_iter().min_by(|a, b| (a.centroid() - reference).norm().total_cmp(&(b.centroid() - reference).norm()));
+        let Some(section) = nearest.filter(|c| (c.centroid() - reference).norm() < diameter_mm) else { break };
+        track = section.centroid();
+        heights.push(h);
+        sections.push(section);
+    }
+    if sections.is_empty() {
+        return Err(PrepareError::geometry("STJ", "the aorta surface has no section just above the aortic-annulus cap: does the aorta leave the designed domain there?"));
+    }
+    let raw: Vec<f64> = sections.iter().map(|c| c.signed_area_mm2(&n).abs()).collect();
+    let mut areas = moving_average(&raw, 2);
+    let window = ((opts.window_mm / opts.step_mm).round() as usize).max(1);
+    // Above the sinuses, the root ends where a step jumps in area (a branch, the arch
+    // entering the plane): a minimum needs a gradual rise after it.
+    let first_max = first_maximum(&areas, window).unwrap_or(0);
+    if let Some(jump) = (first_max + 1..raw.len()).find(|&k| (raw[k] / raw[k - 1] - 1.0).abs() > opts.max_step_change) {
+        areas.truncate(jump);
+        heights.truncate(jump);
+        sections.truncate(jump);
+    }
+    let found = area_minimum_after_maximum(&areas, window, opts.min_drop);
+    let profile: Vec<[f64; 2]> = heights.iter().zip(&areas).map(|(&h, &a)| [h, a]).collect();
+    let (index, note) = match found {
+        Some((_, k)) => (k, format!("first section-area minimum above the sinus maximum, at {:.2} mm above the annulus", heights[k])),
+        None => {
+            let h = opts.fallback_diameters * diameter_mm;
+            let k = heights.iter().position(|&x| x >= h - 0.5 * opts.step_mm).ok_or_else(|| {
+                PrepareError::geometry("STJ", format!("no section-area minimum above the sinuses, and the aorta surface ends {:.1} mm above the annulus, below the fallback height {h:.1} mm", heights.last().copied().unwrap_or(0.0)))
+            })?;
+            (k, format!("STJ not found (no section-area minimum {:.0}% below a maximum in the root's sections up to {:.1} mm): outflow cap at the fallback, {} annulus diameter(s) = {:.2} mm above the annulus", opts.min_drop * 100.0, heights.last().copied().unwrap_or(0.0), opts.fallback_diameters, heights[k]))
+        }
+    };
+    let max_k = found.map_or_else(|| (0..=index).max_by(|&a, &b| areas[a].total_cmp(&areas[b])).unwrap_or(0), |(m, _)| m);
+    let plane = parallel_plane(&annulus.plane, annulus.plane.centroid + heights[index] * n);
+    let report = StjReport {
+        found: found.is_some(),
+        note,
+        distance_from_annulus_mm: heights[index],
+        annulus_diameter_mm: diameter_mm,
+        sinus_max_area_mm2: areas[max_k],
+        sinus_max_distance_mm: heights[max_k],
+        stj_area_mm2: areas[index],
+        profile,
+    };
+    Ok((plane, report, sections.swap_remove(index).points))
+}
+
+/// Centred moving average over `half` samples either side (fewer at the ends).
+fn moving_average(values: &[f64], half: usize) -> Vec<f64> {
+    (0..values.len())
+        .map(|k| {
+            let (lo, hi) = (k.saturating_sub(half), (k + half + 1).min(values.len()));
+            values[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
+        })
+        .collect()
+}
+
+/// (maximum, minimum) indices: the first sample that is the largest within `window`
+/// samples either side, then the first later one that is the smallest within
+/// `window` either side and at least `min_drop` below the maximum.
+fn area_minimum_after_maximum(areas: &[f64], window: usize, min_drop: f64) -> Option<(usize, usize)> {
+    let around = |k: usize| &areas[k.saturating_sub(window)..(k + window + 1).min(areas.len())];
+    let is_min = |k: usize| k + window < areas.len() && around(k).iter().all(|&a| a >= areas[k]);
+    let max_k = first_maximum(areas, window)?;
+    let min_k = (max_k + 1..areas.len()).find(|&k| is_min(k) && areas[k] <= (1.0 - min_drop) * areas[max_k])?;
+    Some((max_k, min_k))
+}
+
+/// The first sample that is the largest within `window` samples either side (and has
+/// `window` samples after it).
+fn first_maximum(areas: &[f64], window: usize) -> Option<usize> {
+    let around = |k: usize| &areas[k.saturating_sub(window)..(k + window + 1).min(areas.len())];
+    (0..areas.len()).find(|&k| k + window < areas.len() && around(k).iter().all(|&a| a <= areas[k]))
+}
+
+/// The box the union must cover: the designed domain, the LV up to the mid-LV plane and
+/// the aorta up to the STJ plane (with `margin_mm`), all grown by `margin_mm`.
+fn extension_bounds(domain: &TriMesh, pools: &BloodPools, mid_lv: &Plane, stj: &Plane, margin_mm: f64) -> Aabb {
+    let lv = pools.lv.points.iter().filter(|p| mid_lv.signed_distance_mm(p) <= margin_mm);
+    let aorta = pools.aorta.points.iter().filter(|p| stj.signed_distance_mm(p) <= margin_mm);
+    Aabb::from_points(domain.points.iter().chain(lv).chain(aorta)).expanded(margin_mm)
+}
+
+fn mean_rim_edge_mm(mesh: &TriMesh, rims: &[&Vec<u32>]) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for rim in rims {
+        for i in 0..rim.len() {
+            sum += (mesh.points[rim[i] as usize] - mesh.points[rim[(i + 1) % rim.len()] as usize]).norm();
+            count += 1;
+        }
+    }
+    sum / count.max(1) as f64
+}
+
+/// One part of the extension: from a designed cap (`near`) to a new cap in `far`.
+struct Extension<'a> {
+    name: &'static str,
+    near: &'a DesignedCap,
+    near_name: &'static str,
+    far: Plane,
+    far_name: &'static str,
+    far_loop: &'a [Vec3],
+    far_label: i32,
+}
+
+impl Extension<'_> {
+    /// Cut the part from `union`, cap its far end and zip it to the near cap's rim in
+    /// `surface`; returns the triangles added.
+    fn attach(&self, surface: &mut TriMesh, union: &TriMesh, edge_mm: f64, snap_mm: f64, wall: i32) -> Result<usize, PrepareError> {
+        let step = |m: String| PrepareError::geometry("extension", format!("the {} part: {m}", self.name));
+        let near_loop: Vec<Vec3> = self.near.rim.iter().map(|&v| surface.points[v as usize]).collect();
+        let cuts = [
+            Cut { name: self.near_name, plane: self.near.plane, loop_mm: &near_loop },
+            Cut { name: self.far_name, plane: self.far, loop_mm: self.far_loop },
+        ];
+        let clipped = clip_between(union, &cuts, snap_mm).map_err(step)?;
+        let planes = [self.near.plane, self.far];
+        let remeshed = remesh_wall(&clipped, &planes, edge_mm).map_err(step)?;
+        let (retracted, near_boundary, far_rim) = retract_rim(&remeshed.mesh, &remeshed.rims[0], &self.far).map_err(step)?;
+        let capped = close_with_caps(&Clipped { mesh: retracted, rims: vec![far_rim] }, &[self.far], wall, &[self.far_label]).map_err(step)?;
+        let before = surface.triangles.len();
+        let offset = surface.points.len() as u32;
+        surface.points.extend_from_slice(&capped.points);
+        surface.triangles.extend(capped.triangles.iter().map(|t| t.map(|v| v + offset)));
+        surface.face_ids.extend_from_slice(&capped.face_ids);
+        let inner: Vec<u32> = near_boundary.iter().map(|&v| v + offset).collect();
+        let mut band = Vec::new();
+        zip_rings(&surface.points, &self.near.rim, &inner, &mut band);
+        surface.face_ids.extend(std::iter::repeat_n(wall, band.len()));
+        surface.triangles.extend(band);
+        Ok(surface.triangles.len() - before)
+    }
+}
+
+/// Drop the triangles touching `rim` (and any left with a pinched boundary): the part
+/// then ends one row short of the near plane. Returns it, its new near boundary and
+/// its far rim (the loop nearest `far`), both in the part's winding.
+fn retract_rim(mesh: &TriMesh, rim: &[u32], far: &Plane) -> Result<(TriMesh, Vec<u32>, Vec<u32>), String> {
+    let rim: HashSet<u32> = rim.iter().copied().collect();
+    let mut keep: Vec<bool> = mesh.triangles.iter().map(|t| !t.iter().any(|v| rim.contains(v))).collect();
+    for _ in 0..8 {
+        let (sub, _) = mesh.submesh(&keep);
+        if let Ok(loops) = sub.boundary_loops() {
+            if loops.len() != 2 {
+                return Err(format!("{} openings after dropping the row at the designed cap, expected 2", loops.len()));
+            }
+            let offset = |lp: &Vec<u32>| lp.iter().map(|&v| far.signed_distance_mm(&sub.points[v as usize]).abs()).sum::<f64>() / lp.len() as f64;
+            let far_index = if offset(&loops[0]) <= offset(&loops[1]) { 0 } else { 1 };
+            let (far_rim, near) = (loops[far_index].clone(), loops[1 - far_index].clone());
+            return Ok((sub, near, far_rim));
+        }
+        drop_pinches(mesh, &mut keep);
+    }
+    Err("the row at the designed cap could not be dropped cleanly (pinched boundary)".into())
+}
+
+/// Unkeep the triangles with two boundary edges or a corner where the boundary pinches.
+fn drop_pinches(mesh: &TriMesh, keep: &mut [bool]) {
+    let mut count: HashMap<(u32, u32), usize> = HashMap::new();
+    for (_, tri) in mesh.triangles.iter().enumerate().filter(|(t, _)| keep[*t]) {
+        for k in 0..3 {
+            *count.entry(edge_key(tri[k], tri[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    let mut degree: HashMap<u32, usize> = HashMap::new();
+    for (&(a, b), _) in count.iter().filter(|(_, &c)| c == 1) {
+        *degree.entry(a).or_default() += 1;
+        *degree.entry(b).or_default() += 1;
+    }
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if !keep[t] {
+            continue;
+        }
+        let boundary_edges = (0..3).filter(|&k| count[&edge_key(tri[k], tri[(k + 1) % 3])] == 1).count();
+        let pinched = tri.iter().any(|v| degree.get(v).copied().unwrap_or(0) > 2);
+        if boundary_edges >= 2 || pinched {
+            keep[t] = false;
+        }
+    }
+}
+
+/// `surface` without the triangles labelled `interior`.
+fn wall_only(surface: &TriMesh, interior: &[i32]) -> TriMesh {
+    let keep: Vec<bool> = surface.face_ids.iter().map(|l| !interior.contains(l)).collect();
+    surface.submesh(&keep).0
+}
+
+/// The extended surface less its interior caps must be closed, consistently wound and
+/// outward; each interior cap edge is shared by 2 triangles inside it and 3 on its rim;
+/// no added triangle may cross another.
+fn check_extended(surface: &TriMesh, designed_triangles: usize, interior: &[i32]) -> Result<(), PrepareError> {
+    let fail = |m: String| Err(PrepareError::geometry("extended domain", m));
+    let wall = wall_only(surface, interior);
+    let r = manifold_report(&wall);
+    if !r.is_closed_manifold() || r.inconsistently_wound_edges > 0 {
+        return fail(format!("without its interior caps it is not closed and consistently wound: {r:?}"));
+    }
+    if wall.signed_volume_mm3() <= 0.0 {
+        return fail("it is wound inward".into());
+    }
+    let edges = surface.edge_triangles();
+    for (t, tri) in surface.triangles.iter().enumerate().filter(|(t, _)| interior.contains(&surface.face_ids[*t])) {
+        for k in 0..3 {
+            let n = edges[&edge_key(tri[k], tri[(k + 1) % 3])].len();
+            if n != 2 && n != 3 {
+                return fail(format!("an edge of interior cap triangle {t} is shared by {n} triangles (expected 2 inside the cap, 3 on its rim)"));
+            }
+        }
+    }
+    let bvh = TriangleBvh::new(surface).map_err(|e| PrepareError::geometry("extended domain", e))?;
+    let first = designed_triangles as u32;
+    if let Some(&(a, b)) = bvh.self_intersections_par(surface, |a, b| a >= first || b >= first).first() {
+        let [p, q, s] = surface.triangle_points(a.max(b) as usize);
+        let c = (p + q + s) / 3.0;
+        return fail(format!("the extension crosses itself or the designed domain near ({:.1}, {:.1}, {:.1}) mm (triangles {a}, {b})", c.x, c.y, c.z));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_stj_is_the_first_minimum_after_the_sinus_maximum() {
+        // Rises to the sinuses at 4, falls to the STJ at 10, widens again.
+        let areas: Vec<f64> = (0..30).map(|k| {
+            let s = k as f64;
+            if s <= 4.0 { 50.0 + 5.0 * s } else if s <= 10.0 { 70.0 - 4.0 * (s - 4.0) } else { 46.0 + 0.5 * (s - 10.0) }
+        }).collect();
+        assert_eq!(area_minimum_after_maximum(&areas, 2, 0.05), Some((4, 10)));
+    }
+
+    #[test]
+    fn a_straight_tube_has_no_stj() {
+        let areas = vec![50.0; 40];
+        // Every sample is a maximum and a minimum, but none lies below the first.
+        assert_eq!(area_minimum_after_maximum(&areas, 3, 0.05), None);
+        let shallow: Vec<f64> = (0..40).map(|k| 50.0 - 0.01 * (k as f64 - 20.0).abs()).collect();
+        assert_eq!(area_minimum_after_maximum(&shallow, 3, 0.05), None);
+    }
+
+    #[test]
+    fn the_volume_centroid_of_a_sphere_is_its_centre() {
+        let sphere = crate::shapes::uv_sphere(Vec3::new(3.0, -2.0, 5.0), 4.0, 24, 48);
+        let c = volume_centroid(&sphere).unwrap();
+        assert!((c - Vec3::new(3.0, -2.0, 5.0)).norm() < 1e-9, "{c:?}");
+    }
+
+    #[test]
+    fn oriented_planes_stay_right_handed() {
+        let p = best_fit_plane(&[Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::new(1.0, 1.0, 0.0)]);
+        for dir in [Vec3::z(), -Vec3::z()] {
+            let q = oriented(p, dir);
+            assert!(q.normal.dot(&dir) > 0.99);
+            assert!((q.axis_u.cross(&q.axis_v) - q.normal).norm() < 1e-12);
+        }
+    }
+}
