@@ -17,10 +17,13 @@
 //!    `|step| (1/R_a^2 + 1/R_b^2) / 2`: the path keeps to the middle as VMTK's does;
 //! 3. the voxel path is resampled at the voxel size and smoothed (moving average,
 //!    half-width `smoothing_mm`, ends fixed), which removes the grid's staircase;
-//! 4. each point is re-centred in the plane normal to the curve: compass search for
-//!    the largest R within `recenter_voxels` voxels (the centre of the largest
-//!    inscribed circle of the cross-section, where the Voronoi medial line runs): the
-//!    result no longer depends on the voxel grid beyond its first digits;
+//! 4. the curve is resampled at half the output spacing and each point re-centred in
+//!    the plane normal to the curve: compass search for the largest R within
+//!    `recenter_fraction` of R (the centre of the largest inscribed circle of the
+//!    cross-section, where the Voronoi medial line runs), then smoothed again with the
+//!    same moving average; twice. This takes the curve off the voxel grid (the raw
+//!    1/R^2 path wanders on the flat medial sheet of a wide chamber: on p3 it is about
+//!    1.5 mm longer than the re-centred one);
 //! 5. the curve, extended a little past both ends along its end tangents, is trimmed
 //!    at the measurement planes (the crossing with each plane's triangles: the last
 //!    crossing of the inflow plane before the first crossing of the outflow plane),
@@ -42,6 +45,8 @@ use std::collections::BinaryHeap;
 pub const PAPER_SPACING_MM: f64 = 0.5;
 /// Largest grid built; a coarser voxel is used beyond it (said in the result).
 const MAX_VOXELS: usize = 40_000_000;
+/// Re-centring and smoothing rounds (the second moves the points by a few hundredths of a mm).
+const RECENTER_PASSES: usize = 2;
 /// Compass search stops at this step (mm).
 const RECENTER_TOLERANCE_MM: f64 = 1e-3;
 
@@ -113,13 +118,13 @@ pub struct CenterlineOptions {
     pub spacing_mm: f64,
     /// Half-width of the moving average (mm).
     pub smoothing_mm: f64,
-    /// Largest re-centring shift, in voxels.
-    pub recenter_voxels: f64,
+    /// Largest re-centring shift, as a fraction of the point's inscribed radius.
+    pub recenter_fraction: f64,
 }
 
 impl Default for CenterlineOptions {
     fn default() -> Self {
-        CenterlineOptions { voxel_mm: 0.15, spacing_mm: PAPER_SPACING_MM, smoothing_mm: 1.0, recenter_voxels: 2.0 }
+        CenterlineOptions { voxel_mm: 0.2, spacing_mm: PAPER_SPACING_MM, smoothing_mm: 1.0, recenter_fraction: 0.25 }
     }
 }
 
@@ -175,8 +180,14 @@ pub fn flow_centerline(lumen: &Lumen, opts: &CenterlineOptions) -> Result<FlowCe
     clock.lap("minimal_path");
     let h = grid.spacing_mm;
     let curve = moving_average(&resample(&path, h), (opts.smoothing_mm / h).round() as usize);
-    let curve = recenter(&curve, &wall, opts.recenter_voxels * h, h);
-    let curve = moving_average(&curve, (0.5 * opts.smoothing_mm / h).round() as usize);
+    // Re-centred and smoothed at a step tied to the output spacing, not to the grid:
+    // a flat ridge leaves each point's maximum a little uncertain, and that jitter,
+    // if taken per voxel, would lengthen the curve as the voxels shrink.
+    let step = 0.5 * opts.spacing_mm;
+    let mut curve = resample(&curve, step);
+    for _ in 0..RECENTER_PASSES {
+        curve = moving_average(&recenter(&curve, &wall, opts.recenter_fraction, h), (opts.smoothing_mm / step).round() as usize);
+    }
     let trimmed = trim_between(&extend_ends(&curve, 4.0 * h + 1.0), &lumen.planes)?;
     let points = resample(&trimmed, opts.spacing_mm);
     let s_mm = arc_lengths(&points);
@@ -206,7 +217,11 @@ fn lumen_grid(surface: &TriMesh, voxel_mm: f64) -> Result<Grid, String> {
     let (lo, hi) = surface.points.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
     let mut h = voxel_mm;
     loop {
-        let grid = Grid::covering(lo, hi, h, 2);
+        // Voxel centres off round coordinates: a cap plane exactly through a row of
+        // centres lies on the silhouette of the wall's shadow, where column crossings
+        // are not counted exactly (an axis-aligned test tube hits that).
+        let mut grid = Grid::covering(lo, hi, h, 2);
+        grid.origin -= h * Vec3::new(0.137, 0.291, 0.419);
         if grid.voxel_count() <= MAX_VOXELS {
             return Ok(grid);
         }
@@ -328,9 +343,11 @@ fn moving_average(points: &[Vec3], half: usize) -> Vec<Vec3> {
         .collect()
 }
 
-/// Move each point, within `max_shift` in the plane normal to the curve, to
-/// where the wall is farthest (compass search from step `h`).
-fn recenter(points: &[Vec3], wall: &WallDistance, max_shift: f64, h: f64) -> Vec<Vec3> {
+/// Move each point, by at most `fraction` of its inscribed radius in the plane normal
+/// to the curve, to where the wall is farthest (compass search from step `h`). The
+/// bound scales with the lumen: in a wide chamber the medial ridge is flat and a bound
+/// tied to the voxel would leave the result depending on the grid.
+fn recenter(points: &[Vec3], wall: &WallDistance, fraction: f64, h: f64) -> Vec<Vec3> {
     let n = points.len();
     if n < 2 {
         return points.to_vec();
@@ -344,7 +361,7 @@ fn recenter(points: &[Vec3], wall: &WallDistance, max_shift: f64, h: f64) -> Vec
             let helper = if t.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
             let u = t.cross(&helper).normalize();
             let v = t.cross(&u);
-            compass_search(points[i], [u, v], |p| wall.at(p), max_shift, h)
+            compass_search(points[i], [u, v], |p| wall.at(p), fraction * wall.at(points[i]), h)
         })
         .collect()
 }

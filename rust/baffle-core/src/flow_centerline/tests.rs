@@ -90,7 +90,7 @@ fn straight_cylinder_length_and_radius() {
     for (k, &r) in line.radius_mm.iter().enumerate() {
         assert!((r / polygon - 1.0).abs() < 0.02, "point {k}: radius {r} vs {polygon}");
     }
-    assert!(line.voxel_mm == 0.15 && line.inside_voxels > 1000);
+    assert!(line.voxel_mm == 0.2 && line.inside_voxels > 1000);
 }
 
 #[test]
