@@ -118,6 +118,7 @@ impl<'a> TetLocator<'a> {
     }
 
     /// `values` (one per point) interpolated at `p`.
+    #[cfg(test)]
     pub fn interpolate(&self, values: &[f64], p: [f64; 3]) -> Option<f64> {
         self.locate(p).map(|located| self.interpolate_at(values, located))
     }
