@@ -119,3 +119,26 @@ fn a_closed_stdout_ends_the_command_quietly() {
     assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}", out.status);
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn centerline_of_the_designed_phantom_domain_and_a_missing_plane() {
+    let design = temp_dir("centerline-design");
+    let out = baffle(&["design", "--phantom", "--out", design.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let domain = design.join("domain.vtp");
+    let line = design.join("flow/centerline.vtp");
+    let out = baffle(&["centerline", "--surface", domain.to_str().unwrap(), "--out", line.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(design.join("flow/centerline.json")).unwrap()).unwrap();
+    let length = doc["length_mm"].as_f64().unwrap();
+    let s: Vec<f64> = doc["s_mm"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert!(length > 1.0 && (s.last().unwrap() - length).abs() < 1e-9, "length {length}");
+    assert!(s.windows(2).all(|w| w[1] > w[0] && w[1] - w[0] <= 0.5 + 1e-9));
+    assert!(doc["radius_min_mm"].as_f64().unwrap() > 0.0);
+    assert!(line.is_file() && String::from_utf8_lossy(&out.stdout).contains("flow-domain centerline"));
+    // A plane label the surface lacks is named.
+    let out = baffle(&["centerline", "--surface", domain.to_str().unwrap(), "--planes", "11,99", "--out", line.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("labelled 99"), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(design).ok();
+}
