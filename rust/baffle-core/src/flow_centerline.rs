@@ -388,13 +388,13 @@ fn extend_ends(points: &[Vec3], length: f64) -> Vec<Vec3> {
     if n < 2 {
         return points.to_vec();
     }
-    let back = (points[0] - points[1.min(n - 1).max(1)]).normalize();
+    // Tangents over a few points (about 0.75 mm), steadier than the last segment alone.
     let k = 3.min(n - 1);
-    let start_tangent = (points[0] - points[k]).try_normalize(1e-12).unwrap_or(back);
-    let end_tangent = (points[n - 1] - points[n - 1 - k]).try_normalize(1e-12).unwrap_or(-back);
-    let mut out = vec![points[0] + length * start_tangent];
+    let start = (points[0] - points[k]).normalize();
+    let end = (points[n - 1] - points[n - 1 - k]).normalize();
+    let mut out = vec![points[0] + length * start];
     out.extend_from_slice(points);
-    out.push(points[n - 1] + length * end_tangent);
+    out.push(points[n - 1] + length * end);
     out
 }
 
