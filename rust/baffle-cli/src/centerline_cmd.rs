@@ -23,7 +23,8 @@ pub struct CenterlineArgs {
     #[arg(long, value_delimiter = ',', default_value = "11,16")]
     pub planes: Vec<i32>,
     /// The end caps of --surface the path runs between (inflow first), when the planes
-    /// are not caps of it (an extended domain); default: the planes.
+    /// are not caps of it (an extended domain, e.g. `baffle extend`'s 20,21); default: the
+    /// planes. Plane triangles of --surface that are not end caps are taken as interior.
     #[arg(long, value_delimiter = ',')]
     pub ends: Option<Vec<i32>>,
     /// A face file holding the planes' triangles (e.g. mesh-faces.vtp of `baffle mesh`,
@@ -65,6 +66,12 @@ fn read_mm(path: &Path, scale: f64) -> Result<TriMesh, String> {
     Ok(mesh)
 }
 
+/// `mesh` without the triangles labelled `labels` (points kept).
+fn without_labels(mesh: &TriMesh, labels: &[i32]) -> TriMesh {
+    let keep: Vec<usize> = (0..mesh.triangles.len()).filter(|&t| !labels.contains(&mesh.face_ids[t])).collect();
+    TriMesh::new(mesh.points.clone(), keep.iter().map(|&t| mesh.triangles[t]).collect(), keep.iter().map(|&t| mesh.face_ids[t]).collect())
+}
+
 fn two(labels: &[i32], flag: &str) -> Result<[i32; 2], String> {
     <[i32; 2]>::try_from(labels).map_err(|_| format!("{flag}: give two labels (inflow,outflow), got {labels:?}"))
 }
@@ -83,7 +90,12 @@ pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>
     };
     let source = args.plane_faces.as_ref().unwrap_or(&args.surface).display().to_string();
     let plane = |label| MeasurementPlane::from_label(&faces, label).ok_or_else(|| format!("{source}: no triangles labelled {label} (measurement plane)"));
-    let lumen = Lumen::with_end_caps(&surface, ends[0], ends[1], [plane(planes[0])?, plane(planes[1])?]).map_err(|e| format!("{}: {e}", args.surface.display()))?;
+    let measurement = [plane(planes[0])?, plane(planes[1])?];
+    // Plane triangles that are not end caps lie inside the lumen (the extended surface of
+    // `baffle extend` keeps the designed caps 11 and 16 there): not part of its boundary.
+    let interior: Vec<i32> = planes.iter().filter(|l| !ends.contains(l)).copied().collect();
+    let boundary = without_labels(&surface, &interior);
+    let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let options = CenterlineOptions { voxel_mm: args.voxel_mm, spacing_mm: args.spacing_mm, smoothing_mm: args.smoothing_mm, recenter_fraction: args.recenter_fraction };
     let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let profile = match &args.results {

@@ -203,5 +203,19 @@ fn centerline_of_an_extended_domain_is_trimmed_at_its_interior_planes() {
     assert!((length - 9.0).abs() < 0.05, "length {length} between planes 9 mm apart");
     let z: Vec<f64> = doc["points_mm"].as_array().unwrap().iter().map(|p| p[2].as_f64().unwrap()).collect();
     assert!((z[0] - 4.0).abs() < 1e-9 && (z.last().unwrap() - 13.0).abs() < 1e-9, "{z:?}");
+    // The planes inside the surface file itself, as `baffle extend` writes them: the same line.
+    let discs = baffle_core::io::read_surface(&faces).unwrap();
+    let mut merged = cylinder(2.0, 16.0, 32, 48);
+    let offset = merged.points.len() as u32;
+    merged.points.extend(discs.points);
+    merged.triangles.extend(discs.triangles.iter().map(|t| t.map(|i| i + offset)));
+    merged.face_ids.extend(discs.face_ids);
+    let inside = dir.join("with-planes.vtp");
+    baffle_core::io::write_trimesh_vtp(&inside, &merged).unwrap();
+    let out2 = dir.join("centerline2.vtp");
+    let run = baffle(&["centerline", "--surface", inside.to_str().unwrap(), "--ends", "1,3", "--out", out2.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let doc2: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("centerline2.json")).unwrap()).unwrap();
+    assert!((doc2["length_mm"].as_f64().unwrap() - length).abs() < 1e-9, "{} vs {length}", doc2["length_mm"]);
     std::fs::remove_dir_all(dir).ok();
 }
