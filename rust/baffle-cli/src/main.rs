@@ -10,12 +10,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 mod case;
+mod centerline_cmd;
 mod export_cmd;
 mod extend_cmd;
 mod mesh_cmd;
 mod plan_cmd;
 mod prepare_cmd;
 mod report;
+mod sampling;
 mod simulate_cmd;
 mod simulate_svmp;
 
@@ -45,6 +47,9 @@ enum Command {
     Mesh(mesh_cmd::MeshArgs),
     /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
     Simulate(simulate_cmd::SimulateArgs),
+    /// Flow-domain centerline of a closed lumen between two measurement planes (paper
+    /// 2.5): length, inscribed radii and, with --results, v_max and pressure along it.
+    Centerline(centerline_cmd::CenterlineArgs),
     /// Write the same case for svMultiPhysics (the paper's MPI solver), to run on a cluster.
     ExportSvmp(export_cmd::ExportArgs),
     /// Prepare (from --segmentations or --labelmap), design, mesh and simulate in one run,
@@ -178,6 +183,7 @@ fn main() -> ExitCode {
         Command::Extend(args) => extend_cmd::run_extend(&args),
         Command::Mesh(args) => mesh_cmd::run_mesh(&args),
         Command::Simulate(args) => simulate_cmd::run_simulate(&args),
+        Command::Centerline(args) => centerline_cmd::run_centerline(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),
         Command::Plan(args) => plan_cmd::run_plan(&args),
         Command::Phantom { out } => write_phantom(&out),

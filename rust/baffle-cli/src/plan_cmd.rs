@@ -1,4 +1,4 @@
-//! `baffle plan`: [prepare ->] design -> mesh -> simulate in one run, each stage in
+//! `baffle plan`: [prepare ->] design -> centerline -> mesh -> simulate in one run, each stage in
 //! its own subfolder of --out, then report.json and report.html (see `report`). The
 //! prepare stage runs when the ventricle is given as --segmentations or --labelmap
 //! instead of --surface; it is then followed, after the design, by an `extend` stage
@@ -14,7 +14,7 @@
 
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::prepare_cmd::{self, PrepareSource};
-use crate::{design_reporting, extend_cmd, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
+use crate::{centerline_cmd, design_reporting, extend_cmd, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use clap::{Args, FromArgMatches};
@@ -96,6 +96,8 @@ pub enum Step {
     Design,
     /// The designed domain -> the extended CFD domain (`baffle extend`).
     Extend,
+    /// The flow-domain centerline of the designed domain (`baffle centerline`).
+    Centerline,
     Mesh { level: &'static str, edge_length_mm: f64 },
     Simulate { level: &'static str, flow: FlowCase },
 }
@@ -175,6 +177,7 @@ pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
     if is_extended(args) {
         stages.push(Stage { name: "extend".into(), step: Step::Extend, weight: 1.0 });
     }
+    stages.push(Stage { name: "centerline".into(), step: Step::Centerline, weight: 0.5 });
     for (level, edge_length_mm) in mesh_levels(args) {
         stages.push(Stage { name: format!("mesh-{level}"), step: Step::Mesh { level, edge_length_mm }, weight: 1.0 });
         stages.push(Stage { name: format!("simulate-{level}"), step: Step::Simulate { level, flow: FlowCase::Nominal }, weight: simulate_weight });
@@ -200,6 +203,11 @@ fn command_args<A: Args + FromArgMatches>(name: &'static str, argv: &[OsString])
     let command = A::augment_args(clap::Command::new(name).no_binary_name(true));
     let matches = command.try_get_matches_from(argv).map_err(|e| format!("{name} arguments: {e}"))?;
     A::from_arg_matches(&matches).map_err(|e| format!("{name} arguments: {e}"))
+}
+
+/// The flow-domain centerline a centerline stage writes (its figures in the .json beside it).
+pub fn flow_centerline_path(out: &Path) -> PathBuf {
+    out.join("centerline").join("centerline.vtp")
 }
 
 pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
@@ -271,6 +279,20 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
                 }
                 true
             })
+        }
+        Step::Centerline => {
+            let d = &args.design;
+            let planes = format!("{},{}", d.vsd_label, d.aortic_label);
+            let mut argv: Vec<OsString> = vec!["--planes".into(), planes.into(), "--out".into(), flow_centerline_path(out).into()];
+            if is_extended(args) {
+                // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to
+                // the STJ cap, trimmed at the VSD and aortic caps (interior planes).
+                let ends = format!("{INFLOW_CAP_LABEL},{OUTFLOW_CAP_LABEL}");
+                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--ends".into(), ends.into()]);
+            } else {
+                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into()]);
+            }
+            centerline_cmd::run_centerline(&command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?)
         }
         Step::Extend => {
             let domain = out.join("design").join("domain.vtp");
@@ -360,8 +382,8 @@ mod tests {
 
     #[test]
     fn segmentations_or_a_label_map_put_a_prepare_stage_first() {
-        let rest = ["design", "mesh-nominal", "simulate-nominal"];
-        let extended = ["design", "extend", "mesh-nominal", "simulate-nominal"];
+        let rest = ["design", "centerline", "mesh-nominal", "simulate-nominal"];
+        let extended = ["design", "extend", "centerline", "mesh-nominal", "simulate-nominal"];
         assert_eq!(stage_names(&["--segmentations", "seg"]), [&["prepare"][..], &extended].concat());
         assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8"]), [&["prepare"][..], &extended].concat());
         assert_eq!(stage_names(&["--surface", "capped.vtp"]), rest);

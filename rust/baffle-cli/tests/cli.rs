@@ -119,3 +119,103 @@ fn a_closed_stdout_ends_the_command_quietly() {
     assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}", out.status);
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn centerline_of_the_designed_phantom_domain_and_a_missing_plane() {
+    let design = temp_dir("centerline-design");
+    let out = baffle(&["design", "--phantom", "--out", design.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let domain = design.join("domain.vtp");
+    let line = design.join("flow/centerline.vtp");
+    let out = baffle(&["centerline", "--surface", domain.to_str().unwrap(), "--out", line.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(design.join("flow/centerline.json")).unwrap()).unwrap();
+    let length = doc["length_mm"].as_f64().unwrap();
+    let s: Vec<f64> = doc["s_mm"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert!(length > 1.0 && (s.last().unwrap() - length).abs() < 1e-9, "length {length}");
+    assert!(s.windows(2).all(|w| w[1] > w[0] && w[1] - w[0] <= 0.5 + 1e-9));
+    assert!(doc["radius_min_mm"].as_f64().unwrap() > 0.0);
+    assert!(line.is_file() && String::from_utf8_lossy(&out.stdout).contains("flow-domain centerline"));
+    // A plane label the surface lacks is named.
+    let out = baffle(&["centerline", "--surface", domain.to_str().unwrap(), "--planes", "11,99", "--out", line.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("labelled 99"), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(design).ok();
+}
+
+/// A closed cylinder along z (radius r, length l): wall 2, end caps 1 (z = 0) and 3 (z = l).
+fn cylinder(r: f64, l: f64, rings: usize, around: usize) -> baffle_core::TriMesh {
+    use baffle_core::Vec3;
+    let mut points: Vec<Vec3> = Vec::new();
+    for i in 0..=rings {
+        for j in 0..around {
+            let a = 2.0 * std::f64::consts::PI * j as f64 / around as f64;
+            points.push(Vec3::new(r * a.cos(), r * a.sin(), l * i as f64 / rings as f64));
+        }
+    }
+    let id = |i: usize, j: usize| (i * around + j % around) as u32;
+    let (mut triangles, mut labels) = (Vec::new(), Vec::new());
+    for i in 0..rings {
+        for j in 0..around {
+            triangles.extend([[id(i, j), id(i, j + 1), id(i + 1, j + 1)], [id(i, j), id(i + 1, j + 1), id(i + 1, j)]]);
+            labels.extend([2, 2]);
+        }
+    }
+    for (i, label) in [(0, 1), (rings, 3)] {
+        let c = points.len() as u32;
+        points.push(Vec3::new(0.0, 0.0, l * i as f64 / rings as f64));
+        for j in 0..around {
+            triangles.push(if i == 0 { [c, id(i, j + 1), id(i, j)] } else { [c, id(i, j), id(i, j + 1)] });
+            labels.push(label);
+        }
+    }
+    baffle_core::TriMesh::new(points, triangles, labels)
+}
+
+#[test]
+fn centerline_of_an_extended_domain_is_trimmed_at_its_interior_planes() {
+    use baffle_core::Vec3;
+    let dir = temp_dir("extended");
+    let surface = dir.join("extended.vtp");
+    baffle_core::io::write_trimesh_vtp(&surface, &cylinder(2.0, 16.0, 32, 48)).unwrap();
+    // Interior measurement planes 11 (z = 4) and 16 (z = 13), as a face file holds them.
+    let (mut points, mut triangles, mut labels) = (Vec::new(), Vec::new(), Vec::new());
+    for (z, label) in [(4.0, 11), (13.0, 16)] {
+        let c = points.len() as u32;
+        points.push(Vec3::new(0.0, 0.0, z));
+        for j in 0..32 {
+            let a = 2.0 * std::f64::consts::PI * j as f64 / 32.0;
+            points.push(Vec3::new(2.0 * a.cos(), 2.0 * a.sin(), z));
+        }
+        for j in 0..32u32 {
+            triangles.push([c, c + 1 + j, c + 1 + (j + 1) % 32]);
+            labels.push(label);
+        }
+    }
+    let faces = dir.join("mesh-faces.vtp");
+    baffle_core::io::write_trimesh_vtp(&faces, &baffle_core::TriMesh::new(points, triangles, labels)).unwrap();
+    let out = dir.join("centerline.vtp");
+    let args = ["centerline", "--surface", surface.to_str().unwrap(), "--ends", "1,3", "--plane-faces", faces.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let run = baffle(&args);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("centerline.json")).unwrap()).unwrap();
+    let length = doc["length_mm"].as_f64().unwrap();
+    assert!((length - 9.0).abs() < 0.05, "length {length} between planes 9 mm apart");
+    let z: Vec<f64> = doc["points_mm"].as_array().unwrap().iter().map(|p| p[2].as_f64().unwrap()).collect();
+    assert!((z[0] - 4.0).abs() < 1e-9 && (z.last().unwrap() - 13.0).abs() < 1e-9, "{z:?}");
+    // The planes inside the surface file itself, as `baffle extend` writes them: the same line.
+    let discs = baffle_core::io::read_surface(&faces).unwrap();
+    let mut merged = cylinder(2.0, 16.0, 32, 48);
+    let offset = merged.points.len() as u32;
+    merged.points.extend(discs.points);
+    merged.triangles.extend(discs.triangles.iter().map(|t| t.map(|i| i + offset)));
+    merged.face_ids.extend(discs.face_ids);
+    let inside = dir.join("with-planes.vtp");
+    baffle_core::io::write_trimesh_vtp(&inside, &merged).unwrap();
+    let out2 = dir.join("centerline2.vtp");
+    let run = baffle(&["centerline", "--surface", inside.to_str().unwrap(), "--ends", "1,3", "--out", out2.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let doc2: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("centerline2.json")).unwrap()).unwrap();
+    assert!((doc2["length_mm"].as_f64().unwrap() - length).abs() < 1e-9, "{} vs {length}", doc2["length_mm"]);
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -68,7 +68,7 @@ fn phantom_plan_reports_the_stages_own_figures() {
     let run = phantom_plan(&out, &[COARSE_STEADY, &["--progress-tags"]].concat(), &[]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
-    for stage in ["design", "mesh-nominal", "simulate-nominal"] {
+    for stage in ["design", "centerline", "mesh-nominal", "simulate-nominal"] {
         assert!(stdout.contains(&format!("plan: stage {stage} done in")), "no line for {stage}: {stdout}");
     }
     // Progress tags rise from 0 to 1 across all the stages.
@@ -98,6 +98,9 @@ fn phantom_plan_reports_the_stages_own_figures() {
         (&quality, ["tetrahedra", "min_scaled_jacobian", "p1_scaled_jacobian", "p99_aspect_ratio"].as_slice()),
         (&summary, ["dp_peak_mmhg", "max_velocity_m_s"].as_slice()),
     ];
+    let flow_line = read_json(&out.join("centerline/centerline.json"));
+    assert!(close(q["flow_centerline_length_mm"].as_f64().unwrap(), flow_line["length_mm"].as_f64().unwrap()));
+    assert_eq!(report["centerline"]["s_mm"].as_array().unwrap().len(), flow_line["s_mm"].as_array().unwrap().len());
     for (file, keys) in sources {
         for key in keys {
             let (a, b) = (q[key].as_f64().unwrap_or(f64::NAN), file[key].as_f64().unwrap_or(f64::NAN));
@@ -116,7 +119,7 @@ fn phantom_plan_reports_the_stages_own_figures() {
 
     check_html(&out.join("report.html"));
     // Every stage wrote atomically: no temporary files are left in any subfolder.
-    for stage in ["design", "mesh-nominal", "simulate-nominal", "."] {
+    for stage in ["design", "centerline", "mesh-nominal", "simulate-nominal", "."] {
         let names: Vec<String> = std::fs::read_dir(out.join(stage)).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
         assert!(!names.iter().any(|n| n.contains(".tmp")), "{stage}: {names:?}");
     }
@@ -136,7 +139,7 @@ fn check_html(path: &Path) {
         assert!(view_box.len() == 4 && view_box[2] > 0.0 && view_box[3] > 0.0, "{view_box:?}");
     }
     let cells: Vec<String> = doc.descendants().filter(|n| n.has_tag_name("td")).map(|n| n.text().unwrap_or("").to_string()).collect();
-    for row in ["Target area", "Centerline length", "Baffle area", "Baffle triangles", "Tetrahedra", "Scaled Jacobian, min", "Scaled Jacobian, 1st percentile", "Aspect ratio, 99th percentile", "v_max (domain)"] {
+    for row in ["Target area", "Centerline length", "Baffle area", "Baffle triangles", "Tetrahedra", "Scaled Jacobian, min", "Scaled Jacobian, 1st percentile", "Aspect ratio, 99th percentile", "v_max (domain)", "Flow-domain centerline length", "v_max along the flow-domain centerline"] {
         assert!(cells.iter().any(|c| c == row), "table row {row} missing");
     }
     assert!(cells.iter().any(|c| c.starts_with("Pressure difference at peak")));
@@ -188,7 +191,8 @@ fn a_missing_gmsh_fails_the_mesh_stage_and_keeps_the_design() {
     assert_eq!(report["failed_stage"], "mesh-nominal");
     let stages = report["stages"].as_array().unwrap();
     let status: Vec<&str> = stages.iter().map(|s| s["status"].as_str().unwrap()).collect();
-    assert_eq!(status, ["completed", "failed", "not run"]);
+    assert_eq!(status, ["completed", "completed", "failed", "not run"]);
+    assert!(out.join("centerline/centerline.vtp").is_file() && out.join("centerline/centerline.json").is_file());
     assert!(!out.join("report.html").exists());
     std::fs::remove_dir_all(out).ok();
 }
@@ -226,7 +230,7 @@ fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
     let report = read_json(&plan_out.join("report.json"));
     assert_eq!(report["failed_stage"], "prepare");
     let status: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["status"].as_str().unwrap()).collect();
-    assert_eq!(status, ["failed", "not run", "not run", "not run", "not run"], "prepare, design, extend, mesh, simulate");
+    assert_eq!(status, ["failed", "not run", "not run", "not run", "not run", "not run"], "prepare, design, extend, centerline, mesh, simulate");
     assert!(!plan_out.join("prepare").exists() && !plan_out.join("design").exists(), "files of a failed or unrun stage");
     std::fs::remove_dir_all(out).ok();
 }

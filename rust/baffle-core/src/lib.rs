@@ -28,6 +28,8 @@ pub mod surface;
 pub mod design;
 pub mod outputs;
 pub mod compare;
+pub mod voxel;
+pub mod flow_centerline;
 pub mod reference_data;
 
 pub use design::{design, DesignOptions, DesignReport, DesignResult};

@@ -1,24 +1,20 @@
 //! The plan's report: report.json and a self-contained report.html (inline SVG, no
 //! scripts, no external references), built only from the stages' own files.
 
-mod sampling;
 mod svg_plot;
 mod svg_render;
 
-use crate::plan_cmd::{flow_bsa_m2, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
+use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
+use crate::sampling::{PeakFields, Profile};
 use crate::simulate_cmd::write_atomic;
-use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::Waveform;
 use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
-use baffle_core::io::PolyData;
 use std::path::Path;
 
 /// The planning threshold of the peak pressure difference (mmHg): below it passes.
 pub const DP_THRESHOLD_MMHG: f64 = 10.0;
-/// peak.vtu is in cm; the design's files in mm.
-const MM_PER_CM: f64 = 10.0;
 
 fn read_json(path: &Path) -> Result<Value, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -104,13 +100,14 @@ struct Quantity {
     decimals: usize,
 }
 
-fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline_v_max_m_s: f64) -> Result<Vec<Quantity>, String> {
+fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &CenterlineProfile) -> Result<Vec<Quantity>, String> {
     let d = |key: &str| number(design, key, design_path);
     let q = |key: &str| number(&nominal.quality, key, &nominal.quality_path);
     let row = |key, label, value, unit, decimals| Quantity { key, label, value, unit, decimals };
     Ok(vec![
         row("target_area_mm2", "Target area", d("/target_area_mm2")?, "mm²", 1),
         row("centerline_length_mm", "Centerline length", d("/centerline_length_mm")?, "mm", 2),
+        row("flow_centerline_length_mm", "Flow-domain centerline length", centerline.length_mm, "mm", 2),
         row("baffle_area_mm2", "Baffle area", d("/baffle_area_mm2")?, "mm²", 1),
         row("baffle_triangles", "Baffle triangles", d("/baffle_triangles")?, "", 0),
         row("tetrahedra", "Tetrahedra", q("/tetrahedra")?, "", 0),
@@ -119,43 +116,27 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline_v_ma
         row("p99_aspect_ratio", "Aspect ratio, 99th percentile", q("/p99_aspect_ratio")?, "", 2),
         row("dp_peak_mmhg", "Pressure difference at peak flow (VSD − aortic cap)", nominal.dp_mmhg()?, "mmHg", 2),
         row("max_velocity_m_s", "v_max (domain)", nominal.v_max_m_s()?, "m/s", 3),
-        row("max_centerline_velocity_m_s", "v_max along the centerline", centerline_v_max_m_s, "m/s", 3),
+        row("max_centerline_velocity_m_s", "v_max along the flow-domain centerline", centerline.profile.v_max_m_s(), "m/s", 3),
     ])
 }
 
-/// Pressure and speed at the centerline points (mm), from peak.vtu (cm, cm/s, dyn/cm²).
+/// The flow-domain centerline of the centerline stage (mm) and the nominal run's
+/// pressure and speed sampled along it.
 struct CenterlineProfile {
+    length_mm: f64,
     s_mm: Vec<f64>,
-    pressure_mmhg: Vec<Option<f64>>,
-    speed_m_s: Vec<Option<f64>>,
+    profile: Profile,
 }
 
-fn centerline_profile(centerline: &PolyData, centerline_path: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
-    let s_mm = match centerline.point_array("s_mm").and_then(|a| a.as_f64()) {
+fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
+    let (vtp, json_path) = crate::centerline_cmd::output_paths(&flow_centerline_path(out));
+    let line = baffle_core::io::read_polydata(&vtp).map_err(|e| e.to_string())?;
+    let s_mm = match line.point_array("s_mm").and_then(|a| a.as_f64()) {
         Some((1, values)) => values.to_vec(),
-        _ => return Err(format!("{}: no point array s_mm", centerline_path.display())),
+        _ => return Err(format!("{}: no point array s_mm", vtp.display())),
     };
-    let peak = baffle_mesh::read_vtu(peak_path).map_err(|e| e.to_string())?;
-    let field = |name: &str, components: usize| {
-        peak.point_data
-            .iter()
-            .find(|a| a.name == name)
-            .and_then(|a| a.as_f64())
-            .filter(|(c, _)| *c == components)
-            .map(|(_, v)| v.to_vec())
-            .ok_or_else(|| format!("{}: no point array {name} with {components} components", peak_path.display()))
-    };
-    let pressure = field("pressure", 1)?;
-    let velocity = field("velocity", 3)?;
-    let speed: Vec<f64> = velocity.chunks_exact(3).map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).collect();
-    let points: Vec<[f64; 3]> = peak.mesh.points_mm.iter().map(|p| [p.x, p.y, p.z]).collect();
-    let locator = sampling::TetLocator::new(&points, &peak.mesh.tets);
-    let queries: Vec<[f64; 3]> = centerline.points.iter().map(|p| [p.x / MM_PER_CM, p.y / MM_PER_CM, p.z / MM_PER_CM]).collect();
-    Ok(CenterlineProfile {
-        s_mm,
-        pressure_mmhg: queries.iter().map(|&q| locator.interpolate(&pressure, q).map(|p| p / DYN_CM2_PER_MMHG)).collect(),
-        speed_m_s: queries.iter().map(|&q| locator.interpolate(&speed, q).map(|v| v / 100.0)).collect(),
-    })
+    let length_mm = number(&read_json(&json_path)?, "/length_mm", &json_path)?;
+    Ok(CenterlineProfile { length_mm, s_mm, profile: PeakFields::read(peak_path)?.profile(&line.points) })
 }
 
 /// (time in cycle, dp) over the last cycle of timeseries.csv; empty for a steady run.
@@ -352,9 +333,9 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let nominal_dir = out.join(&nominal.stage);
     let centerline_path = design_dir.join("centerline.vtp");
     let centerline = baffle_core::io::read_polydata(&centerline_path).map_err(|e| e.to_string())?;
-    let profile = centerline_profile(&centerline, &centerline_path, &nominal_dir.join("peak.vtu"))?;
-    let centerline_v_max = profile.speed_m_s.iter().flatten().cloned().fold(f64::NAN, f64::max);
-    let table = quantities(&design, &design_path, nominal, centerline_v_max)?;
+    let flow_line = centerline_profile(out, &nominal_dir.join("peak.vtu"))?;
+    let profile = &flow_line.profile;
+    let table = quantities(&design, &design_path, nominal, &flow_line)?;
     let dp = nominal.dp_mmhg()?;
     let passes = dp < DP_THRESHOLD_MMHG;
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
@@ -395,7 +376,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
         "runs": run_rows,
         "centerline": {
-            "s_mm": profile.s_mm, "pressure_mmhg": profile.pressure_mmhg, "speed_m_s": profile.speed_m_s,
+            "kind": "flow-domain", "file": flow_centerline_path(out), "length_mm": flow_line.length_mm,
+            "s_mm": flow_line.s_mm, "pressure_mmhg": profile.pressure_mmhg, "speed_m_s": profile.speed_m_s,
             "sampled_points": profile.pressure_mmhg.iter().flatten().count(),
         },
         "dp_over_cycle": { "time_in_cycle_s": dp_cycle.iter().map(|p| p.0).collect::<Vec<_>>(), "dp_mmhg": dp_cycle.iter().map(|p| p.1).collect::<Vec<_>>() },
@@ -458,10 +440,10 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         html.figure(&line_chart("Pressure difference over the last cycle", "time in cycle (s)", "dp (mmHg)", &series, true), "VSD cap − aortic cap mean pressure.");
     }
     let reference = profile.pressure_mmhg.iter().rev().flatten().next().copied().unwrap_or(f64::NAN);
-    let series = [Series::line("pressure", profile_series(&profile.s_mm, &profile.pressure_mmhg, reference), "#1f77b4")];
+    let series = [Series::line("pressure", profile_series(&flow_line.s_mm, &profile.pressure_mmhg, reference), "#1f77b4")];
     html.figure(
-        &line_chart("Pressure along the centerline (peak flow)", "arc length from the VSD s (mm)", "p − p(aortic end) (mmHg)", &series, false),
-        &format!("Sampled from peak.vtu at {} of {} centerline points.", profile.pressure_mmhg.iter().flatten().count(), profile.s_mm.len()),
+        &line_chart("Pressure along the flow-domain centerline (peak flow)", "arc length from the VSD plane s (mm)", "p − p(aortic end) (mmHg)", &series, false),
+        &format!("Sampled from peak.vtu at {} of {} points of the flow-domain centerline (medial line between the VSD and aortic planes, 0.5 mm spacing).", profile.pressure_mmhg.iter().flatten().count(), flow_line.s_mm.len()),
     );
 
     html.heading("Runs");

@@ -1,6 +1,16 @@
 //! Sampling a tetrahedral point field at arbitrary points: find the containing tet
 //! through a uniform grid of tet bounding boxes, then interpolate barycentrically
 //! (exact for fields linear in space, as P1 finite-element fields are per tet).
+//! [`PeakFields`] samples a `baffle simulate` result (peak.vtu) along a centerline,
+//! for `baffle centerline` and the plan's report.
+
+use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+use baffle_core::Vec3;
+use std::path::Path;
+
+/// peak.vtu is in cm and cm/s; centerlines in mm, speeds reported in m/s.
+const MM_PER_CM: f64 = 10.0;
+const CM_S_PER_M_S: f64 = 100.0;
 
 /// Barycentric coordinates below this count as inside (points on a face or a cap).
 const INSIDE_TOLERANCE: f64 = 1e-9;
@@ -108,9 +118,72 @@ impl<'a> TetLocator<'a> {
     }
 
     /// `values` (one per point) interpolated at `p`.
+    #[cfg(test)]
     pub fn interpolate(&self, values: &[f64], p: [f64; 3]) -> Option<f64> {
-        let (t, l) = self.locate(p)?;
-        Some((0..4).map(|k| l[k] * values[self.tets[t][k] as usize]).sum())
+        self.locate(p).map(|located| self.interpolate_at(values, located))
+    }
+
+    /// `values` interpolated at a point [`TetLocator::locate`] found (one search for many fields).
+    pub fn interpolate_at(&self, values: &[f64], (t, l): (usize, [f64; 4])) -> f64 {
+        (0..4).map(|k| l[k] * values[self.tets[t][k] as usize]).sum()
+    }
+}
+
+/// Pressure (dyn/cm2) and velocity (cm/s) per point of a tet mesh in cm, as
+/// `baffle simulate` writes them.
+pub struct PeakFields {
+    points_cm: Vec<[f64; 3]>,
+    tets: Vec<[u32; 4]>,
+    pressure: Vec<f64>,
+    velocity: [Vec<f64>; 3],
+}
+
+/// Pressure (mmHg) and speed (m/s) at each centerline point; None outside the mesh.
+pub struct Profile {
+    pub pressure_mmhg: Vec<Option<f64>>,
+    pub speed_m_s: Vec<Option<f64>>,
+}
+
+impl Profile {
+    /// Largest sampled speed (m/s); NaN when no point was sampled.
+    pub fn v_max_m_s(&self) -> f64 {
+        self.speed_m_s.iter().flatten().cloned().fold(f64::NAN, f64::max)
+    }
+}
+
+impl PeakFields {
+    pub fn read(path: &Path) -> Result<PeakFields, String> {
+        let peak = baffle_mesh::read_vtu(path).map_err(|e| e.to_string())?;
+        let field = |name: &str, components: usize| {
+            peak.point_data
+                .iter()
+                .find(|a| a.name == name)
+                .and_then(|a| a.as_f64())
+                .filter(|(c, _)| *c == components)
+                .map(|(_, v)| v.to_vec())
+                .ok_or_else(|| format!("{}: no point array {name} with {components} components", path.display()))
+        };
+        let pressure = field("pressure", 1)?;
+        let v = field("velocity", 3)?;
+        let velocity = std::array::from_fn(|k| v.chunks_exact(3).map(|c| c[k]).collect());
+        let points_cm = peak.mesh.points_mm.iter().map(|p| [p.x, p.y, p.z]).collect();
+        Ok(PeakFields { points_cm, tets: peak.mesh.tets, pressure, velocity })
+    }
+
+    /// The fields at `points_mm`: each velocity component is interpolated in its tet
+    /// (the P1 field itself), then its magnitude taken.
+    pub fn profile(&self, points_mm: &[Vec3]) -> Profile {
+        let locator = TetLocator::new(&self.points_cm, &self.tets);
+        let mut profile = Profile { pressure_mmhg: Vec::new(), speed_m_s: Vec::new() };
+        for p in points_mm {
+            let q = [p.x / MM_PER_CM, p.y / MM_PER_CM, p.z / MM_PER_CM];
+            let located = locator.locate(q);
+            let at = |values: &[f64]| located.map(|found| locator.interpolate_at(values, found));
+            profile.pressure_mmhg.push(at(&self.pressure).map(|p| p / DYN_CM2_PER_MMHG));
+            let v: Option<Vec<f64>> = self.velocity.iter().map(|c| at(c)).collect();
+            profile.speed_m_s.push(v.map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() / CM_S_PER_M_S));
+        }
+        profile
     }
 }
 
@@ -156,5 +229,36 @@ mod tests {
         assert!(l.iter().all(|&x| x >= -1e-12), "{l:?}");
         assert!((l.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         assert!(t < 6);
+    }
+
+    #[test]
+    fn peak_fields_linear_in_space_are_sampled_exactly_in_mm_m_s_and_mmhg() {
+        // Tube of radius 0.4 cm, 2 cm long; pressure and every velocity component linear.
+        let mesh = baffle_cfd::test_meshes::tube(0.4, 2.0, 4, 10, &[]);
+        let pressure_at = |p: [f64; 3]| 1333.2 * (2.0 - p[2]) + 50.0 * p[0];
+        let velocity_at = |p: [f64; 3]| [10.0 * p[1], -5.0 * p[0], 120.0 + 30.0 * p[2]];
+        let pressure: Vec<f64> = mesh.points_cm.iter().map(|&p| pressure_at(p)).collect();
+        let velocity: Vec<[f64; 3]> = mesh.points_cm.iter().map(|&p| velocity_at(p)).collect();
+        let dir = std::env::temp_dir().join(format!("baffle-sampling-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("peak.vtu");
+        baffle_cfd::vtu::write_solution_vtu(&path, &mesh.points_cm, &mesh.tets, &velocity, &pressure).unwrap();
+        let fields = PeakFields::read(&path).unwrap();
+        // An oblique line inside the tube (mm), and one point outside it.
+        let mut points: Vec<Vec3> = (0..=20).map(|k| Vec3::new(-1.5 + 0.15 * k as f64, 1.0 - 0.1 * k as f64, 0.5 + 0.9 * k as f64)).collect();
+        points.push(Vec3::new(9.0, 0.0, 10.0));
+        let profile = fields.profile(&points);
+        for (k, p) in points[..21].iter().enumerate() {
+            let q = [p.x / 10.0, p.y / 10.0, p.z / 10.0];
+            let v = velocity_at(q);
+            let speed = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() / 100.0;
+            let pressure = pressure_at(q) / DYN_CM2_PER_MMHG;
+            assert!((profile.pressure_mmhg[k].unwrap() - pressure).abs() < 1e-9, "point {k}");
+            assert!((profile.speed_m_s[k].unwrap() - speed).abs() < 1e-12, "point {k}");
+        }
+        assert!(profile.pressure_mmhg[21].is_none() && profile.speed_m_s[21].is_none());
+        let expected = profile.speed_m_s[..21].iter().flatten().cloned().fold(0.0, f64::max);
+        assert_eq!(profile.v_max_m_s(), expected);
+        std::fs::remove_dir_all(dir).ok();
     }
 }

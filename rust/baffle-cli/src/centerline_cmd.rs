@@ -1,0 +1,168 @@
+//! `baffle centerline`: the flow-domain centerline of a closed lumen between two
+//! measurement planes [paper 2.5] (`baffle_core::flow_centerline`), its length and
+//! inscribed radii, and with `--results` the pressure and speed of a `baffle simulate`
+//! result sampled along it (v_max along the centerline).
+
+use crate::sampling::{PeakFields, Profile};
+use crate::simulate_cmd::write_atomic;
+use baffle_core::flow_centerline::{flow_centerline, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
+use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
+use baffle_core::TriMesh;
+use clap::Args;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Clone)]
+pub struct CenterlineArgs {
+    /// Closed lumen surface with ModelFaceID (e.g. domain.vtp of `baffle design`).
+    #[arg(long)]
+    pub surface: PathBuf,
+    /// The measurement planes, inflow first, as ModelFaceIDs: caps of --surface, or
+    /// face sets of --plane-faces.
+    #[arg(long, value_delimiter = ',', default_value = "11,16")]
+    pub planes: Vec<i32>,
+    /// The end caps of --surface the path runs between (inflow first), when the planes
+    /// are not caps of it (an extended domain, e.g. `baffle extend`'s 20,21); default: the
+    /// planes. Plane triangles of --surface that are not end caps are taken as interior.
+    #[arg(long, value_delimiter = ',')]
+    pub ends: Option<Vec<i32>>,
+    /// A face file holding the planes' triangles (e.g. mesh-faces.vtp of `baffle mesh`,
+    /// whose interior face sets are the measurement planes).
+    #[arg(long)]
+    pub plane_faces: Option<PathBuf>,
+    /// Factor from the files' units to mm (10 for the paper's published files, in cm).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// A `baffle simulate` result (peak.vtu: cm, cm/s, dyn/cm2) to sample along the centerline.
+    #[arg(long)]
+    pub results: Option<PathBuf>,
+    /// Voxel size of the distance field (mm).
+    #[arg(long, default_value_t = CenterlineOptions::default().voxel_mm)]
+    pub voxel_mm: f64,
+    /// Largest distance between centerline points (mm); the paper used 0.5.
+    #[arg(long, default_value_t = PAPER_SPACING_MM)]
+    pub spacing_mm: f64,
+    /// Half-width of the moving average smoothing the path (mm).
+    #[arg(long, default_value_t = CenterlineOptions::default().smoothing_mm)]
+    pub smoothing_mm: f64,
+    /// Largest re-centring shift of a path point in its normal plane, as a fraction of
+    /// its inscribed radius (0: the minimal path as found on the voxels, smoothed).
+    #[arg(long, default_value_t = CenterlineOptions::default().recenter_fraction)]
+    pub recenter_fraction: f64,
+    /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,
+    /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+fn read_mm(path: &Path, scale: f64) -> Result<TriMesh, String> {
+    let labeled = read_surface_labeled(path).map_err(|e| e.to_string())?;
+    if !labeled.has_model_face_id {
+        return Err(format!("{}: no ModelFaceID cell array; the caps and planes need labels", path.display()));
+    }
+    let mut mesh = labeled.mesh;
+    mesh.points.iter_mut().for_each(|p| *p *= scale);
+    Ok(mesh)
+}
+
+/// `mesh` without the triangles labelled `labels` (points kept).
+fn without_labels(mesh: &TriMesh, labels: &[i32]) -> TriMesh {
+    let keep: Vec<usize> = (0..mesh.triangles.len()).filter(|&t| !labels.contains(&mesh.face_ids[t])).collect();
+    TriMesh::new(mesh.points.clone(), keep.iter().map(|&t| mesh.triangles[t]).collect(), keep.iter().map(|&t| mesh.face_ids[t]).collect())
+}
+
+fn two(labels: &[i32], flag: &str) -> Result<[i32; 2], String> {
+    <[i32; 2]>::try_from(labels).map_err(|_| format!("{flag}: give two labels (inflow,outflow), got {labels:?}"))
+}
+
+/// The centerline of `args`, and its profile when --results is given.
+pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>), String> {
+    if !(args.scale > 0.0) {
+        return Err(format!("--scale must be positive, got {}", args.scale));
+    }
+    let surface = read_mm(&args.surface, args.scale)?;
+    let planes = two(&args.planes, "--planes")?;
+    let ends = two(args.ends.as_deref().unwrap_or(&planes), "--ends")?;
+    let faces = match &args.plane_faces {
+        Some(path) => read_mm(path, args.scale)?,
+        None => surface.clone(),
+    };
+    let source = args.plane_faces.as_ref().unwrap_or(&args.surface).display().to_string();
+    let plane = |label| MeasurementPlane::from_label(&faces, label).ok_or_else(|| format!("{source}: no triangles labelled {label} (measurement plane)"));
+    let measurement = [plane(planes[0])?, plane(planes[1])?];
+    // Plane triangles that are not end caps lie inside the lumen (the extended surface of
+    // `baffle extend` keeps the designed caps 11 and 16 there): not part of its boundary.
+    let interior: Vec<i32> = planes.iter().filter(|l| !ends.contains(l)).copied().collect();
+    let boundary = without_labels(&surface, &interior);
+    let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
+    let options = CenterlineOptions { voxel_mm: args.voxel_mm, spacing_mm: args.spacing_mm, smoothing_mm: args.smoothing_mm, recenter_fraction: args.recenter_fraction };
+    let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;
+    let profile = match &args.results {
+        Some(path) => Some(PeakFields::read(path)?.profile(&line.points)),
+        None => None,
+    };
+    Ok((line, profile))
+}
+
+fn polydata(line: &FlowCenterline, profile: Option<&Profile>) -> PolyData {
+    let mut point_data = vec![DataArray::f64("s_mm", 1, line.s_mm.clone()), DataArray::f64("radius_mm", 1, line.radius_mm.clone())];
+    if let Some(p) = profile {
+        let values = |v: &[Option<f64>]| v.iter().map(|x| x.unwrap_or(f64::NAN)).collect();
+        point_data.push(DataArray::f64("pressure_mmhg", 1, values(&p.pressure_mmhg)));
+        point_data.push(DataArray::f64("speed_m_s", 1, values(&p.speed_m_s)));
+    }
+    PolyData { points: line.points.clone(), lines: vec![(0..line.points.len() as u32).collect()], point_data, ..PolyData::default() }
+}
+
+/// The figures written to <stem>.json (also read back by the plan's report).
+fn summary(args: &CenterlineArgs, line: &FlowCenterline, profile: Option<&Profile>, wall_time_s: f64) -> serde_json::Value {
+    let (r_min, r_max) = line.radius_mm.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &r| (a.min(r), b.max(r)));
+    let mut doc = json!({
+        "surface": args.surface, "planes": args.planes, "ends": args.ends.as_ref().unwrap_or(&args.planes),
+        "plane_faces": args.plane_faces, "scale_to_mm": args.scale,
+        "method": "minimal path (cost 1/R^2) on the exact wall-distance field of a voxelized lumen, smoothed, re-centred in normal planes, trimmed at the planes (baffle_core::flow_centerline)",
+        "length_mm": line.length_mm, "spacing_mm": args.spacing_mm, "smoothing_mm": args.smoothing_mm, "recenter_fraction": args.recenter_fraction, "voxel_mm": line.voxel_mm, "inside_voxels": line.inside_voxels,
+        "points": line.points.len(), "radius_min_mm": r_min, "radius_max_mm": r_max,
+        "radius_mean_mm": line.radius_mm.iter().sum::<f64>() / line.radius_mm.len().max(1) as f64,
+        "wall_time_s": wall_time_s,
+        "timings_ms": line.timings_ms.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "s_mm": line.s_mm, "radius_mm": line.radius_mm,
+        "points_mm": line.points.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+    });
+    if let Some(p) = profile {
+        let v_max = p.v_max_m_s();
+        doc["results"] = json!(args.results);
+        doc["v_max_m_s"] = if v_max.is_finite() { json!(v_max) } else { serde_json::Value::Null };
+        doc["sampled_points"] = json!(p.speed_m_s.iter().flatten().count());
+        doc["pressure_mmhg"] = json!(p.pressure_mmhg);
+        doc["speed_m_s"] = json!(p.speed_m_s);
+    }
+    doc
+}
+
+/// Where the centerline and its figures go: `<stem>.vtp` and `<stem>.json`.
+pub fn output_paths(out: &Path) -> (PathBuf, PathBuf) {
+    (out.with_extension("vtp"), out.with_extension("json"))
+}
+
+pub fn run_centerline(args: &CenterlineArgs) -> Result<(), String> {
+    let start = Instant::now();
+    let (line, profile) = compute(args)?;
+    let wall_time_s = start.elapsed().as_secs_f64();
+    let (vtp, json_path) = output_paths(&args.out);
+    if let Some(dir) = vtp.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    write_vtp(&vtp, &polydata(&line, profile.as_ref())).map_err(|e| e.to_string())?;
+    let doc = summary(args, &line, profile.as_ref(), wall_time_s);
+    write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
+    let (r_min, r_max) = (doc["radius_min_mm"].as_f64().unwrap_or(f64::NAN), doc["radius_max_mm"].as_f64().unwrap_or(f64::NAN));
+    print!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
+    match &profile {
+        Some(p) => println!("; v_max along it {:.3} m/s", p.v_max_m_s()),
+        None => println!(),
+    }
+    println!("wrote {} and {}", vtp.display(), json_path.display());
+    Ok(())
+}
