@@ -162,13 +162,14 @@ impl Assembler {
                 pos
             })
             .collect();
+        // Elements in the order of their lowest node: with the nodes in reverse
+        // Cuthill-McKee order, consecutive elements then add into nearby block rows,
+        // so the scatter into the matrix mostly hits cache instead of memory.
+        let mut by_lowest_node: Vec<u32> = (0..tets.len() as u32).collect();
+        by_lowest_node.sort_by_key(|&e| tets[e as usize].iter().min().copied());
         let part_elements = parts
             .iter()
-            .map(|r| {
-                (0..tets.len() as u32)
-                    .filter(|&e| tets[e as usize].iter().any(|&n| r.contains(&(n as usize))))
-                    .collect()
-            })
+            .map(|r| by_lowest_node.iter().copied().filter(|&e| tets[e as usize].iter().any(|&n| r.contains(&(n as usize)))).collect())
             .collect();
         Assembler { tets, geometry, positions, parts, part_elements }
     }

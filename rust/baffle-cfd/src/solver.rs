@@ -72,7 +72,13 @@
 //! the matrix's precision (`sparse::BlockAcc`) and 8-lane dot products; the f32 matrix
 //! copy and the ILU storage are reused across steps. In the solver bench (p2, 8 steps
 //! from t = 0.1 s, same load) GMRES went from 42.4-47.1 to 35.2-35.3 ms per iteration
-//! with the same 42.1 iterations a step and the same dp to 4 decimals.
+//! with the same 42.1 iterations a step and the same dp to 4 decimals. With the other
+//! jobs paused (load ~2, the bench's own threads; `--runs 3 --steps 10 --precision
+//! both`): median 0.987 s per step mixed (16 ms per GMRES iteration, 40 iterations a
+//! step; assembly 0.26 s, ILU factorization 0.08 s) and 1.324 s in f64. Then assembling
+//! the elements in the order of their lowest (RCM) node, so the scatter into the matrix
+//! stays in cache: assembly 0.26 -> 0.166 s, 0.929 s per step (median of 2), ~42 min
+//! for 4 cycles: still over the 30-minute target.
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
