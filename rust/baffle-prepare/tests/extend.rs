@@ -5,7 +5,7 @@
 
 use baffle_core::io::{read_points, CoordinateSystem};
 use baffle_core::reference_data::reference_data_if_present;
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::spatial::{winding_number, TriangleBvh};
 use baffle_core::{design, DesignOptions, TargetArea, TriMesh, Vec3};
 use baffle_prepare::extend::{extend, ExtendOptions, Extended};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};
@@ -18,19 +18,6 @@ fn select(mesh: &TriMesh, keep: impl Fn(i32) -> bool) -> TriMesh {
     mesh.submesh(&mask).0
 }
 
-/// Generalized winding number of `p` with respect to a closed surface (1 inside, 0 outside).
-fn winding_number(mesh: &TriMesh, p: Vec3) -> f64 {
-    let solid: f64 = (0..mesh.triangles.len())
-        .map(|t| {
-            let [a, b, c] = mesh.triangle_points(t).map(|q| q - p);
-            let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
-            let num = a.dot(&b.cross(&c));
-            let den = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
-            2.0 * num.atan2(den)
-        })
-        .sum();
-    solid / (4.0 * std::f64::consts::PI)
-}
 
 /// Triangles of `label` as sets of corner coordinates (bit patterns).
 fn cap_triangles(mesh: &TriMesh, label: i32) -> Vec<[[u64; 3]; 3]> {

@@ -1,5 +1,5 @@
 use super::*;
-use crate::spatial::closest_point_on_triangle;
+use crate::spatial::{closest_point_on_triangle, winding_number};
 use std::f64::consts::PI;
 
 /// A closed tube of radius `r` around the planar curve `c(x)` (x in [0, 1], the curve
@@ -34,20 +34,6 @@ fn tube(c: impl Fn(f64) -> (Vec3, Vec3), r: f64, along: usize, around: usize) ->
     TriMesh::new(points, triangles, labels)
 }
 
-/// Winding number of the closed surface around `q` (sum of solid angles, Van Oosterom
-/// and Strackee 1983): a different inside test from the voxelizer's column crossings.
-fn winding_number(mesh: &TriMesh, q: Vec3) -> f64 {
-    let total: f64 = (0..mesh.triangles.len())
-        .map(|t| {
-            let [a, b, c] = mesh.triangle_points(t).map(|p| p - q);
-            let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
-            let numerator = a.dot(&b.cross(&c));
-            let denominator = la * lb * lc + a.dot(&b) * lc + a.dot(&c) * lb + b.dot(&c) * la;
-            2.0 * numerator.atan2(denominator)
-        })
-        .sum();
-    total / (4.0 * PI)
-}
 
 /// Distance to the wall (labels not in `open`) over every triangle, no tree.
 fn brute_force_wall_distance(mesh: &TriMesh, open: &[i32], q: Vec3) -> f64 {

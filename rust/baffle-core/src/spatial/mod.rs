@@ -7,7 +7,7 @@
 mod primitives;
 mod tri_tri;
 
-pub use primitives::{closest_point_on_segment, closest_point_on_triangle, ray_triangle, Aabb};
+pub use primitives::{closest_point_on_segment, closest_point_on_triangle, ray_triangle, winding_number, Aabb};
 pub use tri_tri::triangles_intersect;
 
 use crate::mesh::{TriMesh, Vec3};

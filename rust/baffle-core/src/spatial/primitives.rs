@@ -366,3 +366,20 @@ mod tests {
         assert!(Aabb::empty().is_empty());
     }
 }
+
+/// Generalized winding number of the closed triangle surface `mesh` around `q`: the sum of
+/// the triangles' signed solid angles (Van Oosterom and Strackee 1983) over 4 pi; 1 inside
+/// an outward surface, 0 outside, -1 inside an inward one. An inside test independent of
+/// ray or column crossings, so tests can re-check what a voxelizer or a ray cast built.
+pub fn winding_number(mesh: &crate::mesh::TriMesh, q: Vec3) -> f64 {
+    let total: f64 = (0..mesh.triangles.len())
+        .map(|t| {
+            let [a, b, c] = mesh.triangle_points(t).map(|p| p - q);
+            let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
+            let numerator = a.dot(&b.cross(&c));
+            let denominator = la * lb * lc + a.dot(&b) * lc + a.dot(&c) * lb + b.dot(&c) * la;
+            2.0 * numerator.atan2(denominator)
+        })
+        .sum();
+    total / (4.0 * std::f64::consts::PI)
+}

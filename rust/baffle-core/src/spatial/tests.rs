@@ -426,3 +426,13 @@ fn patient_capped_ventricles_do_not_self_intersect() {
         );
     }
 }
+
+#[test]
+fn winding_number_is_one_inside_an_outward_tetrahedron_and_zero_outside() {
+    let points = vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, 1.0)];
+    let outward = TriMesh::new(points, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], vec![1; 4]);
+    assert!((winding_number(&outward, Vec3::new(0.2, 0.2, 0.2)) - 1.0).abs() < 1e-12);
+    assert!(winding_number(&outward, Vec3::new(1.0, 1.0, 1.0)).abs() < 1e-12);
+    let inward = TriMesh::new(outward.points.clone(), outward.triangles.iter().map(|&[a, b, c]| [a, c, b]).collect(), vec![1; 4]);
+    assert!((winding_number(&inward, Vec3::new(0.2, 0.2, 0.2)) + 1.0).abs() < 1e-12);
+}
