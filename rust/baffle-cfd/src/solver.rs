@@ -78,7 +78,10 @@
 //! step; assembly 0.26 s, ILU factorization 0.08 s) and 1.324 s in f64. Then assembling
 //! the elements in the order of their lowest (RCM) node, so the scatter into the matrix
 //! stays in cache: assembly 0.26 -> 0.166 s, 0.929 s per step (median of 2), ~42 min
-//! for 4 cycles: still over the 30-minute target.
+//! for 4 cycles: still over the 30-minute target. On the machine with nothing else
+//! running (load < 1.2, `--runs 3 --steps 10`): median 0.730 s per step (13 ms per GMRES
+//! iteration; assembly 0.14 s, ILU factorization 0.07 s), ~33 min for 4 cycles; the
+//! steady estimate 28.0 s (24 iterations, dp 7.381 mmHg).
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
