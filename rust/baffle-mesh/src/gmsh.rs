@@ -5,6 +5,7 @@
 //! whose launcher script is not on `PATH` or whose `#!/usr/bin/env python` finds no `python`.
 
 use crate::error::MeshError;
+use crate::process::start_retrying_busy;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -32,17 +33,18 @@ impl GmshCommand {
 
     /// `gmsh --version`, trimmed; errors when it does not run.
     pub fn version(&self) -> Result<String, MeshError> {
-        let out = self
-            .command()
-            .arg("--version")
-            .stdin(Stdio::null())
-            .output()
-            .map_err(|e| {
-                MeshError::GmshNotFound(format!(
-                    "{} could not be started: {e}",
-                    self.program.display()
-                ))
-            })?;
+        let out = start_retrying_busy(|| {
+            self.command()
+                .arg("--version")
+                .stdin(Stdio::null())
+                .output()
+        })
+        .map_err(|e| {
+            MeshError::GmshNotFound(format!(
+                "{} could not be started: {e}",
+                self.program.display()
+            ))
+        })?;
         let text = String::from_utf8_lossy(&out.stdout).to_string()
             + &String::from_utf8_lossy(&out.stderr);
         let version = text.trim().lines().last().unwrap_or("").trim().to_string();
@@ -122,23 +124,21 @@ pub fn run_gmsh(
 ) -> Result<(), MeshError> {
     let log =
         std::fs::File::create(log_path).map_err(|e| MeshError::file(log_path, e.to_string()))?;
-    let log_err = log
-        .try_clone()
-        .map_err(|e| MeshError::file(log_path, e.to_string()))?;
-    let mut child = cmd
-        .command()
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(log)
-        .stderr(log_err)
-        .spawn()
-        .map_err(|e| {
-            MeshError::GmshNotFound(format!(
-                "{} could not be started: {e}",
-                cmd.program.display()
-            ))
-        })?;
+    let mut child = start_retrying_busy(|| {
+        cmd.command()
+            .args(args)
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(log.try_clone()?)
+            .stderr(log.try_clone()?)
+            .spawn()
+    })
+    .map_err(|e| {
+        MeshError::GmshNotFound(format!(
+            "{} could not be started: {e}",
+            cmd.program.display()
+        ))
+    })?;
     let start = Instant::now();
     loop {
         match child.try_wait() {

@@ -94,7 +94,10 @@ pub fn mesh_surface(
 /// one interior surface per interior label, as [`MeshOptions::interior_surfaces`] wants
 /// them (e.g. `baffle extend`'s output: the VSD and aortic caps inside the extended
 /// domain). Each listed label must be present.
-pub fn split_interior_labels(surface: &TriMesh, interior_labels: &[i32]) -> Result<(TriMesh, Vec<TriMesh>), MeshError> {
+pub fn split_interior_labels(
+    surface: &TriMesh,
+    interior_labels: &[i32],
+) -> Result<(TriMesh, Vec<TriMesh>), MeshError> {
     let pick = |keep: &dyn Fn(i32) -> bool| {
         let mask: Vec<bool> = surface.face_ids.iter().map(|&l| keep(l)).collect();
         surface.submesh(&mask).0
@@ -104,7 +107,9 @@ pub fn split_interior_labels(surface: &TriMesh, interior_labels: &[i32]) -> Resu
         .map(|&label| {
             let part = pick(&|l| l == label);
             if part.triangles.is_empty() {
-                return Err(MeshError::InvalidInput(format!("no triangle carries the interior label {label}")));
+                return Err(MeshError::InvalidInput(format!(
+                    "no triangle carries the interior label {label}"
+                )));
             }
             Ok(part)
         })
@@ -655,17 +660,46 @@ mod tests {
         let mut cube = unit_cube();
         cube.face_ids[0] = 11;
         let (boundary, interior) = split_interior_labels(&cube, &[11]).unwrap();
-        assert_eq!((boundary.triangles.len(), interior.len(), interior[0].triangles.len()), (cube.triangles.len() - 1, 1, 1));
+        assert_eq!(
+            (
+                boundary.triangles.len(),
+                interior.len(),
+                interior[0].triangles.len()
+            ),
+            (cube.triangles.len() - 1, 1, 1)
+        );
         let err = split_interior_labels(&cube, &[16]).unwrap_err().to_string();
         assert!(err.contains("16"), "{err}");
-        let opts = MeshOptions { remesh_surface: true, interior_surfaces: interior, ..MeshOptions::default() };
-        assert!(check_options(&opts).unwrap_err().to_string().contains("interior"));
+        let opts = MeshOptions {
+            remesh_surface: true,
+            interior_surfaces: interior,
+            ..MeshOptions::default()
+        };
+        assert!(check_options(&opts)
+            .unwrap_err()
+            .to_string()
+            .contains("interior"));
     }
 
     /// A unit cube of 12 triangles labelled 1.
     fn unit_cube() -> TriMesh {
-        let points = (0..8).map(|i| Vec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)).collect();
-        let triangles = vec![[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]];
+        let points = (0..8)
+            .map(|i| Vec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+            .collect();
+        let triangles = vec![
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ];
         TriMesh::new(points, triangles, vec![1; 12])
     }
 

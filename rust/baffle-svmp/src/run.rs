@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use crate::export::CaseManifest;
 use crate::format::{parse_step_line, SOLVER_FILE};
 use crate::SvmpError;
+use baffle_mesh::start_retrying_busy;
 
 /// Executable names tried, in order.
 pub const SVMP_NAMES: [&str; 2] = ["svmultiphysics", "svMultiPhysics"];
@@ -94,7 +95,7 @@ impl MpiFlavor {
 
     /// Runs `mpiexec --version`; a launcher that cannot say is treated as not Open MPI.
     pub fn detect(mpiexec: &Path) -> Self {
-        let output = Command::new(mpiexec).arg("--version").stdin(Stdio::null()).output();
+        let output = start_retrying_busy(|| Command::new(mpiexec).arg("--version").stdin(Stdio::null()).output());
         match output {
             Ok(out) => {
                 let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
@@ -150,13 +151,16 @@ pub fn run_case(
     let mut log = std::fs::File::create(&log_path).map_err(|e| SvmpError::io(&log_path, e))?;
     let err = std::fs::File::create(&err_path).map_err(|e| SvmpError::io(&err_path, e))?;
     let flavor = MpiFlavor::detect(&engine.mpiexec);
-    let mut child = Command::new(&engine.mpiexec)
-        .args(mpiexec_args(flavor, effective_uid(), manifest.mpi_processes, &engine.svmultiphysics))
-        .current_dir(case_dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::from(err))
-        .spawn()
+    let args = mpiexec_args(flavor, effective_uid(), manifest.mpi_processes, &engine.svmultiphysics);
+    let mut child = start_retrying_busy(|| {
+        Command::new(&engine.mpiexec)
+            .args(&args)
+            .current_dir(case_dir)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::from(err.try_clone()?))
+            .spawn()
+    })
         .map_err(|e| SvmpError::io(&engine.mpiexec, format!("could not start: {e}")))?;
     let stdout = child.stdout.take().ok_or_else(|| SvmpError::io(&engine.mpiexec, "no stdout pipe"))?;
     let mut tracker = StepTracker::new(manifest.n_time_steps);

@@ -320,7 +320,7 @@ fn run_script_runs_the_case_with_the_processes_and_root_option() {
         export_case(&dir, &box_mesh(), &settings, &options()).unwrap();
         let bin = standin_bin(if open_mpi { "script-bin-ompi" } else { "script-bin-mpich" }, &StandIn { mpi_version: version, ..StandIn::default() });
         let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
-        let out = std::process::Command::new(dir.join("run.sh")).env("PATH", path).env("NP", "7").output().unwrap();
+        let out = baffle_mesh::start_retrying_busy(|| std::process::Command::new(dir.join("run.sh")).env("PATH", &path).env("NP", "7").output()).unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         assert!(String::from_utf8_lossy(&out.stdout).contains(" NS 68-2"));
         let args = std::fs::read_to_string(dir.join("mpiexec.args")).unwrap();
