@@ -16,6 +16,7 @@ pub struct BlockIlu<T: Scalar = f64> {
     parts: Vec<Range<usize>>,
     lower: Triangle<T>,
     upper: Triangle<T>,
+    /// Inverses of the pivot blocks, in the backward sweep's order (as `upper`'s rows).
     diag_inv: Vec<[T; BB]>,
     /// The f64 factorization's working copy, kept so refactoring every step does not
     /// allocate (and page-fault in) a fresh copy of the matrix.
@@ -24,11 +25,18 @@ pub struct BlockIlu<T: Scalar = f64> {
 }
 
 /// The strictly lower (or upper) blocks of the factors that lie inside their row's
-/// partition, stored row after row in the order a triangular sweep reads them: the
-/// forward sweep then streams L alone and the backward sweep U alone, instead of each
-/// dragging the whole matrix through the cache.
+/// partition, stored in the order a triangular sweep reads them: the forward sweep
+/// then streams L alone and the backward sweep U alone, instead of each dragging the
+/// whole matrix through the cache, and both read their memory in ascending order.
+///
+/// Within a row the block of the nearest column comes last. That block multiplies the
+/// unknown the sweep solved just before (RCM neighbours are adjacent rows), so the
+/// rest of the row's sum can proceed while the previous row is still being solved.
+/// Stored the other way round (U's columns ascending, rows descending) the backward
+/// sweep took 4x the forward sweep's time on p2's pattern (12.0 against 2.7 ms, f32).
 struct Triangle<T> {
-    /// Row i's blocks are `row_ptr[i]..row_ptr[i + 1]` (global row numbers).
+    /// The s-th row the sweep visits has blocks `row_ptr[s]..row_ptr[s + 1]`: for L row
+    /// s is global row s, for U see [`backward_order`].
     row_ptr: Vec<usize>,
     cols: Vec<u32>,
     /// Position of each block in the full pattern, to refill `vals` after refactoring.
@@ -38,18 +46,23 @@ struct Triangle<T> {
 
 impl<T: Scalar> Triangle<T> {
     fn new(pattern: &BlockPattern, parts: &[Range<usize>], lower: bool) -> Self {
-        let mut t = Triangle { row_ptr: vec![0], cols: Vec::new(), source: Vec::new(), vals: Vec::new() };
+        let (mut row_ptr, mut source) = (vec![0], Vec::new());
         for rows in parts {
-            for i in rows.clone() {
-                let blocks = if lower { pattern.row_ptr[i]..pattern.diag[i] } else { pattern.diag[i] + 1..pattern.row_ptr[i + 1] };
-                for p in blocks.filter(|&p| rows.contains(&(pattern.cols[p] as usize))) {
-                    t.cols.push(pattern.cols[p]);
-                    t.source.push(p);
+            let inside = |p: &usize| rows.contains(&(pattern.cols[*p] as usize));
+            if lower {
+                for i in rows.clone() {
+                    source.extend((pattern.row_ptr[i]..pattern.diag[i]).filter(inside));
+                    row_ptr.push(source.len());
                 }
-                t.row_ptr.push(t.cols.len());
+            } else {
+                for i in rows.clone().rev() {
+                    source.extend((pattern.diag[i] + 1..pattern.row_ptr[i + 1]).rev().filter(inside));
+                    row_ptr.push(source.len());
+                }
             }
         }
-        t
+        let cols = source.iter().map(|&p| pattern.cols[p]).collect();
+        Triangle { row_ptr, cols, source, vals: Vec::new() }
     }
 
     fn fill(&mut self, lu: &[f64]) {
@@ -59,16 +72,24 @@ impl<T: Scalar> Triangle<T> {
         });
     }
 
-    /// sum over row i's blocks of block x z_col (z holds the partition starting at row r0).
+    /// sum over the s-th swept row's blocks of block x z_col (z holds the partition
+    /// starting at row r0).
     #[inline]
-    fn row_product<V: Scalar>(&self, i: usize, z: &[V], r0: usize) -> [f64; B] {
+    fn row_product<V: Scalar>(&self, s: usize, z: &[V], r0: usize) -> [f64; B] {
         let mut acc = BlockAcc::<T>::default();
-        for p in self.row_ptr[i]..self.row_ptr[i + 1] {
+        for p in self.row_ptr[s]..self.row_ptr[s + 1] {
             let k = self.cols[p] as usize - r0;
             acc.add(block(&self.vals, p), &z[k * B..(k + 1) * B]);
         }
         acc.sum()
     }
+}
+
+/// Global rows in the backward sweep's order: each partition from its last row to its
+/// first, partitions in order, so the s-th row swept in partition `rows` is stored at
+/// `rows.start + s`.
+fn backward_order(parts: &[Range<usize>]) -> impl Iterator<Item = usize> + '_ {
+    parts.iter().flat_map(|rows| rows.clone().rev())
 }
 
 /// Split rows into `n` contiguous ranges of about equal block count.
@@ -129,7 +150,7 @@ impl<T: Scalar> BlockIlu<T> {
         self.lower.fill(&self.work);
         self.upper.fill(&self.work);
         self.diag_inv.clear();
-        self.diag_inv.extend(self.work_inv.iter().map(|d| d.map(T::from_f64)));
+        self.diag_inv.extend(backward_order(&self.parts).map(|i| self.work_inv[i].map(T::from_f64)));
         Ok(())
     }
 
@@ -151,11 +172,11 @@ impl<T: Scalar> BlockIlu<T> {
             }
         }
         // Backward: z_i = D_i^-1 (z_i - sum_(j>i) U_ij z_j).
-        for i in rows.rev() {
-            let s = self.upper.row_product(i, z, r0);
+        for (swept, i) in (r0..).zip(rows.rev()) {
+            let s = self.upper.row_product(swept, z, r0);
             let y: [f64; B] = [0, 1, 2, 3].map(|c| z[(i - r0) * B + c].to_f64() - s[c]);
             let mut d = BlockAcc::<T>::default();
-            d.add(&self.diag_inv[i], &y);
+            d.add(&self.diag_inv[swept], &y);
             z[(i - r0) * B..(i - r0 + 1) * B].copy_from_slice(&d.sum().map(V::from_f64));
         }
     }
@@ -522,6 +543,81 @@ mod tests {
         let mut x = vec![0.0; 16];
         ilu.apply(&b, &mut x);
         assert!(x.iter().zip(&x_true).all(|(a, b)| (a - b).abs() < 1e-10), "{x:?}");
+    }
+
+    /// Scalar ILU(0) of the dense expansion of `vals`, keeping only blocks inside the
+    /// same partition, then the unit-lower and upper solves: the textbook IKJ
+    /// algorithm (Saad, Iterative Methods, alg. 10.4), written independently of the
+    /// block code.
+    fn dense_ilu0_solve(pattern: &BlockPattern, vals: &[f64], parts: &[Range<usize>], r: &[f64]) -> Vec<f64> {
+        let n = pattern.n_rows() * B;
+        let part_of = |row: usize| parts.iter().position(|p| p.contains(&(row / B))).unwrap();
+        let mut a = vec![vec![None::<f64>; n]; n];
+        for i in 0..pattern.n_rows() {
+            for p in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
+                let j = pattern.cols[p] as usize;
+                for (rc, v) in vals[p * BB..(p + 1) * BB].iter().enumerate() {
+                    let (row, col) = (i * B + rc / B, j * B + rc % B);
+                    if part_of(row) == part_of(col) {
+                        a[row][col] = Some(*v);
+                    }
+                }
+            }
+        }
+        for i in 0..n {
+            for k in 0..i {
+                let Some(aik) = a[i][k] else { continue };
+                let lik = aik / a[k][k].unwrap();
+                a[i][k] = Some(lik);
+                for j in k + 1..n {
+                    if let (Some(aij), Some(akj)) = (a[i][j], a[k][j]) {
+                        a[i][j] = Some(aij - lik * akj);
+                    }
+                }
+            }
+        }
+        let mut z = r.to_vec();
+        for i in 0..n {
+            z[i] -= (0..i).filter_map(|k| a[i][k].map(|l| l * z[k])).sum::<f64>();
+        }
+        for i in (0..n).rev() {
+            z[i] = (z[i] - (i + 1..n).filter_map(|j| a[i][j].map(|u| u * z[j])).sum::<f64>()) / a[i][i].unwrap();
+        }
+        z
+    }
+
+    #[test]
+    fn block_ilu_equals_the_scalar_ilu0_of_its_partitions() {
+        // Tets that skip nodes leave holes in the pattern, so ILU(0) drops fill, and
+        // three partitions drop their couplings: both must be dropped exactly as in
+        // the scalar definition, whatever order the sweeps store the factors in.
+        let n_nodes = 30;
+        let tets: Vec<[u32; 4]> = (0..n_nodes as u32 - 7).map(|i| [i, i + 1, i + 5, i + 7]).collect();
+        let pattern = BlockPattern::from_tets(n_nodes, &tets);
+        let mut vals = vec![0.0; pattern.cols.len() * BB];
+        for (k, v) in vals.iter_mut().enumerate() {
+            *v = ((k * 7919) % 17) as f64 / 17.0 - 0.5;
+        }
+        for i in 0..n_nodes {
+            for c in 0..B {
+                vals[pattern.diag[i] * BB + c * B + c] += 6.0;
+            }
+        }
+        let r: Vec<f64> = (0..n_nodes * B).map(|i| (i as f64 * 0.61).sin()).collect();
+        for n_parts in [1, 3] {
+            let parts = partitions(&pattern, n_parts);
+            assert_eq!(parts.len(), n_parts);
+            let expected = dense_ilu0_solve(&pattern, &vals, &parts, &r);
+            let ilu = BlockIlu::<f64>::factor(&pattern, &vals, parts).unwrap();
+            let mut z = vec![0.0; r.len()];
+            ilu.apply(&r, &mut z);
+            let err = z.iter().zip(&expected).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(err < 1e-11, "{n_parts} partitions: max difference {err:e}");
+            let mut a_z = vec![0.0; r.len()];
+            spmv(&pattern, &vals, &z, &mut a_z);
+            let off = a_z.iter().zip(&r).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(off > 1e-6, "the test pattern must make ILU(0) inexact ({off:e})");
+        }
     }
 
     #[test]
