@@ -111,11 +111,12 @@ pub fn partitions(pattern: &BlockPattern, n: usize) -> Vec<Range<usize>> {
     out
 }
 
-/// Disjoint mutable slices of `data` for row partitions (`stride` values per unit of `bounds`).
-fn split_by<'a, T>(mut data: &'a mut [T], bounds: &[usize], stride: usize) -> Vec<&'a mut [T]> {
-    let mut out = Vec::with_capacity(bounds.len() - 1);
-    for w in bounds.windows(2) {
-        let (head, tail) = data.split_at_mut((w[1] - w[0]) * stride);
+/// Consecutive disjoint mutable slices of `data` of the given lengths (one per row
+/// partition), so that threads can write them in parallel.
+fn split_by<'a, T>(mut data: &'a mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&'a mut [T]> {
+    let mut out = Vec::new();
+    for len in lengths {
+        let (head, tail) = data.split_at_mut(len);
         out.push(head);
         data = tail;
     }
@@ -123,8 +124,11 @@ fn split_by<'a, T>(mut data: &'a mut [T], bounds: &[usize], stride: usize) -> Ve
 }
 
 impl<T: Scalar> BlockIlu<T> {
-    /// Factor. Err(row) if a pivot block is singular.
+    /// Factor on `parts`, contiguous row ranges that cover the rows in order (as
+    /// [`partitions`] makes them). Err(row) if a pivot block is singular.
     pub fn factor(pattern: &BlockPattern, vals: &[f64], parts: Vec<Range<usize>>) -> Result<Self, usize> {
+        debug_assert!(parts.first().is_none_or(|r| r.start == 0) && parts.windows(2).all(|w| w[0].end == w[1].start));
+        debug_assert_eq!(parts.last().map_or(0, |r| r.end), pattern.n_rows());
         let (lower, upper) = (Triangle::new(pattern, &parts, true), Triangle::new(pattern, &parts, false));
         let mut ilu = BlockIlu { parts, lower, upper, diag_inv: Vec::new(), work: Vec::new(), work_inv: Vec::new() };
         ilu.refactor(pattern, vals)?;
@@ -137,10 +141,8 @@ impl<T: Scalar> BlockIlu<T> {
         self.work.extend_from_slice(vals);
         self.work_inv.resize(pattern.n_rows(), [0.0; BB]);
         let parts = &self.parts;
-        let block_bounds: Vec<usize> = std::iter::once(0).chain(parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
-        let row_bounds: Vec<usize> = std::iter::once(0).chain(parts.iter().map(|r| r.end)).collect();
-        let lu_parts = split_by(&mut self.work, &block_bounds, BB);
-        let inv_parts = split_by(&mut self.work_inv, &row_bounds, 1);
+        let lu_parts = split_by(&mut self.work, parts.iter().map(|r| (pattern.row_ptr[r.end] - pattern.row_ptr[r.start]) * BB));
+        let inv_parts = split_by(&mut self.work_inv, parts.iter().map(|r| r.len()));
         lu_parts
             .into_par_iter()
             .zip(inv_parts)
@@ -156,8 +158,7 @@ impl<T: Scalar> BlockIlu<T> {
 
     /// z = M^-1 r.
     pub fn apply<V: Scalar>(&self, r: &[V], z: &mut [V]) {
-        let row_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| r.end)).collect();
-        let z_parts = split_by(z, &row_bounds, B);
+        let z_parts = split_by(z, self.parts.iter().map(|r| r.len() * B));
         z_parts.into_par_iter().zip(self.parts.par_iter()).for_each(|(z_p, rows)| self.solve_part(rows.clone(), r, z_p));
     }
 
