@@ -5,17 +5,21 @@
 //!
 //!   cargo bench -p baffle-cfd --bench kernels -- [--reps N]
 //!
-//! Prints the minimum and the median of N repetitions (15) of: block SpMV, ILU(0)
-//! factorization, ILU(0) application and 40 GMRES iterations (one restart cycle with
-//! its Gram-Schmidt), in f64 and in the mixed-precision f32 form. The minimum is the
+//! Prints the minimum and the median of N repetitions (15) of: the assembly of the
+//! stabilized element systems into the f64 matrix (and the element systems alone, to
+//! show what the scatter costs), block SpMV, ILU(0) factorization, ILU(0) application
+//! and 40 GMRES iterations (one restart cycle with its Gram-Schmidt), in f64 and in
+//! the mixed-precision f32 form. The minimum is the
 //! figure to compare between builds on this shared machine: other jobs only add time.
 //! Data: $BAFFLE_DATA_DIR or ../shared/data.
 
 use std::time::Instant;
 
+use baffle_cfd::assembly::{element_system, Assembler, Physics};
 use baffle_cfd::linear::{gmres, partitions, BlockIlu};
 use baffle_cfd::sparse::{convert, reverse_cuthill_mckee, spmv, BlockPattern, B, BB};
 use baffle_cfd::vtu::read_simvascular_mesh;
+use rayon::prelude::*;
 
 /// Min and median of `reps` timings of `f`, in ms.
 fn time_ms(reps: usize, mut f: impl FnMut()) -> (f64, f64) {
@@ -34,8 +38,8 @@ fn report(name: &str, (min, median): (f64, f64)) {
     println!("  {name:<34} min {min:8.2} ms   median {median:8.2} ms");
 }
 
-/// The p2 pattern in RCM order, as the solver builds it.
-fn p2_pattern() -> Result<BlockPattern, Box<dyn std::error::Error>> {
+/// p2's mesh (points, tets) and block pattern in RCM order, as the solver builds them.
+fn p2_pattern() -> Result<(Vec<[f64; 3]>, Vec<[u32; 4]>, BlockPattern), Box<dyn std::error::Error>> {
     let p2 = baffle_core::reference_data::reference_data_dir().join("p2");
     let mesh = read_simvascular_mesh(&p2.join("published_M_final.vtu"), &p2.join("published_M_final.vtp"))?;
     let n = mesh.points_cm.len();
@@ -45,7 +49,9 @@ fn p2_pattern() -> Result<BlockPattern, Box<dyn std::error::Error>> {
         new_of_old[old as usize] = new as u32;
     }
     let tets: Vec<[u32; 4]> = mesh.tets.iter().map(|t| t.map(|i| new_of_old[i as usize])).collect();
-    Ok(BlockPattern::from_tets(n, &tets))
+    let points: Vec<[f64; 3]> = order.iter().map(|&old| mesh.points_cm[old as usize]).collect();
+    let pattern = BlockPattern::from_tets(n, &tets);
+    Ok((points, tets, pattern))
 }
 
 /// Values with a dominant diagonal block, deterministic.
@@ -72,7 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             other => return Err(format!("unknown argument {other}").into()),
         }
     }
-    let pattern = p2_pattern()?;
+    let (points, tets, pattern) = p2_pattern()?;
     let n = pattern.n_rows() * B;
     let vals = values(&pattern);
     let vals_low: Vec<f32> = convert(&vals);
@@ -80,7 +86,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
     let x_low: Vec<f32> = convert(&x);
     let (mut y, mut y_low) = (vec![0.0; n], vec![0.0f32; n]);
+    let assembler = Assembler::new(&points, tets.clone(), &pattern, parts.clone());
+    let physics = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0 };
+    let velocity: Vec<f64> = (0..n).map(|i| if i % B == 3 { 0.0 } else { 100.0 * (i as f64 * 0.01).sin() }).collect();
+    let (mut asm_vals, mut asm_rhs) = (vec![0.0; pattern.cols.len() * BB], vec![0.0; n]);
     println!("p2 pattern: {} block rows, {} blocks, {} threads, {reps} repetitions", pattern.n_rows(), pattern.cols.len(), rayon::current_num_threads());
+    report("assembly (element systems + scatter)", time_ms(reps, || assembler.assemble(&pattern, &physics, &velocity, &velocity, &mut asm_vals, &mut asm_rhs)));
+    let element_systems_only = || {
+        let probe: f64 = tets
+            .par_iter()
+            .zip(&assembler.geometry)
+            .map(|(t, geometry)| {
+                let nodal = t.map(|k| [0, 1, 2].map(|c| velocity[k as usize * B + c]));
+                element_system(geometry, &nodal, &nodal, &physics).k[1][2][5]
+            })
+            .sum();
+        std::hint::black_box(probe);
+    };
+    report("element systems alone (no scatter)", time_ms(reps, element_systems_only));
     report("SpMV f64", time_ms(reps, || spmv(&pattern, &vals, &x, &mut y)));
     report("SpMV f32", time_ms(reps, || spmv(&pattern, &vals_low, &x_low, &mut y_low)));
     report("ILU(0) factor -> f64", time_ms(reps, || drop(BlockIlu::<f64>::factor(&pattern, &vals, parts.clone()).unwrap())));
