@@ -4,7 +4,7 @@
 //! result sampled along it (v_max along the centerline).
 
 use crate::sampling::{PeakFields, Profile};
-use crate::simulate_cmd::write_atomic;
+use crate::files::write_atomic;
 use baffle_core::flow_centerline::{flow_centerline, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::TriMesh;

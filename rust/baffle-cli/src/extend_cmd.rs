@@ -4,7 +4,7 @@
 //! measurement planes.
 
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
-use crate::simulate_cmd::write_atomic;
+use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
 use baffle_core::FaceLabels;
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};

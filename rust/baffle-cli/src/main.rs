@@ -18,6 +18,7 @@ mod plan_cmd;
 mod prepare_cmd;
 mod report;
 mod sampling;
+mod files;
 mod simulate_cmd;
 mod simulate_svmp;
 
@@ -300,7 +301,7 @@ fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path)
     );
     let file = out.join("reference_comparison.json");
     let text = serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?;
-    std::fs::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))
+    files::write_atomic(&file, text.as_bytes())
 }
 
 fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {

@@ -50,8 +50,7 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), String> {
     write_faces_vtp(&faces_path, &mesh).map_err(|e| e.to_string())?;
     let quality_path = PathBuf::from(format!("{}-quality.json", stem.display()));
     let text = serde_json::to_string_pretty(&quality).map_err(|e| e.to_string())?;
-    let tmp = quality_path.with_extension("json.tmp");
-    std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, &quality_path)).map_err(|e| format!("{}: {e}", quality_path.display()))?;
+    crate::files::write_atomic(&quality_path, text.as_bytes())?;
     println!(
         "{} tetrahedra; scaled Jacobian min {:.3}, 1st percentile {:.3}; aspect ratio 99th percentile {:.2}",
         quality.tetrahedra, quality.min_scaled_jacobian, quality.p1_scaled_jacobian, quality.p99_aspect_ratio

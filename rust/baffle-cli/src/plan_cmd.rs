@@ -254,7 +254,7 @@ fn face_roles(args: &PlanArgs) -> FaceRoles {
 fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
     let path = dir.join("case.json");
     let text = serde_json::to_string_pretty(case).map_err(|e| e.to_string())?;
-    crate::simulate_cmd::write_atomic(&path, text.as_bytes())?;
+    crate::files::write_atomic(&path, text.as_bytes())?;
     Ok(path)
 }
 

@@ -3,7 +3,7 @@
 
 use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
-use crate::simulate_cmd::write_atomic;
+use crate::files::write_atomic;
 use baffle_prepare::{pools_from_labelmap, prepare, read_labelmap, read_segmentations, BloodPools, LabelSurfaceOptions, PoolLabels, PrepareOptions, PrepareReport};
 use clap::Args;
 use std::path::{Path, PathBuf};

@@ -6,7 +6,7 @@ mod svg_render;
 
 use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
-use crate::simulate_cmd::write_atomic;
+use crate::files::write_atomic;
 use baffle_cfd::Waveform;
 use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
