@@ -57,9 +57,9 @@
 //! quiet: load < 2 from the runs themselves): 1.61-1.67 s per step (31.5 ms per GMRES
 //! iteration) before, 1.216-1.237 s (21-22 ms) now with mixed precision and
 //! 1.346-1.433 s (26-27 ms) with f64; this machine runs that old code 1.8x slower
-//! than the previous session's (0.91 s per step there). GMRES orthogonalization is classical
+//! than the previous session's (0.91 s per step there). GMRES orthogonalization was then classical
 //! Gram-Schmidt in two fused passes with one conditional re-orthogonalization (DGKS,
-//! 0.7). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner,
+//! 0.7; now unconditional, see below). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner,
 //! generalized-alpha time stepping (backward Euler here). Peak resident memory 171-236 MB.
 //! Steady estimate with mixed precision (bench `--steady --runs 3`, load ~4): median
 //! 90.5 s, 24 iterations, 1481 GMRES iterations, dp(11-16) 7.381 mmHg as in f64.
@@ -81,7 +81,25 @@
 //! for 4 cycles: still over the 30-minute target. On the machine with nothing else
 //! running (load < 1.2, `--runs 3 --steps 10`): median 0.730 s per step (13 ms per GMRES
 //! iteration; assembly 0.14 s, ILU factorization 0.07 s), ~33 min for 4 cycles; the
-//! steady estimate 28.0 s (24 iterations, dp 7.381 mmHg).
+//! steady estimate 28.0 s (24 iterations, dp 7.381 mmHg). The full 4-cycle run
+//! (bench `--full`) took 35.4 min.
+//!
+//! Third session (2026-12-01/02, nothing else running, same benches): the ILU(0)
+//! backward sweep took 4x the forward one (12.0 vs 2.7 ms, f32, loaded machine)
+//! because U's rows were read from high to low addresses with the dependent block
+//! first; U is now stored in sweep order with the nearest column last
+//! (`linear::Triangle`), and ILU(0) application f32 went 7.0 -> 1.9-2.4 ms, 40 f32
+//! GMRES iterations 0.71 -> 0.30-0.35 s. Gram-Schmidt is unconditional CGS2 in three
+//! passes (the DGKS test fired at every iteration). Solver bench 0.730 -> 0.577 s per
+//! step (median of 3; 40 GMRES iterations a step, 9 ms each); full 4-cycle run 26.9
+//! min (0.592 s/step, 38.7 GMRES iterations a step, dp(11-16) at peak flow 7.368
+//! mmHg, v_max 252.6 cm/s, periodicity NRMSD 4.8e-7, peak memory 222 MB). Then the
+//! row-by-row assembly (`assembly::Assembler`): assembly 121-134 -> 91 ms (kernels
+//! bench), solver bench median 0.480 s per step, full 4-cycle run 23.7 min (0.520
+//! s/step, 38.9 GMRES iterations a step, the same dp and v_max at peak flow, peak
+//! memory 224 MB), steady estimate 18.8 s (median of 3). Tried and dropped: a Woodbury correction of the preconditioner for the
+//! resistance outlets' rank-one terms (39.6 instead of 40.0 GMRES iterations a step:
+//! the ~12-iteration plateau of every solve does not come from the outlets).
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
