@@ -66,12 +66,6 @@ fn read_mm(path: &Path, scale: f64) -> Result<TriMesh, String> {
     Ok(mesh)
 }
 
-/// `mesh` without the triangles labelled `labels` (points kept).
-fn without_labels(mesh: &TriMesh, labels: &[i32]) -> TriMesh {
-    let keep: Vec<usize> = (0..mesh.triangles.len()).filter(|&t| !labels.contains(&mesh.face_ids[t])).collect();
-    TriMesh::new(mesh.points.clone(), keep.iter().map(|&t| mesh.triangles[t]).collect(), keep.iter().map(|&t| mesh.face_ids[t]).collect())
-}
-
 fn two(labels: &[i32], flag: &str) -> Result<[i32; 2], String> {
     <[i32; 2]>::try_from(labels).map_err(|_| format!("{flag}: give two labels (inflow,outflow), got {labels:?}"))
 }
@@ -94,7 +88,7 @@ pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>
     // Plane triangles that are not end caps lie inside the lumen (the extended surface of
     // `baffle extend` keeps the designed caps 11 and 16 there): not part of its boundary.
     let interior: Vec<i32> = planes.iter().filter(|l| !ends.contains(l)).copied().collect();
-    let boundary = without_labels(&surface, &interior);
+    let boundary = surface.with_labels(|l| !interior.contains(&l));
     let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let options = CenterlineOptions { voxel_mm: args.voxel_mm, spacing_mm: args.spacing_mm, smoothing_mm: args.smoothing_mm, recenter_fraction: args.recenter_fraction };
     let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;

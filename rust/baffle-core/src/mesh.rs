@@ -134,6 +134,12 @@ impl TriMesh {
             .collect()
     }
 
+    /// The triangles whose label passes `keep`, with the points they use (as [`TriMesh::submesh`]).
+    pub fn with_labels(&self, keep: impl Fn(i32) -> bool) -> TriMesh {
+        let mask: Vec<bool> = self.face_ids.iter().map(|&l| keep(l)).collect();
+        self.submesh(&mask).0
+    }
+
     /// Keep only the listed triangles and the points they use, renumbering points.
     /// Returns the sub-mesh and, for each new point, its index in `self`.
     pub fn submesh(&self, keep: &[bool]) -> (TriMesh, Vec<u32>) {

@@ -98,14 +98,10 @@ pub fn split_interior_labels(
     surface: &TriMesh,
     interior_labels: &[i32],
 ) -> Result<(TriMesh, Vec<TriMesh>), MeshError> {
-    let pick = |keep: &dyn Fn(i32) -> bool| {
-        let mask: Vec<bool> = surface.face_ids.iter().map(|&l| keep(l)).collect();
-        surface.submesh(&mask).0
-    };
     let interior = interior_labels
         .iter()
         .map(|&label| {
-            let part = pick(&|l| l == label);
+            let part = surface.with_labels(|l| l == label);
             if part.triangles.is_empty() {
                 return Err(MeshError::InvalidInput(format!(
                     "no triangle carries the interior label {label}"
@@ -114,7 +110,7 @@ pub fn split_interior_labels(
             Ok(part)
         })
         .collect::<Result<Vec<_>, _>>()?;
-    Ok((pick(&|l| !interior_labels.contains(&l)), interior))
+    Ok((surface.with_labels(|l| !interior_labels.contains(&l)), interior))
 }
 
 fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {

@@ -208,7 +208,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
         lv_extension_triangles: lv_triangles,
         aortic_extension_triangles: ao_triangles,
         designed_volume_mm3: domain.signed_volume_mm3(),
-        volume_mm3: wall_only(&surface, &[l.vsd_cap, l.aortic_cap]).signed_volume_mm3(),
+        volume_mm3: surface.with_labels(|f| f != l.vsd_cap && f != l.aortic_cap).signed_volume_mm3(),
         baffle_area_before_mm2: before,
         baffle_area_after_mm2: after,
         baffle_area_relative_change: if before > 0.0 { (after - before) / before } else { 0.0 },
@@ -523,18 +523,12 @@ fn drop_pinches(mesh: &TriMesh, keep: &mut [bool]) {
     }
 }
 
-/// `surface` without the triangles labelled `interior`.
-fn wall_only(surface: &TriMesh, interior: &[i32]) -> TriMesh {
-    let keep: Vec<bool> = surface.face_ids.iter().map(|l| !interior.contains(l)).collect();
-    surface.submesh(&keep).0
-}
-
 /// The extended surface less its interior caps must be closed, consistently wound and
 /// outward; each interior cap edge is shared by 2 triangles inside it and 3 on its rim;
 /// no added triangle may cross another.
 fn check_extended(surface: &TriMesh, designed_triangles: usize, interior: &[i32]) -> Result<(), PrepareError> {
     let fail = |m: String| Err(PrepareError::geometry("extended domain", m));
-    let wall = wall_only(surface, interior);
+    let wall = surface.with_labels(|l| !interior.contains(&l));
     let r = manifold_report(&wall);
     if !r.is_closed_manifold() || r.inconsistently_wound_edges > 0 {
         return fail(format!("without its interior caps it is not closed and consistently wound: {r:?}"));

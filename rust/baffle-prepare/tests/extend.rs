@@ -13,11 +13,6 @@ use baffle_prepare::{prepare, read_segmentations, BloodPools, PrepareError, Prep
 use baffle_verify::{edge_usage_counts, is_consistently_oriented, signed_volume_mm3};
 use std::collections::HashMap;
 
-fn select(mesh: &TriMesh, keep: impl Fn(i32) -> bool) -> TriMesh {
-    let mask: Vec<bool> = mesh.face_ids.iter().map(|&l| keep(l)).collect();
-    mesh.submesh(&mask).0
-}
-
 
 /// Triangles of `label` as sets of corner coordinates (bit patterns).
 fn cap_triangles(mesh: &TriMesh, label: i32) -> Vec<[[u64; 3]; 3]> {
@@ -34,7 +29,7 @@ fn cap_triangles(mesh: &TriMesh, label: i32) -> Vec<[[u64; 3]; 3]> {
 }
 
 fn max_plane_offset_mm(mesh: &TriMesh, label: i32) -> f64 {
-    let cap = select(mesh, |l| l == label);
+    let cap = mesh.with_labels(|l| l == label);
     let (c, n, _) = cap.label_centroid_normal(label).expect("cap");
     cap.points.iter().map(|p| (p - c).dot(&n).abs()).fold(0.0, f64::max)
 }
@@ -42,7 +37,7 @@ fn max_plane_offset_mm(mesh: &TriMesh, label: i32) -> f64 {
 /// What the issue promises, re-measured on `extended` of `domain`.
 fn check_extended(name: &str, domain: &TriMesh, pools: &BloodPools, extended: &Extended) {
     let s = &extended.surface;
-    let walls = select(s, |l| l != 11 && l != 16);
+    let walls = s.with_labels(|l| l != 11 && l != 16);
     assert_eq!(edge_usage_counts(&walls), (0, 0), "{name}: the walls and new caps are not closed and manifold");
     assert!(is_consistently_oriented(&walls), "{name}: inconsistent winding");
     // Interior caps: their edges are used twice inside them, 3 times on their rims.
@@ -56,7 +51,7 @@ fn check_extended(name: &str, domain: &TriMesh, pools: &BloodPools, extended: &E
     let counts: Vec<usize> = uses.values().copied().collect();
     assert!(counts.iter().all(|&c| c == 2 || c == 3), "{name}: an edge is used {:?} times", counts.iter().max());
     let rim_edges = counts.iter().filter(|&&c| c == 3).count();
-    let designed_rims = edge_usage_counts(&select(domain, |l| l == 11)).0 + edge_usage_counts(&select(domain, |l| l == 16)).0;
+    let designed_rims = edge_usage_counts(&domain.with_labels(|l| l == 11)).0 + edge_usage_counts(&domain.with_labels(|l| l == 16)).0;
     assert_eq!(rim_edges, designed_rims, "{name}: 3 faces meet exactly along the interior caps' rims");
     for label in [11, 16] {
         assert_eq!(cap_triangles(s, label), cap_triangles(domain, label), "{name}: cap {label} changed");
@@ -72,7 +67,7 @@ fn check_extended(name: &str, domain: &TriMesh, pools: &BloodPools, extended: &E
     let (outflow, _, outflow_area) = s.label_centroid_normal(21).unwrap();
     assert!(winding_number(&pools.lv, inflow) > 0.5, "{name}: the inflow cap's centroid is not inside the LV");
     let aorta_bvh = TriangleBvh::new(&pools.aorta).unwrap();
-    let outflow_cap = select(s, |l| l == 21);
+    let outflow_cap = s.with_labels(|l| l == 21);
     let rim = outflow_cap.boundary_loops().unwrap().concat();
     let far = rim.iter().filter_map(|&v| aorta_bvh.closest_point(&pools.aorta, outflow_cap.points[v as usize])).map(|h| h.distance_mm).fold(0.0, f64::max);
     assert!(far < 1.0, "{name}: the outflow cap's rim is up to {far:.2} mm off the aorta surface");
