@@ -19,7 +19,7 @@
 
 use rayon::prelude::*;
 
-use crate::sparse::{BlockPattern, B, BB};
+use crate::sparse::{split_by, BlockPattern, B, BB};
 
 /// Constant data of one tetrahedron.
 #[derive(Clone, Copy, Debug)]
@@ -215,35 +215,15 @@ impl Assembler {
         Assembler { tets, geometry, positions, parts, node_element_ptr, node_elements }
     }
 
-    /// `vals` split into the disjoint runs of blocks whose rows each partition owns,
-    /// so threads can write them in parallel.
-    fn block_values_by_partition<'v>(&self, pattern: &BlockPattern, vals: &'v mut [f64]) -> Vec<&'v mut [f64]> {
-        let block_bounds: Vec<usize> = std::iter::once(0).chain(self.parts.iter().map(|r| pattern.row_ptr[r.end])).collect();
-        let mut val_parts = Vec::with_capacity(self.parts.len());
-        let mut rest = vals;
-        for w in block_bounds.windows(2) {
-            let (h, t) = rest.split_at_mut((w[1] - w[0]) * BB);
-            val_parts.push(h);
-            rest = t;
-        }
-        val_parts
-    }
-
     /// Calls `visit(i, row_vals, first, rhs_i)` for every block row i, the partitions
     /// in parallel: `row_vals` are row i's block values (blocks `first..` of the
     /// pattern) and `rhs_i` its right-hand side (empty without `rhs`).
     fn for_each_row(&self, pattern: &BlockPattern, vals: &mut [f64], rhs: Option<&mut [f64]>, visit: impl Fn(usize, &mut [f64], usize, &mut [f64]) + Sync) {
-        let val_parts = self.block_values_by_partition(pattern, vals);
-        let mut rhs_parts: Vec<&mut [f64]> = Vec::new();
-        if let Some(mut rest) = rhs {
-            for r in &self.parts {
-                let (h, t) = rest.split_at_mut(r.len() * B);
-                rhs_parts.push(h);
-                rest = t;
-            }
-        } else {
-            rhs_parts.resize_with(self.parts.len(), || &mut []);
-        }
+        let val_parts = split_by(vals, self.parts.iter().map(|r| pattern.blocks_in(r) * BB));
+        let rhs_parts = match rhs {
+            Some(rhs) => split_by(rhs, self.parts.iter().map(|r| r.len() * B)),
+            None => self.parts.iter().map(|_| &mut [][..]).collect(),
+        };
         val_parts.into_par_iter().zip(rhs_parts).zip(&self.parts).for_each(|((vals_p, rhs_p), rows)| {
             let base = pattern.row_ptr[rows.start];
             for i in rows.clone() {

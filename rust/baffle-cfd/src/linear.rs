@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::sparse::{axpy, block, dot_serial, invert4, mul4, norm, BlockAcc, BlockPattern, Scalar, B, BB};
+use crate::sparse::{axpy, block, dot_serial, invert4, mul4, norm, split_by, BlockAcc, BlockPattern, Scalar, B, BB};
 
 /// Block-Jacobi over contiguous row partitions of block ILU(0): each partition is
 /// factored and solved independently (couplings between partitions are dropped),
@@ -111,18 +111,6 @@ pub fn partitions(pattern: &BlockPattern, n: usize) -> Vec<Range<usize>> {
     out
 }
 
-/// Consecutive disjoint mutable slices of `data` of the given lengths (one per row
-/// partition), so that threads can write them in parallel.
-fn split_by<'a, T>(mut data: &'a mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&'a mut [T]> {
-    let mut out = Vec::new();
-    for len in lengths {
-        let (head, tail) = data.split_at_mut(len);
-        out.push(head);
-        data = tail;
-    }
-    out
-}
-
 impl<T: Scalar> BlockIlu<T> {
     /// Factor on `parts`, contiguous row ranges that cover the rows in order (as
     /// [`partitions`] makes them). Err(row) if a pivot block is singular.
@@ -141,7 +129,7 @@ impl<T: Scalar> BlockIlu<T> {
         self.work.extend_from_slice(vals);
         self.work_inv.resize(pattern.n_rows(), [0.0; BB]);
         let parts = &self.parts;
-        let lu_parts = split_by(&mut self.work, parts.iter().map(|r| (pattern.row_ptr[r.end] - pattern.row_ptr[r.start]) * BB));
+        let lu_parts = split_by(&mut self.work, parts.iter().map(|r| pattern.blocks_in(r) * BB));
         let inv_parts = split_by(&mut self.work_inv, parts.iter().map(|r| r.len()));
         lu_parts
             .into_par_iter()

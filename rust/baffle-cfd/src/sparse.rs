@@ -44,6 +44,11 @@ impl BlockPattern {
         self.row_ptr.len() - 1
     }
 
+    /// Number of blocks in the block rows `rows`.
+    pub fn blocks_in(&self, rows: &std::ops::Range<usize>) -> usize {
+        self.row_ptr[rows.end] - self.row_ptr[rows.start]
+    }
+
     /// Position of block (row, col), if in the pattern.
     pub fn position(&self, row: usize, col: u32) -> Option<usize> {
         let range = self.row_ptr[row]..self.row_ptr[row + 1];
@@ -191,6 +196,18 @@ pub fn convert<S: Scalar, T: Scalar>(v: &[S]) -> Vec<T> {
 pub fn convert_into<S: Scalar, T: Scalar>(v: &[S], out: &mut Vec<T>) {
     out.resize(v.len(), T::default());
     out.par_iter_mut().zip(v).with_min_len(4096).for_each(|(o, x)| *o = T::from_scalar(*x));
+}
+
+/// Consecutive disjoint mutable slices of `data` of the given lengths (one per row
+/// partition), so that threads can write them in parallel.
+pub(crate) fn split_by<'a, T>(mut data: &'a mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&'a mut [T]> {
+    let mut out = Vec::new();
+    for len in lengths {
+        let (head, tail) = data.split_at_mut(len);
+        out.push(head);
+        data = tail;
+    }
+    out
 }
 
 /// Invert a 4x4 block (row-major) by Gauss-Jordan with partial pivoting; None if singular.
