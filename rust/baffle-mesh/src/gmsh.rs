@@ -31,19 +31,24 @@ impl GmshCommand {
         c
     }
 
-    /// `gmsh --version`, trimmed; errors when it does not run.
-    pub fn version(&self) -> Result<String, MeshError> {
-        let out = start_retrying_busy(|| {
-            self.command()
-                .arg("--version")
-                .stdin(Stdio::null())
-                .output()
-        })
-        .map_err(|e| {
+    /// Runs `start` (this command's spawn or output), retrying a busy executable; a
+    /// start that fails is [`MeshError::GmshNotFound`], naming the program.
+    fn start<T>(&self, start: impl FnMut() -> std::io::Result<T>) -> Result<T, MeshError> {
+        start_retrying_busy(start).map_err(|e| {
             MeshError::GmshNotFound(format!(
                 "{} could not be started: {e}",
                 self.program.display()
             ))
+        })
+    }
+
+    /// `gmsh --version`, trimmed; errors when it does not run.
+    pub fn version(&self) -> Result<String, MeshError> {
+        let out = self.start(|| {
+            self.command()
+                .arg("--version")
+                .stdin(Stdio::null())
+                .output()
         })?;
         let text = String::from_utf8_lossy(&out.stdout).to_string()
             + &String::from_utf8_lossy(&out.stderr);
@@ -124,7 +129,7 @@ pub fn run_gmsh(
 ) -> Result<(), MeshError> {
     let log =
         std::fs::File::create(log_path).map_err(|e| MeshError::file(log_path, e.to_string()))?;
-    let mut child = start_retrying_busy(|| {
+    let mut child = cmd.start(|| {
         cmd.command()
             .args(args)
             .current_dir(dir)
@@ -132,12 +137,6 @@ pub fn run_gmsh(
             .stdout(log.try_clone()?)
             .stderr(log.try_clone()?)
             .spawn()
-    })
-    .map_err(|e| {
-        MeshError::GmshNotFound(format!(
-            "{} could not be started: {e}",
-            cmd.program.display()
-        ))
     })?;
     let start = Instant::now();
     loop {
