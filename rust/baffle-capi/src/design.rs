@@ -68,7 +68,7 @@ fn design_error(e: DesignError) -> CallError {
             BaffleStatus::InvalidInput
         }
         DesignError::Cancelled(_) => BaffleStatus::Cancelled,
-        DesignError::Seam(_) | DesignError::Baffle(_) | DesignError::Numerical { .. } => BaffleStatus::DesignFailed,
+        DesignError::Seam(_) | DesignError::Baffle(_) | DesignError::Infeasible { .. } | DesignError::Numerical { .. } => BaffleStatus::DesignFailed,
     };
     CallError::new(status, e.to_string())
 }

@@ -18,6 +18,7 @@ mod plan_cmd;
 mod prepare_cmd;
 mod report;
 mod sampling;
+mod feasibility;
 mod files;
 mod simulate_cmd;
 mod simulate_svmp;
@@ -265,7 +266,7 @@ fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bo
         centerline_spacing_mm: args.centerline_spacing_mm,
         ..DesignOptions::default()
     };
-    let result = design(&surface, &points, &target, &options, progress).map_err(|e| e.to_string())?;
+    let result = design(&surface, &points, &target, &options, progress).map_err(|e| feasibility::design_failure(&args.out, e))?;
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
     println!(

@@ -5,10 +5,10 @@ use crate::amplitudes::{arc_displacement, ArcDisplacement};
 use crate::centerline::{build_centerline, CapFrame, Centerline};
 use crate::envelope::regularize_amplitudes;
 use crate::error::DesignError;
-use crate::mesh::{manifold_report, FaceLabels, TriMesh, Vec3};
+use crate::mesh::{edge_key, manifold_report, FaceLabels, TriMesh, Vec3};
 use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
 use crate::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
-use crate::sections::{cut_mesh, nearest_contour, split_at_seam, Contour, Dropped};
+use crate::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
 use crate::seam::{imprint_seam, project_seam};
 use crate::spatial::TriangleBvh;
 use crate::surface::Domain;
@@ -104,6 +104,9 @@ pub struct DesignReport {
     pub seam_vertices: usize,
     pub discarded_area_mm2: f64,
     pub constrained_sections: usize,
+    /// Sections whose baffle arcs cross a constrained one's: checked, not constrained.
+    pub checked_only_sections: usize,
+    /// Smallest final area over the constrained and the checked-only sections.
     pub min_constrained_final_area_mm2: f64,
     pub correction_rounds: usize,
     pub input_was_inward_wound: bool,
@@ -189,17 +192,28 @@ pub fn design(
     let mut sections = measure_sections(&initial_domain, &centerline, &labels, options.max_wall_fraction);
     let sections_ms = clock.lap();
 
-    clock.stage(0.75, "amplitudes, envelope and surface")?;
-    let fitted = fit_baffle(&initial_domain, &patch, &seam_mm, &mut sections, target_area_mm2, options)?;
-    let surface_ms = clock.lap();
-
-    clock.stage(0.9, "checks")?;
-    check_domain(&fitted.domain.mesh, &fitted.domain, &labels)?;
-    let checks_ms = clock.lap();
+    clock.stage(0.75, "amplitudes, envelope, surface and checks")?;
+    let fit = FitInputs { initial: &initial_domain, patch: &patch, seam_mm: &seam_mm, options };
+    let fitted = match fit.fit_checked(&mut sections, target_area_mm2) {
+        Ok(fitted) => fitted,
+        Err(DesignError::Baffle(reason)) => {
+            clock.stage(0.9, "largest feasible target")?;
+            let max_feasible_area_mm2 = fit.max_feasible_area_mm2(&sections, target_area_mm2);
+            return Err(DesignError::Infeasible {
+                target_area_mm2,
+                max_feasible_area_mm2,
+                max_feasible_z_score: target.z_score_of_area(max_feasible_area_mm2),
+                reason,
+            });
+        }
+        Err(e) => return Err(e),
+    };
+    let checks_ms = fitted.checks_ms;
+    let surface_ms = clock.lap() - checks_ms;
 
     let baffle = fitted.domain.baffle_mesh();
     let initial_baffle = initial_domain.baffle_mesh();
-    let constrained: Vec<&SectionState> = sections.iter().filter(|s| s.displacement.is_some()).collect();
+    let constrained: Vec<&SectionState> = sections.iter().filter(|s| s.is_constrained()).collect();
     let report = DesignReport {
         target_area_mm2,
         target: target.describe(),
@@ -212,7 +226,8 @@ pub fn design(
         seam_vertices: seam_mm.len(),
         discarded_area_mm2: kept.discarded_area_mm2,
         constrained_sections: constrained.len(),
-        min_constrained_final_area_mm2: constrained.iter().filter_map(|s| s.final_area_mm2).fold(f64::INFINITY, f64::min),
+        checked_only_sections: sections.iter().filter(|s| s.is_checked() && !s.is_constrained()).count(),
+        min_constrained_final_area_mm2: sections.iter().filter(|s| s.is_checked()).filter_map(|s| s.final_area_mm2).fold(f64::INFINITY, f64::min),
         correction_rounds: fitted.rounds,
         input_was_inward_wound,
         sections: sections.iter().map(SectionState::record).collect(),
@@ -351,6 +366,7 @@ fn cap_frame(mesh: &TriMesh, label: i32) -> Result<CapFrame, DesignError> {
 }
 
 /// A centerline section during the design.
+#[derive(Clone)]
 struct SectionState {
     s_mm: f64,
     origin: Vec3,
@@ -359,21 +375,38 @@ struct SectionState {
     dropped: Option<Dropped>,
     wall_fraction: Option<f64>,
     displacement: Option<ArcDisplacement>,
+    /// A wall edge on the section's fixed arc: the wall does not move, so the same
+    /// section of the final surface is the contour through this edge.
+    anchor_edge: Option<(u32, u32)>,
+    /// The constrained section (index, s in mm) whose baffle arc this one's crosses:
+    /// then this section is only checked, not constrained (`drop_crossing_sections`).
+    crosses: Option<(usize, f64)>,
     alpha_mm: f64,
     alpha_regularized_mm: f64,
     final_area_mm2: Option<f64>,
 }
 
 impl SectionState {
+    /// The section takes part in the area constraint (its loop is a TPS landmark).
+    fn is_constrained(&self) -> bool {
+        self.displacement.is_some() && self.crosses.is_none()
+    }
+
+    /// The section's final area is checked against the target.
+    fn is_checked(&self) -> bool {
+        self.displacement.is_some()
+    }
+
     fn record(&self) -> SectionRecord {
-        let status = match (&self.dropped, &self.displacement) {
-            (_, Some(_)) => "constrained".to_string(),
-            (Some(Dropped::NoContour), _) => "dropped: no closed contour".to_string(),
-            (Some(Dropped::MostlyWall { wall_fraction }), _) => format!("dropped: {:.0}% of vertices on the RV wall", wall_fraction * 100.0),
-            (Some(Dropped::NoBaffleArc), _) => "dropped: no baffle arc".to_string(),
-            (None, None) => "dropped: degenerate baffle arc".to_string(),
+        let status = match (&self.dropped, &self.displacement, self.crosses) {
+            (_, Some(_), Some((_, s))) => format!("checked only: its baffle arc crosses the constrained section at s = {s:.1} mm"),
+            (_, Some(_), None) => "constrained".to_string(),
+            (Some(Dropped::NoContour), _, _) => "dropped: no closed contour".to_string(),
+            (Some(Dropped::MostlyWall { wall_fraction }), _, _) => format!("dropped: {:.0}% of vertices on the RV wall", wall_fraction * 100.0),
+            (Some(Dropped::NoBaffleArc), _, _) => "dropped: no baffle arc".to_string(),
+            (None, None, _) => "dropped: degenerate baffle arc".to_string(),
         };
-        let constrained = self.displacement.is_some();
+        let constrained = self.is_constrained();
         SectionRecord {
             s_mm: self.s_mm,
             origin_mm: self.origin.into(),
@@ -385,6 +418,38 @@ impl SectionState {
             alpha_regularized_mm: constrained.then_some(self.alpha_regularized_mm),
             final_area_mm2: self.final_area_mm2,
         }
+    }
+
+    /// Area of the same section on `mesh` (the initial domain with its baffle moved):
+    /// the contour through the fixed wall edge, or failing one the contour nearest
+    /// the centerline point. The nearest contour alone can be a small loop of a
+    /// wrinkled baffle and would read the section as empty.
+    fn measured_area_mm2(&self, mesh: &TriMesh) -> Option<f64> {
+        let contours = cut_mesh(mesh, self.origin, self.normal);
+        let anchored = self.anchor_edge.and_then(|e| contours.iter().position(|c| c.point_edges.iter().any(|&pe| edge_key(pe.0, pe.1) == edge_key(e.0, e.1))));
+        let contour = match anchored {
+            Some(i) => contours.into_iter().nth(i),
+            None => nearest_contour(contours, self.origin),
+        };
+        contour.map(|c| c.signed_area_mm2(&self.normal).abs())
+    }
+
+    /// The baffle arc in disk coordinates, point for point (empty unless the section
+    /// has one and every arc point lies on a baffle edge).
+    fn disk_arc(&self, initial: &Domain, disk: &UnitDisk) -> Vec<(f64, f64)> {
+        let (Some(c), Some(d)) = (&self.contour, &self.displacement) else { return Vec::new() };
+        d.arc_indices.iter().map(|&i| initial.disk_uv_on_edge(disk, c.point_edges[i], c.point_fractions[i])).collect::<Option<Vec<_>>>().unwrap_or_default()
+    }
+
+    /// Where the regularized loop puts the arc point at `position` (arc point index
+    /// plus fraction towards the next one).
+    fn target_on_arc(&self, position: f64) -> Option<Vec3> {
+        let (Some(c), Some(d)) = (&self.contour, &self.displacement) else { return None };
+        let last = d.arc_indices.len().checked_sub(1)?;
+        let k = (position.floor().max(0.0) as usize).min(last);
+        let f = (position - k as f64).clamp(0.0, 1.0);
+        let at = |m: usize| c.points[d.arc_indices[m]] + self.alpha_regularized_mm * d.weights[m] * d.direction;
+        Some(at(k) + f * (at((k + 1).min(last)) - at(k)))
     }
 
     /// The section loop with its baffle arc displaced by `alpha_mm`.
@@ -418,6 +483,8 @@ fn measure_sections(domain: &Domain, centerline: &Centerline, labels: &FaceLabel
                 dropped: None,
                 wall_fraction: None,
                 displacement: None,
+                anchor_edge: None,
+                crosses: None,
                 alpha_mm: 0.0,
                 alpha_regularized_mm: 0.0,
                 final_area_mm2: None,
@@ -427,7 +494,10 @@ fn measure_sections(domain: &Domain, centerline: &Centerline, labels: &FaceLabel
                 return state;
             };
             match split_at_seam(&domain.mesh, &contour, labels, max_wall_fraction) {
-                Ok(arc) => state.displacement = arc_displacement(&contour.points, &arc, &sample.unit_tangent),
+                Ok(arc) => {
+                    state.displacement = arc_displacement(&contour.points, &arc, &sample.unit_tangent);
+                    state.anchor_edge = fixed_anchor_edge(&contour, &arc, domain.first_baffle_vertex);
+                }
                 Err(why) => {
                     if let Dropped::MostlyWall { wall_fraction } = why {
                         state.wall_fraction = Some(wall_fraction);
@@ -444,6 +514,45 @@ fn measure_sections(domain: &Domain, centerline: &Centerline, labels: &FaceLabel
 struct FittedBaffle {
     domain: Domain,
     rounds: usize,
+    /// Time of the final domain's checks (ms).
+    checks_ms: f64,
+}
+
+/// What the fit of the final surface works on, fixed for every target tried.
+struct FitInputs<'a> {
+    initial: &'a Domain,
+    patch: &'a InitialPatch,
+    seam_mm: &'a [Vec3],
+    options: &'a DesignOptions,
+}
+
+/// Bisection steps of the largest feasible target: 1/256 of the target.
+const FEASIBILITY_BISECTIONS: usize = 8;
+
+impl FitInputs<'_> {
+    /// The final surface for `target_area_mm2` and the checks of the domain it makes.
+    fn fit_checked(&self, sections: &mut [SectionState], target_area_mm2: f64) -> Result<FittedBaffle, DesignError> {
+        let mut fitted = fit_baffle(self.initial, self.patch, self.seam_mm, sections, target_area_mm2, self.options)?;
+        let start = Instant::now();
+        check_domain(&fitted.domain.mesh, &fitted.domain, &self.options.labels)?;
+        fitted.checks_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(fitted)
+    }
+
+    /// The largest target (mm2, within 1/256 of `target_area_mm2`) for which the fit
+    /// and its checks succeed: what the surgeon's seam admits when the target fails.
+    fn max_feasible_area_mm2(&self, sections: &[SectionState], target_area_mm2: f64) -> f64 {
+        let (mut feasible, mut infeasible) = (0.0, target_area_mm2);
+        for _ in 0..FEASIBILITY_BISECTIONS {
+            let trial_mm2 = 0.5 * (feasible + infeasible);
+            if self.fit_checked(&mut sections.to_vec(), trial_mm2).is_ok() {
+                feasible = trial_mm2;
+            } else {
+                infeasible = trial_mm2;
+            }
+        }
+        feasible
+    }
 }
 
 /// Amplitudes, envelope and final surface [2.4.4-2.4.6], re-measured on the result:
@@ -460,10 +569,13 @@ fn fit_baffle(
 ) -> Result<FittedBaffle, DesignError> {
     let required_mm2 = options.area_margin * target_area_mm2;
     for s in sections.iter_mut() {
+        s.crosses = None;
+        s.final_area_mm2 = None;
         if let Some(d) = &s.displacement {
             s.alpha_mm = d.required_alpha_mm(required_mm2);
         }
     }
+    drop_crossing_sections(initial, &patch.disk, sections, options.baffle_edge_mm)?;
     // Sections are 0.5 mm apart; one landmark every two baffle edges along each arc
     // already puts about as many landmarks as the baffle has vertices.
     let sites = loop_sites(initial, &patch.disk, sections, 2.0 * options.baffle_edge_mm);
@@ -477,23 +589,27 @@ fn fit_baffle(
         let points = map.points(seam_mm, &targets).map_err(|m| DesignError::numerical("final surface TPS", m))?;
         let domain = initial.with_patch_points(&points);
         let mut short = false;
-        for (k, s) in sections.iter_mut().enumerate() {
+        for k in 0..sections.len() {
+            let s = &mut sections[k];
             let Some(d) = &s.displacement else { continue };
-            let area = measured_area_mm2(&domain.mesh, s.origin, s.normal);
+            let area = s.measured_area_mm2(&domain.mesh);
             s.final_area_mm2 = area;
             let area = area.unwrap_or(0.0);
             if area < target_area_mm2 {
                 short = true;
-                boost[k] += (required_mm2 - area) / d.slope_mm;
+                // A checked-only section is raised through the constrained section
+                // whose arc it crosses: they share those baffle points.
+                let owner = s.crosses.map_or(k, |(j, _)| j);
+                boost[owner] += (required_mm2 - area) / d.slope_mm;
             }
         }
         if !short {
-            return Ok(FittedBaffle { domain, rounds: round });
+            return Ok(FittedBaffle { domain, rounds: round, checks_ms: 0.0 });
         }
     }
     let worst = sections
         .iter()
-        .filter(|s| s.displacement.is_some())
+        .filter(|s| s.is_checked())
         .min_by(|a, b| a.final_area_mm2.unwrap_or(0.0).total_cmp(&b.final_area_mm2.unwrap_or(0.0)));
     Err(DesignError::Baffle(match worst {
         Some(s) => format!(
@@ -505,9 +621,53 @@ fn fit_baffle(
     }))
 }
 
+/// Two section loops may ask the same baffle point to be this far apart (a
+/// fraction of the baffle edge) before one of them gives way: below it the final
+/// TPS folds less than a quarter of a triangle.
+const MAX_TARGET_CONFLICT_EDGES: f64 = 0.25;
+
+/// Keep as constrained only sections whose displaced loops agree where their baffle
+/// arcs cross. Where the centerline bends more sharply than the tunnel is wide, the
+/// planes of sections before and after the bend meet on the baffle; constraining
+/// both would ask the final TPS to move the same baffle point to two targets
+/// millimetres apart, and the surface wrinkles (p1). The sections needing the
+/// largest amplitude (then the narrowest) are kept first; the others are only
+/// checked. The paper constrains every section [2.4.4]; where amplitudes are zero
+/// or the arcs do not cross, so do we.
+fn drop_crossing_sections(initial: &Domain, disk: &UnitDisk, sections: &mut [SectionState], baffle_edge_mm: f64) -> Result<(), DesignError> {
+    regularize(sections, &vec![0.0; sections.len()])?;
+    let candidates: Vec<usize> = (0..sections.len()).filter(|&k| sections[k].displacement.is_some()).collect();
+    let arcs: Vec<Vec<(f64, f64)>> = candidates.iter().map(|&k| sections[k].disk_arc(initial, disk)).collect();
+    let key = |i: usize| {
+        let s = &sections[candidates[i]];
+        (s.alpha_mm, s.displacement.as_ref().map_or(f64::INFINITY, |d| d.area0_mm2))
+    };
+    let mut order: Vec<usize> = (0..candidates.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (ka, kb) = (key(a), key(b));
+        kb.0.total_cmp(&ka.0).then(ka.1.total_cmp(&kb.1))
+    });
+    let tolerance_mm = MAX_TARGET_CONFLICT_EDGES * baffle_edge_mm;
+    let conflict = |i: usize, j: usize, ti: f64, tj: f64| {
+        let (a, b) = (&sections[candidates[i]], &sections[candidates[j]]);
+        match (a.target_on_arc(ti), b.target_on_arc(tj)) {
+            (Some(pa), Some(pb)) => (pa - pb).norm() > tolerance_mm,
+            _ => false,
+        }
+    };
+    let verdicts = non_conflicting_arcs(&arcs, &order, conflict);
+    for (i, crossed) in verdicts.into_iter().enumerate() {
+        if let Some(j) = crossed {
+            let kept = candidates[j];
+            sections[candidates[i]].crosses = Some((kept, sections[kept].s_mm));
+        }
+    }
+    Ok(())
+}
+
 /// Least concave majorant of (alpha + boost) over the constrained sections.
 fn regularize(sections: &mut [SectionState], boost: &[f64]) -> Result<(), DesignError> {
-    let idx: Vec<usize> = (0..sections.len()).filter(|&k| sections[k].displacement.is_some()).collect();
+    let idx: Vec<usize> = (0..sections.len()).filter(|&k| sections[k].is_constrained()).collect();
     if idx.is_empty() {
         return Err(DesignError::Baffle(
             "no centerline section crosses the baffle; the suture line may not surround the tunnel between the caps".into(),
@@ -552,7 +712,7 @@ fn loop_sites(initial: &Domain, disk: &UnitDisk, sections: &[SectionState], spac
     let mut sites: Vec<LoopSite> = Vec::new();
     let mut taken = DiskGrid::new(1e-3);
     for (k, s) in sections.iter().enumerate() {
-        let (Some(contour), Some(d)) = (&s.contour, &s.displacement) else { continue };
+        let (Some(contour), Some(d), true) = (&s.contour, &s.displacement, s.is_constrained()) else { continue };
         let arc: Vec<Vec3> = d.arc_indices.iter().map(|&i| contour.points[i]).collect();
         for arc_position in spaced_interior_points(&arc, spacing_mm) {
             let i = d.arc_indices[arc_position];
@@ -609,9 +769,20 @@ fn spaced_interior_points(line: &[Vec3], spacing_mm: f64) -> Vec<usize> {
     out
 }
 
-/// Area of the section of `mesh` nearest `origin` in the plane with `normal`.
-fn measured_area_mm2(mesh: &TriMesh, origin: Vec3, normal: Vec3) -> Option<f64> {
-    nearest_contour(cut_mesh(mesh, origin, normal), origin).map(|c| c.signed_area_mm2(&normal).abs())
+/// A point of the section's fixed arc that lies on an edge between two wall (or
+/// cap) vertices, which the final surface does not move: its edge identifies the
+/// same section on every later surface.
+fn fixed_anchor_edge(contour: &Contour, arc: &BaffleArc, first_baffle_vertex: usize) -> Option<(u32, u32)> {
+    let n = contour.points.len();
+    let on_arc = arc.indices(n);
+    let fixed: Vec<usize> = (0..n)
+        .filter(|i| !on_arc.contains(i))
+        .filter(|&i| {
+            let (a, b) = contour.point_edges[i];
+            (a as usize) < first_baffle_vertex && (b as usize) < first_baffle_vertex
+        })
+        .collect();
+    fixed.get(fixed.len() / 2).map(|&i| contour.point_edges[i])
 }
 
 /// Closed, manifold, consistently wound and connected (one component).

@@ -23,6 +23,12 @@ pub enum DesignError {
     /// The geometry cannot satisfy the area constraint (e.g. the baffle would pass through the wall).
     #[error("baffle: {0}")]
     Baffle(String),
+    /// The target area cannot be reached on this seam; the largest one that can.
+    #[error(
+        "baffle: {reason}. This suture line admits a tunnel of at most {max_feasible_area_mm2:.1} mm2{} against the target {target_area_mm2:.1} mm2: move the suture points away from where the baffle meets the wall or itself",
+        z_score_text(.max_feasible_z_score)
+    )]
+    Infeasible { target_area_mm2: f64, max_feasible_area_mm2: f64, max_feasible_z_score: Option<f64>, reason: String },
     /// A numerical step failed (singular system, degenerate curve).
     #[error("{step}: {message}")]
     Numerical { step: &'static str, message: String },
@@ -35,4 +41,9 @@ impl DesignError {
     pub fn numerical(step: &'static str, message: impl Into<String>) -> Self {
         DesignError::Numerical { step, message: message.into() }
     }
+}
+
+/// " (z = -1.3 for the patient's BSA)" when the body size is known.
+fn z_score_text(z: &Option<f64>) -> String {
+    z.map(|z| format!(" (z = {z:+.1} for the patient's BSA)")).unwrap_or_default()
 }

@@ -23,3 +23,54 @@ pub fn reference_data_if_present() -> Option<PathBuf> {
         None
     }
 }
+
+/// The published seam of a patient (`<patient>/design_input/published_seam.vtp`, a
+/// closed polyline in mm), without the repeated closing point.
+pub fn published_seam_mm(patient_dir: &std::path::Path) -> Result<Vec<crate::Vec3>, String> {
+    let path = patient_dir.join("design_input/published_seam.vtp");
+    let polydata = crate::io::read_polydata(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let line = polydata.lines.first().ok_or_else(|| format!("{}: no polyline", path.display()))?;
+    let mut points: Vec<crate::Vec3> = line.iter().map(|&i| polydata.points[i as usize]).collect();
+    if points.len() > 1 && (points[0] - points[points.len() - 1]).norm() < 1e-9 {
+        points.pop();
+    }
+    Ok(points)
+}
+
+/// `n` points spaced evenly by arc length along a closed polyline, the first at
+/// `phase` (a fraction of the spacing) from its first vertex: how the suture-point
+/// variants of a published seam are made (N = 12-15, phases 0, 1/3, 2/3).
+pub fn evenly_spaced_on_loop(closed: &[crate::Vec3], n: usize, phase: f64) -> Vec<crate::Vec3> {
+    let m = closed.len();
+    let mut cumulative = vec![0.0];
+    for k in 0..m {
+        cumulative.push(cumulative[k] + (closed[(k + 1) % m] - closed[k]).norm());
+    }
+    let total = cumulative[m];
+    (0..n)
+        .map(|j| {
+            let s = (j as f64 + phase) * total / n as f64;
+            let k = cumulative.partition_point(|&c| c <= s).saturating_sub(1).min(m - 1);
+            let t = (s - cumulative[k]) / (cumulative[k + 1] - cumulative[k]).max(1e-300);
+            closed[k] + t * (closed[(k + 1) % m] - closed[k])
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Vec3;
+
+    #[test]
+    fn evenly_spaced_points_on_a_square() {
+        let square = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        let points = evenly_spaced_on_loop(&square, 8, 0.0);
+        assert_eq!(points.len(), 8);
+        assert!((points[1] - Vec3::new(0.5, 0.0, 0.0)).norm() < 1e-12);
+        assert!((points[5] - Vec3::new(0.5, 1.0, 0.0)).norm() < 1e-12);
+        let shifted = evenly_spaced_on_loop(&square, 4, 0.5);
+        assert!((shifted[0] - Vec3::new(0.5, 0.0, 0.0)).norm() < 1e-12);
+        assert!((shifted[3] - Vec3::new(0.0, 0.5, 0.0)).norm() < 1e-12);
+    }
+}

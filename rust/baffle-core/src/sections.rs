@@ -164,6 +164,61 @@ pub fn split_at_seam(
     Ok(BaffleArc { start: best.0, end: (best.0 + best.1) % n })
 }
 
+/// Where two section arcs drawn on the baffle's unit disk (polylines of disk
+/// coordinates) cross: positions along each (segment index + fraction). Sections
+/// whose planes meet on the baffle (where the centerline bends more sharply than
+/// the tunnel is wide) give the final surface two targets for the same baffle point.
+pub fn disk_arc_crossings(a: &[(f64, f64)], b: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let bbox = |l: &[(f64, f64)]| {
+        l.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |m, p| {
+            [m[0].min(p.0), m[1].min(p.1), m[2].max(p.0), m[3].max(p.1)]
+        })
+    };
+    let (ba, bb) = (bbox(a), bbox(b));
+    if ba[0] > bb[2] || bb[0] > ba[2] || ba[1] > bb[3] || bb[1] > ba[3] {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for (i, sa) in a.windows(2).enumerate() {
+        for (j, sb) in b.windows(2).enumerate() {
+            if let Some((ta, tb)) = segments_cross_2d(sa[0], sa[1], sb[0], sb[1]) {
+                out.push((i as f64 + ta, j as f64 + tb));
+            }
+        }
+    }
+    out
+}
+
+/// Proper crossing of two segments as fractions along each (touching at an end does
+/// not count: neighbouring arcs share their seam end points' neighbourhoods).
+fn segments_cross_2d(p1: (f64, f64), p2: (f64, f64), q1: (f64, f64), q2: (f64, f64)) -> Option<(f64, f64)> {
+    let orient = |a: (f64, f64), b: (f64, f64), c: (f64, f64)| (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+    let (d1, d2) = (orient(q1, q2, p1), orient(q1, q2, p2));
+    let (d3, d4) = (orient(p1, p2, q1), orient(p1, p2, q2));
+    (d1 * d2 < 0.0 && d3 * d4 < 0.0).then(|| (d1 / (d1 - d2), d3 / (d3 - d4)))
+}
+
+/// Greedy choice of arcs that do not conflict: `order` lists the arcs most important
+/// first; an arc is kept unless it crosses an arc kept before it at a crossing
+/// where `conflict(arc, kept, position on arc, position on kept)` holds. Returns,
+/// for each arc, `None` when kept or `Some(j)` with the kept arc `j` it conflicts with.
+pub fn non_conflicting_arcs(
+    arcs: &[Vec<(f64, f64)>],
+    order: &[usize],
+    conflict: impl Fn(usize, usize, f64, f64) -> bool,
+) -> Vec<Option<usize>> {
+    let mut verdict = vec![None; arcs.len()];
+    let mut kept: Vec<usize> = Vec::new();
+    for &i in order {
+        let clash = kept.iter().find(|&&j| disk_arc_crossings(&arcs[i], &arcs[j]).into_iter().any(|(ti, tj)| conflict(i, j, ti, tj)));
+        match clash {
+            Some(&j) => verdict[i] = Some(j),
+            None => kept.push(i),
+        }
+    }
+    verdict
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -239,5 +294,24 @@ mod tests {
         }
         let c = cut_mesh(&m, Vec3::new(0.0, 0.0, 4.9), Vec3::z()).remove(0);
         assert!(matches!(split_at_seam(&m, &c, &FaceLabels::default(), 0.75), Err(Dropped::MostlyWall { .. })));
+    }
+
+    #[test]
+    fn crossing_arcs_are_found_and_the_first_in_order_wins() {
+        let horizontal = vec![(-1.0, 0.0), (0.0, 0.0), (1.0, 0.0)];
+        let vertical = vec![(0.5, -1.0), (0.5, 1.0)];
+        let parallel = vec![(-1.0, 0.3), (1.0, 0.3)];
+        let crossings = disk_arc_crossings(&horizontal, &vertical);
+        assert_eq!(crossings.len(), 1);
+        assert!((crossings[0].0 - 1.5).abs() < 1e-12 && (crossings[0].1 - 0.5).abs() < 1e-12, "{crossings:?}");
+        assert!(disk_arc_crossings(&horizontal, &parallel).is_empty());
+        // Touching at an end point is not a crossing.
+        assert!(disk_arc_crossings(&horizontal, &[(1.0, 0.0), (2.0, 1.0)]).is_empty());
+        let arcs = vec![horizontal, vertical, parallel];
+        let always = |_: usize, _: usize, _: f64, _: f64| true;
+        assert_eq!(non_conflicting_arcs(&arcs, &[1, 0, 2], always), vec![Some(1), None, Some(1)]);
+        assert_eq!(non_conflicting_arcs(&arcs, &[0, 2, 1], always), vec![None, Some(0), None]);
+        // A crossing that asks for no conflicting targets keeps both arcs.
+        assert_eq!(non_conflicting_arcs(&arcs, &[1, 0, 2], |_, _, _, _| false), vec![None, None, None]);
     }
 }

@@ -18,6 +18,11 @@ pub fn boston_aortic_annulus_diameter_cm(bsa_m2: f64, z_score: f64) -> f64 {
     1.55 * bsa_m2.sqrt() + z_score * (0.06 + 0.083 * bsa_m2)
 }
 
+/// The Boston z-score of an annulus of `diameter_cm` (the relation above inverted).
+pub fn boston_z_score(bsa_m2: f64, diameter_cm: f64) -> f64 {
+    (diameter_cm - 1.55 * bsa_m2.sqrt()) / (0.06 + 0.083 * bsa_m2)
+}
+
 /// Area (mm^2) of the circle of diameter `diameter_mm`.
 pub fn circle_area_mm2(diameter_mm: f64) -> f64 {
     PI * (0.5 * diameter_mm).powi(2)
@@ -92,6 +97,14 @@ impl TargetArea {
             }
             _ => Err(format!("target area: {self:?} does not specify a body size")),
         }
+    }
+
+    /// The Boston z-score of a circular annulus of `area_mm2` for this target's body
+    /// size; `None` when the target was not given by body size.
+    pub fn z_score_of_area(&self, area_mm2: f64) -> Option<f64> {
+        let bsa_m2 = self.bsa_m2().ok()?;
+        let diameter_cm = 0.2 * (area_mm2.max(0.0) / PI).sqrt();
+        Some(boston_z_score(bsa_m2, diameter_cm))
     }
 
     /// One line for logs and reports, e.g.
@@ -180,6 +193,16 @@ mod tests {
             let err = target.area_mm2().unwrap_err();
             assert!(err.contains(expected), "{target:?}: {err}");
         }
+    }
+
+    #[test]
+    fn z_score_of_an_area_inverts_the_boston_relation() {
+        for z in [-2.0, 0.0, 1.5] {
+            let t = TargetArea::Bsa { bsa_m2: 0.37, z_score: z };
+            let back = t.z_score_of_area(t.area_mm2().unwrap()).unwrap();
+            assert!((back - z).abs() < 1e-9, "{z} -> {back}");
+        }
+        assert_eq!(TargetArea::AreaMm2(70.0).z_score_of_area(70.0), None);
     }
 
     #[test]

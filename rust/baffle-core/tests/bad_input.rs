@@ -98,8 +98,8 @@ fn a_seam_between_the_caps_is_rejected() {
 #[test]
 fn an_unreachable_target_is_an_error_not_a_broken_mesh() {
     let p = phantom_default();
-    let err = expect_error(&p.surface, &p.suture_points_mm, &TargetArea::AreaMm2(1500.0), &[]);
-    assert!(matches!(err, DesignError::Baffle(_)), "{err}");
+    let err = expect_error(&p.surface, &p.suture_points_mm, &TargetArea::AreaMm2(1500.0), &["admits a tunnel of at most"]);
+    assert!(matches!(err, DesignError::Infeasible { max_feasible_area_mm2, .. } if max_feasible_area_mm2 < 1500.0), "{err}");
 }
 
 #[test]
