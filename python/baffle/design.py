@@ -44,6 +44,13 @@ class DesignResult:
         dropped, e.g. mostly on the RV wall or at the degenerate cap planes)."""
         return [s for s in self.report["sections"] if s["status"] == "constrained"]
 
+    @property
+    def checked_sections(self) -> list:
+        """Sections whose final area is held at or above the target: the constrained
+        ones and those only checked (their baffle arc crosses a constrained section's,
+        where the centerline bends more sharply than the tunnel is wide)."""
+        return [s for s in self.report["sections"] if s["final_area_mm2"] is not None]
+
 
 def _array(values, dtype, name: str, columns: Optional[int] = None) -> np.ndarray:
     array = np.ascontiguousarray(values, dtype=dtype)

@@ -88,7 +88,7 @@ def test_phantom_design_with_progress(phantom):
         progress=lambda fraction, stage: fractions.append(fraction),
     )
     assert fractions[0] == 0.0 and fractions[-1] == 1.0
-    assert all(s["final_area_mm2"] >= result.target_area_mm2 for s in result.constrained_sections)
+    assert all(s["final_area_mm2"] >= result.target_area_mm2 for s in result.checked_sections)
     assert result.domain.triangles.shape == (result.report["domain_triangles"], 3)
 
 

@@ -98,7 +98,9 @@ def check_design(result: baffle.DesignResult, tmp_path):
 
     constrained = result.constrained_sections
     assert len(constrained) == report["constrained_sections"] > 0
-    for section in constrained:
+    checked = result.checked_sections
+    assert len(checked) == report["constrained_sections"] + report["checked_only_sections"]
+    for section in checked:
         area = nearest_section_area_mm2(domain, section["origin_mm"], section["normal"])
         assert area >= target_mm2 * (1 - RELATIVE_TOLERANCE), f"s = {section['s_mm']} mm: {area} < {target_mm2}"
         assert area == pytest.approx(section["final_area_mm2"], rel=RELATIVE_TOLERANCE)

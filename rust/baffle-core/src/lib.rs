@@ -15,6 +15,7 @@ pub mod spatial;
 pub mod numerics;
 pub mod target;
 pub mod phantom;
+pub mod phantom_family;
 pub mod caps;
 pub mod remesh;
 pub mod seam;

@@ -34,6 +34,11 @@ pub struct PhantomParams {
     /// Half-width of the loop around the outer side of the bend, as a section
     /// angle (degrees); 0 is the outermost line of the wall.
     pub suture_half_angle_deg: f64,
+    /// Each suture point is moved along the wall by up to this fraction of the point
+    /// spacing, in both directions on the wall (a surgeon's uneven hand); 0 = none.
+    pub suture_jitter_fraction: f64,
+    /// Seed of that jitter (the same seed gives the same points).
+    pub suture_jitter_seed: u64,
     /// Patient body surface area (m^2) the phantom claims to belong to.
     pub bsa_m2: f64,
     /// `ModelFaceID`s to write (wall, VSD cap, aortic cap are used).
@@ -51,6 +56,8 @@ impl Default for PhantomParams {
             suture_point_count: 14,
             suture_rim_margin_mm: 1.2,
             suture_half_angle_deg: 70.0,
+            suture_jitter_fraction: 0.0,
+            suture_jitter_seed: 0,
             bsa_m2: 0.37,
             labels: FaceLabels::default(),
         }
@@ -423,11 +430,21 @@ fn suture_points_mm(params: &PhantomParams) -> Vec<Vec3> {
         cumulative_mm.push(last + (pair[1] - pair[0]).norm());
     }
     let loop_length_mm = cumulative_mm[cumulative_mm.len() - 1];
+    let spacing_mm = loop_length_mm / count.max(1) as f64;
+    let mut jitter = crate::phantom_family::SplitMix64::new(params.suture_jitter_seed);
     (0..count)
         .map(|i| {
             let target_mm = loop_length_mm * i as f64 / count as f64;
             let loop_param = loop_param_at_length(&cumulative_mm, target_mm);
-            suture_loop_point_mm(params, loop_param)
+            let (sweep, section) = suture_loop_angles(params, loop_param);
+            // Jitter in wall angles: the point stays exactly on the analytic wall.
+            let along_mm = params.suture_jitter_fraction * spacing_mm * jitter.symmetric_unit();
+            let across_mm = params.suture_jitter_fraction * spacing_mm * jitter.symmetric_unit();
+            let (a, b) = params.semi_axes_mm(sweep / params.sweep_angle_rad());
+            // Clamped to the loop's own sweep range, so the rim margins still hold.
+            let (sweep_lo, sweep_hi) = suture_sweep_range(params);
+            let sweep = (sweep + along_mm / (params.bend_radius_mm + a * section.cos())).clamp(sweep_lo, sweep_hi);
+            params.wall_point_mm(sweep, section + across_mm / a.min(b))
         })
         .collect()
 }
@@ -444,15 +461,25 @@ fn loop_param_at_length(cumulative_mm: &[f64], target_mm: f64) -> f64 {
 /// Loop point at parameter `t` (rad). t = 0 is the point nearest the VSD cap, on
 /// the outermost wall line; increasing t runs counter-clockwise seen from outside.
 fn suture_loop_point_mm(params: &PhantomParams, t: f64) -> Vec3 {
-    let sweep_lo = params.vsd_margin_sweep_rad();
-    let sweep_hi = params.sweep_angle_rad() - params.aortic_margin_sweep_rad();
+    let (sweep, section) = suture_loop_angles(params, t);
+    params.wall_point_mm(sweep, section)
+}
+
+/// (sweep, section) angles (rad) of the loop at parameter `t`.
+fn suture_loop_angles(params: &PhantomParams, t: f64) -> (f64, f64) {
+    let (sweep_lo, sweep_hi) = suture_sweep_range(params);
     let (sweep_mid, sweep_half) = (0.5 * (sweep_lo + sweep_hi), 0.5 * (sweep_hi - sweep_lo));
     let section_half = params.suture_half_angle_deg.to_radians();
     // (-cos, -sin) in (sweep, section) is counter-clockwise in that order, and the
     // wall's outward normal is d(sweep) x d(section).
     let sweep = sweep_mid - sweep_half * superellipse_coordinate(t.cos());
     let section = -section_half * superellipse_coordinate(t.sin());
-    params.wall_point_mm(sweep, section)
+    (sweep, section)
+}
+
+/// The sweep angles (rad) the loop spans: the rim margins inside each cap.
+fn suture_sweep_range(params: &PhantomParams) -> (f64, f64) {
+    (params.vsd_margin_sweep_rad(), params.sweep_angle_rad() - params.aortic_margin_sweep_rad())
 }
 
 /// Maps a unit-circle coordinate onto the superellipse |x|^p + |y|^p = 1.

@@ -45,8 +45,11 @@ pub const INFLOW_CAP_LABEL: i32 = 20;
 pub const OUTFLOW_CAP_LABEL: i32 = 21;
 /// The mid-LV plane must lie at least this far beyond the VSD cap (mm).
 const MIN_LV_DEPTH_MM: f64 = 1.0;
-/// Cap points farther than this from their best-fit plane (mm) make the cap non-planar.
-const PLANAR_TOLERANCE_MM: f64 = 1e-6;
+/// A designed cap is planar when no point is farther from its best-fit plane than
+/// this fraction of the cap's equivalent diameter (0.1 mm on a 10 mm cap, below a
+/// tenth of the mesh edge). Published caps are planar to 4-16 micrometres, not to
+/// rounding: an absolute tolerance refused them.
+const PLANAR_TOLERANCE_OF_DIAMETER: f64 = 0.01;
 
 #[derive(Clone, Debug)]
 pub struct StjOptions {
@@ -152,6 +155,9 @@ pub struct ExtendReport {
     pub inflow_cap: CapReport,
     pub outflow_cap: CapReport,
     pub mid_lv_plane: MidLvPlaneReport,
+    /// Largest distance of a designed VSD / aortic cap point from its plane (mm).
+    pub vsd_cap_off_plane_mm: f64,
+    pub aortic_cap_off_plane_mm: f64,
     pub stj: StjReport,
     pub remesh_edge_mm: f64,
     pub timings: ExtendTimings,
@@ -171,6 +177,8 @@ struct DesignedCap {
     /// Rim as domain point indices, in the cap triangles' winding.
     rim: Vec<u32>,
     area_mm2: f64,
+    /// Largest distance of a cap point from the plane (mm).
+    off_plane_mm: f64,
 }
 
 /// The extended domain of `domain` (a closed, outward designed domain in mm with the
@@ -223,6 +231,8 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
             normal: arr(mid_lv.normal),
             distance_from_vsd_mm: vsd.plane.signed_distance_mm(&mid_lv.centroid),
         },
+        vsd_cap_off_plane_mm: vsd.off_plane_mm,
+        aortic_cap_off_plane_mm: annulus.off_plane_mm,
         stj: stj_report,
         remesh_edge_mm: edge_mm,
         timings: ExtendTimings { planes_ms, union_ms, extensions_ms, checks_ms: lap() },
@@ -279,10 +289,14 @@ fn designed_cap(domain: &TriMesh, label: i32, name: &str) -> Result<DesignedCap,
     let (_, outward, area_mm2) = cap.label_centroid_normal(label).unwrap_or((Vec3::zeros(), Vec3::z(), 0.0));
     let plane = oriented(best_fit_plane(&cap.points), outward);
     let off = cap.points.iter().map(|p| plane.signed_distance_mm(p).abs()).fold(0.0, f64::max);
-    if off > PLANAR_TOLERANCE_MM.max(1e-9 * domain.bbox_diagonal_mm()) {
-        return Err(PrepareError::geometry("designed domain", format!("the {name} cap is not planar ({off:.2e} mm off its plane)")));
+    let tolerance_mm = PLANAR_TOLERANCE_OF_DIAMETER * 2.0 * (area_mm2 / std::f64::consts::PI).sqrt();
+    if !(off <= tolerance_mm) {
+        return Err(PrepareError::geometry(
+            "designed domain",
+            format!("the {name} cap is not planar: a point lies {off:.3} mm off its plane (tolerance {tolerance_mm:.3} mm, 1% of its diameter)"),
+        ));
     }
-    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2 })
+    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2, off_plane_mm: off })
 }
 
 /// `plane` with its normal turned toward `direction` (still right-handed).

@@ -541,7 +541,8 @@ class BaffleDesignerLogic:
             offset += len(loop)
             s_values.append(section["s_mm"])
             areas.append(area)
-            constrained.append(1 if section["status"] == "constrained" else 0)
+            # 1 constrained, 2 checked only (its arc crosses a constrained one), 0 dropped.
+            constrained.append(1 if section["status"] == "constrained" else 2 if section["final_area_mm2"] is not None else 0)
         polydata = vtk.vtkPolyData()
         points = vtk.vtkPoints()
         if append_points:

@@ -1,0 +1,107 @@
+//! One member of the phantom family designed and checked: shared by the CI sweep
+//! (`tests/phantom_family.rs`) and the larger one (`examples/phantom_sweep.rs`).
+
+use baffle_core::phantom::phantom;
+use baffle_core::phantom_family::FamilyMember;
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, Vec3};
+
+/// What the design did with one member.
+pub enum Outcome {
+    /// A tunnel at the target; the seam length (mm) and whether the baffle had to be pushed out.
+    Designed { seam_mm: f64, expanded: bool },
+    /// A named infeasibility whose largest target was designed and verified.
+    Infeasible { target_area_mm2: f64, max_feasible_area_mm2: f64 },
+    /// Anything else: a wrong mesh, an unexplained error, a false largest target.
+    Problem(String),
+}
+
+/// Smallest re-measured (baffle-verify) checked section of a design, or why it fails.
+pub fn verified_smallest_section_mm2(result: &DesignResult) -> Result<f64, String> {
+    if baffle_verify::edge_usage_counts(&result.domain) != (0, 0) {
+        return Err("the domain is open or non-manifold".into());
+    }
+    let target_mm2 = result.report.target_area_mm2;
+    let mut smallest = f64::INFINITY;
+    for section in result.report.sections.iter().filter(|s| s.final_area_mm2.is_some()) {
+        let area = baffle_verify::section_area_nearest(&result.domain, Vec3::from(section.origin_mm), Vec3::from(section.normal))
+            .map_err(|e| e.to_string())?
+            .unwrap_or(0.0);
+        if area < target_mm2 {
+            return Err(format!("section at s = {:.1} mm re-measures {area:.2} mm2 < {target_mm2:.2}", section.s_mm));
+        }
+        smallest = smallest.min(area);
+    }
+    Ok(smallest)
+}
+
+pub fn run_member(member: &FamilyMember) -> Outcome {
+    let p = phantom(&member.params);
+    let options = DesignOptions::default();
+    let run = |target: &TargetArea| design(&p.surface, &p.suture_points_mm, target, &options, &mut |_, _| true);
+    match run(&member.target) {
+        Ok(result) => match verified_smallest_section_mm2(&result) {
+            Ok(_) => {
+                let seam = &result.seam_mm;
+                let seam_mm = (0..seam.len()).map(|i| (seam[(i + 1) % seam.len()] - seam[i]).norm()).sum();
+                let expanded = result.report.sections.iter().any(|s| s.alpha_mm.is_some_and(|a| a > 0.0));
+                Outcome::Designed { seam_mm, expanded }
+            }
+            Err(why) => Outcome::Problem(why),
+        },
+        Err(DesignError::Infeasible { target_area_mm2, max_feasible_area_mm2, .. }) if max_feasible_area_mm2 > 1.0 => {
+            match run(&TargetArea::AreaMm2(max_feasible_area_mm2)).map_err(|e| e.to_string()).and_then(|r| verified_smallest_section_mm2(&r)) {
+                Ok(_) => Outcome::Infeasible { target_area_mm2, max_feasible_area_mm2 },
+                Err(why) => Outcome::Problem(format!("the reported largest target {max_feasible_area_mm2:.1} mm2 fails: {why}")),
+            }
+        }
+        Err(e) => Outcome::Problem(e.to_string()),
+    }
+}
+
+/// Tally of a sweep over seeds.
+#[derive(Default)]
+pub struct Tally {
+    pub designed: usize,
+    pub expanded: usize,
+    pub infeasible: usize,
+    /// Largest feasible / target area of each infeasible member.
+    pub feasible_fractions: Vec<f64>,
+    pub seam_range_mm: (f64, f64),
+    pub problems: Vec<String>,
+}
+
+pub fn sweep(seeds: impl Iterator<Item = u64>) -> Tally {
+    let mut tally = Tally { seam_range_mm: (f64::INFINITY, 0.0), ..Tally::default() };
+    for seed in seeds {
+        match run_member(&baffle_core::phantom_family::family_member(seed)) {
+            Outcome::Designed { seam_mm, expanded } => {
+                tally.designed += 1;
+                tally.expanded += usize::from(expanded);
+                tally.seam_range_mm = (tally.seam_range_mm.0.min(seam_mm), tally.seam_range_mm.1.max(seam_mm));
+            }
+            Outcome::Infeasible { target_area_mm2, max_feasible_area_mm2 } => {
+                tally.infeasible += 1;
+                tally.feasible_fractions.push(max_feasible_area_mm2 / target_area_mm2);
+            }
+            Outcome::Problem(why) => tally.problems.push(format!("seed {seed}: {why}")),
+        }
+    }
+    tally
+}
+
+impl Tally {
+    pub fn summary(&self) -> String {
+        format!(
+            "{} designed ({} needed the baffle pushed out; seams {:.0}-{:.0} mm), {} infeasible with a verified largest target \
+             ({:.2}-{:.2} of the target), {} problems",
+            self.designed,
+            self.expanded,
+            self.seam_range_mm.0,
+            self.seam_range_mm.1,
+            self.infeasible,
+            self.feasible_fractions.iter().copied().fold(f64::INFINITY, f64::min),
+            self.feasible_fractions.iter().copied().fold(0.0, f64::max),
+            self.problems.len()
+        )
+    }
+}
