@@ -12,7 +12,7 @@ fn main() -> Result<(), String> {
     let start = std::time::Instant::now();
     let tally = family::sweep(first..first + count);
     println!("phantom family, seeds {first}-{}: {} ({:.1} s)", first + count - 1, tally.summary(), start.elapsed().as_secs_f64());
-    for problem in &tally.problems {
+    for problem in tally.rejected_seams.iter().chain(&tally.problems) {
         println!("  {problem}");
     }
     Ok(())

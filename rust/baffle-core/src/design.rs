@@ -526,7 +526,8 @@ struct FitInputs<'a> {
     options: &'a DesignOptions,
 }
 
-/// Bisection steps of the largest feasible target: 1/256 of the target.
+/// Bisection steps of the largest feasible target: 1/256 of the target (the error
+/// text quotes that resolution).
 const FEASIBILITY_BISECTIONS: usize = 8;
 
 impl FitInputs<'_> {

@@ -24,10 +24,7 @@ pub enum DesignError {
     #[error("baffle: {0}")]
     Baffle(String),
     /// The target area cannot be reached on this seam; the largest one that can.
-    #[error(
-        "baffle: {reason}. This suture line admits a tunnel of at most {max_feasible_area_mm2:.1} mm2{} against the target {target_area_mm2:.1} mm2: move the suture points away from where the baffle meets the wall or itself",
-        z_score_text(.max_feasible_z_score)
-    )]
+    #[error("baffle: {reason}. {}", feasibility_text(*.target_area_mm2, *.max_feasible_area_mm2, .max_feasible_z_score))]
     Infeasible { target_area_mm2: f64, max_feasible_area_mm2: f64, max_feasible_z_score: Option<f64>, reason: String },
     /// A numerical step failed (singular system, degenerate curve).
     #[error("{step}: {message}")]
@@ -43,7 +40,18 @@ impl DesignError {
     }
 }
 
-/// " (z = -1.3 for the patient's BSA)" when the body size is known.
-fn z_score_text(z: &Option<f64>) -> String {
-    z.map(|z| format!(" (z = {z:+.1} for the patient's BSA)")).unwrap_or_default()
+/// What the seam admits, and what to do about it.
+fn feasibility_text(target_area_mm2: f64, max_feasible_area_mm2: f64, z: &Option<f64>) -> String {
+    if max_feasible_area_mm2 <= 0.0 {
+        return format!(
+            "This suture line admits no tunnel at all (every target down to {:.1} mm2 fails the same way): \
+             move the suture points so the patch they span stays inside the ventricle",
+            target_area_mm2 / 256.0
+        );
+    }
+    let z = z.map(|z| format!(" (z = {z:+.1} for the patient's BSA)")).unwrap_or_default();
+    format!(
+        "This suture line admits a tunnel of at most {max_feasible_area_mm2:.1} mm2{z} against the target {target_area_mm2:.1} mm2: \
+         move the suture points away from where the baffle meets the wall or itself"
+    )
 }

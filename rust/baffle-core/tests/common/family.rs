@@ -11,6 +11,9 @@ pub enum Outcome {
     Designed { seam_mm: f64, expanded: bool },
     /// A named infeasibility whose largest target was designed and verified.
     Infeasible { target_area_mm2: f64, max_feasible_area_mm2: f64 },
+    /// The jittered points make a seam that crosses a cap or runs between the caps:
+    /// an input the design refuses by name, as it would a surgeon's.
+    RejectedSeam(String),
     /// Anything else: a wrong mesh, an unexplained error, a false largest target.
     Problem(String),
 }
@@ -54,6 +57,7 @@ pub fn run_member(member: &FamilyMember) -> Outcome {
                 Err(why) => Outcome::Problem(format!("the reported largest target {max_feasible_area_mm2:.1} mm2 fails: {why}")),
             }
         }
+        Err(e @ DesignError::Seam(_)) => Outcome::RejectedSeam(e.to_string()),
         Err(e) => Outcome::Problem(e.to_string()),
     }
 }
@@ -67,6 +71,7 @@ pub struct Tally {
     /// Largest feasible / target area of each infeasible member.
     pub feasible_fractions: Vec<f64>,
     pub seam_range_mm: (f64, f64),
+    pub rejected_seams: Vec<String>,
     pub problems: Vec<String>,
 }
 
@@ -83,6 +88,7 @@ pub fn sweep(seeds: impl Iterator<Item = u64>) -> Tally {
                 tally.infeasible += 1;
                 tally.feasible_fractions.push(max_feasible_area_mm2 / target_area_mm2);
             }
+            Outcome::RejectedSeam(why) => tally.rejected_seams.push(format!("seed {seed}: {why}")),
             Outcome::Problem(why) => tally.problems.push(format!("seed {seed}: {why}")),
         }
     }
@@ -93,7 +99,7 @@ impl Tally {
     pub fn summary(&self) -> String {
         format!(
             "{} designed ({} needed the baffle pushed out; seams {:.0}-{:.0} mm), {} infeasible with a verified largest target \
-             ({:.2}-{:.2} of the target), {} problems",
+             ({:.2}-{:.2} of the target), {} seams refused by name, {} problems",
             self.designed,
             self.expanded,
             self.seam_range_mm.0,
@@ -101,6 +107,7 @@ impl Tally {
             self.infeasible,
             self.feasible_fractions.iter().copied().fold(f64::INFINITY, f64::min),
             self.feasible_fractions.iter().copied().fold(0.0, f64::max),
+            self.rejected_seams.len(),
             self.problems.len()
         )
     }
