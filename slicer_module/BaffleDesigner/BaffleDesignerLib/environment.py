@@ -24,14 +24,14 @@ def source_python_package() -> Optional[Path]:
 
 
 def install_hint() -> str:
-    """How to put the `baffle` package into Slicer's Python."""
+    """How to put the `baffle` package into Slicer's Python (README, Slicer section)."""
     source = source_python_package()
     where = repr(str(source)) if source else "'/path/to/baffle-repository/python'"
     return (
         "Install it into Slicer's Python: in the Python console (View > Python Console) run "
-        f"slicer.util.pip_install({where}) (builds the library with cargo, a few minutes), "
-        "or slicer.util.pip_install('/path/to/baffle-*.whl') with a wheel built by "
-        "`pip wheel ./python`; then restart Slicer."
+        "import os; os.environ['BAFFLE_LIBRARY'] = '/path/to/libbaffle.so' (built by "
+        "cargo build --release -p baffle-capi; without it pip runs cargo), then "
+        f"slicer.util.pip_install({where}), and restart Slicer."
     )
 
 
