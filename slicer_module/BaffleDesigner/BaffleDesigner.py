@@ -127,7 +127,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         # First-run check: the package now, the program's subcommands on a background
         # thread (`baffle ... --help` must not hold up the module panel).
         self.packageProblem = bdenvironment.package_problem()
-        self.probe = bdprocess.SubcommandProbe(self.executable, bdenvironment.SUBCOMMANDS).start()
+        env = self.logic.child_env
+        self.probe = bdprocess.SubcommandProbe(self.executable, bdenvironment.SUBCOMMANDS,
+                                               checks={"gmsh": lambda: bdenvironment.gmsh_availability(env)}).start()
         self.probeTimer = qt.QTimer()
         self.probeTimer.setInterval(100)
         self.probeTimer.connect("timeout()", self.onProbeTimer)
@@ -146,7 +148,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             return
         self.probeTimer.stop()
         results = self.probe.results
-        self.volumeMeshReason = results["mesh"][1]
+        self.volumeMeshReason = results["mesh"][1] or results["gmsh"][1]
         simulate, reason = results["simulate"]
         self.simulateReason = "" if simulate else "The CFD worker is not available in this build: " + reason
         self.showRequirements()
@@ -154,7 +156,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
 
     def showRequirements(self):
         """The first-run check's findings above the status line (hidden when nothing is missing)."""
-        availability = self.probe.results if self.probe.done else {name: (True, "") for name in bdenvironment.SUBCOMMANDS}
+        availability = self.probe.results if self.probe.done else {}
+        availability = {name: availability.get(name, (True, "")) for name in (*bdenvironment.SUBCOMMANDS, "gmsh")}
         problems = bdenvironment.first_run_problems(self.executable, availability)
         self.ui.requirementsLabel.text = "\n".join(problems)
         self.ui.requirementsLabel.visible = bool(problems)
@@ -764,8 +767,10 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
     def test_phantom_simulate_cancel_and_errors(self):
         executable = bdprocess.find_baffle_executable()
         available, reason = bdprocess.simulate_availability(executable)
+        if available:
+            available, reason = bdenvironment.gmsh_availability(childEnvironment())
         if not available:
-            self.delayDisplay(f"Simulate skipped: {reason}")
+            self.delayDisplay(f"Simulate test SKIPPED: {reason}")
             return
         self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
         logic, curve, bsa = self._phantomCandidate()

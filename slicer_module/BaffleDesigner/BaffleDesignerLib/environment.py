@@ -5,6 +5,8 @@ missing into one message that says how to get it. No Qt, no MRML."""
 
 import importlib
 import os
+import shutil
+import subprocess
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
@@ -45,10 +47,37 @@ def package_problem() -> str:
     return ""
 
 
+def gmsh_availability(env: Optional[dict] = None, timeout: float = 20.0) -> Tuple[bool, str]:
+    """Whether `baffle mesh`, started with `env`, finds a working gmsh, looked up in its
+    order (baffle-mesh, gmsh.rs): $BAFFLE_GMSH, else `gmsh` on PATH, else python3 with
+    the gmsh wheel. (True, "") or (False, what to do)."""
+    env = dict(os.environ if env is None else env)
+    if env.get("BAFFLE_GMSH"):
+        candidates = [[env["BAFFLE_GMSH"], "--version"]]
+    else:
+        on_path = shutil.which("gmsh", path=env.get("PATH", os.defpath))
+        candidates = ([[on_path, "--version"]] if on_path else []) + [["python3", "-c", "import gmsh"]]
+    tried = []
+    for command in candidates:
+        try:
+            done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=timeout, check=False)
+        except (OSError, subprocess.TimeoutExpired) as error:
+            tried.append(f"{command[0]}: {error}")
+            continue
+        if done.returncode == 0:
+            return True, ""
+        detail = (done.stderr or done.stdout).strip().splitlines()
+        tried.append(f"{' '.join(command)}: {detail[-1] if detail else f'exit code {done.returncode}'}")
+    return False, (
+        "gmsh was not found (install it with `bash scripts/install_gmsh.sh` or `python3 -m pip install gmsh`, "
+        "or set BAFFLE_GMSH before starting Slicer); tried " + "; ".join(tried)
+    )
+
+
 def first_run_problems(executable: Optional[str], availability: Dict[str, Tuple[bool, str]]) -> List[str]:
     """Everything missing, one line each: the package (no design at all), the program,
-    its subcommands (`availability`: subcommand -> (available, why not), from
-    process.subcommand_availability)."""
+    its subcommands and gmsh (`availability`: subcommand or "gmsh" -> (available, why
+    not), from process.subcommand_availability and gmsh_availability)."""
     problems = []
     package = package_problem()
     if package:
@@ -64,6 +93,9 @@ def first_run_problems(executable: Optional[str], availability: Dict[str, Tuple[
         available, reason = availability.get(subcommand, (False, "not checked"))
         if not available:
             problems.append(f"{purpose} is unavailable: {reason}")
+    available, reason = availability.get("gmsh", (True, ""))
+    if not available:
+        problems.append(f"Volume mesh and Simulate need gmsh: {reason}")
     return problems
 
 
