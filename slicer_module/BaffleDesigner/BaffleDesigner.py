@@ -662,7 +662,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         data, tried = bdenvironment.patient_data_dir(__file__)
         given = os.environ.get("BAFFLE_DATA_DIR")
         if given:
-            self.assertEqual(str(data), given, f"BAFFLE_DATA_DIR={given} holds no p2 folder")
+            self.assertEqual(os.path.normpath(str(data)), os.path.normpath(given), f"BAFFLE_DATA_DIR={given} holds no p2 folder")
         if data is None:
             logging.warning("BaffleDesigner test: no patient data (set BAFFLE_DATA_DIR); looked in %s",
                             ", ".join(map(str, tried)))

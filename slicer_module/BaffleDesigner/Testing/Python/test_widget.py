@@ -6,10 +6,13 @@ setup; design on p2 with its table and chart shown; a drag with auto-update; sim
 the phantom with cancel; closing the scene during and after a run; the first-run check;
 cleanup and reload; and the module's own BaffleDesignerTest."""
 
+import os
 import re
 import stat
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -163,25 +166,37 @@ def test_setup_does_not_wait_for_the_program(module, tmp_path, monkeypatch):
         harness.unload_module(module)
 
 
-def test_first_run_check_says_what_is_missing(module, monkeypatch, tmp_path):
-    """No baffle package in Slicer's Python, no program: the module still loads and its
-    panel says what to install; Design is off."""
-    monkeypatch.setitem(sys.modules, "baffle", None)  # `import baffle` raises ImportError
-    monkeypatch.setenv("BAFFLE_EXECUTABLE", str(tmp_path / "no-such-baffle"))
-    slicer.mrmlScene.Clear(0)
-    w = harness.make_module_widget(module)
-    try:
-        assert harness.process_events_for(10, until=lambda: w.probe.done and not w.probeTimer.active)
-        text = w.ui.requirementsLabel.text
-        assert w.ui.requirementsLabel.visible
-        assert "The baffle Python package cannot be imported" in text and "slicer.util.pip_install(" in text
-        assert "Simulate (baffle simulate) is unavailable" in text and "no-such-baffle" in text
-        p2_candidate()
-        assert not w.ui.designButton.enabled and "pip_install" in w.ui.designButton.toolTip
-        with pytest.raises(bdlogic().BaffleDesignerError, match="pip_install"):
-            bdlogic().library()
-    finally:
-        harness.unload_module(module)
+FRESH_START_WITHOUT_BAFFLE = """
+import sys
+sys.modules["baffle"] = None  # this Python has no baffle package: `import baffle` raises ImportError
+import slicer_harness as harness
+harness.install()
+import slicer
+module = harness.load_scripted_module(sys.argv[1])
+w = harness.make_module_widget(module)
+assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+slicer.util.loadMarkups(sys.argv[2])
+print("VISIBLE", w.ui.requirementsLabel.visible)
+print("DESIGN", w.ui.designButton.enabled, w.ui.designButton.toolTip)
+print("LABEL", w.ui.requirementsLabel.text.replace("\\n", " | "))
+harness.unload_module(module)
+"""
+
+
+def test_first_run_check_says_what_is_missing(tmp_path):
+    """A Slicer whose Python lacks the baffle package, with no program: the module loads,
+    its panel says what to install, and Design is off (a fresh process, as Slicer starts)."""
+    _, points = p2_inputs()
+    env = dict(os.environ, BAFFLE_EXECUTABLE=str(tmp_path / "no-such-baffle"), QT_QPA_PLATFORM="offscreen")
+    done = subprocess.run([sys.executable, "-c", FRESH_START_WITHOUT_BAFFLE, str(SCRIPT), str(points)],
+                          cwd=Path(__file__).parent, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = dict(line.split(" ", 1) for line in done.stdout.splitlines() if line.split(" ", 1)[0] in ("VISIBLE", "DESIGN", "LABEL"))
+    assert out["VISIBLE"] == "True"
+    assert out["DESIGN"].startswith("False") and "pip_install" in out["DESIGN"]
+    label = out["LABEL"]
+    assert "The baffle Python package cannot be imported" in label and "slicer.util.pip_install(" in label
+    assert "Simulate (baffle simulate) is unavailable" in label and "no-such-baffle" in label
 
 
 def test_first_run_check_finds_a_missing_gmsh(module, monkeypatch, tmp_path):
@@ -389,14 +404,17 @@ def test_self_test_finds_the_data_from_a_build_tree_only_by_BAFFLE_DATA_DIR(modu
     """A build tree's copy of the module (lib/Slicer-5.8/qt-scripted-modules) has no
     shared/data beside it: BAFFLE_DATA_DIR finds it, and a wrong one is an error."""
     environment = sys.modules["BaffleDesignerLib.environment"]
+    data = data_dir()
+    if not (data / "p2").is_dir():
+        pytest.skip(f"patient data not found at {data} (set BAFFLE_DATA_DIR)")
     built = tmp_path / "lib" / "Slicer-5.8" / "qt-scripted-modules" / "BaffleDesigner.py"
     built.parent.mkdir(parents=True)
     built.write_text(SCRIPT.read_text())
     monkeypatch.delenv("BAFFLE_DATA_DIR", raising=False)
     found, tried = environment.patient_data_dir(str(built))
     assert found is None and tmp_path / "lib" / "shared" / "data" in tried
-    monkeypatch.setenv("BAFFLE_DATA_DIR", str(data_dir()))
-    assert environment.patient_data_dir(str(built))[0] == data_dir()
+    monkeypatch.setenv("BAFFLE_DATA_DIR", str(data))
+    assert environment.patient_data_dir(str(built))[0] == data
     monkeypatch.setenv("BAFFLE_DATA_DIR", str(tmp_path))
     test = sys.modules["BaffleDesigner"].BaffleDesignerTest()
     with pytest.raises(AssertionError, match="BAFFLE_DATA_DIR"):
