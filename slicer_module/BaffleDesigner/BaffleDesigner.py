@@ -161,8 +161,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         problems = bdenvironment.first_run_problems(self.executable, availability)
         self.ui.requirementsLabel.text = "\n".join(problems)
         self.ui.requirementsLabel.visible = bool(problems)
-        for problem in problems:
-            logging.warning("BaffleDesigner: %s", problem)
+        if self.probe.done:  # once, with the whole finding
+            for problem in problems:
+                logging.warning("BaffleDesigner: %s", problem)
 
     def parameterSpinBoxes(self):
         """Spin boxes of the target area (a change redesigns when auto-updating)."""
