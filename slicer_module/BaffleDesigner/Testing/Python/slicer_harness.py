@@ -245,11 +245,9 @@ class qMRMLNodeComboBox(pythonqt_class(QtWidgets.QWidget)):
 
     currentNodeChanged = QtCore.Signal(object)
     currentNodeIDChanged = QtCore.Signal(str)
-    nodeAdded = QtCore.Signal(object)
     pythonqt_signals = {
         "currentNodeChanged(vtkMRMLNode*)": "currentNodeChanged",
         "currentNodeIDChanged(QString)": "currentNodeIDChanged",
-        "nodeAdded(vtkMRMLNode*)": "nodeAdded",
     }
 
     def __init__(self, parent=None):
@@ -340,7 +338,6 @@ class qMRMLNodeComboBox(pythonqt_class(QtWidgets.QWidget)):
     def _onNodeAdded(self, scene, _event):
         nodes = self.nodes()
         if self._current is None and not self._flags["noneEnabled"] and nodes:
-            self.nodeAdded.emit(nodes[-1])
             self._select(nodes[0])
 
     def _onNodeRemoved(self, scene, _event):
