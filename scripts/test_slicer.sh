@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Tests of the 3D Slicer module (slicer_module/BaffleDesigner): its logic on real MRML
 # classes from the PyPI wheel slicer-core (headless scene, model / markups / table / plot
-# nodes), the command line process runner, and the module's files.
+# nodes), the command line process runner, and the module's files; then the module's
+# Widget, Logic and self-test on the headless harness (Testing/Python/slicer_harness.py:
+# PySide6 on Qt's offscreen platform standing in for Slicer's PythonQt).
 #
 # slicer-core pins an exact vtk (5.13.31053.0 -> vtk==9.6.2), so it goes into its own
 # virtual environment ($BAFFLE_SLICER_VENV, default target/slicer-venv) that sees the
@@ -31,6 +33,13 @@ fi
 if ! "$venv/bin/python" -c "import pytest, numpy" >/dev/null 2>&1; then
   "$venv/bin/python" -m pip install --quiet pytest numpy
 fi
+# 6.12.0 loses a reference on every Signal.emit from Python (True/False are freed and the
+# interpreter aborts); 6.9.3 does not.
+pyside="PySide6-Essentials==6.9.3"
+if ! "$venv/bin/python" -c "import PySide6, sys; sys.exit(PySide6.__version__ != '${pyside#*==}')" >/dev/null 2>&1; then
+  step "pip install $pyside (Qt for the widget harness, about 100 MB)"
+  "$venv/bin/python" -m pip install --quiet "$pyside"
+fi
 
 export BAFFLE_LIBRARY="$repo/target/release/libbaffle.so"
 export BAFFLE_EXECUTABLE="$repo/target/release/baffle"
@@ -42,4 +51,8 @@ import slicer, vtk, baffle
 print(f"slicer-core MRML from {slicer.__file__}; vtk {vtk.vtkVersion.GetVTKVersion()}; baffle {baffle.__file__}")
 PY
 cd slicer_module/BaffleDesigner/Testing/Python
-"$venv/bin/python" -m pytest -q -p no:cacheprovider .
+"$venv/bin/python" -m pytest -q -p no:cacheprovider --ignore=test_widget.py .
+
+# Its own process: the harness sets up `qt`, `slicer.app` and `slicer.mrmlScene` for good.
+step "pytest test_widget.py (headless widget harness, QT_QPA_PLATFORM=offscreen)"
+QT_QPA_PLATFORM=offscreen "$venv/bin/python" -m pytest -q -p no:cacheprovider test_widget.py

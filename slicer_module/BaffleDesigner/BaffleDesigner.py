@@ -19,6 +19,7 @@ from slicer.ScriptedLoadableModule import (
 )
 from slicer.util import VTKObservationMixin
 
+from BaffleDesignerLib import environment as bdenvironment
 from BaffleDesignerLib import logic as bdlogic
 from BaffleDesignerLib import prepare as bdprepare
 from BaffleDesignerLib import process as bdprocess
@@ -30,7 +31,7 @@ class BaffleDesigner(ScriptedLoadableModule):
         ScriptedLoadableModule.__init__(self, parent)
         self.parent.title = "Baffle Designer"
         self.parent.categories = ["Cardiac"]
-        self.parent.dependencies = ["Markups", "Models", "Tables", "Plots"]
+        self.parent.dependencies = ["Markups", "Models", "Tables", "Plots", "Segmentations"]
         self.parent.contributors = ["baffle project team"]
         self.parent.helpText = """
 Designs the area-constrained intraventricular baffle for DORV repair (after Martinez et al.,
@@ -53,6 +54,9 @@ FLOW_MODES = ("steady", "pulsatile")
 SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 PREPARE = "prepare"
+# The BaffleDesignerLib modules in import order (each imports only those before it), for reload.
+LIB_MODULES = ("environment", "process", "logic", "prepare", "simulation")
+CHECKING = "checking the baffle program ..."
 
 
 def childEnvironment():
@@ -73,6 +77,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.runDir = ""
         self.runCurve = None  # the candidate of the running process
         self._updatingGUI = False
+        self._designing = False
+        self.packageProblem = ""
+        self.simulateReason = self.volumeMeshReason = CHECKING
 
     def setup(self):
         ScriptedLoadableModuleWidget.setup(self)
@@ -117,14 +124,46 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.logic.executable = self.executable
         self.logic.child_env = childEnvironment()
         self.logic.work_root = slicer.app.temporaryPath
-        _, self.simulateReason = bdprocess.simulate_availability(self.executable)
-        _, self.volumeMeshReason = bdprocess.subcommand_availability(self.executable, "mesh")
+        # First-run check: the package now, the program's subcommands on a background
+        # thread (`baffle ... --help` must not hold up the module panel).
+        self.packageProblem = bdenvironment.package_problem()
+        env = self.logic.child_env
+        self.probe = bdprocess.SubcommandProbe(self.executable, bdenvironment.SUBCOMMANDS,
+                                               checks={"gmsh": lambda: bdenvironment.gmsh_availability(env)}).start()
+        self.probeTimer = qt.QTimer()
+        self.probeTimer.setInterval(100)
+        self.probeTimer.connect("timeout()", self.onProbeTimer)
+        self.probeTimer.start()
+        self.showRequirements()
         self.ui.cancelButton.enabled = False
         self.ui.progressBar.setRange(0, 1000)
 
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.StartCloseEvent, self.onSceneStartClose)
         self.updateSegmentChoices(self.ui.surfaceSelector.currentNode())
         self.onCurveSelected(self.ui.curveSelector.currentNode())
+
+    def onProbeTimer(self):
+        """The subcommand check has ended: enable what the program offers, say what is missing."""
+        if not self.probe.done:
+            return
+        self.probeTimer.stop()
+        results = self.probe.results
+        self.volumeMeshReason = results["mesh"][1] or results["gmsh"][1]
+        simulate, reason = results["simulate"]
+        self.simulateReason = "" if simulate else "The CFD worker is not available in this build: " + reason
+        self.showRequirements()
+        self.updateGUIFromCurve()
+
+    def showRequirements(self):
+        """The first-run check's findings above the status line (hidden when nothing is missing)."""
+        availability = self.probe.results if self.probe.done else {}
+        availability = {name: availability.get(name, (True, "")) for name in (*bdenvironment.SUBCOMMANDS, "gmsh")}
+        problems = bdenvironment.first_run_problems(self.executable, availability)
+        self.ui.requirementsLabel.text = "\n".join(problems)
+        self.ui.requirementsLabel.visible = bool(problems)
+        if self.probe.done:  # once, with the whole finding
+            for problem in problems:
+                logging.warning("BaffleDesigner: %s", problem)
 
     def parameterSpinBoxes(self):
         """Spin boxes of the target area (a change redesigns when auto-updating)."""
@@ -164,17 +203,36 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def cleanup(self):
         self.removeObservers()
         self.updateTimer.stop()
-        self.processTimer.stop()
-        if self.run is not None:
-            self.run.cancel()
+        self.probeTimer.stop()
+        self.abandonRun()
         if self.logic is not None:
             self.logic.cleanup()
 
+    def onReload(self):
+        """Reload BaffleDesignerLib too (Slicer's reload re-runs only BaffleDesigner.py),
+        before the module script imports it again."""
+        import importlib
+        import sys
+
+        for name in LIB_MODULES:
+            module = sys.modules.get(f"BaffleDesignerLib.{name}")
+            if module is not None:
+                importlib.reload(module)
+        ScriptedLoadableModuleWidget.onReload(self)
+
     def onSceneStartClose(self, caller, event):
-        if self.run is not None:  # its candidate goes with the scene
-            self.run.cancel()
         self.logic.cleanup()
         self.curve = None
+        self.abandonRun()  # its candidate goes with the scene
+
+    def abandonRun(self):
+        """Stop the running process and forget it without loading anything: cancel() has
+        nothing to stop once the process has exited, and the next poll would load its
+        results into whatever scene is there then."""
+        if self.run is None:
+            return
+        self.run.cancel()
+        self.endRun()
 
     # ---- GUI <-> curve node ----------------------------------------------------------
 
@@ -207,8 +265,10 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         try:
             curve = self.curve
             enabled = curve is not None
-            for widget in (self.ui.designButton, self.ui.autoUpdateCheckBox, self.ui.compareButton):
-                widget.enabled = enabled
+            for widget in (self.ui.designButton, self.ui.autoUpdateCheckBox):
+                widget.enabled = enabled and not self.packageProblem
+                widget.toolTip = self.packageProblem or widget.toolTip
+            self.ui.compareButton.enabled = enabled
             idle = enabled and self.run is None
             self.ui.volumeMeshButton.enabled = idle and not self.volumeMeshReason
             self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or "Tetrahedral mesh of the domain by `baffle mesh`."
@@ -304,7 +364,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def onDesign(self):
         """Design the candidate; a segmentation that needs the prepare step gets it first,
         as a separate process (progress, Cancel), and the design follows when it is done."""
-        if self.curve is None or self.run is not None:
+        if self.curve is None or self.run is not None or self._designing:
             return
         try:
             self.logic.setSurfaceNode(self.curve, self.ui.surfaceSelector.currentNode())
@@ -320,22 +380,35 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.designNow(self.curve)
 
     def designNow(self, curve):
+        self._designing = True
         try:
             with slicer.util.WaitCursor():
                 self.logic.design(curve, progress=self.onDesignProgress, allow_prepare=False)
         except bdlogic.BaffleDesignerError as error:
             self.showError("Baffle design failed", str(error))
             return
+        finally:
+            self._designing = False
+            self.ui.progressBar.value = 0
+            self.ui.progressBar.format = ""
         self.setStatus(self.curveSummary(curve))
         self.showOutputs(curve)
 
     def onDesignProgress(self, fraction, stage):
         self.ui.progressBar.value = int(1000 * fraction)
-        self.ui.progressBar.format = stage
+        self.ui.progressBar.format = f"{stage} %p%"
+        # Let the bar repaint (the design runs on the GUI thread), as BafflePlanner's
+        # flatten progress does; no user input, so no second Design meanwhile.
+        slicer.app.processEvents(qt.QEventLoop.ExcludeUserInputEvents)
         return True
 
     def onUpdateTimer(self):
-        self.logic.processPendingUpdates()
+        if self._designing:  # the timer fired from a progress repaint: try again later
+            self.updateTimer.start()
+            return
+        # The timer is the debounce: it fired because the candidate has been quiet for
+        # its interval (Qt's coarse timers may fire up to 5 % early), so design now.
+        self.logic.processPendingUpdates(force=True)
         if self.logic.pendingUpdates():  # a change came in during the design: go again
             self.updateTimer.start()
 
@@ -346,9 +419,15 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.setStatus(self.curveSummary(curve), error=error is not None)
 
     def showOutputs(self, curve, chartRole=bdlogic.REF_CHART, tableRole=bdlogic.REF_TABLE):
-        """The candidate's chart in the layout and its table in the table view."""
+        """The candidate's chart and table in a layout that has both views: ShowChartInLayout
+        switches to a plot-only layout when the current one has no plot view, and
+        PropagateTableSelection never changes the layout."""
         chart = curve.GetNodeReference(chartRole)
         table = curve.GetNodeReference(tableRole)
+        layoutManager = slicer.app.layoutManager()
+        description = layoutManager.layoutLogic().GetLayoutNode().GetCurrentLayoutDescription() or ""
+        if not ("vtkMRMLPlotViewNode" in description and "vtkMRMLTableViewNode" in description):
+            layoutManager.setLayout(slicer.vtkMRMLLayoutNode.SlicerLayoutFourUpPlotTableView)
         if chart is not None:
             slicer.modules.plots.logic().ShowChartInLayout(chart)
         if table is not None:
@@ -500,12 +579,13 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         slicer.util.errorDisplay(message, windowTitle=title)
 
 
-class BaffleDesignerLogic(ScriptedLoadableModuleLogic, bdlogic.BaffleDesignerLogic):
-    """The module logic: Slicer's scripted logic base plus the Qt-free BaffleDesignerLib logic."""
+class BaffleDesignerLogic(bdlogic.BaffleDesignerLogic, ScriptedLoadableModuleLogic):
+    """The module logic: the Qt-free BaffleDesignerLib logic plus Slicer's scripted logic
+    base. Both __init__s are cooperative and Slicer's takes no scene (since Slicer 5.0 it
+    calls super().__init__()), so the library's comes first in the order and passes on."""
 
     def __init__(self, scene=None):
-        ScriptedLoadableModuleLogic.__init__(self)
-        bdlogic.BaffleDesignerLogic.__init__(self, scene if scene is not None else slicer.mrmlScene)
+        super().__init__(scene if scene is not None else slicer.mrmlScene)
 
 
 class BaffleDesignerTest(ScriptedLoadableModuleTest):
@@ -551,9 +631,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
 
     def _phantomCandidate(self):
         """(logic, curve, BSA) of the library's phantom in the application's scene."""
-        import baffle
-        from baffle import vtk_adapters
-
+        baffle, vtk_adapters = bdlogic.library()
         mesh, points, bsa = baffle.phantom()
         model = slicer.modules.models.logic().AddModel(vtk_adapters.mesh_to_polydata(mesh))
         curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "BC")
@@ -580,13 +658,22 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.delayDisplay("Phantom test passed")
 
     def _patientFolder(self, *parts):
-        data = os.environ.get("BAFFLE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data"))
+        """A folder of patient p2, or None (said in the test log, with where it looked).
+        A BAFFLE_DATA_DIR without the data is an error, not a skip."""
+        data, tried = bdenvironment.patient_data_dir(__file__)
+        given = os.environ.get("BAFFLE_DATA_DIR")
+        if given:
+            self.assertEqual(os.path.normpath(str(data)), os.path.normpath(given), f"BAFFLE_DATA_DIR={given} holds no p2 folder")
+        if data is None:
+            logging.warning("BaffleDesigner test: no patient data (set BAFFLE_DATA_DIR); looked in %s",
+                            ", ".join(map(str, tried)))
+            return None
         return os.path.join(data, "p2", *parts)
 
     def test_patient_design_and_compare(self):
         folder = self._patientFolder("design_input")
-        if not os.path.exists(os.path.join(folder, "capped_ventricle.vtp")):
-            self.delayDisplay(f"Patient data not found at {folder} (set BAFFLE_DATA_DIR): skipped")
+        if folder is None:
+            self.delayDisplay("Patient test SKIPPED: no patient data (set BAFFLE_DATA_DIR)")
             return
         self.delayDisplay("p2: design from the files as Slicer loads them")
         model = slicer.util.loadModel(os.path.join(folder, "capped_ventricle.vtp"))  # LPS file -> RAS node
@@ -628,6 +715,9 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         import numpy as np
 
         folder = self._patientFolder("segmentations")
+        if folder is None:
+            self.delayDisplay("Segmentation test SKIPPED: no patient data (set BAFFLE_DATA_DIR)")
+            return
         executable = bdprocess.find_baffle_executable()
         available, reason = bdprocess.subcommand_availability(executable, "prepare")
         if not (available and os.path.exists(os.path.join(folder, "LV.vtp"))):
@@ -678,8 +768,10 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
     def test_phantom_simulate_cancel_and_errors(self):
         executable = bdprocess.find_baffle_executable()
         available, reason = bdprocess.simulate_availability(executable)
+        if available:
+            available, reason = bdenvironment.gmsh_availability(childEnvironment())
         if not available:
-            self.delayDisplay(f"Simulate skipped: {reason}")
+            self.delayDisplay(f"Simulate test SKIPPED: {reason}")
             return
         self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
         logic, curve, bsa = self._phantomCandidate()

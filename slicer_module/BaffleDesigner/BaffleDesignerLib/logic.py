@@ -26,10 +26,7 @@ import slicer
 import vtk
 from vtkmodules.util import numpy_support
 
-import baffle
-from baffle import vtk_adapters
-
-from BaffleDesignerLib import process
+from BaffleDesignerLib import environment, process
 
 ATTRIBUTE_PREFIX = "BaffleDesigner."
 CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
@@ -82,6 +79,17 @@ SECTION_COLUMNS = (
 
 class BaffleDesignerError(RuntimeError):
     """An error to show the user; str() carries the library's message where there is one."""
+
+
+def library():
+    """(baffle, baffle.vtk_adapters), imported on first use: the module must load, and its
+    first-run check say what is missing, in a Slicer whose Python lacks the package."""
+    try:
+        import baffle
+        from baffle import vtk_adapters
+    except ImportError as error:
+        raise BaffleDesignerError(f"the baffle Python package cannot be imported ({error}). {environment.install_hint()}") from error
+    return baffle, vtk_adapters
 
 
 @dataclass
@@ -272,7 +280,10 @@ class BaffleDesignerLogic:
     processPendingUpdates() from a single-shot QTimer that it restarts on every
     `onUpdateRequested` call; tests call processPendingUpdates() directly."""
 
-    def __init__(self, scene, debounce_seconds: float = 0.3):
+    def __init__(self, scene, debounce_seconds: float = 0.3, **kwargs):
+        # Cooperative: in Slicer this class is mixed with ScriptedLoadableModuleLogic,
+        # whose __init__ calls super().__init__() (Slicer >= 5.0); keep the chain going.
+        super().__init__(**kwargs)
         if scene is None:
             raise BaffleDesignerError("no MRML scene")
         self.scene = scene
@@ -283,6 +294,7 @@ class BaffleDesignerLogic:
         self.onAutoUpdated: Optional[Callable] = None
         self._observations: Dict[str, List[Tuple[object, int]]] = {}
         self._pending: Dict[str, float] = {}
+        self._dragging: set = set()  # IDs of curves with a control point being dragged
         self.design_count = 0
         self.prepare_count = 0
         # `baffle prepare` runs for segmentation inputs: the program (None: found on first
@@ -407,6 +419,7 @@ class BaffleDesignerLogic:
         polydata = surface_node.GetPolyData()
         if polydata is None or polydata.GetNumberOfPoints() == 0:
             raise BaffleDesignerError(f"{surface_node.GetName()}: the model has no surface")
+        _, vtk_adapters = library()
         if polydata.GetCellData().GetArray(vtk_adapters.LABEL_ARRAY) is None:
             raise BaffleDesignerError(
                 f"{surface_node.GetName()}: no {vtk_adapters.LABEL_ARRAY} cell array; the capped ventricle needs "
@@ -436,6 +449,7 @@ class BaffleDesignerLogic:
         try:
             parameters = self.parameters(curve)
             points = self.suturePointsWorld(curve)
+            baffle, vtk_adapters = library()
             model = self.ventricleModel(curve, allow_prepare, progress)
             surface = self.surfacePolyDataWorld(model)
             try:
@@ -501,6 +515,7 @@ class BaffleDesignerLogic:
         return node
 
     def _write_outputs(self, curve, result, parameters) -> None:
+        _, vtk_adapters = library()
         baffle_polydata = vtk_adapters.mesh_to_polydata(result.baffle)
         domain_polydata = vtk_adapters.mesh_to_polydata(result.domain)
         self._model(curve, REF_BAFFLE, "baffle", baffle_polydata, (0.85, 0.25, 0.2))
@@ -614,24 +629,42 @@ class BaffleDesignerLogic:
     # ---- auto-update ------------------------------------------------------------------
 
     def setAutoUpdate(self, curve, enabled: bool) -> None:
-        """Observe the curve's control points: every add, remove or drag marks the
-        candidate pending; processPendingUpdates() designs it once it has been quiet for
-        debounce_seconds."""
+        """Observe the curve's control points: an add, a remove, a move from a script and
+        the end of a drag mark the candidate pending; processPendingUpdates() designs it
+        once it has been quiet for debounce_seconds. Moves during a drag do not: Slicer
+        fires PointModifiedEvent on every mouse move, and a design would block the GUI
+        whenever the surgeon paused mid-drag."""
         self._check_curve(curve)
         curve_id = curve.GetID()
         for node, tag in self._observations.pop(curve_id, []):
             node.RemoveObserver(tag)
         self._pending.pop(curve_id, None)
+        self._dragging.discard(curve_id)
         curve.SetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate", "1" if enabled else "0")
         if not enabled:
             return
-        events = (curve.PointModifiedEvent, curve.PointAddedEvent, curve.PointRemovedEvent)
-        self._observations[curve_id] = [(curve, curve.AddObserver(event, self._on_curve_changed)) for event in events]
+        handlers = (
+            (curve.PointModifiedEvent, self._on_curve_changed),
+            (curve.PointAddedEvent, self._on_curve_changed),
+            (curve.PointRemovedEvent, self._on_curve_changed),
+            (curve.PointStartInteractionEvent, self._on_drag_start),
+            (curve.PointEndInteractionEvent, self._on_drag_end),
+        )
+        self._observations[curve_id] = [(curve, curve.AddObserver(event, handler)) for event, handler in handlers]
 
     def isAutoUpdating(self, curve) -> bool:
         return curve.GetID() in self._observations
 
     def _on_curve_changed(self, curve, _event=None) -> None:
+        if curve.GetID() not in self._dragging:
+            self.requestUpdate(curve)
+
+    def _on_drag_start(self, curve, _event=None) -> None:
+        self._dragging.add(curve.GetID())
+        self._pending.pop(curve.GetID(), None)  # the drag supersedes an earlier change
+
+    def _on_drag_end(self, curve, _event=None) -> None:
+        self._dragging.discard(curve.GetID())
         self.requestUpdate(curve)
 
     def requestUpdate(self, curve) -> None:
@@ -673,6 +706,7 @@ class BaffleDesignerLogic:
                 node.RemoveObserver(tag)
         self._observations.clear()
         self._pending.clear()
+        self._dragging.clear()
 
     # ---- candidates ---------------------------------------------------------------------
 

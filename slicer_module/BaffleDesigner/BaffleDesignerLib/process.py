@@ -56,6 +56,39 @@ def simulate_availability(executable: Optional[str]) -> Tuple[bool, str]:
     return False, "The CFD worker is not available in this build: " + reason
 
 
+class SubcommandProbe:
+    """subcommand_availability() for several subcommands on a background thread, so that
+    a GUI asking at start-up never waits for the program (`--help` of a cold binary on a
+    network drive can take seconds). `results` (subcommand -> (available, why not)) is
+    complete once `done`; until then the GUI treats the subcommands as not yet known."""
+
+    def __init__(self, executable: Optional[str], subcommands, timeout: float = 20.0, checks: Optional[dict] = None):
+        """`checks`: more named checks to run there, name -> callable returning (available, why not)."""
+        self.executable = executable
+        self.subcommands = list(subcommands)
+        self.timeout = timeout
+        self.checks = dict(checks or {})
+        self.results = {}
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> "SubcommandProbe":
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        results = {name: subcommand_availability(self.executable, name, self.timeout) for name in self.subcommands}
+        results.update({name: check() for name, check in self.checks.items()})
+        self.results = results  # one assignment: readers see all of them or none
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive() and len(self.results) == len(self.subcommands) + len(self.checks)
+
+    def wait(self, timeout: Optional[float] = None) -> dict:
+        self._thread.join(timeout)
+        return self.results
+
+
 class CliProcess:
     """One command line run. start() returns at once; `progress` (0..1), `stage`,
     `state` and `output_lines` update from reader threads; cancel() terminates it

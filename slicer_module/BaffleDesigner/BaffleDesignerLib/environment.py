@@ -1,0 +1,118 @@
+"""What the module needs outside Slicer and where it finds it: the `baffle` Python package
+(in Slicer's Python), the `baffle` command line program (prepare, volume mesh, simulate)
+and, for the module's own tests, the patient data. The first-run check turns what is
+missing into one message that says how to get it. No Qt, no MRML."""
+
+import importlib
+import os
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Dict, List, Optional, Tuple
+
+# The subcommands of the `baffle` program the module runs, and what each is for.
+SUBCOMMANDS = {
+    "prepare": "Segmentation input (baffle prepare)",
+    "mesh": "Volume mesh (baffle mesh)",
+    "simulate": "Simulate (baffle simulate)",
+}
+
+
+def source_python_package() -> Optional[Path]:
+    """The repository's python/ folder when the module runs from a source tree
+    (slicer_module/BaffleDesigner/BaffleDesignerLib -> ../../../python), else None."""
+    candidate = Path(__file__).resolve().parents[3] / "python"
+    return candidate if (candidate / "pyproject.toml").exists() else None
+
+
+def install_hint() -> str:
+    """How to put the `baffle` package into Slicer's Python (README, Slicer section)."""
+    source = source_python_package()
+    where = repr(str(source)) if source else "'/path/to/baffle-repository/python'"
+    return (
+        "Install it into Slicer's Python: in the Python console (View > Python Console) run "
+        "import os; os.environ['BAFFLE_LIBRARY'] = '/path/to/libbaffle.so' (built by "
+        "cargo build --release -p baffle-capi; without it pip runs cargo), then "
+        f"slicer.util.pip_install({where}), and restart Slicer."
+    )
+
+
+def package_problem() -> str:
+    """'' when `import baffle` works in this Python, else what is wrong and how to fix it."""
+    try:
+        importlib.import_module("baffle")
+        importlib.import_module("baffle.vtk_adapters")
+    except ImportError as error:
+        return f"The baffle Python package cannot be imported ({error}). {install_hint()}"
+    return ""
+
+
+def gmsh_availability(env: Optional[dict] = None, timeout: float = 20.0) -> Tuple[bool, str]:
+    """Whether `baffle mesh`, started with `env`, finds a working gmsh, looked up in its
+    order (baffle-mesh, gmsh.rs): $BAFFLE_GMSH, else `gmsh` on PATH, else python3 with
+    the gmsh wheel. (True, "") or (False, what to do)."""
+    env = dict(os.environ if env is None else env)
+    if env.get("BAFFLE_GMSH"):
+        candidates = [[env["BAFFLE_GMSH"], "--version"]]
+    else:
+        on_path = shutil.which("gmsh", path=env.get("PATH", os.defpath))
+        candidates = ([[on_path, "--version"]] if on_path else []) + [["python3", "-c", "import gmsh"]]
+    tried = []
+    for command in candidates:
+        try:
+            done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=timeout, check=False)
+        except (OSError, subprocess.TimeoutExpired) as error:
+            tried.append(f"{command[0]}: {error}")
+            continue
+        if done.returncode == 0:
+            return True, ""
+        detail = (done.stderr or done.stdout).strip().splitlines()
+        tried.append(f"{' '.join(command)}: {detail[-1] if detail else f'exit code {done.returncode}'}")
+    return False, (
+        "gmsh was not found (install it with `bash scripts/install_gmsh.sh` or `python3 -m pip install gmsh`, "
+        "or set BAFFLE_GMSH before starting Slicer); tried " + "; ".join(tried)
+    )
+
+
+def first_run_problems(executable: Optional[str], availability: Dict[str, Tuple[bool, str]]) -> List[str]:
+    """Everything missing, one line each: the package (no design at all), the program,
+    its subcommands and gmsh (`availability`: subcommand or "gmsh" -> (available, why
+    not), from process.subcommand_availability and gmsh_availability)."""
+    problems = []
+    package = package_problem()
+    if package:
+        problems.append(package)
+    if not executable:
+        problems.append(
+            "The baffle command line program was not found (prepare, volume mesh, simulate): "
+            "build it (cargo build --release -p baffle-cli) and put it on PATH or set BAFFLE_EXECUTABLE "
+            "before starting Slicer."
+        )
+        return problems
+    for subcommand, purpose in SUBCOMMANDS.items():
+        available, reason = availability.get(subcommand, (False, "not checked"))
+        if not available:
+            problems.append(f"{purpose} is unavailable: {reason}")
+    available, reason = availability.get("gmsh", (True, ""))
+    if not available:
+        problems.append(f"Volume mesh and Simulate need gmsh: {reason}")
+    return problems
+
+
+def patient_data_dir(module_file: str) -> Tuple[Optional[Path], List[Path]]:
+    """(folder holding p1/p2/p3 or None, the folders tried). $BAFFLE_DATA_DIR first; then
+    shared/data beside every ancestor of the module file, the real one (a build tree's
+    copy or symlink) and the source tree's, so that a build tree next to the repository
+    finds the data too."""
+    tried = []
+    given = os.environ.get("BAFFLE_DATA_DIR")
+    if given:
+        tried.append(Path(given))
+    for start in dict.fromkeys((Path(module_file).absolute(), Path(module_file).resolve())):
+        for ancestor in start.parents:
+            tried.append(ancestor / "shared" / "data")
+    tried = list(dict.fromkeys(tried))
+    for folder in tried:
+        if (folder / "p2").is_dir():
+            return folder, tried
+    return None, tried

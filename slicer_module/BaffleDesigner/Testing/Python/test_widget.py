@@ -1,0 +1,421 @@
+"""The module's Widget, Logic and Test classes as Slicer runs them, on the headless harness
+(slicer_harness.py: PySide6 offscreen in PythonQt's manner, the .ui's custom widgets,
+Slicer's scripted module base, slicer-core's MRML, logics and slicer.util).
+
+setup; design on p2 with its table and chart shown; a drag with auto-update; simulate on
+the phantom with cancel; closing the scene during and after a run; the first-run check;
+cleanup and reload; and the module's own BaffleDesignerTest."""
+
+import os
+import re
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import slicer_harness as harness
+from conftest import MODULE_DIR, data_dir, p2_inputs
+
+SCRIPT = MODULE_DIR / "BaffleDesigner.py"
+
+app = harness.install()
+import qt  # noqa: E402  (the harness's PythonQt-style module)
+import slicer  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def module():
+    return harness.load_scripted_module(SCRIPT)
+
+
+@pytest.fixture
+def widget(module):
+    """A fresh scene and module panel; unloaded (cleanup) afterwards."""
+    slicer.mrmlScene.Clear(0)
+    made = harness.make_module_widget(module)
+    assert harness.process_events_for(30, until=lambda: made.probe.done), "the subcommand check never ended"
+    harness.process_events_for(0.3)  # the probe timer reports
+    yield made
+    harness.unload_module(module)
+    slicer.mrmlScene.Clear(0)
+
+
+def bdlogic():
+    return sys.modules["BaffleDesignerLib.logic"]
+
+
+def p2_candidate():
+    surface, points = p2_inputs()
+    model = slicer.util.loadModel(str(surface))
+    curve = slicer.util.loadMarkups(str(points))
+    return model, curve
+
+
+def phantom_candidate():
+    baffle, vtk_adapters = bdlogic().library()
+    mesh, points, bsa = baffle.phantom()
+    model = slicer.modules.models.logic().AddModel(vtk_adapters.mesh_to_polydata(mesh))
+    curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "phantom BC")
+    for p in points:
+        curve.AddControlPointWorld(*[float(x) for x in p])
+    return model, curve, bsa
+
+
+def design_in_widget(w, model, curve, bsa):
+    w.ui.surfaceSelector.setCurrentNode(model)
+    w.ui.curveSelector.setCurrentNode(curve)
+    w.ui.targetModeComboBox.currentIndex = 0
+    w.ui.bsaSpinBox.value = bsa
+    w.ui.designButton.click()
+    assert curve.GetAttribute("BaffleDesigner.Status") == "designed", w.ui.statusLabel.text
+
+
+def require_cfd(w):
+    if w.simulateReason or w.volumeMeshReason:
+        pytest.skip(f"no CFD in this build: {w.simulateReason or w.volumeMeshReason}")
+
+
+def wait_run(w, seconds, until=None):
+    """Let the widget's timers run until its process has ended (or until())."""
+    done = harness.process_events_for(seconds, until=until or (lambda: w.run is None))
+    assert done, f"{w.runKind} still running after {seconds} s: {w.ui.statusLabel.text}"
+
+
+def skip_without_gmsh(w):
+    text = w.ui.statusLabel.text
+    if "gmsh" in text.lower() and "failed" in text.lower():
+        pytest.skip(f"gmsh is not installed: {text}")
+
+
+# ---- the module class and its logic ------------------------------------------------------
+
+
+def test_old_base_order_fails_on_slicers_cooperative_base(module):
+    """The Logic as it was (Slicer's base first) hits the library's __init__ without a
+    scene through ScriptedLoadableModuleLogic's super().__init__() (Slicer >= 5.0)."""
+    from slicer.ScriptedLoadableModule import ScriptedLoadableModuleLogic
+
+    class BaffleDesignerLogic(ScriptedLoadableModuleLogic, bdlogic().BaffleDesignerLogic):
+        def __init__(self, scene=None):
+            ScriptedLoadableModuleLogic.__init__(self)
+            bdlogic().BaffleDesignerLogic.__init__(self, scene or slicer.mrmlScene)
+
+    with pytest.raises(TypeError, match="scene"):
+        BaffleDesignerLogic()
+    logic = sys.modules["BaffleDesigner"].BaffleDesignerLogic()
+    assert logic.moduleName == "BaffleDesigner" and logic.scene is slicer.mrmlScene
+    parameter_node = logic.getParameterNode()
+    assert parameter_node.GetAttribute("ModuleName") == "BaffleDesigner"
+    assert logic.getParameterNode() is parameter_node  # singleton
+
+
+def test_module_declares_every_module_it_uses(module):
+    used = set()
+    for path in [SCRIPT, *sorted((MODULE_DIR / "BaffleDesignerLib").glob("*.py"))]:
+        used |= set(re.findall(r"slicer\.modules\.([a-z]+)\b", path.read_text()))
+    declared = {name.lower() for name in module.dependencies}
+    assert used - {"baffledesigner"} <= declared, f"used, not in dependencies: {used - declared}"
+    assert "segmentations" in declared
+    assert module.title == "Baffle Designer" and module.categories == ["Cardiac"]
+    assert module.icon is not None and slicer.selfTests["BaffleDesigner"]
+
+
+# ---- setup and the first-run check -------------------------------------------------------
+
+
+def test_setup_connects_the_panel(widget):
+    w = widget
+    assert w.logic.moduleName == "BaffleDesigner"
+    assert w.updateTimer.singleShot and w.updateTimer.interval == 300
+    # Nothing is missing here, but gmsh on a machine without it (its own test is below).
+    assert [line for line in w.ui.requirementsLabel.text.splitlines() if "gmsh" not in line] == []
+    assert not w.ui.designButton.enabled  # no candidate yet
+    model, curve = p2_candidate()
+    assert w.curve is curve and w.ui.surfaceSelector.currentNode() is model  # the selectors picked them
+    assert w.ui.designButton.enabled
+    w.ui.bsaSpinBox.value = 0.41  # valueChanged(double) -> stored on the candidate
+    assert w.logic.parameters(curve).bsa_m2 == pytest.approx(0.41)
+    w.ui.flowModeComboBox.currentIndex = 1
+    assert w.logic.parameters(curve).flow_mode == "pulsatile"
+
+
+def slow_program(tmp_path, name, delay_s):
+    """A program `name` that answers anything (--help, --version) after delay_s."""
+    path = tmp_path / name
+    path.write_text(f"#!/bin/sh\nsleep {delay_s}\nexit 0\n")
+    path.chmod(path.stat().st_mode | stat.S_IEXEC)
+    return str(path)
+
+
+def test_setup_does_not_wait_for_the_program(module, tmp_path, monkeypatch):
+    monkeypatch.setenv("BAFFLE_EXECUTABLE", slow_program(tmp_path, "baffle", 1))
+    monkeypatch.setenv("BAFFLE_GMSH", slow_program(tmp_path, "gmsh", 1))
+    slicer.mrmlScene.Clear(0)
+    started = time.monotonic()
+    w = harness.make_module_widget(module)
+    try:
+        assert time.monotonic() - started < 1.0
+        p2_candidate()
+        assert not w.ui.simulateButton.enabled and "checking" in w.ui.simulateButton.toolTip
+        assert harness.process_events_for(10, until=lambda: w.probe.done and not w.probeTimer.active)
+        assert w.ui.simulateButton.enabled and w.ui.volumeMeshButton.enabled
+    finally:
+        harness.unload_module(module)
+
+
+FRESH_START_WITHOUT_BAFFLE = """
+import sys
+sys.modules["baffle"] = None  # this Python has no baffle package: `import baffle` raises ImportError
+import slicer_harness as harness
+harness.install()
+import slicer
+module = harness.load_scripted_module(sys.argv[1])
+w = harness.make_module_widget(module)
+assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+slicer.util.loadMarkups(sys.argv[2])
+print("VISIBLE", w.ui.requirementsLabel.visible)
+print("DESIGN", w.ui.designButton.enabled, w.ui.designButton.toolTip)
+print("LABEL", w.ui.requirementsLabel.text.replace("\\n", " | "))
+harness.unload_module(module)
+"""
+
+
+def test_first_run_check_says_what_is_missing(tmp_path):
+    """A Slicer whose Python lacks the baffle package, with no program: the module loads,
+    its panel says what to install, and Design is off (a fresh process, as Slicer starts)."""
+    _, points = p2_inputs()
+    env = dict(os.environ, BAFFLE_EXECUTABLE=str(tmp_path / "no-such-baffle"), QT_QPA_PLATFORM="offscreen")
+    done = subprocess.run([sys.executable, "-c", FRESH_START_WITHOUT_BAFFLE, str(SCRIPT), str(points)],
+                          cwd=Path(__file__).parent, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = dict(line.split(" ", 1) for line in done.stdout.splitlines() if line.split(" ", 1)[0] in ("VISIBLE", "DESIGN", "LABEL"))
+    assert out["VISIBLE"] == "True"
+    assert out["DESIGN"].startswith("False") and "pip_install" in out["DESIGN"]
+    label = out["LABEL"]
+    assert "The baffle Python package cannot be imported" in label and "slicer.util.pip_install(" in label
+    assert "Simulate (baffle simulate) is unavailable" in label and "no-such-baffle" in label
+
+
+def test_first_run_check_finds_a_missing_gmsh(module, monkeypatch, tmp_path):
+    """`baffle mesh` runs gmsh; without it Volume mesh and Simulate are off and say why."""
+    monkeypatch.setenv("BAFFLE_GMSH", str(tmp_path / "no-such-gmsh"))
+    slicer.mrmlScene.Clear(0)
+    w = harness.make_module_widget(module)
+    try:
+        assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+        assert "Volume mesh and Simulate need gmsh" in w.ui.requirementsLabel.text
+        assert "no-such-gmsh" in w.ui.requirementsLabel.text
+        p2_candidate()
+        assert not w.ui.volumeMeshButton.enabled and "gmsh" in w.ui.volumeMeshButton.toolTip
+        assert not w.ui.simulateButton.enabled and w.ui.designButton.enabled
+    finally:
+        harness.unload_module(module)
+
+
+# ---- design, layout, progress ----------------------------------------------------------
+
+
+def test_design_on_p2_shows_table_and_chart_and_repaints_progress(widget):
+    w = widget
+    model, curve = p2_candidate()
+    calls = app.process_events_calls
+    seen = []
+    w.ui.progressBar.connect("valueChanged(int)", seen.append)
+    design_in_widget(w, model, curve, 0.37)
+    assert app.process_events_calls - calls > 3  # the progress callback let the bar repaint
+    assert len(set(seen)) > 3 and w.ui.progressBar.value == 0 and w.ui.progressBar.format == ""
+    assert "target" in w.ui.statusLabel.text and "baffle" in w.ui.statusLabel.text
+
+    views = app.layoutManager().viewClasses()
+    assert {"vtkMRMLPlotViewNode", "vtkMRMLTableViewNode"} <= views, views
+    table = curve.GetNodeReference(bdlogic().REF_TABLE)
+    chart = curve.GetNodeReference(bdlogic().REF_CHART)
+    table_views = slicer.util.getNodesByClass("vtkMRMLTableViewNode")
+    plot_views = slicer.util.getNodesByClass("vtkMRMLPlotViewNode")
+    assert any(v.GetTableNodeID() == table.GetID() for v in table_views)
+    assert any(v.GetPlotChartNodeID() == chart.GetID() for v in plot_views)
+
+
+def test_old_show_outputs_leaves_the_table_out_of_the_layout(widget):
+    """What the module did before: ShowChartInLayout from the default layout switches to
+    a plot layout without a table view (slicer-core's real plots logic)."""
+    app.layoutManager().setLayout(slicer.vtkMRMLLayoutNode.SlicerLayoutFourUpView)
+    chart = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLPlotChartNode")
+    slicer.modules.plots.logic().ShowChartInLayout(chart)
+    assert "vtkMRMLTableViewNode" not in app.layoutManager().viewClasses()
+
+
+# ---- auto-update ---------------------------------------------------------------------------
+
+
+def drag(curve, index, positions, pause_s):
+    """A mouse drag as Slicer's markups widget reports it: start, moves (with pauses
+    longer than the debounce), end."""
+    curve.InvokeEvent(curve.PointStartInteractionEvent)
+    for position in positions:
+        curve.SetNthControlPointPositionWorld(index, *position)
+        harness.process_events_for(pause_s)
+    curve.InvokeEvent(curve.PointEndInteractionEvent)
+
+
+def test_drag_redesigns_once_after_the_drag_ends(widget):
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    area = float(curve.GetAttribute("BaffleDesigner.BaffleAreaMm2"))
+    w.ui.autoUpdateCheckBox.checked = True
+    assert w.logic.isAutoUpdating(curve)
+    count = w.logic.design_count
+    a = curve.GetNthControlPointPositionWorld(3)
+    b = curve.GetNthControlPointPositionWorld(4)
+    path = [[a[i] + t * (b[i] - a[i]) for i in range(3)] for t in (0.1, 0.2, 0.3)]
+    drag(curve, 3, path, pause_s=0.5)  # pauses past the 300 ms debounce: no design mid-drag
+    assert w.logic.design_count == count
+    assert harness.process_events_for(5, until=lambda: w.logic.design_count == count + 1)
+    harness.process_events_for(0.5)
+    assert w.logic.design_count == count + 1
+    assert float(curve.GetAttribute("BaffleDesigner.BaffleAreaMm2")) != pytest.approx(area, abs=1e-3)
+    # A move from a script (no interaction events) redesigns after the debounce.
+    curve.SetNthControlPointPositionWorld(3, *a)
+    assert harness.process_events_for(5, until=lambda: w.logic.design_count == count + 2)
+
+
+def test_the_debounce_timer_designs_when_it_fires(widget):
+    """Qt's coarse timers may fire up to 5 % early; the timeout must still design, not
+    wait another interval."""
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    w.ui.autoUpdateCheckBox.checked = True
+    count = w.logic.design_count
+    a, b = curve.GetNthControlPointPositionWorld(3), curve.GetNthControlPointPositionWorld(4)
+    curve.SetNthControlPointPositionWorld(3, *[0.8 * a[i] + 0.2 * b[i] for i in range(3)])
+    w.updateTimer.stop()
+    w.onUpdateTimer()  # fires at once, well before debounce_seconds of quiet
+    assert w.logic.design_count == count + 1 and not w.logic.pendingUpdates()
+
+
+# ---- separate processes: simulate, cancel, scene close ------------------------------------
+
+
+def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
+    w = widget
+    require_cfd(w)
+    model, curve, bsa = phantom_candidate()
+    design_in_widget(w, model, curve, bsa)
+    w.ui.flowModeComboBox.currentIndex = 0  # steady
+    w.ui.meshEdgeLengthSpinBox.value = 1.25
+    w.ui.simulateButton.click()
+    assert w.run is not None and w.ui.cancelButton.enabled and not w.ui.simulateButton.enabled
+    wait_run(w, 180)
+    skip_without_gmsh(w)
+    assert "dp " in w.ui.statusLabel.text and "mmHg" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    summary = curve.GetNodeReference(bdlogic().REF_SIM_SUMMARY)
+    assert summary is not None and summary.GetNumberOfRows() > 0
+    assert any(v.GetTableNodeID() == summary.GetID() for v in slicer.util.getNodesByClass("vtkMRMLTableViewNode"))
+    dp = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
+
+    w.ui.flowModeComboBox.currentIndex = 1  # pulsatile: long enough to cancel
+    w.ui.simulateButton.click()
+    wait_run(w, 120, until=lambda: w.run is not None and w.run.stage == "simulation" and (w.run.progress or 0) > 0)
+    w.ui.cancelButton.click()
+    wait_run(w, 90)
+    assert "cancelled" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    assert curve.GetAttribute("BaffleDesigner.SimulationDpMmhg") == dp  # the steady results stay
+    assert not w.processTimer.active and w.ui.simulateButton.enabled
+
+
+def model_names():
+    return {n.GetName() for n in slicer.util.getNodesByClass("vtkMRMLModelNode")}
+
+
+def test_closing_the_scene_during_a_run_stops_it(widget):
+    w = widget
+    require_cfd(w)
+    model, curve, bsa = phantom_candidate()
+    design_in_widget(w, model, curve, bsa)
+    w.ui.volumeMeshButton.click()
+    process = w.run
+    slicer.mrmlScene.Clear(0)
+    assert w.run is None and not w.processTimer.active
+    assert process.wait(timeout=10) == "cancelled"
+    harness.process_events_for(0.5)
+    assert not any("volume mesh" in name for name in model_names())
+
+
+def test_closing_the_scene_after_a_run_ended_loads_nothing(widget):
+    """The process has exited but the poll timer has not seen it yet: cancel() has
+    nothing to stop, and the results must not land in the next scene."""
+    w = widget
+    require_cfd(w)
+    model, curve, bsa = phantom_candidate()
+    design_in_widget(w, model, curve, bsa)
+    w.ui.volumeMeshButton.click()
+    process = w.run
+    state = process.wait(timeout=120)  # no events processed: the timer does not poll
+    if state == "failed" and "gmsh" in process.error_message().lower():
+        pytest.skip(f"gmsh is not installed: {process.error_message()}")
+    assert state == "completed", process.error_message()
+    slicer.mrmlScene.Clear(0)
+    harness.process_events_for(1.0)
+    assert w.run is None and not w.processTimer.active
+    assert not any("volume mesh" in name for name in model_names()), model_names()
+    assert slicer.mrmlScene.GetNumberOfNodesByClass("vtkMRMLMarkupsClosedCurveNode") == 0
+
+
+# ---- cleanup and reload ------------------------------------------------------------------
+
+
+def test_cleanup_on_unload_and_reload_of_the_library(module):
+    slicer.mrmlScene.Clear(0)
+    w = harness.make_module_widget(module)
+    harness.process_events_for(10, until=lambda: w.probe.done)
+    model, curve = p2_candidate()
+    w.ui.autoUpdateCheckBox.checked = True
+    old_logic_class = sys.modules["BaffleDesignerLib.logic"].BaffleDesignerLogic
+    w.onReload()  # the panel's Reload button
+    new = slicer.modules.BaffleDesignerWidget
+    assert new is not w and not w.updateTimer.active and not w.logic.isAutoUpdating(curve)  # old one cleaned up
+    new_logic_class = sys.modules["BaffleDesignerLib.logic"].BaffleDesignerLogic
+    assert new_logic_class is not old_logic_class  # BaffleDesignerLib re-read, not only the script
+    assert isinstance(new.logic, new_logic_class)
+    assert sys.modules["BaffleDesigner"].bdlogic is sys.modules["BaffleDesignerLib.logic"]
+    assert new.curve is curve  # the new panel picks up the scene
+    harness.unload_module(module)
+    assert not new.updateTimer.active and not new.processTimer.active and not new.probeTimer.active
+    slicer.mrmlScene.Clear(0)
+
+
+# ---- the module's own in-application test --------------------------------------------------
+
+
+def test_the_modules_own_self_test(module):
+    """BaffleDesignerTest.runTest as Slicer's Reload and Test runs it (p2 design, p2
+    segmentation -> prepare, phantom simulate and cancel)."""
+    slicer.mrmlScene.Clear(0)
+    module.instance.runTest(msec=0)
+    slicer.mrmlScene.Clear(0)
+
+
+def test_self_test_finds_the_data_from_a_build_tree_only_by_BAFFLE_DATA_DIR(module, tmp_path, monkeypatch):
+    """A build tree's copy of the module (lib/Slicer-5.8/qt-scripted-modules) has no
+    shared/data beside it: BAFFLE_DATA_DIR finds it, and a wrong one is an error."""
+    environment = sys.modules["BaffleDesignerLib.environment"]
+    data = data_dir()
+    if not (data / "p2").is_dir():
+        pytest.skip(f"patient data not found at {data} (set BAFFLE_DATA_DIR)")
+    built = tmp_path / "lib" / "Slicer-5.8" / "qt-scripted-modules" / "BaffleDesigner.py"
+    built.parent.mkdir(parents=True)
+    built.write_text(SCRIPT.read_text())
+    monkeypatch.delenv("BAFFLE_DATA_DIR", raising=False)
+    found, tried = environment.patient_data_dir(str(built))
+    assert found is None and tmp_path / "lib" / "shared" / "data" in tried
+    monkeypatch.setenv("BAFFLE_DATA_DIR", str(data))
+    assert environment.patient_data_dir(str(built))[0] == data
+    monkeypatch.setenv("BAFFLE_DATA_DIR", str(tmp_path))
+    test = sys.modules["BaffleDesigner"].BaffleDesignerTest()
+    with pytest.raises(AssertionError, match="BAFFLE_DATA_DIR"):
+        test._patientFolder("design_input")
