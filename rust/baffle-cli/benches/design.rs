@@ -1,5 +1,5 @@
 //! Benchmark of the whole design (release): median wall time per case and per step,
-//! over repeated runs, on the phantom and (when the data is present) p2 and p3 with
+//! over repeated runs, on the phantom and (when the data is present) p1, p2 and p3 with
 //! the paper's BSA. `cargo bench -p baffle-cli --bench design` (15 runs per case);
 //! `-- --smoke` runs each case once, as CI does, to keep the benchmark working.
 
@@ -28,7 +28,7 @@ fn cases() -> Vec<Case> {
         return cases;
     };
     let table: serde_json::Value = serde_json::from_str(&table).expect("patients.json");
-    for patient in ["p2", "p3"] {
+    for patient in ["p1", "p2", "p3"] {
         let input = dir.join(patient).join("design_input");
         let surface = read_surface(&input.join("capped_ventricle.vtp")).expect("surface");
         let points = read_points(&input.join("suture_points.mrk.json")).expect("points").to_frame(CoordinateSystem::Lps);
