@@ -1,4 +1,4 @@
-//! `prepare` on patients p2 and p3 of the paper's dataset, from their segmented
+//! `prepare` on patients p1, p2 and p3 of the paper's dataset, from their segmented
 //! blood pools: the caps against the published ones (paper's surfaces, cm x 10),
 //! the surface's topology, and `design` run on the result with the patient's
 //! suture points. Skipped (with a note) when the data directory is absent.
@@ -62,6 +62,11 @@ fn check_patient(patient: &str) {
     let ratio = result.report.baffle_area_mm2 / published_baffle;
     eprintln!("{patient}: designed baffle {:.1} mm2 vs published {published_baffle:.1} mm2 (ratio {ratio:.3})", result.report.baffle_area_mm2);
     assert!((0.8..1.25).contains(&ratio), "{patient}: baffle area ratio {ratio:.3}");
+}
+
+#[test]
+fn p1_prepared_from_segmentations() {
+    check_patient("p1");
 }
 
 #[test]
