@@ -45,6 +45,10 @@ pub const INFLOW_CAP_LABEL: i32 = 20;
 pub const OUTFLOW_CAP_LABEL: i32 = 21;
 /// The mid-LV plane must lie at least this far beyond the VSD cap (mm).
 const MIN_LV_DEPTH_MM: f64 = 1.0;
+/// Where the cut through the LV's centroid cannot be separated from the VSD cut on
+/// the LV surface (a curved or pinched LV), the mid-LV plane is moved along the VSD
+/// normal by these distances (mm), in order: deeper into the LV first, then back.
+const MID_LV_MOVES_MM: [f64; 7] = [0.0, 2.0, 4.0, 6.0, -2.0, -4.0, 8.0];
 /// A designed cap is planar when no point is farther from its best-fit plane than
 /// this fraction of the cap's equivalent diameter (0.1 mm on a 10 mm cap, below a
 /// tenth of the mesh edge). Published caps are planar to 4-16 micrometres, not to
@@ -109,6 +113,9 @@ pub struct MidLvPlaneReport {
     pub normal: [f64; 3],
     /// Distance of the plane beyond the VSD cap's plane (mm).
     pub distance_from_vsd_mm: f64,
+    /// How far the plane was moved from the LV centroid along its normal (mm; 0 when
+    /// the cut through the centroid was clean).
+    pub moved_from_centroid_mm: f64,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -190,19 +197,20 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     check_domain(domain)?;
     let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
     let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
-    let (mid_lv, lv_loop) = mid_lv_plane(&pools.lv, &vsd.plane)?;
+    let (centroid_plane, _) = mid_lv_plane(&pools.lv, &vsd.plane, 0.0)?;
     let (stj, stj_report, stj_loop) = sinotubular_junction(&pools.aorta, &annulus, &options.stj)?;
     let planes_ms = lap();
 
-    let bounds = extension_bounds(domain, pools, &mid_lv, &stj, options.union.crop_margin_mm);
+    let deepest_move_mm = MID_LV_MOVES_MM.iter().copied().fold(0.0, f64::max);
+    let deepest = parallel_plane(&centroid_plane, centroid_plane.centroid + deepest_move_mm * centroid_plane.normal);
+    let bounds = extension_bounds(domain, pools, &deepest, &stj, options.union.crop_margin_mm);
     let (union, _, _) = union_within(pools, &bounds, &options.union)?;
     let union_ms = lap();
 
     let edge_mm = options.remesh_edge_mm.unwrap_or_else(|| mean_rim_edge_mm(domain, &[&vsd.rim, &annulus.rim]));
     let snap_mm = 0.05 * options.union.voxel_mm;
     let mut surface = domain.clone();
-    let lv_part = Extension { name: "LV", near: &vsd, near_name: "VSD", far: mid_lv, far_name: "mid-LV", far_loop: &lv_loop, far_label: options.inflow_label };
-    let lv_triangles = lv_part.attach(&mut surface, &union, edge_mm, snap_mm, l.wall)?;
+    let (lv_triangles, mid_lv, moved_mm) = attach_lv_part(&mut surface, &union, pools, &vsd, options.inflow_label, (edge_mm, snap_mm, l.wall))?;
     let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label };
     let ao_triangles = ao_part.attach(&mut surface, &union, edge_mm, snap_mm, l.wall)?;
     let extensions_ms = lap();
@@ -230,6 +238,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
             point_mm: arr(mid_lv.centroid),
             normal: arr(mid_lv.normal),
             distance_from_vsd_mm: vsd.plane.signed_distance_mm(&mid_lv.centroid),
+            moved_from_centroid_mm: moved_mm,
         },
         vsd_cap_off_plane_mm: vsd.off_plane_mm,
         aortic_cap_off_plane_mm: annulus.off_plane_mm,
@@ -324,9 +333,43 @@ fn volume_centroid(mesh: &TriMesh) -> Option<Vec3> {
     (volume.abs() > 0.0 && volume.is_finite()).then(|| moment / volume)
 }
 
-/// The mid-LV plane and the LV's section in it (the far cut's loop).
-fn mid_lv_plane(lv: &TriMesh, vsd: &Plane) -> Result<(Plane, Vec<Vec3>), PrepareError> {
+/// The LV part between the VSD cap and the mid-LV plane, attached to `surface`: the
+/// plane through the LV's centroid, or failing a clean cut there, the first of
+/// `MID_LV_MOVES_MM` that gives one. Returns the part's triangles, the plane used and
+/// how far it was moved (mm).
+fn attach_lv_part(
+    surface: &mut TriMesh,
+    union: &TriMesh,
+    pools: &BloodPools,
+    vsd: &DesignedCap,
+    inflow_label: i32,
+    (edge_mm, snap_mm, wall): (f64, f64, i32),
+) -> Result<(usize, Plane, f64), PrepareError> {
+    let mut first_error = None;
+    let mut tried = Vec::new();
+    for moved_mm in MID_LV_MOVES_MM {
+        let Ok((plane, lv_loop)) = mid_lv_plane(&pools.lv, &vsd.plane, moved_mm) else { continue };
+        let part = Extension { name: "LV", near: vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: inflow_label };
+        match part.attach(surface, union, edge_mm, snap_mm, wall) {
+            Ok(triangles) => return Ok((triangles, plane, moved_mm)),
+            Err(e) => {
+                tried.push(format!("{moved_mm:+.0}"));
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    let error = first_error.unwrap_or_else(|| PrepareError::geometry("mid-LV plane", "no plane parallel to the VSD cap cuts the LV behind it"));
+    Err(PrepareError::geometry(
+        "extension",
+        format!("{error} (the mid-LV plane was also moved {} mm from the LV centroid along the VSD normal, without a clean cut)", tried.join(", ")),
+    ))
+}
+
+/// The mid-LV plane, moved `moved_mm` along the VSD normal from the LV's centroid,
+/// and the LV's section in it (the far cut's loop).
+fn mid_lv_plane(lv: &TriMesh, vsd: &Plane, moved_mm: f64) -> Result<(Plane, Vec<Vec3>), PrepareError> {
     let centroid = volume_centroid(lv).ok_or_else(|| PrepareError::geometry("mid-LV plane", "the LV surface encloses no volume"))?;
+    let centroid = centroid + moved_mm * vsd.normal;
     let depth = vsd.signed_distance_mm(&centroid);
     if depth < MIN_LV_DEPTH_MM {
         return Err(PrepareError::geometry(
