@@ -1,10 +1,12 @@
 """Loads libbaffle with ctypes and declares the C ABI's signatures (baffle.h)."""
 
 import ctypes
+import math
 import os
 import sys
 from ctypes import POINTER, c_char_p, c_double, c_int, c_int32, c_int64, c_size_t, c_uint32, c_void_p
 from pathlib import Path
+from typing import Optional
 
 # The header's BAFFLE_ABI_VERSION this module was written against.
 ABI_VERSION = 1
@@ -17,11 +19,14 @@ TARGET_KINDS = {"area_mm2": 0, "annulus_diameter_mm": 1, "bsa": 2, "height_weigh
 
 
 class BaffleError(RuntimeError):
-    """A failed library call: `status` is the BaffleStatus code, str() the library's message."""
+    """A failed library call: `status` is the BaffleStatus code, str() the library's message.
+    `max_feasible_area_mm2` is the largest target area the suture line admits when the
+    design failed because the target cannot be reached (0.0: no tunnel at all), else None."""
 
-    def __init__(self, status: int, message: str):
+    def __init__(self, status: int, message: str, max_feasible_area_mm2: Optional[float] = None):
         super().__init__(message)
         self.status = status
+        self.max_feasible_area_mm2 = max_feasible_area_mm2
 
 
 class Cancelled(BaffleError):
@@ -90,6 +95,7 @@ _SIGNATURES = {
     "baffle_version": ([], c_char_p),
     "baffle_abi_version": ([], c_uint32),
     "baffle_last_error": ([], c_char_p),
+    "baffle_last_max_feasible_area_mm2": ([], c_double),
     "baffle_free": ([c_void_p], None),
     "baffle_design_options_init": ([c_void_p], c_int),
     "baffle_mesh_new": ([_D, c_size_t, _I64, c_size_t, _I32, c_size_t, POINTER(c_void_p)], c_int),
@@ -132,7 +138,9 @@ def check(status: int) -> None:
     if status == STATUS_OK:
         return
     message = lib.baffle_last_error().decode("utf-8", "replace")
-    raise (Cancelled if status == STATUS_CANCELLED else BaffleError)(status, message)
+    largest = lib.baffle_last_max_feasible_area_mm2()
+    largest = None if math.isnan(largest) else largest
+    raise (Cancelled if status == STATUS_CANCELLED else BaffleError)(status, message, largest)
 
 
 def version() -> str:

@@ -34,6 +34,19 @@ def test_open_mesh_is_rejected(phantom):
     assert error.value.status == 5
 
 
+def test_unreachable_target_reports_the_largest_feasible_area(phantom):
+    surface, points, _ = phantom
+    with pytest.raises(baffle.BaffleError, match="admits a tunnel of at most") as error:
+        baffle.design(surface.points, surface.triangles, surface.labels, points, target_area_mm2=1500.0)
+    assert error.value.status == 6
+    largest = error.value.max_feasible_area_mm2
+    assert 100.0 < largest < 1500.0
+    assert f"at most {largest:.1f} mm2" in str(error.value)
+    # The reported area designs, and every constrained or checked section holds it.
+    result = baffle.design(surface.points, surface.triangles, surface.labels, points, target_area_mm2=largest)
+    assert all(s["final_area_mm2"] >= largest for s in result.checked_sections)
+
+
 def test_too_few_points_are_rejected(phantom):
     surface, points, bsa_m2 = phantom
     with pytest.raises(baffle.BaffleError, match="at least 4"):

@@ -455,6 +455,13 @@ enum BaffleStatus baffle_result_copy_sections(const struct BaffleResult *result,
                                               size_t capacity);
 
 /*
+ When the last call on this thread failed because the target area cannot be
+ reached on the seam (status DesignFailed), the largest target area (mm2) the
+ seam admits (0 when it admits no tunnel); NaN after any other outcome.
+ */
+double baffle_last_max_feasible_area_mm2(void);
+
+/*
  Message of the last failed call on this thread ("" after a successful one).
  The pointer stays valid until the next baffle_* call on this thread.
  */

@@ -3,7 +3,7 @@
 use crate::mesh::BaffleMesh;
 use crate::options::read_options;
 use crate::result::BaffleResult;
-use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
 use baffle_core::{design, DesignError, Vec3};
 use std::ffi::{c_char, c_void, CString};
 
@@ -63,6 +63,9 @@ unsafe fn call_progress(progress: BaffleProgressFn, user_data: *mut c_void, frac
 }
 
 fn design_error(e: DesignError) -> CallError {
+    if let DesignError::Infeasible { max_feasible_area_mm2, .. } = e {
+        set_last_max_feasible_area_mm2(max_feasible_area_mm2);
+    }
     let status = match e {
         DesignError::Surface(_) | DesignError::MissingLabel { .. } | DesignError::SuturePoints(_) | DesignError::Target(_) => {
             BaffleStatus::InvalidInput

@@ -29,7 +29,7 @@ pub use result::{
     baffle_result_copy_seam, baffle_result_domain, baffle_result_free, baffle_result_report_json,
     baffle_result_section_count, baffle_result_seam_count, baffle_result_target_area_mm2, BaffleResult,
 };
-pub use status::{baffle_last_error, BaffleStatus};
+pub use status::{baffle_last_error, baffle_last_max_feasible_area_mm2, BaffleStatus};
 
 use std::ffi::c_char;
 

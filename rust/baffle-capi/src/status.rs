@@ -1,7 +1,7 @@
 //! Status codes, the thread-local last error, and the guard every exported
 //! function runs its body in (argument errors and panics become status codes).
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::ffi::{c_char, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -54,6 +54,20 @@ impl CallError {
 
 thread_local! {
     static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    static LAST_MAX_FEASIBLE_AREA_MM2: Cell<f64> = const { Cell::new(f64::NAN) };
+}
+
+/// Record the largest target (mm2) the seam admits, for the failed call underway.
+pub(crate) fn set_last_max_feasible_area_mm2(area_mm2: f64) {
+    LAST_MAX_FEASIBLE_AREA_MM2.with(|a| a.set(area_mm2));
+}
+
+/// When the last call on this thread failed because the target area cannot be
+/// reached on the seam (status DesignFailed), the largest target area (mm2) the
+/// seam admits (0 when it admits no tunnel); NaN after any other outcome.
+#[no_mangle]
+pub extern "C" fn baffle_last_max_feasible_area_mm2() -> f64 {
+    LAST_MAX_FEASIBLE_AREA_MM2.with(|a| a.get())
 }
 
 fn set_last_error(message: &str) {
@@ -73,6 +87,7 @@ pub extern "C" fn baffle_last_error() -> *const c_char {
 /// the outcome into a status (recording the message on failure).
 pub(crate) fn guarded(body: impl FnOnce() -> Result<(), CallError>) -> BaffleStatus {
     set_last_error("");
+    set_last_max_feasible_area_mm2(f64::NAN);
     let outcome = catch_unwind(AssertUnwindSafe(body)).unwrap_or_else(|payload| {
         let what = payload
             .downcast_ref::<&str>()

@@ -301,3 +301,22 @@ fn designs_run_concurrently_on_separate_handles() {
     });
     assert_eq!(areas[0], areas[1], "the design is deterministic");
 }
+
+#[test]
+fn an_unreachable_target_reports_the_largest_feasible_one() {
+    let p = phantom();
+    let mut options = bsa_options(p.bsa_m2);
+    options.target_kind = BaffleTargetKind::AreaMm2 as i32;
+    options.target_area_mm2 = 1500.0;
+    let (status, result) = run_design(&p, &options, None, null_mut());
+    assert_eq!(status, BaffleStatus::DesignFailed, "{}", last_error());
+    assert!(result.is_null());
+    let largest = baffle_last_max_feasible_area_mm2();
+    assert!(largest > 100.0 && largest < 1500.0, "{largest}");
+    assert!(last_error().contains(&format!("at most {largest:.1} mm2")), "{}", last_error());
+    // A call that succeeds clears it.
+    let (status, result) = run_design(&p, &bsa_options(p.bsa_m2), None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok);
+    assert!(baffle_last_max_feasible_area_mm2().is_nan());
+    unsafe { baffle_result_free(result) };
+}

@@ -463,6 +463,9 @@ class BaffleDesignerLogic:
             except baffle.Cancelled as error:
                 raise BaffleDesignerError(f"design cancelled: {error}") from error
             except baffle.BaffleError as error:
+                # The largest target this suture line admits, when the target is out of reach.
+                largest = getattr(error, "max_feasible_area_mm2", None)
+                curve.SetAttribute(ATTRIBUTE_PREFIX + "MaxFeasibleAreaMm2", "" if largest is None else f"{largest:.1f}")
                 raise BaffleDesignerError(f"design failed: {error}") from error
         except BaffleDesignerError as error:
             curve.SetAttribute(ATTRIBUTE_PREFIX + "Status", "failed")
@@ -477,6 +480,7 @@ class BaffleDesignerLogic:
         for name, value in (
             ("Status", "designed"),
             ("Error", ""),
+            ("MaxFeasibleAreaMm2", ""),
             ("TargetAreaMm2", report["target_area_mm2"]),
             ("TargetDescription", report["target"]),
             ("BaffleAreaMm2", report["baffle_area_mm2"]),
@@ -750,6 +754,7 @@ class BaffleDesignerLogic:
             "Baffle area": "BaffleAreaMm2",
             "Min section area": "MinSectionAreaMm2",
             "Constrained sections": "ConstrainedSections",
+            "Max feasible area": "MaxFeasibleAreaMm2",  # set when the target is out of reach
             "dp": "SimulationDpMmhg",
             "v_max": "SimulationMaxVelocityMS",
         }
@@ -769,7 +774,7 @@ class BaffleDesignerLogic:
         table.AddColumn(status_column)
         table.AddColumn(simulation_column)
         node.SetAndObserveTable(table)
-        for column in ("Target area", "Baffle area", "Min section area"):
+        for column in ("Target area", "Baffle area", "Min section area", "Max feasible area"):
             node.SetColumnUnitLabel(column, "mm2")
         node.SetColumnUnitLabel("dp", "mmHg")
         node.SetColumnUnitLabel("v_max", "m/s")

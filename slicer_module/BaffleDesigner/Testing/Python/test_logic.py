@@ -269,6 +269,21 @@ def test_input_errors_are_clear(phantom_scene):
         logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=0.0))
 
 
+def test_an_unreachable_target_shows_the_largest_feasible_area(phantom_scene):
+    scene, logic, model, curve = phantom_scene
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="area", target_area_mm2=1500.0))
+    with pytest.raises(bdlogic.BaffleDesignerError, match="admits a tunnel of at most"):
+        logic.design(curve)
+    assert curve.GetAttribute("BaffleDesigner.Status") == "failed"
+    largest = float(curve.GetAttribute("BaffleDesigner.MaxFeasibleAreaMm2"))
+    assert 100.0 < largest < 1500.0
+    assert f"at most {largest:.1f} mm2" in curve.GetAttribute("BaffleDesigner.Error")
+    # Designing at the reported area succeeds and clears it.
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="area", target_area_mm2=largest))
+    logic.design(curve)
+    assert curve.GetAttribute("BaffleDesigner.MaxFeasibleAreaMm2") == ""
+
+
 def test_section_loop_area_of_a_cylinder():
     # The independent re-measurement against a known shape: a closed cylinder of radius 4.
     source = vtk.vtkCylinderSource()
