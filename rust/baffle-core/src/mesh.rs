@@ -35,6 +35,32 @@ pub struct TriMesh {
     pub face_ids: Vec<i32>,
 }
 
+/// A hash map keyed by an undirected edge (`edge_key`). SipHash, the default, is
+/// built against adversarial keys; point indices are not, and hashing edges was the
+/// largest single cost of a design (18%).
+pub type EdgeMap<V> = HashMap<(u32, u32), V, std::hash::BuildHasherDefault<EdgeHasher>>;
+
+/// Multiplicative (Fx-style) hashing of the two u32s of an edge key.
+#[derive(Default, Clone, Copy)]
+pub struct EdgeHasher(u64);
+
+impl std::hash::Hasher for EdgeHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_u32(&mut self, i: u32) {
+        self.write_u64(u64::from(i));
+    }
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
 /// An undirected edge key with the smaller index first.
 #[inline]
 pub fn edge_key(a: u32, b: u32) -> (u32, u32) {
@@ -104,8 +130,8 @@ impl TriMesh {
     }
 
     /// For every undirected edge, the triangles that use it.
-    pub fn edge_triangles(&self) -> HashMap<(u32, u32), Vec<u32>> {
-        let mut map: HashMap<(u32, u32), Vec<u32>> = HashMap::with_capacity(self.triangles.len() * 3 / 2);
+    pub fn edge_triangles(&self) -> EdgeMap<Vec<u32>> {
+        let mut map: EdgeMap<Vec<u32>> = EdgeMap::with_capacity_and_hasher(self.triangles.len() * 3 / 2, Default::default());
         for (t, tri) in self.triangles.iter().enumerate() {
             for k in 0..3 {
                 map.entry(edge_key(tri[k], tri[(k + 1) % 3])).or_default().push(t as u32);
@@ -117,6 +143,27 @@ impl TriMesh {
     /// Triangle adjacency across each of its three edges (edge k joins corner k and k+1);
     /// `u32::MAX` where the edge is a boundary or non-manifold.
     pub fn triangle_neighbors(&self) -> Vec<[u32; 3]> {
+        // Sorting the 3n (edge, triangle, corner) records groups each edge's users
+        // without a hash map (this runs on every design step's 10-20k triangles).
+        let mut uses: Vec<((u32, u32), u32, u8)> = Vec::with_capacity(3 * self.triangles.len());
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                uses.push((edge_key(tri[k], tri[(k + 1) % 3]), t as u32, k as u8));
+            }
+        }
+        uses.sort_unstable();
+        let mut neighbors = vec![[u32::MAX; 3]; self.triangles.len()];
+        for group in uses.chunk_by(|a, b| a.0 == b.0) {
+            if let [(_, t0, k0), (_, t1, k1)] = group {
+                neighbors[*t0 as usize][*k0 as usize] = *t1;
+                neighbors[*t1 as usize][*k1 as usize] = *t0;
+            }
+        }
+        neighbors
+    }
+
+    #[cfg(test)]
+    fn triangle_neighbors_by_map(&self) -> Vec<[u32; 3]> {
         let edges = self.edge_triangles();
         self.triangles
             .iter()
@@ -273,6 +320,25 @@ pub fn manifold_report(mesh: &TriMesh) -> ManifoldReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sorted_neighbors_match_the_edge_map_on_closed_open_and_non_manifold_meshes() {
+        let closed = crate::phantom::phantom_default().surface;
+        assert_eq!(closed.triangle_neighbors(), closed.triangle_neighbors_by_map());
+        let mut open = closed.clone();
+        open.triangles.truncate(open.triangles.len() / 2);
+        open.face_ids.truncate(open.triangles.len());
+        assert_eq!(open.triangles.len(), open.face_ids.len());
+        assert_eq!(open.triangle_neighbors(), open.triangle_neighbors_by_map());
+        // Three triangles on one edge: no neighbour across it.
+        let fan = TriMesh {
+            points: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z(), -Vec3::y()],
+            triangles: vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+            face_ids: vec![2; 3],
+        };
+        assert_eq!(fan.triangle_neighbors(), vec![[u32::MAX; 3]; 3]);
+        assert_eq!(fan.triangle_neighbors(), fan.triangle_neighbors_by_map());
+    }
 
     fn tetra() -> TriMesh {
         let p = vec![

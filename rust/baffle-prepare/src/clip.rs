@@ -5,7 +5,7 @@
 //! section curves, the one nearest the regularized loop is the cut; the kept
 //! region is the part of the surface that touches both cuts.
 
-use baffle_core::mesh::edge_key;
+use baffle_core::mesh::{edge_key, EdgeMap};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::{TriMesh, Vec3};
 use std::collections::HashMap;
@@ -126,7 +126,7 @@ fn triangle_sides(split: &SplitMesh, plane: &Plane, bit: u8) -> Vec<i8> {
 
 /// The plane's section curves: connected sets of edges on the plane between
 /// triangles on opposite sides.
-fn section_curves(split: &SplitMesh, edges: &HashMap<(u32, u32), Vec<u32>>, sides: &[i8], bit: u8) -> Vec<Vec<(u32, u32)>> {
+fn section_curves(split: &SplitMesh, edges: &EdgeMap<Vec<u32>>, sides: &[i8], bit: u8) -> Vec<Vec<(u32, u32)>> {
     let on = |v: u32| split.on_plane[v as usize] & bit != 0;
     let curve: Vec<(u32, u32)> = edges
         .iter()
@@ -178,7 +178,7 @@ fn nearest_curve(mesh: &TriMesh, curves: &[Vec<(u32, u32)>], loop_mm: &[Vec3]) -
 
 /// Triangle components across every edge except the cuts; keep the one touching
 /// all cuts.
-fn keep_between(mesh: &TriMesh, edges: &HashMap<(u32, u32), Vec<u32>>, cut_edges: &[Vec<(u32, u32)>], cuts: &[Cut]) -> Result<Clipped, String> {
+fn keep_between(mesh: &TriMesh, edges: &EdgeMap<Vec<u32>>, cut_edges: &[Vec<(u32, u32)>], cuts: &[Cut]) -> Result<Clipped, String> {
     let blocked: std::collections::HashSet<(u32, u32)> = cut_edges.iter().flatten().copied().collect();
     let component = components_across(mesh, edges, &blocked);
     let components_at = |curve: &Vec<(u32, u32)>| -> std::collections::HashSet<usize> {
@@ -217,7 +217,7 @@ fn keep_between(mesh: &TriMesh, edges: &HashMap<(u32, u32), Vec<u32>>, cut_edges
     Ok(Clipped { mesh: sub, rims })
 }
 
-fn components_across(mesh: &TriMesh, edges: &HashMap<(u32, u32), Vec<u32>>, blocked: &std::collections::HashSet<(u32, u32)>) -> Vec<usize> {
+fn components_across(mesh: &TriMesh, edges: &EdgeMap<Vec<u32>>, blocked: &std::collections::HashSet<(u32, u32)>) -> Vec<usize> {
     let mut component = vec![usize::MAX; mesh.triangles.len()];
     let mut count = 0;
     for seed in 0..mesh.triangles.len() {
