@@ -16,6 +16,7 @@ mod extend_cmd;
 mod mesh_cmd;
 mod plan_cmd;
 mod prepare_cmd;
+mod progress;
 mod report;
 mod sampling;
 mod files;
@@ -37,6 +38,11 @@ enum Command {
     /// 11 VSD cap / 16 aortic cap), baffle.vtp, centerline.vtp (point arrays s_mm,
     /// tangent), sections.vtp (raw and regularized baffle arcs), seam.vtp and
     /// report.json (target, per-section areas and amplitudes, step timings).
+    #[command(after_help = "Examples:\n  \
+        baffle design --surface ../shared/data/p2/design_input/capped_ventricle.vtp \\\n      \
+        --points ../shared/data/p2/design_input/suture_points.mrk.json --bsa 0.37 --out out/p2\n  \
+        baffle design --surface capped.stl --vsd-cap-point 1,2,3 --aortic-cap-point 4,5,6 --points P.fcsv --annulus-diameter-mm 12 --out out/x\n  \
+        baffle design --phantom --out out/phantom")]
     Design(DesignArgs),
     /// The capped ventricle (design input) from segmented LV, RV and aorta surfaces.
     Prepare(prepare_cmd::PrepareArgs),
