@@ -404,12 +404,15 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
         println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
         done += stage.weight;
     }
-    let verdict = report::write_reports(args, &stages, &records)?;
+    let outcome = report::write_reports(args, &stages, &records)?;
     progress.report(1.0, "report", "written");
     progress.finish(None);
     println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
+    for warning in &outcome.warnings {
+        println!("warning: {warning}");
+    }
     // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
-    println!("{verdict}");
+    println!("{}", outcome.verdict_line);
     Ok(())
 }
 

@@ -88,6 +88,7 @@ impl Progress {
                     let _ = writeln!(out, "<filter-stage>{stage}</filter-stage>");
                     *self.last_stage.borrow_mut() = stage.to_string();
                 }
+                let _ = writeln!(out, "<filter-comment>{message}</filter-comment>");
                 let _ = out.flush();
             }
             Style::Bar => {

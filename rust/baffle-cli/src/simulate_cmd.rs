@@ -456,6 +456,8 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     let mut signalled = false;
     let mut limit_reached = false;
     let first_row = rows.len();
+    // A steady solve's residual can rise for a while: the bar never moves back.
+    let mut shown_fraction = 0.0f64;
 
     let result = simulate_from(&mesh, &settings, start_state.as_ref(), &mut |view| {
         let fraction = if steady {
@@ -463,6 +465,8 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
         } else {
             view.step as f64 / n_steps.max(1) as f64
         };
+        shown_fraction = shown_fraction.max(fraction);
+        let fraction = shown_fraction;
         progress.report(fraction, if steady { "steady solve" } else { "time steps" }, view.message);
         if let Some(r) = view.result {
             rows.push(Row::of(r));

@@ -431,8 +431,14 @@ fn surface_source(args: &PlanArgs) -> String {
     }
 }
 
-/// Write report.json and report.html from the stages' files; returns the verdict line.
-pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<String, String> {
+/// What the command line says at the end: the warnings, then the verdict line.
+pub struct Outcome {
+    pub warnings: Vec<String>,
+    pub verdict_line: String,
+}
+
+/// Write report.json and report.html from the stages' files.
+pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
     let out = &args.design.out;
     let labels = (args.design.vsd_label, args.design.aortic_label);
     let design_dir = out.join("design");
@@ -579,7 +585,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     html.figure(
         &line_chart("Pressure along the flow-domain centerline (peak flow)", "arc length from the VSD plane s (mm)", "p − aortic-plane mean (mmHg)", &series, false),
         &format!(
-            "Sampled from peak.vtu at {} of {} points of the flow-domain centerline (medial line between the VSD and aortic planes, 0.5 mm spacing); dashed: the plane-averaged dp the verdict uses, at the VSD end.",
+            "Sampled from peak.vtu at {} of {} points of the flow-domain centerline (medial line between the VSD and aortic planes, 0.5 mm spacing); dashed: the level of the plane-averaged dp the verdict uses (the VSD-plane mean; the aortic-plane mean is 0).",
             profile.pressure_mmhg.iter().flatten().count(),
             flow_line.s_mm.len()
         ),
@@ -607,7 +613,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
     html.0.push_str("</body></html>\n");
     write_atomic(&out.join("report.html"), html.0.as_bytes())?;
-    Ok(verdict_line)
+    Ok(Outcome { warnings, verdict_line })
 }
 
 #[cfg(test)]
