@@ -52,7 +52,7 @@ enum Command {
     Extend(extend_cmd::ExtendArgs),
     /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
     Mesh(mesh_cmd::MeshArgs),
-    /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
+    /// CFD on a volume mesh from a JSON case (embedded solver; results in mm, m/s, mmHg; SIGTERM stops with results).
     Simulate(simulate_cmd::SimulateArgs),
     /// Flow-domain centerline of a closed lumen between two measurement planes (paper
     /// 2.5): length, inscribed radii and, with --results, v_max and pressure along it.

@@ -271,7 +271,8 @@ fn missing_mesh_is_named() {
     let help = baffle(&["simulate", "--help"]);
     let help = String::from_utf8_lossy(&help.stdout);
     assert!(help.contains(r#""faces": { "inlet": 11"#));
-    assert!(help.contains("points in cm") && help.contains("(cm/s)") && help.contains("dyn/cm^2"), "units of the .vtu files: {help}");
+    assert!(help.contains("in mm like every surface") && help.contains("velocity_m_s") && help.contains("pressure_mmhg"), "units of the .vtu files: {help}");
+    assert!(help.contains("--progress-tags"), "{help}");
     std::fs::remove_dir_all(dir).ok();
 }
 
@@ -333,6 +334,10 @@ fn measurement_planes_give_the_hagen_poiseuille_pressure_drop() {
     let out_dir = case.parent().unwrap().join("out");
     let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // Piped and not asked for tags: plain progress lines on stderr, no Slicer tags anywhere.
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(!stdout.contains("<filter-") && !stderr.contains("<filter-") && !stderr.contains('\r'), "{stdout}\n{stderr}");
+    assert!(stderr.lines().any(|l| l.contains("% ") && l.contains("elapsed") && l.contains("steady solve")), "{stderr}");
     let s = summary(&out_dir);
     let (plane_1, plane_2) = (100 + a as i32, 100 + b as i32);
     assert_eq!(s["dp_faces"], serde_json::json!([plane_1, plane_2]));

@@ -134,7 +134,7 @@ def test_peak_fields_node_has_the_mesh_and_the_arrays_in_scene_units(simulated):
     volume = reader.GetOutput()
     assert grid.GetNumberOfPoints() == volume.GetNumberOfPoints() > 500  # one value per mesh node
     assert grid.GetNumberOfCells() == volume.GetNumberOfCells()
-    # Back in mm, where the domain is (the solver writes cm).
+    # In mm, where the domain is: peak.vtu is written in mm and loaded as it is.
     np.testing.assert_allclose(grid.GetBounds(), volume.GetBounds(), atol=1e-6)
     data = grid.GetPointData()
     speed = numpy_support.vtk_to_numpy(data.GetArray("speed_m_s"))
