@@ -34,7 +34,7 @@ pub struct CenterlineArgs {
     /// Factor from the files' units to mm (10 for the paper's published files, in cm).
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
-    /// A `baffle simulate` result (peak.vtu: cm, cm/s, dyn/cm2) to sample along the centerline.
+    /// A `baffle simulate` result (peak.vtu: mm, velocity_m_s, pressure_mmhg) to sample along the centerline.
     #[arg(long)]
     pub results: Option<PathBuf>,
     /// Voxel size of the distance field (mm).
