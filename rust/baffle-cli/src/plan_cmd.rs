@@ -337,7 +337,7 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) ->
                 argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into()]);
             }
             let centerline = command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?;
-            progress.while_running("centerline", || centerline_cmd::run_centerline(&centerline))
+            centerline_cmd::run_centerline_with(&centerline, progress)
         }
         Step::Extend => {
             let domain = out.join("design").join("domain.vtp");

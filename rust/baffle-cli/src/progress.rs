@@ -97,8 +97,12 @@ impl Progress {
                 let text: String = format!("{stage}: {message}").chars().take(90).collect();
                 let mut err = std::io::stderr().lock();
                 let _ = write!(err, "\r[{}{}] {:5.1}% {} | {text}\x1b[K", "#".repeat(done), " ".repeat(width - done), 100.0 * overall, self.timing(overall));
+                // A finished piece ends its line, so what the command prints next starts on its own.
+                if fraction >= 1.0 {
+                    let _ = writeln!(err);
+                }
                 let _ = err.flush();
-                self.drawn.set(true);
+                self.drawn.set(fraction < 1.0);
             }
             Style::Lines => {
                 let (last, at) = self.last_line.get();

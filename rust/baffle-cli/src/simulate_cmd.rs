@@ -298,8 +298,10 @@ impl Report<'_> {
     pub(crate) fn print(&self, summary: &serde_json::Value, rows: usize, rows_this_run: usize, wall_time_s: f64) {
         let (a, b) = dp_faces(self.case);
         let number = |key: &str| summary[key].as_f64().unwrap_or(f64::NAN);
+        // An unconverged solve's numbers are not presented as a plain result.
+        let converged = if summary["converged"] == true { "" } else { " (NOT CONVERGED)" };
         println!(
-            "{} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
+            "{}{converged} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
             summary["status"].as_str().unwrap_or_default(),
             number("dp_peak_mmhg"),
             number("max_velocity_m_s"),
