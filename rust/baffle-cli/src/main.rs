@@ -22,6 +22,7 @@ mod sampling;
 mod files;
 mod simulate_cmd;
 mod simulate_svmp;
+mod verdict;
 
 #[derive(Parser)]
 #[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]

@@ -320,7 +320,14 @@ fn dp_faces(case: &case::Case) -> (i32, i32) {
     }
 }
 
+/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can).
 fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
+    let mut summary = summary_figures(report, rows, ending, wall_time_s);
+    summary["doubts"] = serde_json::json!(crate::verdict::run_doubts(&summary));
+    summary
+}
+
+fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
     let (case, settings, flow) = (report.case, report.settings, report.flow);
     let (a, b) = dp_faces(case);
     let outlet = case.faces.outlets[0];

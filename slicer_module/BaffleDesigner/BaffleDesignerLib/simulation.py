@@ -57,8 +57,12 @@ SUMMARY_INPUT_ROWS = (
 COL_DP = "dp_mmhg"
 
 
-def verdict(dp_mmhg: float) -> str:
-    """'pass' when the peak pressure difference is below the 10 mmHg planning threshold."""
+def verdict(dp_mmhg: float, doubts=()) -> str:
+    """'pass' when the peak pressure difference is below the 10 mmHg planning threshold,
+    'fail' when not, 'inconclusive' when the run gives reasons not to trust it (summary.json's
+    `doubts`, written by `baffle simulate`: an unconverged solve, unsettled cycles, ...)."""
+    if doubts:
+        return "inconclusive"
     return "pass" if dp_mmhg < DP_THRESHOLD_MMHG else "fail"
 
 
@@ -129,8 +133,12 @@ class SimulationResults:
         return self.summary.get("mode") == "steady"
 
     @property
+    def doubts(self) -> List[str]:
+        return list(self.summary.get("doubts") or [])
+
+    @property
     def verdict(self) -> str:
-        return verdict(self.dp_mmhg)
+        return verdict(self.dp_mmhg, self.doubts)
 
 
 def _finite(summary: dict, key: str, path: str) -> float:
@@ -377,8 +385,8 @@ class SimulationJob(bdlogic.CandidateJob):
             f"dp {results.dp_mmhg:.2f} mmHg ({results.verdict}: threshold {DP_THRESHOLD_MMHG:g} mmHg), "
             f"v_max {results.max_velocity_m_s:.2f} m/s"
         )
-        if not results.summary.get("converged", True):
-            line += "; the solver did not reach its residual target, treat the figures with care"
+        if results.doubts:
+            line += "; inconclusive because " + "; ".join(results.doubts)
         if self._redesigned():
             line += "; the baffle was redesigned meanwhile, so these results are outdated"
         return line

@@ -3,7 +3,6 @@
 
 mod svg_plot;
 mod svg_render;
-mod verdict;
 
 use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
@@ -13,7 +12,7 @@ use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
 use std::path::Path;
-use verdict::{Verdict, DP_THRESHOLD_MMHG};
+use crate::verdict::{self, Verdict, DP_THRESHOLD_MMHG};
 
 fn read_json(path: &Path) -> Result<Value, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -2,7 +2,9 @@
 //! difference against 10 mmHg; a number is only called passing or failing when the run
 //! that gave it can be trusted: otherwise the verdict is inconclusive, with its reasons
 //! in plain words (an unconverged or stopped solve, cycles that have not settled, a
-//! mesh study whose finer mesh changes dp, a design check that failed).
+//! mesh study whose finer mesh changes dp, a design check that failed). `baffle simulate`
+//! writes its run's doubts into summary.json (`doubts`), so the Slicer module shows the
+//! same verdict without a second copy of these rules.
 
 use serde_json::Value;
 
