@@ -68,6 +68,10 @@ enum Command {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
         #[arg(long)]
         out: PathBuf,
+        /// Write the synthetic heart as segment surfaces instead (LV.vtp, RV.vtp, aorta.vtp
+        /// and suture_points.mrk.json, BSA 0.2 m2): the input of `baffle plan --segmentations`.
+        #[arg(long)]
+        heart: bool,
     },
 }
 
@@ -194,7 +198,8 @@ fn main() -> ExitCode {
         Command::Centerline(args) => centerline_cmd::run_centerline(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),
         Command::Plan(args) => plan_cmd::run_plan(&args),
-        Command::Phantom { out } => write_phantom(&out),
+        Command::Phantom { out, heart: false } => write_phantom(&out),
+        Command::Phantom { out, heart: true } => prepare_cmd::write_synthetic_heart(&out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

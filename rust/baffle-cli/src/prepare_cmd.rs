@@ -122,6 +122,20 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
     Ok((report, report_path))
 }
 
+/// `baffle phantom --heart`: the synthetic heart's segment surfaces and suture points in `out`.
+pub fn write_synthetic_heart(out: &Path) -> Result<(), String> {
+    let heart = baffle_prepare::shapes::synthetic_heart();
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    for (name, surface) in [("LV.vtp", &heart.lv), ("RV.vtp", &heart.rv), ("aorta.vtp", &heart.aorta)] {
+        write_trimesh_vtp(&out.join(name), surface).map_err(|e| e.to_string())?;
+    }
+    let points = out.join("suture_points.mrk.json");
+    baffle_core::io::write_markups_closed_curve(&points, "BC", &heart.suture_points_mm, baffle_core::io::CoordinateSystem::Lps)
+        .map_err(|e| e.to_string())?;
+    println!("wrote {} (LV, RV and aorta segment surfaces, suture points; BSA {} m2)", out.display(), heart.bsa_m2);
+    Ok(())
+}
+
 pub(crate) fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {
     match (&source.segmentations, &source.labelmap) {
         (Some(dir), _) => read_segmentations(dir).map_err(|e| e.to_string()),

@@ -294,40 +294,15 @@ fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
     std::fs::remove_dir_all(out).ok();
 }
 
-/// A synthetic heart as segment files, as the prepare test writes it: LV and RV
-/// spheres overlapping (the VSD faces -x at x = 8.6), an aorta tube leaving the RV's
-/// top (the aortic cap at z = 8.1); and a suture loop on the RV sphere 46 degrees
-/// around the quarter circle from the VSD's direction (-x) to the aorta's (+z), so
-/// that it encloses both caps.
+/// The synthetic heart (`baffle_prepare::shapes::synthetic_heart`) as `baffle phantom
+/// --heart` writes it: LV.vtp, RV.vtp, aorta.vtp and suture_points.mrk.json.
 fn synthetic_heart(dir: &Path) -> PathBuf {
-    use baffle_core::io::write_trimesh_vtp;
-    use baffle_core::Vec3;
-    use baffle_prepare::shapes::{capped_tube, uv_sphere};
-    let (rv_center, rv_radius) = (Vec3::new(16.0, 0.0, 0.0), 9.0);
-    write_trimesh_vtp(&dir.join("LV.vtp"), &uv_sphere(Vec3::zeros(), 10.0, 32, 64)).unwrap();
-    write_trimesh_vtp(&dir.join("RV.vtp"), &uv_sphere(rv_center, rv_radius, 32, 64)).unwrap();
-    write_trimesh_vtp(&dir.join("aorta.vtp"), &capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 12, 48)).unwrap();
-    let rho = 46f64.to_radians();
-    let (side, vsd, aorta) = (Vec3::y(), -Vec3::x(), Vec3::z());
-    let arc = |t: f64| Vec3::new(-t.cos(), 0.0, t.sin());
-    let around = |center: Vec3, away: Vec3, phi: f64| center * rho.cos() + (away * phi.cos() + side * phi.sin()) * rho.sin();
-    let quarter = std::f64::consts::FRAC_PI_2;
-    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() + side * rho.sin()).collect();
-    directions.extend((1..4).map(|k| around(aorta, Vec3::x(), quarter - std::f64::consts::PI * k as f64 / 4.0)));
-    directions.extend((0..=5).rev().map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() - side * rho.sin()));
-    directions.extend((1..4).map(|k| around(vsd, -Vec3::z(), -quarter + std::f64::consts::PI * k as f64 / 4.0)));
-    let points: Vec<serde_json::Value> = directions
-        .iter()
-        .enumerate()
-        .map(|(i, d)| {
-            let p = rv_center + d.normalize() * rv_radius;
-            serde_json::json!({ "id": (i + 1).to_string(), "label": format!("BC-{}", i + 1), "position": [p.x, p.y, p.z], "positionStatus": "defined" })
-        })
-        .collect();
-    let markups = serde_json::json!({ "markups": [{ "type": "Fiducial", "coordinateSystem": "LPS", "controlPoints": points }] });
-    let path = dir.join("suture_points.mrk.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&markups).unwrap()).unwrap();
-    path
+    let out = baffle(&["phantom", "--heart", "--out", dir.to_str().unwrap()], &[]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for name in ["LV.vtp", "RV.vtp", "aorta.vtp"] {
+        assert!(dir.join(name).is_file(), "{name}");
+    }
+    dir.join("suture_points.mrk.json")
 }
 
 /// The prepare stage ran first, and the report's caps are its own report's.
