@@ -402,6 +402,11 @@ fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
     eprintln!("p2 from segmentations, steady, 1.25 mm: dp {dp:.3} mmHg, v_max {} m/s; {}", q["max_velocity_m_s"], times.join(", "));
     assert!(dp.is_finite() && dp > 0.0, "p2 dp {dp} mmHg");
     check_verdict(&out, &String::from_utf8_lossy(&run.stdout));
+    // p2 is the paper's: its published values stand beside ours.
+    assert_eq!(report["paper"]["patient"], "p2");
+    assert_eq!(report["paper"]["quantities"]["dp_peak_mmhg"], 1.58);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("<th>Paper (p2)</th>"), "no paper column");
     std::fs::remove_dir_all(out).ok();
 }
 

@@ -1,6 +1,7 @@
 //! The plan's report: report.json and a self-contained report.html (inline SVG, no
 //! scripts, no external references), built only from the stages' own files.
 
+mod paper;
 mod svg_plot;
 mod svg_render;
 
@@ -430,6 +431,12 @@ fn surface_source(args: &PlanArgs) -> String {
     }
 }
 
+/// The plan's input file or folder (for the paper's patient it belongs to).
+fn input_path(args: &PlanArgs) -> Option<&Path> {
+    let p = &args.prepare;
+    p.segmentations.as_deref().or(p.labelmap.as_deref()).or(args.design.surface.as_deref())
+}
+
 /// What the command line says at the end: the warnings, then the verdict line.
 pub struct Outcome {
     pub warnings: Vec<String>,
@@ -468,6 +475,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let comparison = PressureComparison::of(&flow_line.s_mm, &gauge);
     flow_line.write_with_fields(reference_mmhg)?;
     let prepare = prepare_summary(out, records)?;
+    let paper = input_path(args).and_then(paper::PaperPatient::of_input);
 
     let run_rows: Vec<Value> = runs
         .iter()
@@ -503,6 +511,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             "warnings": warnings,
         },
         "runs": run_rows,
+        "paper": paper.as_ref().map(|p| json!({
+            "patient": p.id, "table": p.table,
+            "note": "the paper's published values of this patient (pulsatile run, nominal 0.95 mm mesh)",
+            "quantities": p.values.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        })),
         "centerline": {
             "kind": "flow-domain", "file": flow_centerline_path(out), "length_mm": flow_line.length_mm,
             "pressure_reference": "mean pressure over the aortic-annulus plane at peak flow",
@@ -536,8 +549,24 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     }
     html.para(&domain_text(&cfd_domain));
     html.heading("The paper's quantities");
-    let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
-    html.table(&["Quantity", "Value", "Unit"], &rows);
+    let mut rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
+    match &paper {
+        Some(p) => {
+            for (row, q) in rows.iter_mut().zip(&table) {
+                row.push(format_value(p.value(q.key).unwrap_or(f64::NAN), q.decimals));
+            }
+            let header = format!("Paper ({})", p.id);
+            html.table(&["Quantity", "Value", "Unit", &header], &rows);
+            html.para(&format!(
+                "Paper: patient {} as printed in Martinez et al. (from {}), from its pulsatile run on the nominal 0.95 mm mesh; this plan ran {} on a {} mm mesh.",
+                p.id,
+                p.table.display(),
+                nominal.summary["mode"].as_str().unwrap_or("?"),
+                args.edge_length_mm
+            ));
+        }
+        None => html.table(&["Quantity", "Value", "Unit"], &rows),
+    }
 
     if let Some(prepare) = &prepare {
         html.heading("Capped ventricle (prepare stage)");
