@@ -78,6 +78,10 @@ pub struct PlanArgs {
     /// --remesh-edge-mm`, default 0.5). The design remeshes the kept wall at --remesh-edge-mm.
     #[arg(long)]
     pub prepare_remesh_edge_mm: Option<f64>,
+    /// How the report names the patient (default: the paper's patient id when the input
+    /// lies in one of its patients' folders).
+    #[arg(long)]
+    pub patient_label: Option<String>,
 }
 
 fn parse_bp(text: &str) -> Result<(f64, f64), String> {

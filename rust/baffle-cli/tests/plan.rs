@@ -406,7 +406,8 @@ fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
     assert_eq!(report["paper"]["patient"], "p2");
     assert_eq!(report["paper"]["quantities"]["dp_peak_mmhg"], 1.58);
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(html.contains("<th>Paper (p2)</th>"), "no paper column");
+    assert!(html.contains("<th>Paper (p2)</th>") && html.contains("Patient: p2"), "no paper column or patient");
+    assert_eq!(report["patient"], "p2");
     std::fs::remove_dir_all(out).ok();
 }
 

@@ -420,14 +420,31 @@ fn domain_text(domain: &Value) -> String {
     )
 }
 
+/// The last two components of `path` ("p2/segmentations"): enough to recognise the
+/// input without printing where it lives (report.json keeps the full paths).
+fn short_path(path: &Path) -> String {
+    let parts: Vec<_> = path.components().rev().take(2).map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+    parts.into_iter().rev().collect::<Vec<_>>().join("/")
+}
+
 /// What the ventricle came from, for the report's first line.
 fn surface_source(args: &PlanArgs) -> String {
     let p = &args.prepare;
     match (&p.segmentations, &p.labelmap, &args.design.surface) {
-        (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", dir.display()),
-        (None, Some(file), _) => format!("Label map {} (prepare stage)", file.display()),
-        (None, None, Some(surface)) => format!("Surface {}", surface.display()),
+        (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", short_path(dir)),
+        (None, Some(file), _) => format!("Label map {} (prepare stage)", short_path(file)),
+        (None, None, Some(surface)) => format!("Surface {}", short_path(surface)),
         (None, None, None) => "Surface: built-in phantom".into(),
+    }
+}
+
+/// The patient's name in the report: --patient-label, else the paper's patient id.
+fn patient_label(args: &PlanArgs, paper: Option<&paper::PaperPatient>) -> String {
+    match (&args.patient_label, paper, args.design.phantom) {
+        (Some(label), _, _) => label.clone(),
+        (None, Some(p), _) => p.id.clone(),
+        (None, None, true) => "built-in phantom".into(),
+        (None, None, false) => "not named (give --patient-label)".into(),
     }
 }
 
@@ -492,6 +509,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let report = json!({
         "status": "completed",
         "created_utc": utc_now(),
+        "patient": patient_label(args, paper.as_ref()),
         "software": { "name": "baffle", "version": env!("CARGO_PKG_VERSION") },
         "inputs": {
             "surface": args.design.surface, "points": args.design.points, "phantom": args.design.phantom,
@@ -531,6 +549,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
 
     let mut html = Html(String::new());
     let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
+    let _ = writeln!(html.0, "<p><b>Patient: {}</b></p>", escape(&patient_label(args, paper.as_ref())));
     html.para(&format!("Made {} by baffle {} (baffle plan).", report["created_utc"].as_str().unwrap_or_default(), env!("CARGO_PKG_VERSION")));
     html.para(&format!(
         "{}; BSA {} m²; BP {}/{} mmHg; {}; cardiac index {} L/min/m²; {} run, nominal mesh {} mm.",
