@@ -127,6 +127,9 @@ struct Checkpoint {
     /// before steady solves could resume).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     steady: Option<SteadyCheckpoint>,
+    /// A steady solve's relative residual per iteration so far (its convergence history).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    steady_residuals: Vec<f64>,
 }
 
 /// [`SteadyProgress`] as stored: the residual reference and the last relative residual,
@@ -150,7 +153,7 @@ impl From<SteadyCheckpoint> for SteadyProgress {
 }
 
 impl Checkpoint {
-    fn of(state: SolverState, case: &Path, dt_s: f64, rows: &[Row], wall_time_s: f64) -> Checkpoint {
+    fn of(state: SolverState, case: &Path, dt_s: f64, rows: &[Row], steady_residuals: &[f64], wall_time_s: f64) -> Checkpoint {
         let steady = state.steady.map(SteadyCheckpoint::from);
         // A steady iterate is its own previous state: those fields are not kept.
         let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match steady {
@@ -170,6 +173,7 @@ impl Checkpoint {
             rows: rows.to_vec(),
             wall_time_s,
             steady,
+            steady_residuals: steady_residuals.to_vec(),
         }
     }
 
@@ -211,7 +215,7 @@ impl Checkpoint {
     }
 
     /// The solver state to continue from, the rows so far and the wall time so far.
-    fn into_start(self) -> (SolverState, Vec<Row>, f64) {
+    fn into_start(self) -> (SolverState, Vec<Row>, Vec<f64>, f64) {
         let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match self.steady {
             Some(_) => (self.velocity_cm_s.clone(), self.pressure_dyn_cm2.clone()),
             None => (self.previous_velocity_cm_s, self.previous_pressure_dyn_cm2),
@@ -225,7 +229,7 @@ impl Checkpoint {
             previous_pressure_dyn_cm2,
             steady: self.steady.map(SteadyProgress::from),
         };
-        (state, self.rows, self.wall_time_s)
+        (state, self.rows, self.steady_residuals, self.wall_time_s)
     }
 }
 
@@ -286,8 +290,12 @@ impl Report<'_> {
     }
 
     /// Write timeseries.csv and summary.json; returns the summary.
-    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, wall_time_s: f64) -> Result<serde_json::Value, String> {
-        let json = summary_json(self, rows, ending, wall_time_s);
+    /// `steady_residuals`: a steady solve's relative residual per iteration (empty otherwise).
+    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<serde_json::Value, String> {
+        let mut json = summary_json(self, rows, ending, wall_time_s);
+        if !steady_residuals.is_empty() {
+            json["steady_relative_residuals"] = serde_json::json!(steady_residuals);
+        }
         self.csv(rows)?;
         let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
         write_atomic(&self.dir.join("summary.json"), text.as_bytes())?;
@@ -387,6 +395,8 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
             "cycles": settings.cycles,
             "density_g_cm3": settings.density_g_cm3,
             "viscosity_g_cm_s": settings.viscosity_g_cm_s,
+            "steady_tolerance": steady.then_some(settings.steady_tolerance),
+            "steady_max_iterations": steady.then_some(settings.steady_max_iterations),
         },
     })
 }
@@ -447,11 +457,11 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
         return crate::simulate_svmp::run(args, &report, &output, start, progress);
     }
 
-    let (mut rows, start_state, previous_wall) = if args.resume {
-        let (state, rows, wall) = Checkpoint::read(&args.out.join("checkpoint.json"), mesh.points_cm.len(), &settings)?.into_start();
-        (rows, Some(state), wall)
+    let (mut rows, start_state, mut residuals, previous_wall) = if args.resume {
+        let (state, rows, residuals, wall) = Checkpoint::read(&args.out.join("checkpoint.json"), mesh.points_cm.len(), &settings)?.into_start();
+        (rows, Some(state), residuals, wall)
     } else {
-        (Vec::new(), None, 0.0)
+        (Vec::new(), None, Vec::new(), 0.0)
     };
 
     let stop = stop_on_signals()?;
@@ -475,6 +485,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
             view.step as f64 / n_steps.max(1) as f64
         };
         shown_fraction = shown_fraction.max(fraction);
+        residuals.extend(view.relative_residual());
         let fraction = shown_fraction;
         progress.report(fraction, if steady { "steady solve" } else { "time steps" }, view.message);
         if let Some(r) = view.result {
@@ -505,7 +516,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
         // Steady iterations have no rows yet (the solve reports its final iterate only).
         if stopping || (cp_every > 0 && view.step % cp_every == 0) {
             if let Some(state) = view.state() {
-                let cp = Checkpoint::of(state, &args.case, settings.dt_s, &rows, previous_wall + start.elapsed().as_secs_f64());
+                let cp = Checkpoint::of(state, &args.case, settings.dt_s, &rows, &residuals, previous_wall + start.elapsed().as_secs_f64());
                 let written = output.checkpoint(&cp).and_then(|_| if steady { Ok(()) } else { report.csv(&rows) });
                 if let Err(e) = written {
                     io_error = Some(e);
@@ -525,7 +536,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
         Err(e) => {
             progress.finish(None);
             // Divergence or linear-solver failure: keep the steps done, name the failure.
-            report.write(&rows, &Ending { status: "failed", message: Some(e.to_string()), converged: false }, wall)?;
+            report.write(&rows, &Ending { status: "failed", message: Some(e.to_string()), converged: false }, &residuals, wall)?;
             return Err(format!("{e} (results of the {} steps before it in {})", rows.len(), args.out.display()));
         }
     };
@@ -556,7 +567,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
         (None, _) => ("completed", None),
     };
     let message = message.or(note);
-    let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, wall)?;
+    let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, &residuals, wall)?;
     report.print(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall);
     if status == "stopped" {
         return Err(message.unwrap_or_default());

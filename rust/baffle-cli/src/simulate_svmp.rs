@@ -43,7 +43,7 @@ pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: 
         }
     };
     let wall = start.elapsed().as_secs_f64();
-    let summary = report.write(&rows, &ending, wall)?;
+    let summary = report.write(&rows, &ending, &[], wall)?;
     report.print(&summary, rows.len(), rows.len(), wall);
     match ending.status {
         "completed" => Ok(()),

@@ -177,6 +177,7 @@ fn check_html(path: &Path) {
     assert!(cells.iter().any(|c| c.starts_with("Pressure difference at peak")));
     assert!(["PASSES", "FAILS", "INCONCLUSIVE"].iter().any(|v| text.contains(v)));
     assert!(text.contains("plane-averaged") && text.contains("falls by"), "the centerline drop is explained beside dp");
+    assert!(text.contains("Solver convergence (") && text.contains("Patient: "), "residual history and patient");
     for node in doc.descendants().filter(|n| n.is_element()) {
         assert!(!["script", "link", "img", "iframe", "object"].contains(&node.tag_name().name()), "<{}>", node.tag_name().name());
         for attr in node.attributes() {

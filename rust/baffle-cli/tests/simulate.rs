@@ -105,6 +105,10 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     }
     assert_eq!((s["status"].as_str(), s["engine"].as_str()), (Some("completed"), Some("embedded")));
     assert!(s["converged"].as_bool().unwrap());
+    // A converged run has no doubts; its residual history starts at 1 (relative to itself).
+    assert_eq!(s["doubts"], serde_json::json!([]));
+    let history: Vec<f64> = s["steady_relative_residuals"].as_array().unwrap().iter().map(|r| r.as_f64().unwrap()).collect();
+    assert!(history.len() >= 2 && history[0] == 1.0, "{history:?}");
     let dp = s["dp_peak_mmhg"].as_f64().unwrap();
     assert!(dp > 0.0 && dp < 100.0, "dp {dp}");
     // Q_peak = 3.26 x 0.37 x 3.48 / 60 L/s; the solver carries it through the domain.

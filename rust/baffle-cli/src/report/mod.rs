@@ -427,6 +427,28 @@ fn short_path(path: &Path) -> String {
     parts.into_iter().rev().collect::<Vec<_>>().join("/")
 }
 
+/// The nominal run's residual history: a steady solve's relative residual per iteration
+/// against its target, or a transient run's per-step residual; log10 scale.
+fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, String)> {
+    let log = |(x, r): (f64, f64)| (x, if r > 0.0 { r.log10() } else { f64::NAN });
+    if nominal.summary["mode"] == "steady" {
+        let history: Vec<(f64, f64)> = nominal.summary["steady_relative_residuals"].as_array()?.iter().enumerate().filter_map(|(k, r)| Some(log(((k + 1) as f64, r.as_f64()?)))).collect();
+        let tolerance = nominal.summary["inputs"]["steady_tolerance"].as_f64()?;
+        let end = history.last()?.0;
+        let series = [
+            Series { markers: history.len() < 80, ..Series::line("relative residual", history, "#1f77b4") },
+            Series { dashed: true, ..Series::line("target", vec![(1.0, tolerance.log10()), (end, tolerance.log10())], "#d62728") },
+        ];
+        let converged = if nominal.summary["converged"] == true { "reached" } else { "did not reach" };
+        let caption = format!("Steady solve: residual relative to the first iteration's (log10) per iteration; it {converged} its target {tolerance:.0e}.");
+        return Some((line_chart("Solver convergence (steady)", "iteration", "log10 relative residual", &series, false), caption));
+    }
+    let (t, r) = (timeseries.column("time_s").ok()?, timeseries.column("residual").ok()?);
+    let points: Vec<(f64, f64)> = timeseries.rows.iter().map(|row| log((row[t], row[r]))).collect();
+    let series = [Series::line("residual", points, "#1f77b4")];
+    Some((line_chart("Solver convergence (per time step)", "time (s)", "log10 residual", &series, false), "The final residual of each time step's solve (log10).".into()))
+}
+
 /// What the ventricle came from, for the report's first line.
 fn surface_source(args: &PlanArgs) -> String {
     let p = &args.prepare;
@@ -638,6 +660,12 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         ),
     );
     html.para(&comparison.text(dp, reference_mmhg));
+
+    html.heading("Solver convergence");
+    match convergence_chart(nominal, &timeseries) {
+        Some((svg, caption)) => html.figure(&svg, &caption),
+        None => html.para("No residual history in the run's files."),
+    }
 
     html.heading("Runs");
     let rows: Vec<Vec<String>> = runs
