@@ -617,11 +617,31 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     html.heading("Baffle and pathway");
     let domain = baffle_core::io::read_surface_labeled(&design_dir.join("domain.vtp")).map_err(|e| e.to_string())?.mesh;
     let d = &args.design;
-    let palette = svg_render::Palette(&[(d.wall_label, [205, 140, 130]), (d.baffle_label, [70, 130, 230]), (d.vsd_label, [90, 180, 90]), (d.aortic_label, [230, 190, 60])]);
-    for view in svg_render::axis_views() {
-        html.figure(&svg_render::render_view(&domain, &view, &palette, &flow_line.line.points), &format!("view {}", view.name));
+    let palette = svg_render::Palette(&[
+        (d.wall_label, [205, 140, 130]),
+        (d.baffle_label, [70, 130, 230]),
+        (d.vsd_label, [90, 180, 90]),
+        (d.aortic_label, [230, 190, 60]),
+        (baffle_prepare::extend::INFLOW_CAP_LABEL, [150, 90, 200]),
+        (baffle_prepare::extend::OUTFLOW_CAP_LABEL, [60, 190, 190]),
+    ]);
+    let ras = matches!(d.surface_frame, crate::Frame::Ras);
+    let views = svg_render::anatomical_views(ras);
+    // Superior in the file's frame (z in both LPS and RAS), kept up in the face-on view.
+    let face_on = svg_render::face_on_view(&domain, d.aortic_label, "into the aortic annulus, its cap face-on", baffle_core::Vec3::z());
+    for view in views.iter().chain(&face_on) {
+        html.figure(&svg_render::render_view(&domain, view, &palette, &flow_line.line.points), &format!("Designed pathway, {} view", view.name));
     }
-    html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: the flow-domain centerline the results are sampled on (hidden inside the pathway).");
+    html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: the flow-domain centerline the results are sampled on (hidden inside the pathway). Views named from the input's frame (LPS unless --surface-frame ras); the bar at the bottom left gives the scale.");
+    if cfd_domain["extended"] == true {
+        let extended = baffle_core::io::read_surface_labeled(&crate::plan_cmd::extended_surface_path(out)).map_err(|e| e.to_string())?.mesh;
+        // The interior measurement planes are inside the closed surface: not drawn.
+        let outside = extended.with_labels(|l| l != d.vsd_label && l != d.aortic_label);
+        for view in &views {
+            html.figure(&svg_render::render_view(&outside, view, &palette, &flow_line.line.points), &format!("Extended CFD domain, {} view", view.name));
+        }
+        html.para("The CFD domain in context: the LV back to the mid-LV inflow cap (purple) and the aorta up to the STJ outflow cap (cyan), the RV wall around the baffle (blue).");
+    }
 
     html.heading("Section area");
     html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
