@@ -4,6 +4,7 @@
 mod paper;
 mod svg_plot;
 mod svg_render;
+mod svg_slice;
 
 use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
@@ -128,6 +129,8 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
 /// The flow-domain centerline of the centerline stage (mm) and the nominal run's
 /// pressure and speed sampled along it.
 struct CenterlineProfile {
+    /// The nominal run's peak fields (peak.vtu) the profile was sampled from.
+    fields: PeakFields,
     vtp: std::path::PathBuf,
     line: baffle_core::io::PolyData,
     length_mm: f64,
@@ -146,8 +149,9 @@ fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile,
         _ => return Err(format!("{}: no point array s_mm", vtp.display())),
     };
     let length_mm = number(&read_json(&json_path)?, "/length_mm", &json_path)?;
-    let profile = PeakFields::read(peak_path)?.profile(&line.points);
-    Ok(CenterlineProfile { vtp, line, length_mm, s_mm, profile })
+    let fields = PeakFields::read(peak_path)?;
+    let profile = fields.profile(&line.points);
+    Ok(CenterlineProfile { fields, vtp, line, length_mm, s_mm, profile })
 }
 
 impl CenterlineProfile {
@@ -427,6 +431,26 @@ fn short_path(path: &Path) -> String {
     parts.into_iter().rev().collect::<Vec<_>>().join("/")
 }
 
+/// The peak speed on a plane through the middle of the flow-domain centerline that holds
+/// its direction there, turned as close to the anterior view as that allows.
+fn speed_cut_figure(line: &CenterlineProfile, anterior: &svg_render::View) -> Option<(String, String)> {
+    let points = &line.line.points;
+    let mid = points.len() / 2;
+    let (origin, tangent) = (points.get(mid)?, (points.get(mid + 1)? - points.get(mid.checked_sub(1)?)?).try_normalize(1e-9)?);
+    let normal = (anterior.look - tangent * tangent.dot(&anterior.look)).try_normalize(1e-6)?;
+    // Seen face-on from the anterior side, with the screen's up as near the patient's superior.
+    let look = if normal.dot(&anterior.look) >= 0.0 { normal } else { -normal };
+    let up = (anterior.up - look * anterior.up.dot(&look)).try_normalize(1e-6)?;
+    let view = svg_render::View { name: "cut".into(), look, right: look.cross(&up), up };
+    let polygons = svg_slice::cut(&line.fields.points_mm(), line.fields.tets(), &line.fields.speed_m_s(), *origin, normal);
+    let caption = format!(
+        "Speed at peak flow (m/s) on a plane through the middle of the flow-domain centerline (s = {:.1} mm) that contains its direction there, seen from the anterior side; {} cut tetrahedra.",
+        line.s_mm.get(mid).copied().unwrap_or(f64::NAN),
+        polygons.len()
+    );
+    Some((svg_slice::render_cut(&polygons, &view), caption))
+}
+
 /// The nominal run's residual history: a steady solve's relative residual per iteration
 /// against its target, or a transient run's per-step residual; log10 scale.
 fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, String)> {
@@ -641,6 +665,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             html.figure(&svg_render::render_view(&outside, view, &palette, &flow_line.line.points), &format!("Extended CFD domain, {} view", view.name));
         }
         html.para("The CFD domain in context: the LV back to the mid-LV inflow cap (purple) and the aorta up to the STJ outflow cap (cyan), the RV wall around the baffle (blue).");
+    }
+
+    if let Some((svg, caption)) = speed_cut_figure(&flow_line, &views[0]) {
+        html.heading("Flow at peak");
+        html.figure(&svg, &caption);
     }
 
     html.heading("Section area");

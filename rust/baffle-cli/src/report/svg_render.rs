@@ -110,7 +110,7 @@ pub fn render_view(mesh: &TriMesh, view: &View, palette: &Palette, overlay: &[Ve
 
 /// A round length (1, 2, 5 or 10 x a power of ten mm) about a fifth of the picture, drawn
 /// at its bottom left with its length written under it.
-fn scale_bar(s: &mut String, px_per_mm: f64) {
+pub(super) fn scale_bar(s: &mut String, px_per_mm: f64) {
     let target_mm = 0.2 * SIZE_PX / px_per_mm;
     let magnitude = 10f64.powf(target_mm.log10().floor());
     let length_mm = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * magnitude).filter(|l| *l <= target_mm).last().unwrap_or(magnitude);
