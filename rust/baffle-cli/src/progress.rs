@@ -70,7 +70,7 @@ impl Progress {
     /// "12 s elapsed, about 30 s left" (no estimate before 1 % is done).
     fn timing(&self, overall: f64) -> String {
         let elapsed = self.start.elapsed().as_secs_f64();
-        if overall >= 0.01 && overall < 1.0 {
+        if (0.01..1.0).contains(&overall) {
             format!("{} elapsed, about {} left", duration(elapsed), duration(elapsed * (1.0 - overall) / overall))
         } else {
             format!("{} elapsed", duration(elapsed))

@@ -113,7 +113,7 @@ pub fn render_view(mesh: &TriMesh, view: &View, palette: &Palette, overlay: &[Ve
 pub(super) fn scale_bar(s: &mut String, px_per_mm: f64) {
     let target_mm = 0.2 * SIZE_PX / px_per_mm;
     let magnitude = 10f64.powf(target_mm.log10().floor());
-    let length_mm = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * magnitude).filter(|l| *l <= target_mm).last().unwrap_or(magnitude);
+    let length_mm = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * magnitude).rfind(|l| *l <= target_mm).unwrap_or(magnitude);
     let (x, y, w) = (MARGIN_PX + 4.0, SIZE_PX - MARGIN_PX - 12.0, length_mm * px_per_mm);
     let _ = write!(
         s,
