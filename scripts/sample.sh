@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Build the `baffle` command and run the main job on the built-in sample: the
-# area-constrained baffle design on the synthetic phantom (BSA 0.37 m2), its volume
-# mesh at 1.25 mm (gmsh) and a quick steady simulation at peak flow, printing the
-# pressure difference. Results go to out/sample (domain.vtp, baffle.vtp,
-# centerline.vtp, sections.vtp, seam.vtp, report.json, mesh.vtu, cfd/summary.json).
+# Build the `baffle` command and run its main job on the built-in synthetic heart (LV, RV
+# and aorta as segment surfaces, and suture points): `baffle plan` prepares the capped
+# ventricle, designs the baffle, extends the domain (mid-LV inflow, STJ outflow), meshes it
+# at 1.25 mm (gmsh) and runs the quick steady CFD estimate at peak flow, then prints the
+# verdict (PASSES / FAILS / INCONCLUSIVE with its reason) and where report.html is.
+# Results go to out/sample (heart/: the inputs; plan/: one subfolder per stage, report.json,
+# report.html).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v cargo >/dev/null; then
@@ -13,14 +15,7 @@ fi
 # gmsh (PyPI wheel) is the volume mesher `baffle mesh` runs as a child process.
 python3 -c "import gmsh" >/dev/null 2>&1 || command -v gmsh >/dev/null || bash scripts/install_gmsh.sh
 cargo build --release -p baffle-cli
-./target/release/baffle design --phantom --out out/sample
-./target/release/baffle mesh --surface out/sample/domain.vtp --edge-length-mm 1.25 --out out/sample/mesh.vtu
-cat > out/sample/case.json <<'EOF'
-{
-  "mesh": { "volume": "mesh.vtu", "units": "mm" },
-  "faces": { "inlet": 11, "outlets": [16], "walls": [2, 10] },
-  "inflow": { "bsa_m2": 0.37, "cardiac_index_l_min_m2": 3.48 },
-  "outlet": { "sbp_mmhg": 107, "dbp_mmhg": 78 }
-}
-EOF
-./target/release/baffle simulate out/sample/case.json --out out/sample/cfd --steady | grep -v filter-progress
+rm -rf out/sample/plan
+./target/release/baffle phantom --heart --out out/sample/heart
+./target/release/baffle plan --segmentations out/sample/heart --points out/sample/heart/suture_points.mrk.json \
+  --bsa 0.2 --bp 107/78 --steady --edge-length-mm 1.25 --out out/sample/plan

@@ -1,9 +1,14 @@
 """Area-constrained DORV baffle design (after Martinez et al.), over the C ABI.
 
     import baffle
-    points = baffle.read_markups("suture_points.mrk.json", frame="LPS")
-    result = baffle.design(surface_points, triangles, labels, points, bsa_m2=0.37)
+    surface = baffle.read_surface("capped_ventricle.vtp")        # needs vtk
+    points = baffle.read_points("suture_points.mrk.json")        # .mrk.json, .fcsv, .csv; LPS
+    result = baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=0.37)
     result.domain.points, result.report["sections"]
+
+    report = baffle.read_report("out/plan")                      # a `baffle plan` folder
+    report.verdict, report.reason, report.dp_peak_mmhg           # "passes" / "fails" / "inconclusive"
+    fields = baffle.read_fields("out/plan/simulate-nominal/peak.vtu")   # mm, m/s, mmHg; needs vtk
 
 With the `vtk` module importable, `baffle.vtk_adapters` converts vtkPolyData.
 """
@@ -11,6 +16,7 @@ With the `vtk` module importable, `baffle.vtk_adapters` converts vtkPolyData.
 from ._lib import ABI_VERSION, BaffleError, Cancelled, version
 from .design import DesignResult, Mesh, design, phantom
 from .markups import read_markups
+from .results import PlanReport, read_fields, read_points, read_report, read_surface
 
 __all__ = [
     "ABI_VERSION",
@@ -18,9 +24,14 @@ __all__ = [
     "Cancelled",
     "DesignResult",
     "Mesh",
+    "PlanReport",
     "design",
     "phantom",
+    "read_fields",
     "read_markups",
+    "read_points",
+    "read_report",
+    "read_surface",
     "version",
 ]
 __version__ = "0.1.0"

@@ -119,15 +119,6 @@ def write_markups(path, frame, points):
     path.write_text(json.dumps(document))
 
 
-def read_with_library(path, frame):
-    points, length = ctypes.POINTER(ctypes.c_double)(), ctypes.c_size_t()
-    _lib.check(_lib.lib.baffle_read_suture_points(str(path).encode(), _lib.FRAMES[frame], ctypes.byref(points), ctypes.byref(length)))
-    try:
-        return np.ctypeslib.as_array(points, shape=(length.value,)).reshape(-1, 3).copy()
-    finally:
-        _lib.lib.baffle_free(ctypes.cast(points, ctypes.c_void_p))
-
-
 def test_markups_ras_points_are_converted_like_the_library(tmp_path):
     ras = np.array([[1.0, 2.0, 3.0], [-4.0, 5.5, 6.0]])
     path = tmp_path / "points.mrk.json"
@@ -135,4 +126,4 @@ def test_markups_ras_points_are_converted_like_the_library(tmp_path):
     lps = baffle.read_markups(path, frame="LPS")
     np.testing.assert_array_equal(lps, ras * [-1, -1, 1])
     np.testing.assert_array_equal(baffle.read_markups(path, frame="RAS"), ras)
-    np.testing.assert_array_equal(lps, read_with_library(path, "LPS"))
+    np.testing.assert_array_equal(lps, baffle.read_points(path, "LPS"))

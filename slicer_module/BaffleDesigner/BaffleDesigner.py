@@ -3,6 +3,7 @@ next to SlicerHeart's BafflePlanner. The Widget is a thin Qt layer; the work is 
 BaffleDesignerLib.logic (MRML + vtk + numpy + the `baffle` package), which the pytest
 suite in Testing/Python drives headless with slicer-core."""
 
+import json
 import logging
 import os
 import tempfile
@@ -791,8 +792,9 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         figures = {quantities.GetValue(i): values.GetValue(i) for i in range(summary.GetNumberOfRows())}
         dp = figures["Pressure difference at peak flow"]
         self.assertTrue(0 < dp < float("inf"))
-        self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationVerdict"),
-                         "pass" if dp < bdsimulation.DP_THRESHOLD_MMHG else "fail")
+        with open(os.path.join(job.out_dir, "summary.json"), encoding="utf-8") as handle:
+            doubts = json.load(handle)["doubts"]
+        self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationVerdict"), bdsimulation.verdict(dp, doubts))
         fields = curve.GetNodeReference(bdlogic.REF_SIM_FIELDS)
         reader = vtk.vtkXMLUnstructuredGridReader()
         reader.SetFileName(os.path.join(job.work_dir, "volume.vtu"))

@@ -630,8 +630,8 @@ impl<'a> Solver<'a> {
                 self.step(&phys, &mut x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, step, time_s)?;
             let result = self.step_result(&x, step, time_s, q_in, &stats)?;
             let msg = format!(
-                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.1} cm/s picard={} gmres={}",
-                result.inflow_ml_s, result.max_velocity_cm_s, stats.nonlinear_iterations, stats.linear_iterations
+                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={} gmres={}",
+                result.inflow_ml_s, result.max_velocity_cm_s / crate::vtu::CM_S_PER_M_S, stats.nonlinear_iterations, stats.linear_iterations
             );
             results.push(result);
             let view = StepView {
@@ -748,6 +748,11 @@ impl StepView<'_> {
     /// Velocity (cm/s) and pressure (dyn/cm^2) at the mesh nodes (input numbering).
     pub fn fields(&self) -> (Vec<[f64; 3]>, Vec<f64>) {
         fields(self.order, self.x)
+    }
+
+    /// A steady solve's residual relative to its first one (None in transient runs).
+    pub fn relative_residual(&self) -> Option<f64> {
+        self.steady.map(|p| p.relative_residual)
     }
 
     /// The state to continue this run from with [`simulate_from`].

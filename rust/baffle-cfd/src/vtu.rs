@@ -137,11 +137,24 @@ pub fn read_simvascular_mesh(vtu_path: &Path, vtp_path: &Path) -> Result<FlowMes
     Ok(mesh)
 }
 
-/// Write the solution as a VTK XML UnstructuredGrid (ASCII): points (cm), linear
-/// tetrahedra, point arrays `velocity` (cm/s, 3 components) and `pressure` (dyn/cm^2).
-/// Atomic: written to a temporary name in the same directory, synced, then renamed,
-/// so a reader never sees a partial file.
+/// Unit factors from the solver's CGS to the files' mm, m/s and mmHg: every surface of
+/// the project is in mm, so a result loads on top of its domain without scaling.
+pub const MM_PER_CM: f64 = 10.0;
+pub const CM_S_PER_M_S: f64 = 100.0;
+
+/// Point arrays of a written solution: velocity (3 components), its magnitude, pressure.
+pub const VELOCITY_ARRAY: &str = "velocity_m_s";
+pub const SPEED_ARRAY: &str = "speed_m_s";
+pub const PRESSURE_ARRAY: &str = "pressure_mmhg";
+
+/// Write the solution (given in the solver's CGS: points cm, velocity cm/s, pressure
+/// dyn/cm^2) as a VTK XML UnstructuredGrid (ASCII) in mm, m/s and mmHg: points (mm),
+/// linear tetrahedra, point arrays `velocity_m_s` (3 components), `speed_m_s` and
+/// `pressure_mmhg` (the solver's pressure, whose zero is the resistance outlet's
+/// downstream pressure). Atomic: written to a temporary name in the same directory,
+/// synced, then renamed, so a reader never sees a partial file.
 pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]], velocity_cm_s: &[[f64; 3]], pressure_dyn_cm2: &[f64]) -> Result<(), CfdError> {
+    use crate::hemodynamics::DYN_CM2_PER_MMHG;
     use std::io::Write;
     if velocity_cm_s.len() != points_cm.len() || pressure_dyn_cm2.len() != points_cm.len() {
         let msg = format!("{} velocities and {} pressures for {} points", velocity_cm_s.len(), pressure_dyn_cm2.len(), points_cm.len());
@@ -155,20 +168,25 @@ pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]]
         writeln!(w, r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#)?;
         writeln!(w, "<UnstructuredGrid>")?;
         writeln!(w, r#"<Piece NumberOfPoints="{}" NumberOfCells="{}">"#, points_cm.len(), tets.len())?;
-        writeln!(w, r#"<PointData Vectors="velocity" Scalars="pressure">"#)?;
-        writeln!(w, r#"<DataArray type="Float64" Name="velocity" NumberOfComponents="3" format="ascii">"#)?;
+        writeln!(w, r#"<PointData Vectors="{VELOCITY_ARRAY}" Scalars="{SPEED_ARRAY}">"#)?;
+        writeln!(w, r#"<DataArray type="Float64" Name="{VELOCITY_ARRAY}" NumberOfComponents="3" format="ascii">"#)?;
         for v in velocity_cm_s {
-            writeln!(w, "{:e} {:e} {:e}", v[0], v[1], v[2])?;
+            writeln!(w, "{:e} {:e} {:e}", v[0] / CM_S_PER_M_S, v[1] / CM_S_PER_M_S, v[2] / CM_S_PER_M_S)?;
         }
         writeln!(w, "</DataArray>")?;
-        writeln!(w, r#"<DataArray type="Float64" Name="pressure" format="ascii">"#)?;
+        writeln!(w, r#"<DataArray type="Float64" Name="{SPEED_ARRAY}" format="ascii">"#)?;
+        for v in velocity_cm_s {
+            writeln!(w, "{:e}", (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() / CM_S_PER_M_S)?;
+        }
+        writeln!(w, "</DataArray>")?;
+        writeln!(w, r#"<DataArray type="Float64" Name="{PRESSURE_ARRAY}" format="ascii">"#)?;
         for p in pressure_dyn_cm2 {
-            writeln!(w, "{p:e}")?;
+            writeln!(w, "{:e}", p / DYN_CM2_PER_MMHG)?;
         }
         writeln!(w, "</DataArray>\n</PointData>")?;
         writeln!(w, r#"<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">"#)?;
         for p in points_cm {
-            writeln!(w, "{:e} {:e} {:e}", p[0], p[1], p[2])?;
+            writeln!(w, "{:e} {:e} {:e}", p[0] * MM_PER_CM, p[1] * MM_PER_CM, p[2] * MM_PER_CM)?;
         }
         writeln!(w, "</DataArray></Points>\n<Cells>")?;
         writeln!(w, r#"<DataArray type="Int64" Name="connectivity" format="ascii">"#)?;
@@ -216,7 +234,10 @@ mod tests {
         assert_eq!(names, vec!["solution.vtu".to_string()]);
         let back = read_vtu(&path).unwrap();
         assert_eq!(back.tets, mesh.tets);
-        assert_eq!(back.points, mesh.points_cm);
+        // Written in mm, as every surface of the project.
+        for (mm, cm) in back.points.iter().zip(&mesh.points_cm) {
+            assert!((0..3).all(|k| (mm[k] - 10.0 * cm[k]).abs() <= 1e-12 * (1.0 + mm[k].abs())), "{mm:?} vs {cm:?} cm");
+        }
         let vtk = vtkio::Vtk::import(&path).unwrap();
         let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("not a grid") };
         let piece = pieces.into_iter().next().unwrap().into_loaded_piece_data(None).unwrap();
@@ -226,8 +247,13 @@ mod tests {
                 _ => None,
             }).unwrap()
         };
-        assert_eq!(array("pressure"), pressure);
-        assert_eq!(array("velocity"), velocity.iter().flatten().copied().collect::<Vec<f64>>());
+        let close = |a: &[f64], b: &[f64]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * (1.0 + y.abs()));
+        let mmhg: Vec<f64> = pressure.iter().map(|p| p / crate::hemodynamics::DYN_CM2_PER_MMHG).collect();
+        assert!(close(&array(PRESSURE_ARRAY), &mmhg));
+        let m_s: Vec<f64> = velocity.iter().flatten().map(|v| v / 100.0).collect();
+        assert!(close(&array(VELOCITY_ARRAY), &m_s));
+        let speed: Vec<f64> = velocity.iter().map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() / 100.0).collect();
+        assert!(close(&array(SPEED_ARRAY), &speed));
         assert!(write_solution_vtu(&path, &mesh.points_cm, &mesh.tets, &velocity[1..], &pressure).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -5,6 +5,7 @@
 
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
+use crate::progress::{Progress, Style};
 use baffle_core::flow_centerline::{flow_centerline, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::TriMesh;
@@ -34,7 +35,7 @@ pub struct CenterlineArgs {
     /// Factor from the files' units to mm (10 for the paper's published files, in cm).
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
-    /// A `baffle simulate` result (peak.vtu: cm, cm/s, dyn/cm2) to sample along the centerline.
+    /// A `baffle simulate` result (peak.vtu: mm, velocity_m_s, pressure_mmhg) to sample along the centerline.
     #[arg(long)]
     pub results: Option<PathBuf>,
     /// Voxel size of the distance field (mm).
@@ -141,8 +142,16 @@ pub fn output_paths(out: &Path) -> (PathBuf, PathBuf) {
 }
 
 pub fn run_centerline(args: &CenterlineArgs) -> Result<(), String> {
+    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let result = run_centerline_with(args, &progress);
+    progress.finish(None);
+    result
+}
+
+/// `baffle centerline`, its computation shown on `progress` (a stage of `baffle plan`, or the command).
+pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
-    let (line, profile) = compute(args)?;
+    let (line, profile) = progress.while_running("centerline", || compute(args))?;
     let wall_time_s = start.elapsed().as_secs_f64();
     let (vtp, json_path) = output_paths(&args.out);
     if let Some(dir) = vtp.parent().filter(|d| !d.as_os_str().is_empty()) {

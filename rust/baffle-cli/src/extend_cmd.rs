@@ -9,8 +9,10 @@ use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
 use baffle_core::FaceLabels;
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
+use crate::progress::{Progress, Style};
 use clap::Args;
 use std::path::PathBuf;
+use std::time::Instant;
 
 #[derive(Args)]
 pub struct ExtendArgs {
@@ -53,7 +55,10 @@ pub struct ExtendArgs {
 }
 
 pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
-    let (r, report) = extend_to_file(args)?;
+    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let result = progress.while_running("extend", || extend_to_file(args));
+    progress.finish(None);
+    let (r, report) = result?;
     println!(
         "{} triangles ({} designed), {:.0} mm3 (designed {:.0}); inflow cap {:.1} mm2 {:.1} mm beyond the VSD, outflow cap {:.1} mm2 {:.1} mm above the annulus; baffle area change {:+.2e}",
         r.triangles, r.designed_triangles, r.volume_mm3, r.designed_volume_mm3, r.inflow_cap.area_mm2, r.mid_lv_plane.distance_from_vsd_mm,

@@ -16,12 +16,14 @@ mod extend_cmd;
 mod mesh_cmd;
 mod plan_cmd;
 mod prepare_cmd;
+mod progress;
 mod report;
 mod sampling;
 mod feasibility;
 mod files;
 mod simulate_cmd;
 mod simulate_svmp;
+mod verdict;
 
 #[derive(Parser)]
 #[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]
@@ -38,6 +40,11 @@ enum Command {
     /// 11 VSD cap / 16 aortic cap), baffle.vtp, centerline.vtp (point arrays s_mm,
     /// tangent), sections.vtp (raw and regularized baffle arcs), seam.vtp and
     /// report.json (target, per-section areas and amplitudes, step timings).
+    #[command(after_help = "Examples:\n  \
+        baffle design --surface ../shared/data/p2/design_input/capped_ventricle.vtp \\\n      \
+        --points ../shared/data/p2/design_input/suture_points.mrk.json --bsa 0.37 --out out/p2\n  \
+        baffle design --surface capped.stl --vsd-cap-point 1,2,3 --aortic-cap-point 4,5,6 --points P.fcsv --annulus-diameter-mm 12 --out out/x\n  \
+        baffle design --phantom --out out/phantom")]
     Design(DesignArgs),
     /// The capped ventricle (design input) from segmented LV, RV and aorta surfaces.
     Prepare(prepare_cmd::PrepareArgs),
@@ -47,7 +54,7 @@ enum Command {
     Extend(extend_cmd::ExtendArgs),
     /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
     Mesh(mesh_cmd::MeshArgs),
-    /// CFD on a volume mesh from a JSON case (embedded solver; Slicer progress tags; SIGTERM stops with results).
+    /// CFD on a volume mesh from a JSON case (embedded solver; results in mm, m/s, mmHg; SIGTERM stops with results).
     Simulate(simulate_cmd::SimulateArgs),
     /// Flow-domain centerline of a closed lumen between two measurement planes (paper
     /// 2.5): length, inscribed radii and, with --results, v_max and pressure along it.
@@ -62,6 +69,10 @@ enum Command {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
         #[arg(long)]
         out: PathBuf,
+        /// Write the synthetic heart as segment surfaces instead (LV.vtp, RV.vtp, aorta.vtp
+        /// and suture_points.mrk.json, BSA 0.2 m2): the input of `baffle plan --segmentations`.
+        #[arg(long)]
+        heart: bool,
     },
 }
 
@@ -188,7 +199,8 @@ fn main() -> ExitCode {
         Command::Centerline(args) => centerline_cmd::run_centerline(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),
         Command::Plan(args) => plan_cmd::run_plan(&args),
-        Command::Phantom { out } => write_phantom(&out),
+        Command::Phantom { out, heart: false } => write_phantom(&out),
+        Command::Phantom { out, heart: true } => prepare_cmd::write_synthetic_heart(&out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,10 +3,16 @@
 
 use baffle_core::io::read_surface_labeled;
 use baffle_mesh::{mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshOptions};
+use crate::progress::{Progress, Style};
 use clap::Args;
 use std::path::PathBuf;
+use std::time::Instant;
 
 #[derive(Args)]
+#[command(after_help = "Example (the designed domain, the paper's nominal size):\n  \
+    baffle mesh --surface out/p2/domain.vtp --edge-length-mm 0.95 --remesh-surface --out out/p2/mesh.vtu\n\
+Example (an extended domain, its VSD and aortic caps kept inside as measurement planes):\n  \
+    baffle mesh --surface out/p2/extended.vtp --interior-labels 11,16 --edge-length-mm 1.25 --out out/p2/mesh.vtu")]
 pub struct MeshArgs {
     /// Closed, labelled surface (e.g. domain.vtp from `baffle design`), mm.
     #[arg(long)]
@@ -31,6 +37,14 @@ pub struct MeshArgs {
 }
 
 pub fn run_mesh(args: &MeshArgs) -> Result<(), String> {
+    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let result = run_mesh_with(args, &progress);
+    progress.finish(None);
+    result
+}
+
+/// `baffle mesh`, gmsh's run shown on `progress` (a stage of `baffle plan`, or the command).
+pub fn run_mesh_with(args: &MeshArgs, progress: &Progress) -> Result<(), String> {
     let labeled = read_surface_labeled(&args.surface).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the faces need labels", args.surface.display()));
@@ -43,7 +57,7 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), String> {
         remesh_surface: args.remesh_surface,
         ..MeshOptions::default()
     };
-    let (mesh, quality) = mesh_surface(&boundary, &options).map_err(|e| e.to_string())?;
+    let (mesh, quality) = progress.while_running("mesh (gmsh)", || mesh_surface(&boundary, &options)).map_err(|e| e.to_string())?;
     write_vtu(&args.out, &mesh, &[], &[]).map_err(|e| e.to_string())?;
     let stem = args.out.with_extension("");
     let faces_path = PathBuf::from(format!("{}-faces.vtp", stem.display()));

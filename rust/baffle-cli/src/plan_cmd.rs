@@ -14,7 +14,8 @@
 
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::prepare_cmd::{self, PrepareSource};
-use crate::{centerline_cmd, design_reporting, extend_cmd, mesh_cmd, print_progress_tag, report, simulate_cmd, DesignArgs};
+use crate::progress::{Progress, Style};
+use crate::{centerline_cmd, design_reporting, extend_cmd, mesh_cmd, report, simulate_cmd, DesignArgs};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use clap::{Args, FromArgMatches};
@@ -23,6 +24,19 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args)]
+#[command(
+    mut_arg("surface", |a| a.help("Capped ventricle (.vtp, .vtk or .stl, mm, ModelFaceID); or give --segmentations DIR, --labelmap FILE or --phantom instead")),
+    after_help = "Examples:\n  \
+    # quick steady estimate from Slicer's segment surfaces (LV, RV, aorta), CFD on the extended domain\n  \
+    baffle plan --segmentations ../shared/data/p2/segmentations --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
+    --bsa 0.37 --bp 107/78 --hr 133 --steady --edge-length-mm 1.25 --out out/plan-p2\n  \
+    # the paper's pulsatile run with its mesh study, from a capped ventricle\n  \
+    baffle plan --surface ../shared/data/p2/design_input/capped_ventricle.vtp --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
+    --bsa 0.37 --bp 107/78 --hr 133 --pulsatile --mesh-study --out out/plan-p2-full\n  \
+    # the built-in synthetic phantom\n  \
+    baffle plan --phantom --bp 107/78 --steady --out out/plan-phantom\n\
+Ends with report.json and report.html in --out; the last line printed is the verdict: PASSES, FAILS or INCONCLUSIVE (with its reason)."
+)]
 pub struct PlanArgs {
     #[command(flatten)]
     pub design: DesignArgs,
@@ -54,9 +68,20 @@ pub struct PlanArgs {
     /// scaled by --edge-length-mm / 0.95).
     #[arg(long)]
     pub mesh_study: bool,
-    /// Also simulate the nominal mesh at cardiac index 4.22 L/min/m2 (instead of 3.48).
+    /// Also simulate the nominal mesh at cardiac index 4.22 L/min/m2.
     #[arg(long)]
     pub elevated_flow: bool,
+    /// Cardiac index of the nominal runs (L/min/m2): the mean flow is BSA x cardiac index.
+    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2)]
+    pub cardiac_index: f64,
+    /// Target edge of the prepare stage's final isotropic remesh (mm; `baffle prepare
+    /// --remesh-edge-mm`, default 0.5). The design remeshes the kept wall at --remesh-edge-mm.
+    #[arg(long)]
+    pub prepare_remesh_edge_mm: Option<f64>,
+    /// How the report names the patient (default: the paper's patient id when the input
+    /// lies in one of its patients' folders).
+    #[arg(long)]
+    pub patient_label: Option<String>,
 }
 
 fn parse_bp(text: &str) -> Result<(f64, f64), String> {
@@ -80,9 +105,10 @@ pub enum FlowCase {
 }
 
 impl FlowCase {
-    pub fn cardiac_index_l_min_m2(self) -> f64 {
+    /// The run's cardiac index: the plan's --cardiac-index, or the paper's elevated one.
+    pub fn cardiac_index_l_min_m2(self, args: &PlanArgs) -> f64 {
         match self {
-            FlowCase::Nominal => CARDIAC_INDEX_DEFAULT_L_MIN_M2,
+            FlowCase::Nominal => args.cardiac_index,
             FlowCase::Elevated => CARDIAC_INDEX_ELEVATED_L_MIN_M2,
         }
     }
@@ -166,8 +192,31 @@ pub fn prepared_surface_path(out: &Path) -> PathBuf {
     out.join("prepare").join("capped_ventricle.vtp")
 }
 
-pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
+/// Everything the stages need that can be checked before any of them runs, so a
+/// missing argument is named at once rather than after minutes of work.
+fn check_arguments(args: &PlanArgs) -> Result<(), String> {
     check_one_surface_source(args)?;
+    if args.design.points.is_none() && !args.design.phantom {
+        return Err("baffle plan needs the suture points: give --points FILE (.mrk.json, .fcsv, .csv or .json), or use --phantom".into());
+    }
+    // The flow is BSA x cardiac index, and the design needs its target.
+    flow_bsa_m2(args)?;
+    let default_bsa = args.design.phantom.then(|| baffle_core::phantom::phantom_default().bsa_m2);
+    crate::target_from(&args.design.target, default_bsa)?;
+    if !(args.cardiac_index.is_finite() && args.cardiac_index > 0.0) {
+        return Err(format!("--cardiac-index must be a positive number of L/min/m2, got {}", args.cardiac_index));
+    }
+    if !(args.edge_length_mm.is_finite() && args.edge_length_mm > 0.0) {
+        return Err(format!("--edge-length-mm must be a positive length, got {}", args.edge_length_mm));
+    }
+    if args.prepare_remesh_edge_mm.is_some() && !args.prepare.is_given() {
+        return Err("--prepare-remesh-edge-mm applies to a prepare stage: give --segmentations or --labelmap".into());
+    }
+    Ok(())
+}
+
+pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
+    check_arguments(args)?;
     let simulate_weight = if args.steady { 4.0 } else { 4.0 * args.cycles as f64 };
     let mut stages = Vec::new();
     if args.prepare.is_given() {
@@ -228,7 +277,7 @@ fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, S
         fluid: Default::default(),
         inflow: Inflow {
             bsa_m2: Some(flow_bsa_m2(args)?),
-            cardiac_index_l_min_m2: Some(flow.cardiac_index_l_min_m2()),
+            cardiac_index_l_min_m2: Some(flow.cardiac_index_l_min_m2(args)),
             heart_rate_bpm: args.hr,
             profile: Some("plug".into()),
             ..Inflow::default()
@@ -258,25 +307,24 @@ fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
     Ok(path)
 }
 
-/// Run one stage into `dir`, its progress tags mapped into `range`.
-fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> Result<(), String> {
-    let tags = args.design.progress_tags;
+/// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
+fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
     let out = &args.design.out;
     match &stage.step {
         Step::Prepare => {
-            let argv: Vec<OsString> = vec!["--out".into(), prepared_surface_path(out).into()];
+            let mut argv: Vec<OsString> = vec!["--out".into(), prepared_surface_path(out).into()];
+            if let Some(edge) = args.prepare_remesh_edge_mm {
+                argv.extend(["--remesh-edge-mm".into(), edge.to_string().into()]);
+            }
             let mut prepare = command_args::<prepare_cmd::PrepareArgs>("prepare", &argv)?;
             prepare.source = args.prepare.clone();
-            prepare_cmd::prepare_to_file(&prepare).map(|_| ())
+            progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare)).map(|_| ())
         }
         Step::Design => {
             let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
             let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), ..args.design.clone() };
-            let (lo, hi) = range;
             design_reporting(&design, &mut |f, s| {
-                if tags {
-                    print_progress_tag(lo + (hi - lo) * f, &format!("design: {s}"));
-                }
+                progress.report(f, "design", s);
                 true
             })
         }
@@ -292,7 +340,8 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
             } else {
                 argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into()]);
             }
-            centerline_cmd::run_centerline(&command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?)
+            let centerline = command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?;
+            centerline_cmd::run_centerline_with(&centerline, progress)
         }
         Step::Extend => {
             let domain = out.join("design").join("domain.vtp");
@@ -303,7 +352,7 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
             }
             let mut extend = command_args::<extend_cmd::ExtendArgs>("extend", &argv)?;
             extend.source = args.prepare.clone();
-            extend_cmd::extend_to_file(&extend).map(|_| ())
+            progress.while_running("extend", || extend_cmd::extend_to_file(&extend)).map(|_| ())
         }
         Step::Mesh { level, edge_length_mm } => {
             let mut argv: Vec<OsString> = vec!["--edge-length-mm".into(), edge_length_mm.to_string().into(), "--out".into(), mesh_path(out, level).into()];
@@ -314,22 +363,21 @@ fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, range: (f64, f64)) -> R
             } else {
                 argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into(), "--remesh-surface".into()]);
             }
-            mesh_cmd::run_mesh(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?)
+            mesh_cmd::run_mesh_with(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?, progress)
         }
         Step::Simulate { level, flow } => {
             let case_path = write_case(dir, &simulate_case(args, level, *flow)?)?;
             let argv: Vec<OsString> = vec![case_path.into(), "--out".into(), dir.into()];
             let simulate = command_args::<simulate_cmd::SimulateArgs>("simulate", &argv)?;
-            simulate_cmd::run_simulate_tagged(&simulate, tags.then_some(range))
+            simulate_cmd::run_simulate_with(&simulate, progress)
         }
     }
 }
 
 pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
     let stages = plan_stages(args)?;
-    // Fail before the design, not at the first simulation, when the flow has no BSA.
-    flow_bsa_m2(args)?;
     let out = &args.design.out;
+    let progress = Progress::new(Style::detect(args.design.progress_tags), Instant::now(), (0.0, 1.0));
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let total: f64 = stages.iter().map(|s| s.weight).sum();
     let mut records: Vec<StageRecord> =
@@ -338,12 +386,12 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
     for (k, stage) in stages.iter().enumerate() {
         let range = (done / total, (done + stage.weight) / total);
         println!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name);
-        if args.design.progress_tags {
-            print_progress_tag(range.0, &stage.name);
-        }
+        let part = progress.part(range);
+        part.report(0.0, &stage.name, "starting");
         let dir = out.join(&stage.name);
         let start = Instant::now();
-        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| run_stage(args, stage, &dir, range));
+        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| run_stage(args, stage, &dir, &part));
+        part.finish(None);
         let record = &mut records[k];
         record.wall_time_s = Some(start.elapsed().as_secs_f64());
         if let Err(e) = result {
@@ -360,12 +408,15 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
         println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
         done += stage.weight;
     }
-    let verdict = report::write_reports(args, &stages, &records)?;
-    if args.design.progress_tags {
-        print_progress_tag(1.0, "report");
-    }
-    println!("{verdict}");
+    let outcome = report::write_reports(args, &stages, &records)?;
+    progress.report(1.0, "report", "written");
+    progress.finish(None);
     println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
+    for warning in &outcome.warnings {
+        println!("warning: {warning}");
+    }
+    // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
+    println!("{}", outcome.verdict_line);
     Ok(())
 }
 

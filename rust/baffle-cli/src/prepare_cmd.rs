@@ -5,8 +5,10 @@ use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
 use crate::files::write_atomic;
 use baffle_prepare::{pools_from_labelmap, prepare, read_labelmap, read_segmentations, BloodPools, LabelSurfaceOptions, PoolLabels, PrepareOptions, PrepareReport};
+use crate::progress::{Progress, Style};
 use clap::Args;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Where the blood pools come from: per-structure surfaces or a label map (also
 /// `baffle plan`'s arguments for its prepare stage).
@@ -41,6 +43,11 @@ impl PrepareSource {
 }
 
 #[derive(Args)]
+#[command(after_help = "Example (LV.vtp, RV.vtp and aorta.vtp exported from Slicer's segments):\n  \
+    baffle prepare --segmentations ../shared/data/p2/segmentations --out out/p2/capped_ventricle.vtp\n\
+Example (a label map, the aorta labelled 8):\n  \
+    baffle prepare --labelmap heart.nii.gz --aorta-label 8 --out out/capped_ventricle.vtp\n\
+Then: baffle design --surface out/p2/capped_ventricle.vtp --points P.mrk.json --bsa 0.37 --out out/p2/design")]
 pub struct PrepareArgs {
     #[command(flatten)]
     pub source: PrepareSource,
@@ -59,7 +66,7 @@ pub struct PrepareArgs {
     closing_radius_mm: f64,
     /// Target edge of the final isotropic remesh (mm).
     #[arg(long, default_value_t = 0.5)]
-    remesh_edge_mm: f64,
+    pub remesh_edge_mm: f64,
     /// Keep the contour's triangles (no final remesh).
     #[arg(long)]
     no_remesh: bool,
@@ -69,7 +76,10 @@ pub struct PrepareArgs {
 }
 
 pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
-    let (report, report_path) = prepare_to_file(args)?;
+    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let result = progress.while_running("prepare", || prepare_to_file(args));
+    progress.finish(None);
+    let (report, report_path) = result?;
     println!(
         "{} triangles, {:.0} mm3; VSD cap {:.1} mm2, aortic cap {:.1} mm2; {:.0} ms",
         report.triangles, report.volume_mm3, report.vsd_cap.area_mm2, report.aortic_cap.area_mm2, report.timings.total_ms
@@ -110,6 +120,20 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
         return Err(e);
     }
     Ok((report, report_path))
+}
+
+/// `baffle phantom --heart`: the synthetic heart's segment surfaces and suture points in `out`.
+pub fn write_synthetic_heart(out: &Path) -> Result<(), String> {
+    let heart = baffle_prepare::shapes::synthetic_heart();
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    for (name, surface) in [("LV.vtp", &heart.lv), ("RV.vtp", &heart.rv), ("aorta.vtp", &heart.aorta)] {
+        write_trimesh_vtp(&out.join(name), surface).map_err(|e| e.to_string())?;
+    }
+    let points = out.join("suture_points.mrk.json");
+    baffle_core::io::write_markups_closed_curve(&points, "BC", &heart.suture_points_mm, baffle_core::io::CoordinateSystem::Lps)
+        .map_err(|e| e.to_string())?;
+    println!("wrote {} (LV, RV and aorta segment surfaces, suture points; BSA {} m2)", out.display(), heart.bsa_m2);
+    Ok(())
 }
 
 pub(crate) fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {

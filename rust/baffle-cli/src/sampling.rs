@@ -4,13 +4,9 @@
 //! [`PeakFields`] samples a `baffle simulate` result (peak.vtu) along a centerline,
 //! for `baffle centerline` and the plan's report.
 
-use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
+use baffle_cfd::vtu::{PRESSURE_ARRAY, VELOCITY_ARRAY};
 use baffle_core::Vec3;
 use std::path::Path;
-
-/// peak.vtu is in cm and cm/s; centerlines in mm, speeds reported in m/s.
-const MM_PER_CM: f64 = 10.0;
-const CM_S_PER_M_S: f64 = 100.0;
 
 /// Barycentric coordinates below this count as inside (points on a face or a cap).
 const INSIDE_TOLERANCE: f64 = 1e-9;
@@ -129,13 +125,13 @@ impl<'a> TetLocator<'a> {
     }
 }
 
-/// Pressure (dyn/cm2) and velocity (cm/s) per point of a tet mesh in cm, as
-/// `baffle simulate` writes them.
+/// Pressure (mmHg) and velocity (m/s) per point of a tet mesh in mm, as `baffle
+/// simulate` writes them.
 pub struct PeakFields {
-    points_cm: Vec<[f64; 3]>,
+    points_mm: Vec<[f64; 3]>,
     tets: Vec<[u32; 4]>,
-    pressure: Vec<f64>,
-    velocity: [Vec<f64>; 3],
+    pressure_mmhg: Vec<f64>,
+    velocity_m_s: [Vec<f64>; 3],
 }
 
 /// Pressure (mmHg) and speed (m/s) at each centerline point; None outside the mesh.
@@ -163,25 +159,37 @@ impl PeakFields {
                 .map(|(_, v)| v.to_vec())
                 .ok_or_else(|| format!("{}: no point array {name} with {components} components", path.display()))
         };
-        let pressure = field("pressure", 1)?;
-        let v = field("velocity", 3)?;
-        let velocity = std::array::from_fn(|k| v.chunks_exact(3).map(|c| c[k]).collect());
-        let points_cm = peak.mesh.points_mm.iter().map(|p| [p.x, p.y, p.z]).collect();
-        Ok(PeakFields { points_cm, tets: peak.mesh.tets, pressure, velocity })
+        let pressure_mmhg = field(PRESSURE_ARRAY, 1)?;
+        let v = field(VELOCITY_ARRAY, 3)?;
+        let velocity_m_s = std::array::from_fn(|k| v.chunks_exact(3).map(|c| c[k]).collect());
+        let points_mm = peak.mesh.points_mm.iter().map(|p| [p.x, p.y, p.z]).collect();
+        Ok(PeakFields { points_mm, tets: peak.mesh.tets, pressure_mmhg, velocity_m_s })
+    }
+
+    pub fn points_mm(&self) -> Vec<Vec3> {
+        self.points_mm.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect()
+    }
+
+    pub fn tets(&self) -> &[[u32; 4]] {
+        &self.tets
+    }
+
+    /// The speed (m/s) at each point.
+    pub fn speed_m_s(&self) -> Vec<f64> {
+        (0..self.points_mm.len()).map(|i| self.velocity_m_s.iter().map(|c| c[i] * c[i]).sum::<f64>().sqrt()).collect()
     }
 
     /// The fields at `points_mm`: each velocity component is interpolated in its tet
     /// (the P1 field itself), then its magnitude taken.
     pub fn profile(&self, points_mm: &[Vec3]) -> Profile {
-        let locator = TetLocator::new(&self.points_cm, &self.tets);
+        let locator = TetLocator::new(&self.points_mm, &self.tets);
         let mut profile = Profile { pressure_mmhg: Vec::new(), speed_m_s: Vec::new() };
         for p in points_mm {
-            let q = [p.x / MM_PER_CM, p.y / MM_PER_CM, p.z / MM_PER_CM];
-            let located = locator.locate(q);
+            let located = locator.locate([p.x, p.y, p.z]);
             let at = |values: &[f64]| located.map(|found| locator.interpolate_at(values, found));
-            profile.pressure_mmhg.push(at(&self.pressure).map(|p| p / DYN_CM2_PER_MMHG));
-            let v: Option<Vec<f64>> = self.velocity.iter().map(|c| at(c)).collect();
-            profile.speed_m_s.push(v.map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() / CM_S_PER_M_S));
+            profile.pressure_mmhg.push(at(&self.pressure_mmhg));
+            let v: Option<Vec<f64>> = self.velocity_m_s.iter().map(|c| at(c)).collect();
+            profile.speed_m_s.push(v.map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()));
         }
         profile
     }
@@ -252,7 +260,7 @@ mod tests {
             let q = [p.x / 10.0, p.y / 10.0, p.z / 10.0];
             let v = velocity_at(q);
             let speed = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() / 100.0;
-            let pressure = pressure_at(q) / DYN_CM2_PER_MMHG;
+            let pressure = pressure_at(q) / baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
             assert!((profile.pressure_mmhg[k].unwrap() - pressure).abs() < 1e-9, "point {k}");
             assert!((profile.speed_m_s[k].unwrap() - speed).abs() < 1e-12, "point {k}");
         }

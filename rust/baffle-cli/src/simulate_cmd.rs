@@ -10,8 +10,8 @@ use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{simulate_from, CaseSettings, FlowMesh, RunMode, SolverState, SteadyProgress, StepResult};
 use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
-use std::io::{IsTerminal, Write};
 use crate::files::write_atomic;
+use crate::progress::{steady_fraction, Progress, Style};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -24,9 +24,10 @@ pub struct SimulateArgs {
     pub(crate) case: PathBuf,
     /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json
     /// (with --engine svmultiphysics: summary.json, timeseries.csv, peak.vtu, svmultiphysics/).
-    /// The .vtu files are in the solver's CGS units: points in cm, point arrays velocity
-    /// (cm/s) and pressure (dyn/cm^2; 1 mmHg = 1333.22 dyn/cm^2). summary.json and
-    /// timeseries.csv give pressures in mmHg, velocities in m/s, flows in mL/s.
+    /// The .vtu files are in mm like every surface (they overlay the domain without
+    /// scaling), with point arrays velocity_m_s (vector), speed_m_s and pressure_mmhg.
+    /// summary.json and timeseries.csv give pressures in mmHg, velocities in m/s, flows
+    /// in mL/s.
     #[arg(long)]
     pub(crate) out: PathBuf,
     /// Steady run with the inflow held at Q_peak (overrides time.mode), a quick estimate
@@ -58,6 +59,10 @@ pub struct SimulateArgs {
     /// MPI processes of an svMultiPhysics run (default: the available cores).
     #[arg(long)]
     pub(crate) mpi_processes: Option<usize>,
+    /// Print Slicer CLI progress tags (<filter-progress>) on stdout (also with
+    /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).
+    #[arg(long)]
+    pub(crate) progress_tags: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -122,6 +127,9 @@ struct Checkpoint {
     /// before steady solves could resume).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     steady: Option<SteadyCheckpoint>,
+    /// A steady solve's relative residual per iteration so far (its convergence history).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    steady_residuals: Vec<f64>,
 }
 
 /// [`SteadyProgress`] as stored: the residual reference and the last relative residual,
@@ -145,7 +153,7 @@ impl From<SteadyCheckpoint> for SteadyProgress {
 }
 
 impl Checkpoint {
-    fn of(state: SolverState, case: &Path, dt_s: f64, rows: &[Row], wall_time_s: f64) -> Checkpoint {
+    fn of(state: SolverState, case: &Path, dt_s: f64, rows: &[Row], steady_residuals: &[f64], wall_time_s: f64) -> Checkpoint {
         let steady = state.steady.map(SteadyCheckpoint::from);
         // A steady iterate is its own previous state: those fields are not kept.
         let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match steady {
@@ -165,6 +173,7 @@ impl Checkpoint {
             rows: rows.to_vec(),
             wall_time_s,
             steady,
+            steady_residuals: steady_residuals.to_vec(),
         }
     }
 
@@ -206,7 +215,7 @@ impl Checkpoint {
     }
 
     /// The solver state to continue from, the rows so far and the wall time so far.
-    fn into_start(self) -> (SolverState, Vec<Row>, f64) {
+    fn into_start(self) -> (SolverState, Vec<Row>, Vec<f64>, f64) {
         let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = match self.steady {
             Some(_) => (self.velocity_cm_s.clone(), self.pressure_dyn_cm2.clone()),
             None => (self.previous_velocity_cm_s, self.previous_pressure_dyn_cm2),
@@ -220,7 +229,7 @@ impl Checkpoint {
             previous_pressure_dyn_cm2,
             steady: self.steady.map(SteadyProgress::from),
         };
-        (state, self.rows, self.wall_time_s)
+        (state, self.rows, self.steady_residuals, self.wall_time_s)
     }
 }
 
@@ -281,8 +290,12 @@ impl Report<'_> {
     }
 
     /// Write timeseries.csv and summary.json; returns the summary.
-    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, wall_time_s: f64) -> Result<serde_json::Value, String> {
-        let json = summary_json(self, rows, ending, wall_time_s);
+    /// `steady_residuals`: a steady solve's relative residual per iteration (empty otherwise).
+    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<serde_json::Value, String> {
+        let mut json = summary_json(self, rows, ending, wall_time_s);
+        if !steady_residuals.is_empty() {
+            json["steady_relative_residuals"] = serde_json::json!(steady_residuals);
+        }
         self.csv(rows)?;
         let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
         write_atomic(&self.dir.join("summary.json"), text.as_bytes())?;
@@ -293,8 +306,10 @@ impl Report<'_> {
     pub(crate) fn print(&self, summary: &serde_json::Value, rows: usize, rows_this_run: usize, wall_time_s: f64) {
         let (a, b) = dp_faces(self.case);
         let number = |key: &str| summary[key].as_f64().unwrap_or(f64::NAN);
+        // An unconverged solve's numbers are not presented as a plain result.
+        let converged = if summary["converged"] == true { "" } else { " (NOT CONVERGED)" };
         println!(
-            "{} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
+            "{}{converged} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
             summary["status"].as_str().unwrap_or_default(),
             number("dp_peak_mmhg"),
             number("max_velocity_m_s"),
@@ -313,7 +328,14 @@ fn dp_faces(case: &case::Case) -> (i32, i32) {
     }
 }
 
+/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can).
 fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
+    let mut summary = summary_figures(report, rows, ending, wall_time_s);
+    summary["doubts"] = serde_json::json!(crate::verdict::run_doubts(&summary));
+    summary
+}
+
+fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
     let (case, settings, flow) = (report.case, report.settings, report.flow);
     let (a, b) = dp_faces(case);
     let outlet = case.faces.outlets[0];
@@ -344,6 +366,8 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
         "mode": if steady { "steady" } else { "transient" },
         "converged": ending.converged,
         "steps_done": rows.len(),
+        // Transient: the steps of all the case's cycles (a run stopped short of them has no final cycle).
+        "steps_planned": (!steady).then(|| period_steps * settings.cycles),
         "last_step": last_step,
         "last_time_s": rows.last().map(|r| r.time_s),
         "peak_time_s": peak.map(|r| r.time_s),
@@ -371,6 +395,8 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64
             "cycles": settings.cycles,
             "density_g_cm3": settings.density_g_cm3,
             "viscosity_g_cm_s": settings.viscosity_g_cm_s,
+            "steady_tolerance": steady.then_some(settings.steady_tolerance),
+            "steady_max_iterations": steady.then_some(settings.steady_max_iterations),
         },
     })
 }
@@ -387,49 +413,6 @@ fn periodicity_nrmsd(rows: &[Row], period_steps: usize, inlet: i32, outlet: i32)
     baffle_cfd::periodicity_nrmsd(&dp, period_steps).filter(|v| v.is_finite())
 }
 
-/// Slicer's progress tags on stdout, and a bar on stderr when it is a terminal.
-pub(crate) struct Progress {
-    bar: bool,
-    start: Instant,
-    /// The part of the progress range this run fills (a stage of `baffle plan`); None: no tags.
-    tag_range: Option<(f64, f64)>,
-}
-
-impl Progress {
-    pub(crate) fn new(start: Instant, tag_range: Option<(f64, f64)>) -> Self {
-        Progress { bar: std::io::stderr().is_terminal(), start, tag_range }
-    }
-
-    pub(crate) fn report(&self, fraction: f64, message: &str) {
-        let fraction = fraction.clamp(0.0, 1.0);
-        if let Some((lo, hi)) = self.tag_range {
-            let mut out = std::io::stdout().lock();
-            let _ = writeln!(out, "<filter-progress>{:.4}</filter-progress>", lo + (hi - lo) * fraction);
-            let _ = out.flush();
-        }
-        if self.bar {
-            let width = 30;
-            let done = (fraction * width as f64).round() as usize;
-            let mut err = std::io::stderr().lock();
-            let _ = write!(
-                err,
-                "\r[{}{}] {:5.1}% {:6.1}s {}\x1b[K",
-                "#".repeat(done),
-                " ".repeat(width - done),
-                100.0 * fraction,
-                self.start.elapsed().as_secs_f64(),
-                message
-            );
-            let _ = err.flush();
-        }
-    }
-    pub(crate) fn finish(&self) {
-        if self.bar {
-            eprintln!();
-        }
-    }
-}
-
 /// A flag raised by SIGTERM or SIGINT (instead of dying), so a run stops between steps
 /// with its results so far.
 pub(crate) fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
@@ -441,11 +424,12 @@ pub(crate) fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
-    run_simulate_tagged(args, Some((0.0, 1.0)))
+    let start = Instant::now();
+    run_simulate_with(args, &Progress::new(Style::detect(args.progress_tags), start, (0.0, 1.0)))
 }
 
-/// `baffle simulate` with the progress tags mapped into `tag_range` (None: no tags).
-pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -> Result<(), String> {
+/// `baffle simulate` showing its progress on `progress` (a stage of `baffle plan`, or the whole command).
+pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     let mut case = case::read_case(&args.case)?;
     if args.steady {
@@ -470,18 +454,17 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
     let output = Output { dir: &args.out, mesh: &mesh };
     let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
     if args.engine == Engine::Svmultiphysics {
-        return crate::simulate_svmp::run(args, &report, &output, start, tag_range);
+        return crate::simulate_svmp::run(args, &report, &output, start, progress);
     }
 
-    let (mut rows, start_state, previous_wall) = if args.resume {
-        let (state, rows, wall) = Checkpoint::read(&args.out.join("checkpoint.json"), mesh.points_cm.len(), &settings)?.into_start();
-        (rows, Some(state), wall)
+    let (mut rows, start_state, mut residuals, previous_wall) = if args.resume {
+        let (state, rows, residuals, wall) = Checkpoint::read(&args.out.join("checkpoint.json"), mesh.points_cm.len(), &settings)?.into_start();
+        (rows, Some(state), residuals, wall)
     } else {
-        (Vec::new(), None, 0.0)
+        (Vec::new(), None, Vec::new(), 0.0)
     };
 
     let stop = stop_on_signals()?;
-    let progress = Progress::new(start, tag_range);
     let step_limit = case.time.steps.filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
     let peak_step_in_cycle = (flow.peak_time_in_cycle_s / settings.dt_s).round();
@@ -492,10 +475,19 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
     let mut signalled = false;
     let mut limit_reached = false;
     let first_row = rows.len();
+    // A steady solve's residual can rise for a while: the bar never moves back.
+    let mut shown_fraction = 0.0f64;
 
     let result = simulate_from(&mesh, &settings, start_state.as_ref(), &mut |view| {
-        let fraction = if steady { view.fraction } else { view.step as f64 / n_steps.max(1) as f64 };
-        progress.report(fraction, view.message);
+        let fraction = if steady {
+            steady_fraction(view.relative_residual(), settings.steady_tolerance, view.step, settings.steady_max_iterations)
+        } else {
+            view.step as f64 / n_steps.max(1) as f64
+        };
+        shown_fraction = shown_fraction.max(fraction);
+        residuals.extend(view.relative_residual());
+        let fraction = shown_fraction;
+        progress.report(fraction, if steady { "steady solve" } else { "time steps" }, view.message);
         if let Some(r) = view.result {
             rows.push(Row::of(r));
             let step = view.step;
@@ -524,7 +516,7 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
         // Steady iterations have no rows yet (the solve reports its final iterate only).
         if stopping || (cp_every > 0 && view.step % cp_every == 0) {
             if let Some(state) = view.state() {
-                let cp = Checkpoint::of(state, &args.case, settings.dt_s, &rows, previous_wall + start.elapsed().as_secs_f64());
+                let cp = Checkpoint::of(state, &args.case, settings.dt_s, &rows, &residuals, previous_wall + start.elapsed().as_secs_f64());
                 let written = output.checkpoint(&cp).and_then(|_| if steady { Ok(()) } else { report.csv(&rows) });
                 if let Err(e) = written {
                     io_error = Some(e);
@@ -534,16 +526,17 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
         }
         !stopping
     });
-    progress.finish();
     let wall = previous_wall + start.elapsed().as_secs_f64();
     if let Some(e) = io_error {
+        progress.finish(None);
         return Err(e);
     }
     let run = match result {
         Ok(run) => run,
         Err(e) => {
+            progress.finish(None);
             // Divergence or linear-solver failure: keep the steps done, name the failure.
-            report.write(&rows, &Ending { status: "failed", message: Some(e.to_string()), converged: false }, wall)?;
+            report.write(&rows, &Ending { status: "failed", message: Some(e.to_string()), converged: false }, &residuals, wall)?;
             return Err(format!("{e} (results of the {} steps before it in {})", rows.len(), args.out.display()));
         }
     };
@@ -558,17 +551,24 @@ pub fn run_simulate_tagged(args: &SimulateArgs, tag_range: Option<(f64, f64)>) -
         _ => format!("t = {t:.4} s"),
     };
     let resume = if steady { "--resume --steady" } else { "--resume" };
+    // A full bar at the iteration cap is not success: the bar's line says which it was.
+    let unconverged = steady && !run.summary.converged && run.cancelled_at_s.is_none();
+    let note = unconverged.then(|| {
+        format!(
+            "steady solve stopped at its iteration cap ({}) without reaching the residual target {:.0e}: the result is not converged",
+            settings.steady_max_iterations, settings.steady_tolerance
+        )
+    });
+    progress.finish(note.as_deref());
     let (status, message) = match (run.cancelled_at_s, signalled) {
         (Some(t), true) => ("stopped", Some(format!("stopped by signal after {}; continue with {resume}", at(t)))),
         (Some(_), false) if limit_reached => ("completed", Some(format!("step limit {} reached", n_steps))),
         (Some(t), false) => ("stopped", Some(format!("stopped at {}", at(t)))),
         (None, _) => ("completed", None),
     };
-    let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, wall)?;
+    let message = message.or(note);
+    let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, &residuals, wall)?;
     report.print(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall);
-    if steady && !run.summary.converged {
-        eprintln!("baffle: warning: the steady solve did not reach its residual target");
-    }
     if status == "stopped" {
         return Err(message.unwrap_or_default());
     }

@@ -4,7 +4,8 @@
 //! so the same timeseries.csv and summary.json, as the embedded engine's.
 
 use crate::export_cmd::export_to;
-use crate::simulate_cmd::{stop_on_signals, Ending, Output, Progress, Report, Row, SimulateArgs};
+use crate::progress::Progress;
+use crate::simulate_cmd::{stop_on_signals, Ending, Output, Report, Row, SimulateArgs};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{FlowMesh, RunMode};
 use baffle_svmp::{find_engine, read_results, run_case, PeakFields, SvmpError, SvmpSummary};
@@ -15,7 +16,7 @@ use std::time::Instant;
 /// Where the svMultiPhysics case goes, under the output directory.
 pub const CASE_DIR: &str = "svmultiphysics";
 
-pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: Instant, tag_range: Option<(f64, f64)>) -> Result<(), String> {
+pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: Instant, progress: &Progress) -> Result<(), String> {
     refuse_embedded_only_options(args)?;
     let case_dir = args.out.join(CASE_DIR);
     let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -24,12 +25,11 @@ pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: 
         format!("{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed", case_dir.display())
     })?;
     let stop = stop_on_signals()?;
-    let progress = Progress::new(start, tag_range);
     let run = run_case(&engine, &case_dir, &mut |fraction, message| {
-        progress.report(fraction, message);
+        progress.report(fraction, "svMultiPhysics", message);
         !stop.load(Ordering::SeqCst)
     });
-    progress.finish();
+    progress.finish(None);
     let mut ending = ending_of(&run, stop.load(Ordering::SeqCst), &case_dir)?;
     let rows = match read_results(&case_dir) {
         Ok(summary) => rows_of(&summary, report, output)?,
@@ -43,7 +43,7 @@ pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: 
         }
     };
     let wall = start.elapsed().as_secs_f64();
-    let summary = report.write(&rows, &ending, wall)?;
+    let summary = report.write(&rows, &ending, &[], wall)?;
     report.print(&summary, rows.len(), rows.len(), wall);
     match ending.status {
         "completed" => Ok(()),

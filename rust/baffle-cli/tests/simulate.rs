@@ -49,6 +49,13 @@ fn phantom_case() -> &'static Path {
     })
 }
 
+/// [xmin, xmax, ymin, ymax, zmin, zmax] of `points`.
+fn bounds(points: impl Iterator<Item = [f64; 3]>) -> [f64; 6] {
+    points.fold([f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY], |b, p| {
+        [b[0].min(p[0]), b[1].max(p[0]), b[2].min(p[1]), b[3].max(p[1]), b[4].min(p[2]), b[5].max(p[2])]
+    })
+}
+
 fn summary(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
@@ -69,14 +76,17 @@ fn steady_phantom_run() -> &'static (PathBuf, std::process::Output) {
     static RUN: OnceLock<(PathBuf, std::process::Output)> = OnceLock::new();
     RUN.get_or_init(|| {
         let out_dir = temp_dir("steady");
-        let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--steady"]);
+        let out = baffle(&["simulate", phantom_case().to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--steady", "--progress-tags"]);
         (out_dir, out)
     })
 }
 
-/// The `<filter-progress>` fractions a run printed, in order.
-fn progress_fractions(stdout: &str) -> Vec<f64> {
-    stdout.lines().filter_map(|l| l.strip_prefix("<filter-progress>")?.strip_suffix("</filter-progress>")?.parse().ok()).collect()
+/// The iterations of a steady solve's `<filter-comment>`s ("steady iteration N: ..."), in order.
+fn steady_iterations(stdout: &str) -> Vec<u64> {
+    stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("<filter-comment>steady iteration ")?.split(':').next()?.parse().ok())
+        .collect()
 }
 
 #[test]
@@ -95,6 +105,10 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     }
     assert_eq!((s["status"].as_str(), s["engine"].as_str()), (Some("completed"), Some("embedded")));
     assert!(s["converged"].as_bool().unwrap());
+    // A converged run has no doubts; its residual history starts at 1 (relative to itself).
+    assert_eq!(s["doubts"], serde_json::json!([]));
+    let history: Vec<f64> = s["steady_relative_residuals"].as_array().unwrap().iter().map(|r| r.as_f64().unwrap()).collect();
+    assert!(history.len() >= 2 && history[0] == 1.0, "{history:?}");
     let dp = s["dp_peak_mmhg"].as_f64().unwrap();
     assert!(dp > 0.0 && dp < 100.0, "dp {dp}");
     // Q_peak = 3.26 x 0.37 x 3.48 / 60 L/s; the solver carries it through the domain.
@@ -115,11 +129,20 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     let (header, rows) = csv(&out_dir);
     assert_eq!(rows.len(), 1);
     assert!(header.contains(&"p_inlet_11_mmhg".to_string()) && header.contains(&"p_outlet_16_mmhg".to_string()), "{header:?}");
+    // The results overlay the designed domain without scaling: both in mm.
+    let domain = baffle_core::io::read_surface(&phantom_case().parent().unwrap().join("design/domain.vtp")).unwrap();
+    let domain_bounds = bounds(domain.points.iter().map(|p| [p.x, p.y, p.z]));
     for name in ["peak.vtu", "final.vtu"] {
         let vtu = baffle_cfd::vtu::read_vtu(&out_dir.join(name)).unwrap();
         assert!(vtu.tets.len() > 1000, "{name}");
+        let vtu_bounds = bounds(vtu.points.iter().copied());
+        for k in 0..6 {
+            assert!((vtu_bounds[k] - domain_bounds[k]).abs() < 1e-3, "{name} bounds {vtu_bounds:?} vs domain.vtp {domain_bounds:?} (mm)");
+        }
         let text = std::fs::read_to_string(out_dir.join(name)).unwrap();
-        assert!(text.contains(r#"Name="velocity""#) && text.contains(r#"Name="pressure""#));
+        for array in [r#"Name="velocity_m_s" NumberOfComponents="3""#, r#"Name="speed_m_s""#, r#"Name="pressure_mmhg""#] {
+            assert!(text.contains(array), "{name}: no {array}");
+        }
     }
     // Atomic writes leave no temporary files.
     let leftovers: Vec<_> = std::fs::read_dir(&out_dir).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp")).collect();
@@ -149,16 +172,15 @@ fn sigterm_stops_a_steady_solve_and_resume_finishes_it_on_the_same_path() {
     let stderr = String::from_utf8_lossy(&wrong.stderr);
     assert!(!wrong.status.success() && stderr.contains("checkpoint is of a steady solve") && stderr.contains("--steady"), "{stderr}");
 
-    let resumed = baffle(&["simulate", case, "--out", out, "--steady", "--resume"]);
+    let resumed = baffle(&["simulate", case, "--out", out, "--steady", "--resume", "--progress-tags"]);
     let stdout = String::from_utf8_lossy(&resumed.stdout);
     assert!(resumed.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&resumed.stderr));
-    // It continued at the next iteration (fraction = iteration / steady_max_iterations),
-    // not from the start, and reached the uninterrupted run's solution.
+    // It continued at the next iteration, not from the start, and reached the
+    // uninterrupted run's solution.
     let (straight_dir, straight) = steady_phantom_run();
     assert!(straight.status.success());
-    let (first_straight, first_resumed) = (progress_fractions(&String::from_utf8_lossy(&straight.stdout))[0], progress_fractions(&stdout)[0]);
-    let iteration = first_resumed / first_straight;
-    assert!((iteration - (stopped_at + 1) as f64).abs() < 0.5, "first tag {first_resumed} after iteration {stopped_at}");
+    assert_eq!(steady_iterations(&String::from_utf8_lossy(&straight.stdout)).first(), Some(&1));
+    assert_eq!(steady_iterations(&stdout).first(), Some(&(stopped_at + 1)), "first iteration after {stopped_at}: {stdout}");
     let (s, reference) = (summary(&out_dir), summary(straight_dir));
     assert_eq!((s["status"].as_str(), s["converged"].as_bool()), (Some("completed"), Some(true)), "{s}");
     let dp = |s: &serde_json::Value| s["dp_peak_mmhg"].as_f64().unwrap();
@@ -253,7 +275,8 @@ fn missing_mesh_is_named() {
     let help = baffle(&["simulate", "--help"]);
     let help = String::from_utf8_lossy(&help.stdout);
     assert!(help.contains(r#""faces": { "inlet": 11"#));
-    assert!(help.contains("points in cm") && help.contains("(cm/s)") && help.contains("dyn/cm^2"), "units of the .vtu files: {help}");
+    assert!(help.contains("in mm like every surface") && help.contains("velocity_m_s") && help.contains("pressure_mmhg"), "units of the .vtu files: {help}");
+    assert!(help.contains("--progress-tags"), "{help}");
     std::fs::remove_dir_all(dir).ok();
 }
 
@@ -315,6 +338,10 @@ fn measurement_planes_give_the_hagen_poiseuille_pressure_drop() {
     let out_dir = case.parent().unwrap().join("out");
     let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // Piped and not asked for tags: plain progress lines on stderr, no Slicer tags anywhere.
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(!stdout.contains("<filter-") && !stderr.contains("<filter-") && !stderr.contains('\r'), "{stdout}\n{stderr}");
+    assert!(stderr.lines().any(|l| l.contains("% ") && l.contains("elapsed") && l.contains("steady solve")), "{stderr}");
     let s = summary(&out_dir);
     let (plane_1, plane_2) = (100 + a as i32, 100 + b as i32);
     assert_eq!(s["dp_faces"], serde_json::json!([plane_1, plane_2]));

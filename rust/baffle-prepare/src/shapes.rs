@@ -97,3 +97,37 @@ mod tests {
         assert!((box_mesh(Vec3::zeros(), Vec3::new(1.0, 2.0, 3.0)).signed_volume_mm3() - 6.0).abs() < 1e-12);
     }
 }
+
+/// A synthetic heart as segment surfaces, for the sample run and the tests: LV and RV
+/// spheres overlapping (the VSD faces -x at x = 8.6 mm), an aorta tube of radius 4 mm
+/// leaving the RV's top (the aortic cap at z = 8.1 mm), and 18 suture points on the RV
+/// sphere, 46 degrees around the quarter circle from the VSD's direction (-x) to the
+/// aorta's (+z), so that they enclose both caps. All in one frame (taken as LPS).
+pub struct SyntheticHeart {
+    pub lv: TriMesh,
+    pub rv: TriMesh,
+    pub aorta: TriMesh,
+    pub suture_points_mm: Vec<Vec3>,
+    /// 0.2 m2: a 37.7 mm2 target area, below the 52 mm2 aortic cap of the 4 mm tube.
+    pub bsa_m2: f64,
+}
+
+pub fn synthetic_heart() -> SyntheticHeart {
+    let (rv_center, rv_radius) = (Vec3::new(16.0, 0.0, 0.0), 9.0);
+    let rho = 46f64.to_radians();
+    let (side, vsd, aorta) = (Vec3::y(), -Vec3::x(), Vec3::z());
+    let arc = |t: f64| Vec3::new(-t.cos(), 0.0, t.sin());
+    let around = |center: Vec3, away: Vec3, phi: f64| center * rho.cos() + (away * phi.cos() + side * phi.sin()) * rho.sin();
+    let quarter = PI / 2.0;
+    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() + side * rho.sin()).collect();
+    directions.extend((1..4).map(|k| around(aorta, Vec3::x(), quarter - PI * k as f64 / 4.0)));
+    directions.extend((0..=5).rev().map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() - side * rho.sin()));
+    directions.extend((1..4).map(|k| around(vsd, -Vec3::z(), -quarter + PI * k as f64 / 4.0)));
+    SyntheticHeart {
+        lv: uv_sphere(Vec3::zeros(), 10.0, 32, 64),
+        rv: uv_sphere(rv_center, rv_radius, 32, 64),
+        aorta: capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 12, 48),
+        suture_points_mm: directions.iter().map(|d| rv_center + d.normalize() * rv_radius).collect(),
+        bsa_m2: 0.2,
+    }
+}

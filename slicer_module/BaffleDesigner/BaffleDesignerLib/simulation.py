@@ -4,8 +4,8 @@ chain and is called from a QTimer in the widget (or a loop in tests). Results ar
 and checked in full before any scene node changes, so a failed or cancelled run leaves
 the candidate's earlier results (and its design outputs) as they were.
 
-Units: `baffle simulate` writes peak.vtu in the solver's CGS units (points cm, velocity
-cm/s, pressure dyn/cm2); the scene gets mm, m/s and mmHg.
+Units: `baffle simulate` writes peak.vtu in the scene's units: points mm, point arrays
+velocity_m_s, speed_m_s and pressure_mmhg.
 """
 
 import csv
@@ -26,8 +26,8 @@ from BaffleDesignerLib import process
 
 # The paper's planning criterion: the LV-to-aorta pressure difference at peak flow.
 DP_THRESHOLD_MMHG = 10.0
-DYN_CM2_PER_MMHG = 1333.22  # as baffle-cfd
-MM_PER_CM = 10.0
+# The point arrays of baffle simulate's peak.vtu (baffle_cfd::vtu).
+FIELD_ARRAYS = {"velocity_m_s": 3, "speed_m_s": 1, "pressure_mmhg": 1}
 
 # Face roles of the designed domain (the library's default ModelFaceIDs).
 INLET_FACE_ID = 11  # VSD cap: flow from the LV
@@ -57,8 +57,12 @@ SUMMARY_INPUT_ROWS = (
 COL_DP = "dp_mmhg"
 
 
-def verdict(dp_mmhg: float) -> str:
-    """'pass' when the peak pressure difference is below the 10 mmHg planning threshold."""
+def verdict(dp_mmhg: float, doubts=()) -> str:
+    """'pass' when the peak pressure difference is below the 10 mmHg planning threshold,
+    'fail' when not, 'inconclusive' when the run gives reasons not to trust it (summary.json's
+    `doubts`, written by `baffle simulate`: an unconverged solve, unsettled cycles, ...)."""
+    if doubts:
+        return "inconclusive"
     return "pass" if dp_mmhg < DP_THRESHOLD_MMHG else "fail"
 
 
@@ -129,8 +133,12 @@ class SimulationResults:
         return self.summary.get("mode") == "steady"
 
     @property
+    def doubts(self) -> List[str]:
+        return list(self.summary.get("doubts") or [])
+
+    @property
     def verdict(self) -> str:
-        return verdict(self.dp_mmhg)
+        return verdict(self.dp_mmhg, self.doubts)
 
 
 def _finite(summary: dict, key: str, path: str) -> float:
@@ -154,25 +162,21 @@ def read_summary(path: str) -> dict:
 
 
 def read_fields(path: str) -> vtk.vtkUnstructuredGrid:
-    """peak.vtu in the scene's units: points mm, velocity_m_s (vector), speed_m_s, pressure_mmhg."""
+    """peak.vtu as written (points mm, velocity_m_s vector, speed_m_s, pressure_mmhg), checked."""
     source = bdlogic.read_written_file(vtk.vtkXMLUnstructuredGridReader(), path)
-    velocity = source.GetPointData().GetArray("velocity")
-    pressure = source.GetPointData().GetArray("pressure")
-    if source.GetNumberOfCells() == 0 or velocity is None or pressure is None:
-        raise bdlogic.BaffleDesignerError(f"{path}: expected tetrahedra with point arrays velocity and pressure")
-    velocity_m_s = numpy_support.vtk_to_numpy(velocity).reshape(-1, 3) / 100.0
+    data = source.GetPointData()
+    missing = [
+        name for name, components in FIELD_ARRAYS.items()
+        if data.GetArray(name) is None or data.GetArray(name).GetNumberOfComponents() != components
+    ]
+    if source.GetNumberOfCells() == 0 or missing:
+        raise bdlogic.BaffleDesignerError(
+            f"{path}: expected tetrahedra with point arrays {', '.join(FIELD_ARRAYS)}; missing or malformed: {', '.join(missing)}"
+        )
     grid = vtk.vtkUnstructuredGrid()
     grid.DeepCopy(source)
-    points = vtk.vtkPoints()
-    points.SetData(bdlogic._vtk_double_array("points", numpy_support.vtk_to_numpy(source.GetPoints().GetData()) * MM_PER_CM))
-    grid.SetPoints(points)
-    data = grid.GetPointData()
-    data.Initialize()
-    data.AddArray(bdlogic._vtk_double_array("velocity_m_s", velocity_m_s))
-    data.AddArray(bdlogic._vtk_double_array("speed_m_s", np.linalg.norm(velocity_m_s, axis=1)))
-    data.AddArray(bdlogic._vtk_double_array("pressure_mmhg", numpy_support.vtk_to_numpy(pressure) / DYN_CM2_PER_MMHG))
-    data.SetActiveScalars("speed_m_s")
-    data.SetActiveVectors("velocity_m_s")
+    grid.GetPointData().SetActiveScalars("speed_m_s")
+    grid.GetPointData().SetActiveVectors("velocity_m_s")
     return grid
 
 
@@ -381,8 +385,8 @@ class SimulationJob(bdlogic.CandidateJob):
             f"dp {results.dp_mmhg:.2f} mmHg ({results.verdict}: threshold {DP_THRESHOLD_MMHG:g} mmHg), "
             f"v_max {results.max_velocity_m_s:.2f} m/s"
         )
-        if not results.summary.get("converged", True):
-            line += "; the solver did not reach its residual target, treat the figures with care"
+        if results.doubts:
+            line += "; inconclusive because " + "; ".join(results.doubts)
         if self._redesigned():
             line += "; the baffle was redesigned meanwhile, so these results are outdated"
         return line
@@ -400,7 +404,7 @@ class SimulationJob(bdlogic.CandidateJob):
         except OSError as error:
             raise bdlogic.BaffleDesignerError(f"could not write {case_path}: {error}") from error
         self.simulate_started_at = time.monotonic()
-        self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", case_path, "--out", self.out_dir])
+        self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", case_path, "--out", self.out_dir, "--progress-tags"])
 
     def _finish(self, state: str, message: str) -> str:
         # The outcome of the latest run; the stored results change only on completion.

@@ -1,8 +1,10 @@
 //! The plan's report: report.json and a self-contained report.html (inline SVG, no
 //! scripts, no external references), built only from the stages' own files.
 
+mod paper;
 mod svg_plot;
 mod svg_render;
+mod svg_slice;
 
 use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
@@ -12,9 +14,7 @@ use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
 use std::path::Path;
-
-/// The planning threshold of the peak pressure difference (mmHg): below it passes.
-pub const DP_THRESHOLD_MMHG: f64 = 10.0;
+use crate::verdict::{self, Verdict, DP_THRESHOLD_MMHG};
 
 fn read_json(path: &Path) -> Result<Value, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -48,6 +48,7 @@ struct Run {
     stage: String,
     level: &'static str,
     flow: FlowCase,
+    cardiac_index_l_min_m2: f64,
     edge_length_mm: f64,
     quality: Value,
     quality_path: std::path::PathBuf,
@@ -62,9 +63,13 @@ impl Run {
     fn v_max_m_s(&self) -> Result<f64, String> {
         number(&self.summary, "/max_velocity_m_s", &self.summary_path)
     }
+    /// This run's own verdict (its solve and cycles; the mesh study is the plan's).
+    fn verdict(&self) -> Verdict {
+        Verdict::of(self.dp_mmhg().unwrap_or(f64::NAN), verdict::run_doubts(&self.summary))
+    }
 }
 
-fn load_runs(out: &Path, stages: &[Stage]) -> Result<Vec<Run>, String> {
+fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage]) -> Result<Vec<Run>, String> {
     let edge = |level: &str| {
         stages.iter().find_map(|s| match s.step {
             Step::Mesh { level: l, edge_length_mm } if l == level => Some(edge_length_mm),
@@ -80,6 +85,7 @@ fn load_runs(out: &Path, stages: &[Stage]) -> Result<Vec<Run>, String> {
                 stage: stage.name.clone(),
                 level,
                 flow,
+                cardiac_index_l_min_m2: flow.cardiac_index_l_min_m2(args),
                 edge_length_mm: edge(level).unwrap_or(f64::NAN),
                 quality: read_json(&quality_path)?,
                 quality_path,
@@ -123,10 +129,17 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
 /// The flow-domain centerline of the centerline stage (mm) and the nominal run's
 /// pressure and speed sampled along it.
 struct CenterlineProfile {
+    /// The nominal run's peak fields (peak.vtu) the profile was sampled from.
+    fields: PeakFields,
+    vtp: std::path::PathBuf,
+    line: baffle_core::io::PolyData,
     length_mm: f64,
     s_mm: Vec<f64>,
     profile: Profile,
 }
+
+/// Name of the centerline's pressure relative to the aortic plane (report.json, centerline.vtp).
+const GAUGE_PRESSURE: &str = "pressure_rel_aortic_plane_mmhg";
 
 fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
     let (vtp, json_path) = crate::centerline_cmd::output_paths(&flow_centerline_path(out));
@@ -136,26 +149,115 @@ fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile,
         _ => return Err(format!("{}: no point array s_mm", vtp.display())),
     };
     let length_mm = number(&read_json(&json_path)?, "/length_mm", &json_path)?;
-    Ok(CenterlineProfile { length_mm, s_mm, profile: PeakFields::read(peak_path)?.profile(&line.points) })
+    let fields = PeakFields::read(peak_path)?;
+    let profile = fields.profile(&line.points);
+    Ok(CenterlineProfile { fields, vtp, line, length_mm, s_mm, profile })
 }
 
-/// (time in cycle, dp) over the last cycle of timeseries.csv; empty for a steady run.
-/// `faces`: the timeseries' names of the two faces dp is taken between (first minus second).
-fn dp_over_cycle(run_dir: &Path, summary: &Value, faces: (&str, &str)) -> Result<Vec<(f64, f64)>, String> {
-    if summary["mode"] == "steady" {
-        return Ok(Vec::new());
+impl CenterlineProfile {
+    /// The sampled pressure minus `reference_mmhg` (None where the point was not sampled).
+    fn gauge_mmhg(&self, reference_mmhg: f64) -> Vec<Option<f64>> {
+        self.profile.pressure_mmhg.iter().map(|p| p.map(|p| p - reference_mmhg)).collect()
     }
-    let path = run_dir.join("timeseries.csv");
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
-    let column = |name: String| header.iter().position(|h| *h == name).ok_or_else(|| format!("{}: no column {name}", path.display()));
-    let (t, a, b) = (column("time_s".into())?, column(format!("p_{}_mmhg", faces.0))?, column(format!("p_{}_mmhg", faces.1))?);
-    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
-    let period = number(summary, "/inputs/period_s", &path)?;
-    let last = rows.last().map_or(0.0, |r| r[t]);
-    let start = (last - period).max(0.0);
-    Ok(rows.iter().filter(|r| r[t] > start + 1e-12).map(|r| (r[t] - start, r[a] - r[b])).collect())
+
+    /// centerline.vtp again, with the nominal run's peak fields sampled on it: pressure_mmhg
+    /// (as in peak.vtu), the pressure relative to the aortic plane, and speed_m_s (NaN
+    /// where a point was not sampled), so it can be coloured beside the results.
+    fn write_with_fields(&self, reference_mmhg: f64) -> Result<(), String> {
+        let mut line = self.line.clone();
+        let values = |v: &[Option<f64>]| v.iter().map(|x| x.unwrap_or(f64::NAN)).collect::<Vec<f64>>();
+        let arrays = [
+            ("pressure_mmhg", values(&self.profile.pressure_mmhg)),
+            (GAUGE_PRESSURE, values(&self.gauge_mmhg(reference_mmhg))),
+            ("speed_m_s", values(&self.profile.speed_m_s)),
+        ];
+        line.point_data.retain(|a| !arrays.iter().any(|(name, _)| a.name == *name));
+        line.point_data.extend(arrays.into_iter().map(|(name, v)| baffle_core::io::DataArray::f64(name, 1, v)));
+        baffle_core::io::write_vtp(&self.vtp, &line).map_err(|e| e.to_string())
+    }
+}
+
+/// How the centerline's pressure drop compares with the plane-averaged dp, in report.json
+/// and in the report's words.
+struct PressureComparison {
+    centerline_drop_mmhg: f64,
+    min_gauge_mmhg: f64,
+    min_at_s_mm: f64,
+}
+
+impl PressureComparison {
+    fn of(s_mm: &[f64], gauge: &[Option<f64>]) -> PressureComparison {
+        let sampled: Vec<(f64, f64)> = s_mm.iter().zip(gauge).filter_map(|(&s, p)| Some((s, (*p)?))).collect();
+        let drop = match (sampled.first(), sampled.last()) {
+            (Some(first), Some(last)) => first.1 - last.1,
+            _ => f64::NAN,
+        };
+        let min = sampled.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((f64::NAN, f64::NAN));
+        PressureComparison { centerline_drop_mmhg: drop, min_gauge_mmhg: min.1, min_at_s_mm: min.0 }
+    }
+
+    /// The paragraph under the centerline plot.
+    fn text(&self, dp_mmhg: f64, reference_mmhg: f64) -> String {
+        format!(
+            "Pressures are gauge: relative to the mean pressure over the aortic-annulus plane at peak flow ({reference_mmhg:.2} mmHg on the solver's scale, \
+whose zero is downstream of the outlet resistance). The verdict uses the plane-averaged pressure difference, {dp_mmhg:.2} mmHg: the mean over the whole \
+VSD plane minus the mean over the whole aortic plane, as in the paper. Along the flow-domain centerline the pressure falls by {:.2} mmHg from its VSD end \
+to its aortic end ({:+.2} mmHg against the plane-averaged dp). The two differ because the centerline samples single points in the middle of the flow, where it \
+is fastest: there the pressure is lower than the section's mean by the extra dynamic pressure (Bernoulli), and in a bend the pressure also varies across \
+the section. The lowest centerline pressure is {:.2} mmHg at s = {:.1} mm; a value below zero is a point below the aortic plane's mean, not a negative pressure.",
+            self.centerline_drop_mmhg,
+            self.centerline_drop_mmhg - dp_mmhg,
+            self.min_gauge_mmhg,
+            self.min_at_s_mm
+        )
+    }
+}
+
+/// A run's timeseries.csv: its header and numeric rows.
+struct Timeseries {
+    path: std::path::PathBuf,
+    header: Vec<String>,
+    rows: Vec<Vec<f64>>,
+}
+
+impl Timeseries {
+    fn read(run_dir: &Path) -> Result<Timeseries, String> {
+        let path = run_dir.join("timeseries.csv");
+        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut lines = text.lines();
+        let header = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
+        let rows = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
+        Ok(Timeseries { path, header, rows })
+    }
+
+    fn column(&self, name: &str) -> Result<usize, String> {
+        self.header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", self.path.display()))
+    }
+
+    /// The mean pressure over `face` (its timeseries name) at the run's peak flow (mmHg).
+    fn pressure_at_peak_mmhg(&self, summary: &Value, face: &str) -> Result<f64, String> {
+        let (t, p) = (self.column("time_s")?, self.column(&format!("p_{face}_mmhg"))?);
+        let peak = number(summary, "/peak_time_s", &self.path)?;
+        self.rows
+            .iter()
+            .min_by(|a, b| (a[t] - peak).abs().total_cmp(&(b[t] - peak).abs()))
+            .map(|row| row[p])
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{}: no pressure of {face} at the peak time {peak} s", self.path.display()))
+    }
+
+    /// (time in cycle, dp) over the last cycle; empty for a steady run. `faces`: the
+    /// timeseries' names of the two faces dp is taken between (first minus second).
+    fn dp_over_cycle(&self, summary: &Value, faces: (&str, &str)) -> Result<Vec<(f64, f64)>, String> {
+        if summary["mode"] == "steady" {
+            return Ok(Vec::new());
+        }
+        let (t, a, b) = (self.column("time_s")?, self.column(&format!("p_{}_mmhg", faces.0))?, self.column(&format!("p_{}_mmhg", faces.1))?);
+        let period = number(summary, "/inputs/period_s", &self.path)?;
+        let last = self.rows.last().map_or(0.0, |r| r[t]);
+        let start = (last - period).max(0.0);
+        Ok(self.rows.iter().filter(|r| r[t] > start + 1e-12).map(|r| (r[t] - start, r[a] - r[b])).collect())
+    }
 }
 
 fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
@@ -163,32 +265,22 @@ fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
     let period = number(&run.summary, "/inputs/period_s", &run.summary_path)?;
     let w = Waveform::Ejection { period_s: period, q_mean_ml_s: q_mean };
     let points = (0..=200).map(|k| period * k as f64 / 200.0).map(|t| (t, w.flow_ml_s(t))).collect();
-    let label = format!("CI {:.2} L/min/m²", run.flow.cardiac_index_l_min_m2());
+    let label = format!("CI {:.2} L/min/m²", run.cardiac_index_l_min_m2);
     Ok(Series::line(&label, points, color))
 }
 
-fn verdict_text(dp_mmhg: f64, converged: bool) -> String {
-    let verdict = if dp_mmhg < DP_THRESHOLD_MMHG {
-        format!("PASSES: peak pressure difference {dp_mmhg:.2} mmHg is below the {DP_THRESHOLD_MMHG} mmHg planning threshold")
-    } else {
-        format!("FAILS: peak pressure difference {dp_mmhg:.2} mmHg is not below the {DP_THRESHOLD_MMHG} mmHg planning threshold")
-    };
-    // A number from an unconverged solve is shown, but not without saying so.
-    if converged { verdict } else { verdict + " (the solve did not reach its residual target)" }
+/// The plan's verdict: the nominal run's own doubts, the mesh study's and the design's.
+fn plan_verdict(nominal: &Run, runs: &[Run], design: &Value) -> Verdict {
+    let dp = nominal.dp_mmhg().unwrap_or(f64::NAN);
+    let mut doubts = verdict::run_doubts(&nominal.summary);
+    let fine = runs.iter().find(|r| r.level == "fine" && r.flow == FlowCase::Nominal);
+    doubts.extend(verdict::mesh_study_doubt(dp, fine.map(|r| (r.edge_length_mm, r.dp_mmhg().unwrap_or(f64::NAN)))));
+    doubts.extend(verdict::design_doubt(design));
+    Verdict::of(dp, doubts)
 }
 
-/// "passes" / "fails" of one run, flagged when its solve did not converge.
-fn run_verdict(run: &Run) -> String {
-    let verdict = match run.dp_mmhg() {
-        Ok(dp) if dp < DP_THRESHOLD_MMHG => "passes",
-        Ok(_) => "fails",
-        Err(_) => "no result",
-    };
-    if run.summary["converged"].as_bool() == Some(true) { verdict.into() } else { format!("{verdict} (not converged)") }
-}
-
-fn profile_series(s_mm: &[f64], values: &[Option<f64>], reference: f64) -> Vec<(f64, f64)> {
-    s_mm.iter().zip(values).map(|(&s, v)| (s, v.map_or(f64::NAN, |v| v - reference))).collect()
+fn profile_series(s_mm: &[f64], values: &[Option<f64>]) -> Vec<(f64, f64)> {
+    s_mm.iter().zip(values).map(|(&s, v)| (s, v.unwrap_or(f64::NAN))).collect()
 }
 
 fn section_area_chart(design: &Value) -> String {
@@ -240,7 +332,29 @@ impl Html {
 const STYLE: &str = "body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}\
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}\
 figure{display:inline-block;margin:0.5em}figcaption{font-size:0.85em;color:#555}\
-.pass{background:#dff0d8;padding:0.6em;border:1px solid #3c763d}.fail{background:#f2dede;padding:0.6em;border:1px solid #a94442}";
+.passes{background:#dff0d8;padding:0.6em;border:1px solid #3c763d}.fails{background:#f2dede;padding:0.6em;border:1px solid #a94442}\
+.inconclusive{background:#fcf8e3;padding:0.6em;border:1px solid #8a6d3b}.warning{color:#8a6d3b}";
+
+/// The date and time now, UTC ("2026-12-02 12:34 UTC"), for the report's header.
+fn utc_now() -> String {
+    let seconds = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as i64);
+    utc_date_time(seconds)
+}
+
+/// Unix seconds as a UTC date and time (days to civil date: H. Hinnant's algorithm).
+fn utc_date_time(seconds: i64) -> String {
+    let (days, rest) = (seconds.div_euclid(86_400), seconds.rem_euclid(86_400));
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!("{year:04}-{month:02}-{day:02} {:02}:{:02} UTC", rest / 3600, rest % 3600 / 60)
+}
 
 fn format_value(v: f64, decimals: usize) -> String {
     if v.is_finite() { format!("{v:.decimals$}") } else { "—".into() }
@@ -310,75 +424,170 @@ fn domain_text(domain: &Value) -> String {
     )
 }
 
+/// The last two components of `path` ("p2/segmentations"): enough to recognise the
+/// input without printing where it lives (report.json keeps the full paths).
+fn short_path(path: &Path) -> String {
+    let parts: Vec<_> = path.components().rev().take(2).map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+    parts.into_iter().rev().collect::<Vec<_>>().join("/")
+}
+
+/// The peak speed on a plane through the middle of the flow-domain centerline that holds
+/// its direction there, turned as close to the anterior view as that allows.
+fn speed_cut_figure(line: &CenterlineProfile, anterior: &svg_render::View) -> Option<(String, String)> {
+    let points = &line.line.points;
+    let mid = points.len() / 2;
+    let (origin, tangent) = (points.get(mid)?, (points.get(mid + 1)? - points.get(mid.checked_sub(1)?)?).try_normalize(1e-9)?);
+    let normal = (anterior.look - tangent * tangent.dot(&anterior.look)).try_normalize(1e-6)?;
+    // Seen face-on from the anterior side, with the screen's up as near the patient's superior.
+    let look = if normal.dot(&anterior.look) >= 0.0 { normal } else { -normal };
+    let up = (anterior.up - look * anterior.up.dot(&look)).try_normalize(1e-6)?;
+    let view = svg_render::View { name: "cut".into(), look, right: look.cross(&up), up };
+    let polygons = svg_slice::cut(&line.fields.points_mm(), line.fields.tets(), &line.fields.speed_m_s(), *origin, normal);
+    let caption = format!(
+        "Speed at peak flow (m/s) on a plane through the middle of the flow-domain centerline (s = {:.1} mm) that contains its direction there, seen from the anterior side; {} cut tetrahedra.",
+        line.s_mm.get(mid).copied().unwrap_or(f64::NAN),
+        polygons.len()
+    );
+    Some((svg_slice::render_cut(&polygons, &view), caption))
+}
+
+/// The nominal run's residual history: a steady solve's relative residual per iteration
+/// against its target, or a transient run's per-step residual; log10 scale.
+fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, String)> {
+    let log = |(x, r): (f64, f64)| (x, if r > 0.0 { r.log10() } else { f64::NAN });
+    if nominal.summary["mode"] == "steady" {
+        let history: Vec<(f64, f64)> = nominal.summary["steady_relative_residuals"].as_array()?.iter().enumerate().filter_map(|(k, r)| Some(log(((k + 1) as f64, r.as_f64()?)))).collect();
+        let tolerance = nominal.summary["inputs"]["steady_tolerance"].as_f64()?;
+        let end = history.last()?.0;
+        let series = [
+            Series { markers: history.len() < 80, ..Series::line("relative residual", history, "#1f77b4") },
+            Series { dashed: true, ..Series::line("target", vec![(1.0, tolerance.log10()), (end, tolerance.log10())], "#d62728") },
+        ];
+        let converged = if nominal.summary["converged"] == true { "reached" } else { "did not reach" };
+        let caption = format!("Steady solve: residual relative to the first iteration's (log10) per iteration; it {converged} its target {tolerance:.0e}.");
+        return Some((line_chart("Solver convergence (steady)", "iteration", "log10 relative residual", &series, false), caption));
+    }
+    let (t, r) = (timeseries.column("time_s").ok()?, timeseries.column("residual").ok()?);
+    let points: Vec<(f64, f64)> = timeseries.rows.iter().map(|row| log((row[t], row[r]))).collect();
+    let series = [Series::line("residual", points, "#1f77b4")];
+    Some((line_chart("Solver convergence (per time step)", "time (s)", "log10 residual", &series, false), "The final residual of each time step's solve (log10).".into()))
+}
+
 /// What the ventricle came from, for the report's first line.
 fn surface_source(args: &PlanArgs) -> String {
     let p = &args.prepare;
     match (&p.segmentations, &p.labelmap, &args.design.surface) {
-        (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", dir.display()),
-        (None, Some(file), _) => format!("Label map {} (prepare stage)", file.display()),
-        (None, None, Some(surface)) => format!("Surface {}", surface.display()),
+        (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", short_path(dir)),
+        (None, Some(file), _) => format!("Label map {} (prepare stage)", short_path(file)),
+        (None, None, Some(surface)) => format!("Surface {}", short_path(surface)),
         (None, None, None) => "Surface: built-in phantom".into(),
     }
 }
 
-/// Write report.json and report.html from the stages' files; returns the verdict line.
-pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<String, String> {
+/// The patient's name in the report: --patient-label, else the paper's patient id.
+fn patient_label(args: &PlanArgs, paper: Option<&paper::PaperPatient>) -> String {
+    match (&args.patient_label, paper, args.design.phantom) {
+        (Some(label), _, _) => label.clone(),
+        (None, Some(p), _) => p.id.clone(),
+        (None, None, true) => "built-in phantom".into(),
+        (None, None, false) => "not named (give --patient-label)".into(),
+    }
+}
+
+/// The plan's input file or folder (for the paper's patient it belongs to).
+fn input_path(args: &PlanArgs) -> Option<&Path> {
+    let p = &args.prepare;
+    p.segmentations.as_deref().or(p.labelmap.as_deref()).or(args.design.surface.as_deref())
+}
+
+/// What the command line says at the end: the warnings, then the verdict line.
+pub struct Outcome {
+    pub warnings: Vec<String>,
+    pub verdict_line: String,
+}
+
+/// Write report.json and report.html from the stages' files.
+pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
     let out = &args.design.out;
     let labels = (args.design.vsd_label, args.design.aortic_label);
     let design_dir = out.join("design");
     let design_path = design_dir.join("report.json");
     let design = read_json(&design_path)?;
-    let runs = load_runs(out, stages)?;
+    let runs = load_runs(args, out, stages)?;
     let nominal = runs.iter().find(|r| r.level == "nominal" && r.flow == FlowCase::Nominal).ok_or("no nominal simulation stage")?;
     let nominal_dir = out.join(&nominal.stage);
-    let centerline_path = design_dir.join("centerline.vtp");
-    let centerline = baffle_core::io::read_polydata(&centerline_path).map_err(|e| e.to_string())?;
     let flow_line = centerline_profile(out, &nominal_dir.join("peak.vtu"))?;
     let profile = &flow_line.profile;
     let table = quantities(&design, &design_path, nominal, &flow_line)?;
     let dp = nominal.dp_mmhg()?;
-    let passes = dp < DP_THRESHOLD_MMHG;
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
-    let verdict = verdict_text(dp, converged);
+    let verdict = plan_verdict(nominal, &runs, &design);
+    let verdict_line = verdict.text(dp);
+    let warnings: Vec<String> = verdict::mesh_warning(&nominal.quality).into_iter().collect();
     let cfd_domain = domain_summary(args, out, records)?;
     let dp_faces = if cfd_domain["extended"] == true {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
     } else {
         (format!("inlet_{}", labels.0), format!("outlet_{}", labels.1))
     };
-    let dp_cycle = dp_over_cycle(&nominal_dir, &nominal.summary, (&dp_faces.0, &dp_faces.1))?;
+    let timeseries = Timeseries::read(&nominal_dir)?;
+    let dp_cycle = timeseries.dp_over_cycle(&nominal.summary, (&dp_faces.0, &dp_faces.1))?;
+    // Gauge pressures: relative to the aortic plane's mean at peak flow.
+    let reference_mmhg = timeseries.pressure_at_peak_mmhg(&nominal.summary, &dp_faces.1)?;
+    let gauge = flow_line.gauge_mmhg(reference_mmhg);
+    let comparison = PressureComparison::of(&flow_line.s_mm, &gauge);
+    flow_line.write_with_fields(reference_mmhg)?;
     let prepare = prepare_summary(out, records)?;
+    let paper = input_path(args).and_then(paper::PaperPatient::of_input);
 
     let run_rows: Vec<Value> = runs
         .iter()
         .map(|r| {
             json!({
                 "stage": r.stage, "mesh": r.level, "edge_length_mm": r.edge_length_mm,
-                "cardiac_index_l_min_m2": r.flow.cardiac_index_l_min_m2(),
+                "cardiac_index_l_min_m2": r.cardiac_index_l_min_m2,
                 "tetrahedra": r.quality["tetrahedra"], "mode": r.summary["mode"], "converged": r.summary["converged"],
                 "dp_peak_mmhg": r.summary["dp_peak_mmhg"], "max_velocity_m_s": r.summary["max_velocity_m_s"],
-                "passes": r.dp_mmhg().map(|dp| dp < DP_THRESHOLD_MMHG).ok(),
+                "verdict": r.verdict().key(), "reason": r.verdict().reason(),
             })
         })
         .collect();
     let report = json!({
         "status": "completed",
+        "created_utc": utc_now(),
+        "patient": patient_label(args, paper.as_ref()),
+        "software": { "name": "baffle", "version": env!("CARGO_PKG_VERSION") },
         "inputs": {
             "surface": args.design.surface, "points": args.design.points, "phantom": args.design.phantom,
             "segmentations": args.prepare.segmentations, "labelmap": args.prepare.labelmap,
             "bsa_m2": flow_bsa_m2(args).ok(), "sbp_mmhg": args.bp.0, "dbp_mmhg": args.bp.1,
-            "heart_rate_bpm": args.hr, "mode": nominal.summary["mode"], "edge_length_mm": args.edge_length_mm,
+            "heart_rate_bpm": args.hr, "cardiac_index_l_min_m2": args.cardiac_index, "mode": nominal.summary["mode"],
+            "edge_length_mm": args.edge_length_mm,
         },
         "stages": records,
         "prepare": prepare,
         "domain": cfd_domain,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
-        "verdict": { "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "passes": passes, "converged": converged, "text": verdict },
+        // passes is true only for a trusted run below the threshold, never for an inconclusive one.
+        "verdict": {
+            "verdict": verdict.key(), "reason": verdict.reason(), "passes": verdict == Verdict::Passes,
+            "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "converged": converged, "text": verdict_line,
+            "warnings": warnings,
+        },
         "runs": run_rows,
+        "paper": paper.as_ref().map(|p| json!({
+            "patient": p.id, "table": p.table,
+            "note": "the paper's published values of this patient (pulsatile run, nominal 0.95 mm mesh)",
+            "quantities": p.values.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        })),
         "centerline": {
             "kind": "flow-domain", "file": flow_centerline_path(out), "length_mm": flow_line.length_mm,
-            "s_mm": flow_line.s_mm, "pressure_mmhg": profile.pressure_mmhg, "speed_m_s": profile.speed_m_s,
+            "pressure_reference": "mean pressure over the aortic-annulus plane at peak flow",
+            "reference_pressure_solver_mmhg": reference_mmhg,
+            "s_mm": flow_line.s_mm, GAUGE_PRESSURE: gauge, "speed_m_s": profile.speed_m_s,
             "sampled_points": profile.pressure_mmhg.iter().flatten().count(),
+            "centerline_drop_mmhg": comparison.centerline_drop_mmhg, "plane_averaged_dp_mmhg": dp,
+            "min_rel_aortic_plane_mmhg": comparison.min_gauge_mmhg, "min_at_s_mm": comparison.min_at_s_mm,
         },
         "dp_over_cycle": { "time_in_cycle_s": dp_cycle.iter().map(|p| p.0).collect::<Vec<_>>(), "dp_mmhg": dp_cycle.iter().map(|p| p.1).collect::<Vec<_>>() },
     });
@@ -386,21 +595,43 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
 
     let mut html = Html(String::new());
     let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
+    let _ = writeln!(html.0, "<p><b>Patient: {}</b></p>", escape(&patient_label(args, paper.as_ref())));
+    html.para(&format!("Made {} by baffle {} (baffle plan).", report["created_utc"].as_str().unwrap_or_default(), env!("CARGO_PKG_VERSION")));
     html.para(&format!(
-        "{}; BSA {} m²; BP {}/{} mmHg; {}; {} run, nominal mesh {} mm.",
+        "{}; BSA {} m²; BP {}/{} mmHg; {}; cardiac index {} L/min/m²; {} run, nominal mesh {} mm.",
         surface_source(args),
         flow_bsa_m2(args)?,
         args.bp.0,
         args.bp.1,
         args.hr.map_or("default period 0.682 s".into(), |hr| format!("HR {hr} /min")),
+        args.cardiac_index,
         nominal.summary["mode"].as_str().unwrap_or("?"),
         args.edge_length_mm
     ));
-    let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", if passes { "pass" } else { "fail" }, escape(&verdict));
+    let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", verdict.key(), escape(&verdict_line));
+    for warning in &warnings {
+        let _ = writeln!(html.0, "<p class=\"warning\">Warning: {}</p>", escape(warning));
+    }
     html.para(&domain_text(&cfd_domain));
     html.heading("The paper's quantities");
-    let rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
-    html.table(&["Quantity", "Value", "Unit"], &rows);
+    let mut rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
+    match &paper {
+        Some(p) => {
+            for (row, q) in rows.iter_mut().zip(&table) {
+                row.push(format_value(p.value(q.key).unwrap_or(f64::NAN), q.decimals));
+            }
+            let header = format!("Paper ({})", p.id);
+            html.table(&["Quantity", "Value", "Unit", &header], &rows);
+            html.para(&format!(
+                "Paper: patient {} as printed in Martinez et al. (from {}), from its pulsatile run on the nominal 0.95 mm mesh; this plan ran {} on a {} mm mesh.",
+                p.id,
+                p.table.display(),
+                nominal.summary["mode"].as_str().unwrap_or("?"),
+                args.edge_length_mm
+            ));
+        }
+        None => html.table(&["Quantity", "Value", "Unit"], &rows),
+    }
 
     if let Some(prepare) = &prepare {
         html.heading("Capped ventricle (prepare stage)");
@@ -410,11 +641,36 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     html.heading("Baffle and pathway");
     let domain = baffle_core::io::read_surface_labeled(&design_dir.join("domain.vtp")).map_err(|e| e.to_string())?.mesh;
     let d = &args.design;
-    let palette = svg_render::Palette(&[(d.wall_label, [205, 140, 130]), (d.baffle_label, [70, 130, 230]), (d.vsd_label, [90, 180, 90]), (d.aortic_label, [230, 190, 60])]);
-    for view in svg_render::axis_views() {
-        html.figure(&svg_render::render_view(&domain, &view, &palette, &centerline.points), &format!("view {}", view.name));
+    let palette = svg_render::Palette(&[
+        (d.wall_label, [205, 140, 130]),
+        (d.baffle_label, [70, 130, 230]),
+        (d.vsd_label, [90, 180, 90]),
+        (d.aortic_label, [230, 190, 60]),
+        (baffle_prepare::extend::INFLOW_CAP_LABEL, [150, 90, 200]),
+        (baffle_prepare::extend::OUTFLOW_CAP_LABEL, [60, 190, 190]),
+    ]);
+    let ras = matches!(d.surface_frame, crate::Frame::Ras);
+    let views = svg_render::anatomical_views(ras);
+    // Superior in the file's frame (z in both LPS and RAS), kept up in the face-on view.
+    let face_on = svg_render::face_on_view(&domain, d.aortic_label, "into the aortic annulus, its cap face-on", baffle_core::Vec3::z());
+    for view in views.iter().chain(&face_on) {
+        html.figure(&svg_render::render_view(&domain, view, &palette, &flow_line.line.points), &format!("Designed pathway, {} view", view.name));
     }
-    html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: centerline (hidden inside the pathway).");
+    html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: the flow-domain centerline the results are sampled on (hidden inside the pathway). Views named from the input's frame (LPS unless --surface-frame ras); the bar at the bottom left gives the scale.");
+    if cfd_domain["extended"] == true {
+        let extended = baffle_core::io::read_surface_labeled(&crate::plan_cmd::extended_surface_path(out)).map_err(|e| e.to_string())?.mesh;
+        // The interior measurement planes are inside the closed surface: not drawn.
+        let outside = extended.with_labels(|l| l != d.vsd_label && l != d.aortic_label);
+        for view in &views {
+            html.figure(&svg_render::render_view(&outside, view, &palette, &flow_line.line.points), &format!("Extended CFD domain, {} view", view.name));
+        }
+        html.para("The CFD domain in context: the LV back to the mid-LV inflow cap (purple) and the aorta up to the STJ outflow cap (cyan), the RV wall around the baffle (blue).");
+    }
+
+    if let Some((svg, caption)) = speed_cut_figure(&flow_line, &views[0]) {
+        html.heading("Flow at peak");
+        html.figure(&svg, &caption);
+    }
 
     html.heading("Section area");
     html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
@@ -439,12 +695,26 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         let series = [Series::line("dp", dp_cycle.clone(), "#1f77b4"), Series { dashed: true, ..Series::line("10 mmHg", vec![(0.0, DP_THRESHOLD_MMHG), (dp_cycle.last().map_or(1.0, |p| p.0), DP_THRESHOLD_MMHG)], "#d62728") }];
         html.figure(&line_chart("Pressure difference over the last cycle", "time in cycle (s)", "dp (mmHg)", &series, true), "VSD cap − aortic cap mean pressure.");
     }
-    let reference = profile.pressure_mmhg.iter().rev().flatten().next().copied().unwrap_or(f64::NAN);
-    let series = [Series::line("pressure", profile_series(&flow_line.s_mm, &profile.pressure_mmhg, reference), "#1f77b4")];
+    let end = flow_line.s_mm.last().copied().unwrap_or(1.0);
+    let series = [
+        Series::line("centerline pressure", profile_series(&flow_line.s_mm, &gauge), "#1f77b4"),
+        Series { dashed: true, ..Series::line("plane-averaged dp", vec![(0.0, dp), (end, dp)], "#2ca02c") },
+    ];
     html.figure(
-        &line_chart("Pressure along the flow-domain centerline (peak flow)", "arc length from the VSD plane s (mm)", "p − p(aortic end) (mmHg)", &series, false),
-        &format!("Sampled from peak.vtu at {} of {} points of the flow-domain centerline (medial line between the VSD and aortic planes, 0.5 mm spacing).", profile.pressure_mmhg.iter().flatten().count(), flow_line.s_mm.len()),
+        &line_chart("Pressure along the flow-domain centerline (peak flow)", "arc length from the VSD plane s (mm)", "p − aortic-plane mean (mmHg)", &series, false),
+        &format!(
+            "Sampled from peak.vtu at {} of {} points of the flow-domain centerline (medial line between the VSD and aortic planes, 0.5 mm spacing); dashed: the level of the plane-averaged dp the verdict uses (the VSD-plane mean; the aortic-plane mean is 0).",
+            profile.pressure_mmhg.iter().flatten().count(),
+            flow_line.s_mm.len()
+        ),
     );
+    html.para(&comparison.text(dp, reference_mmhg));
+
+    html.heading("Solver convergence");
+    match convergence_chart(nominal, &timeseries) {
+        Some((svg, caption)) => html.figure(&svg, &caption),
+        None => html.para("No residual history in the run's files."),
+    }
 
     html.heading("Runs");
     let rows: Vec<Vec<String>> = runs
@@ -453,11 +723,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             vec![
                 r.stage.clone(),
                 format!("{} ({:.2} mm)", r.level, r.edge_length_mm),
-                format!("{:.2}", r.flow.cardiac_index_l_min_m2()),
+                format!("{:.2}", r.cardiac_index_l_min_m2),
                 r.quality["tetrahedra"].to_string(),
                 format_value(r.dp_mmhg().unwrap_or(f64::NAN), 3),
                 format_value(r.v_max_m_s().unwrap_or(f64::NAN), 3),
-                run_verdict(r),
+                r.verdict().text(r.dp_mmhg().unwrap_or(f64::NAN)),
             ]
         })
         .collect();
@@ -467,5 +737,27 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
     html.0.push_str("</body></html>\n");
     write_atomic(&out.join("report.html"), html.0.as_bytes())?;
-    Ok(verdict)
+    Ok(Outcome { warnings, verdict_line })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dates_are_utc_calendar_dates() {
+        assert_eq!(utc_date_time(0), "1970-01-01 00:00 UTC");
+        assert_eq!(utc_date_time(1_700_000_000), "2023-11-14 22:13 UTC");
+        assert_eq!(utc_date_time(951_782_400), "2000-02-29 00:00 UTC");
+    }
+
+    #[test]
+    fn the_centerline_drop_and_its_lowest_point_are_taken_from_sampled_points() {
+        let s = [0.0, 0.5, 1.0, 1.5, 2.0];
+        let gauge = [None, Some(3.0), Some(-0.4), Some(0.1), Some(0.0)];
+        let c = PressureComparison::of(&s, &gauge);
+        assert_eq!((c.centerline_drop_mmhg, c.min_gauge_mmhg, c.min_at_s_mm), (3.0, -0.4, 1.0));
+        let text = c.text(1.72, 288.0);
+        assert!(text.contains("falls by 3.00 mmHg") && text.contains("+1.28 mmHg") && text.contains("plane-averaged"), "{text}");
+    }
 }

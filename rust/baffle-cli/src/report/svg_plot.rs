@@ -29,11 +29,23 @@ pub fn escape(text: &str) -> String {
     text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-/// About five round tick values covering [lo, hi].
-fn ticks(lo: f64, hi: f64) -> Vec<f64> {
+/// The round spacing of about five ticks over [lo, hi].
+fn tick_step(lo: f64, hi: f64) -> f64 {
     let raw = (hi - lo) / 5.0;
     let magnitude = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 2.5, 5.0, 10.0].iter().map(|m| m * magnitude).find(|s| *s >= raw).unwrap_or(10.0 * magnitude);
+    [1.0, 2.0, 2.5, 5.0, 10.0].iter().map(|m| m * magnitude).find(|s| *s >= raw).unwrap_or(10.0 * magnitude)
+}
+
+/// [lo, hi] widened to whole ticks, so the data's lowest and highest values (a dip below
+/// zero too) lie between labelled ticks.
+fn to_whole_ticks((lo, hi): (f64, f64)) -> (f64, f64) {
+    let step = tick_step(lo, hi);
+    ((lo / step).floor() * step, (hi / step).ceil() * step)
+}
+
+/// About five round tick values covering [lo, hi].
+fn ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let step = tick_step(lo, hi);
     let first = (lo / step).ceil() as i64;
     let last = (hi / step).floor() as i64;
     (first..=last).map(|k| k as f64 * step).collect()
@@ -63,7 +75,7 @@ fn label(v: f64) -> String {
 pub fn line_chart(title: &str, x_label: &str, y_label: &str, series: &[Series], y_from_zero: bool) -> String {
     let all = || series.iter().flat_map(|s| s.points.iter());
     let (x0, x1) = range(all().map(|p| p.0), false);
-    let (y0, y1) = range(all().map(|p| p.1), y_from_zero);
+    let (y0, y1) = to_whole_ticks(range(all().map(|p| p.1), y_from_zero));
     let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
     let sx = |x: f64| LEFT + (x - x0) / (x1 - x0) * pw;
     let sy = |y: f64| TOP + (y1 - y) / (y1 - y0) * ph;
@@ -79,6 +91,10 @@ pub fn line_chart(title: &str, x_label: &str, y_label: &str, series: &[Series], 
     }
     for y in ticks(y0, y1) {
         let _ = write!(s, r##"<line x1="{LEFT}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="#ddd"/><text x="{2}" y="{3:.1}" text-anchor="end">{4}</text>"##, sy(y), LEFT + pw, LEFT - 4.0, sy(y) + 4.0, label(y));
+    }
+    if y0 < 0.0 && y1 > 0.0 {
+        // Zero drawn darker when the data cross it (a pressure below the reference).
+        let _ = write!(s, r##"<line x1="{LEFT}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="#888"/>"##, sy(0.0), LEFT + pw);
     }
     let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, LEFT + pw / 2.0, HEIGHT - 8.0, escape(x_label));
     let _ = write!(s, r#"<text transform="translate(14 {}) rotate(-90)" text-anchor="middle">{}</text>"#, TOP + ph / 2.0, escape(y_label));
@@ -117,6 +133,20 @@ mod tests {
         assert_eq!(ticks(0.0, 10.0), vec![0.0, 2.0, 4.0, 6.0, 8.0, 10.0]);
         let t = ticks(-0.013, 0.047);
         assert!(t.len() >= 3 && t.len() <= 7 && t.iter().all(|v| (-0.013..=0.047).contains(v)), "{t:?}");
+    }
+
+    #[test]
+    fn a_dip_below_zero_gets_a_negative_tick_label() {
+        let series = [Series::line("p", vec![(0.0, 3.1), (5.0, 1.0), (9.0, -0.2), (10.0, 0.0)], "#1f77b4")];
+        let svg = line_chart("p", "s (mm)", "p (mmHg)", &series, false);
+        let labels: Vec<f64> = svg
+            .split(r#"text-anchor="end">"#)
+            .skip(1)
+            .map(|t| t[..t.find('<').unwrap()].parse().unwrap())
+            .collect();
+        assert!(labels.iter().any(|&v| v < 0.0 && v <= -0.2), "{labels:?}");
+        assert!(labels.iter().any(|&v| v >= 3.1), "{labels:?}");
+        assert!(labels.contains(&0.0), "{labels:?}");
     }
 
     #[test]

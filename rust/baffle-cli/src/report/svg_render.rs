@@ -6,21 +6,44 @@ use baffle_core::{TriMesh, Vec3};
 use std::fmt::Write;
 
 /// A view: the direction the viewer looks in, and the screen's right and up axes.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 pub struct View {
-    pub name: &'static str,
+    pub name: String,
     pub look: Vec3,
     pub right: Vec3,
     pub up: Vec3,
 }
 
-/// Views along the three coordinate axes of the surface's frame.
-pub fn axis_views() -> [View; 3] {
+/// The anatomical views, named in the patient's terms whatever the file's frame:
+/// anterior, left lateral and inferior (as axial images are shown: the patient's left on
+/// the right, anterior up). `ras`: the surface is in RAS (x right, y anterior), not LPS.
+pub fn anatomical_views(ras: bool) -> [View; 3] {
+    // Defined in LPS (x left, y posterior, z superior); an RAS file negates x and y.
+    let to_file = |x: f64, y: f64, z: f64| if ras { Vec3::new(-x, -y, z) } else { Vec3::new(x, y, z) };
+    let view = |name: &str, look: Vec3, right: Vec3, up: Vec3| View { name: name.into(), look, right, up };
     [
-        View { name: "along +y (x right, z up)", look: Vec3::new(0.0, 1.0, 0.0), right: Vec3::new(1.0, 0.0, 0.0), up: Vec3::new(0.0, 0.0, 1.0) },
-        View { name: "along -x (y right, z up)", look: Vec3::new(-1.0, 0.0, 0.0), right: Vec3::new(0.0, 1.0, 0.0), up: Vec3::new(0.0, 0.0, 1.0) },
-        View { name: "along +z (x right, y down)", look: Vec3::new(0.0, 0.0, 1.0), right: Vec3::new(1.0, 0.0, 0.0), up: Vec3::new(0.0, -1.0, 0.0) },
+        view("anterior (patient's left on the right, superior up)", to_file(0.0, 1.0, 0.0), to_file(1.0, 0.0, 0.0), to_file(0.0, 0.0, 1.0)),
+        view("left lateral (posterior on the right, superior up)", to_file(-1.0, 0.0, 0.0), to_file(0.0, 1.0, 0.0), to_file(0.0, 0.0, 1.0)),
+        view("inferior, as axial images (patient's left on the right, anterior up)", to_file(0.0, 0.0, 1.0), to_file(1.0, 0.0, 0.0), to_file(0.0, -1.0, 0.0)),
     ]
+}
+
+/// A view straight at the face labelled `label` from outside (its area-weighted outward
+/// normal), superior kept up where it can be; None when `mesh` has no such face.
+pub fn face_on_view(mesh: &TriMesh, label: i32, name: &str, superior: Vec3) -> Option<View> {
+    let normal: Vec3 = mesh
+        .triangles
+        .iter()
+        .zip(&mesh.face_ids)
+        .filter(|(_, &id)| id == label)
+        .map(|(t, _)| {
+            let [a, b, c] = t.map(|i| mesh.points[i as usize]);
+            (b - a).cross(&(c - a))
+        })
+        .sum();
+    let look = -normal.try_normalize(1e-12)?;
+    let up = (superior - look * superior.dot(&look)).try_normalize(1e-6).unwrap_or_else(|| look.cross(&Vec3::x()).normalize());
+    Some(View { name: name.into(), look, right: look.cross(&up), up })
 }
 
 /// Fill colour (RGB) of each ModelFaceID; others get the first.
@@ -80,8 +103,25 @@ pub fn render_view(mesh: &TriMesh, view: &View, palette: &Palette, overlay: &[Ve
         let pts: Vec<String> = overlay.iter().map(screen).map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
         let _ = write!(s, r##"<polyline points="{}" fill="none" stroke="#111" stroke-width="1.5" stroke-dasharray="4 3"/>"##, pts.join(" "));
     }
+    scale_bar(&mut s, scale);
     s.push_str("</svg>");
     s
+}
+
+/// A round length (1, 2, 5 or 10 x a power of ten mm) about a fifth of the picture, drawn
+/// at its bottom left with its length written under it.
+pub(super) fn scale_bar(s: &mut String, px_per_mm: f64) {
+    let target_mm = 0.2 * SIZE_PX / px_per_mm;
+    let magnitude = 10f64.powf(target_mm.log10().floor());
+    let length_mm = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * magnitude).rfind(|l| *l <= target_mm).unwrap_or(magnitude);
+    let (x, y, w) = (MARGIN_PX + 4.0, SIZE_PX - MARGIN_PX - 12.0, length_mm * px_per_mm);
+    let _ = write!(
+        s,
+        r##"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#111" stroke-width="2.5"/><text x="{x:.1}" y="{:.1}" font-family="sans-serif" font-size="10">{} mm</text>"##,
+        x + w,
+        y + 11.0,
+        length_mm
+    );
 }
 
 #[cfg(test)]
@@ -107,7 +147,7 @@ mod tests {
     #[test]
     fn the_picture_parses_and_stays_inside_its_view_box() {
         let palette = Palette(&[(2, [200, 120, 120]), (10, [60, 120, 220])]);
-        for view in axis_views() {
+        for view in anatomical_views(false) {
             let svg = render_view(&tetrahedron(), &view, &palette, &[Vec3::new(1.0, 1.0, 1.0), Vec3::new(2.0, 2.0, 2.0)]);
             let doc = roxmltree::Document::parse(&svg).expect("well-formed SVG");
             let root = doc.root_element();
@@ -127,8 +167,24 @@ mod tests {
         let palette = Palette(&[(2, [200, 120, 120]), (10, [0, 0, 250])]);
         // Looking along -(1,1,1) the slanted face (label 10) faces the viewer squarely.
         let d = -Vec3::new(1.0, 1.0, 1.0).normalize();
-        let view = View { name: "diagonal", look: d, right: Vec3::new(1.0, -1.0, 0.0).normalize(), up: Vec3::new(-1.0, -1.0, 2.0).normalize() };
+        let view = View { name: "diagonal".into(), look: d, right: Vec3::new(1.0, -1.0, 0.0).normalize(), up: Vec3::new(-1.0, -1.0, 2.0).normalize() };
         let svg = render_view(&tetrahedron(), &view, &palette, &[]);
         assert!(svg.contains(r##"fill="#0000fa""##), "{svg}");
+    }
+
+    #[test]
+    fn views_are_anatomical_in_either_frame_and_a_face_can_be_seen_face_on() {
+        let (lps, ras) = (anatomical_views(false), anatomical_views(true));
+        // The anterior view looks towards posterior: +y in LPS, -y in RAS; superior is up in both.
+        assert_eq!((lps[0].look, ras[0].look), (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, -1.0, 0.0)));
+        for v in lps.iter().chain(&ras) {
+            assert!((v.look.cross(&v.up) - v.right).norm() < 1e-12, "{}: right-handed screen", v.name);
+        }
+        // The slanted face (outward normal (1,1,1)) is seen along -(1,1,1), and drawn.
+        let view = face_on_view(&tetrahedron(), 10, "slanted face", Vec3::z()).unwrap();
+        assert!((view.look + Vec3::new(1.0, 1.0, 1.0).normalize()).norm() < 1e-12);
+        let svg = render_view(&tetrahedron(), &view, &Palette(&[(2, [200, 120, 120]), (10, [0, 0, 250])]), &[]);
+        assert!(svg.contains(r##"fill="#0000fa""##) && svg.contains(" mm</text>"), "{svg}");
+        assert!(face_on_view(&tetrahedron(), 99, "none", Vec3::z()).is_none());
     }
 }

@@ -8,7 +8,8 @@ use std::process::{Command, ExitStatus, Stdio};
 /// send SIGTERM (not SIGKILL: the run must stop cleanly), and return its exit status once
 /// it has written everything.
 pub fn sigterm_after_progress_tags(command: &mut Command, tags: usize) -> ExitStatus {
-    let mut child = command.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start baffle");
+    // Tags are printed only when asked for (as Slicer does).
+    let mut child = command.arg("--progress-tags").stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start baffle");
     let mut stdout = BufReader::new(child.stdout.take().unwrap());
     let (mut seen, mut line) = (0, String::new());
     while seen < tags {

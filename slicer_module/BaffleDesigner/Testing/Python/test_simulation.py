@@ -110,7 +110,10 @@ def test_steady_simulation_results_table_and_verdict(simulated):
     assert values["Peak flow"] == pytest.approx(3.26 * values["Mean flow (BSA x cardiac index)"], rel=0.01)
     assert values["Planning threshold (pass below)"] == simulation.DP_THRESHOLD_MMHG
     assert np.isfinite(values["Outlet resistance"]) and values["Mean arterial pressure"] > 0
-    expected = "pass" if dp < simulation.DP_THRESHOLD_MMHG else "fail"
+    with open(f"{job.out_dir}/summary.json", encoding="utf-8") as handle:
+        doubts = json.load(handle)["doubts"]
+    expected = simulation.verdict(dp, doubts)
+    assert expected == ("inconclusive" if doubts else "pass" if dp < simulation.DP_THRESHOLD_MMHG else "fail")
     assert curve.GetAttribute("BaffleDesigner.SimulationVerdict") == expected
     assert summary_node.GetAttribute("BaffleDesigner.Verdict") == expected
     assert float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")) == pytest.approx(dp)
@@ -134,7 +137,7 @@ def test_peak_fields_node_has_the_mesh_and_the_arrays_in_scene_units(simulated):
     volume = reader.GetOutput()
     assert grid.GetNumberOfPoints() == volume.GetNumberOfPoints() > 500  # one value per mesh node
     assert grid.GetNumberOfCells() == volume.GetNumberOfCells()
-    # Back in mm, where the domain is (the solver writes cm).
+    # In mm, where the domain is: peak.vtu is written in mm and loaded as it is.
     np.testing.assert_allclose(grid.GetBounds(), volume.GetBounds(), atol=1e-6)
     data = grid.GetPointData()
     speed = numpy_support.vtk_to_numpy(data.GetArray("speed_m_s"))
@@ -290,6 +293,12 @@ def test_redesign_while_simulating_marks_the_results_outdated(phantom_scene, exe
     assert curve.GetAttribute("BaffleDesigner.SimulationStatus") == "outdated"
     assert "(outdated: redesigned since)" in logic.simulationSummary(curve)
     assert job.message.endswith("the baffle was redesigned meanwhile, so these results are outdated")
+
+
+def test_a_run_with_doubts_is_inconclusive_whatever_its_dp():
+    assert simulation.verdict(3.0) == "pass" and simulation.verdict(12.0) == "fail"
+    for dp in (3.0, 12.0):
+        assert simulation.verdict(dp, ["the steady solve did not reach its residual target"]) == "inconclusive"
 
 
 def test_redesign_marks_the_simulation_outdated(phantom_scene):
