@@ -332,13 +332,18 @@ def model_names():
     return {n.GetName() for n in slicer.util.getNodesByClass("vtkMRMLModelNode")}
 
 
-def test_closing_the_scene_during_a_run_stops_it(widget):
-    w = widget
+def start_volume_mesh(w):
+    """Design the phantom in the widget and start its volume mesh; the running process."""
     require_cfd(w)
     model, curve, bsa = phantom_candidate()
     design_in_widget(w, model, curve, bsa)
     w.ui.volumeMeshButton.click()
-    process = w.run
+    return w.run
+
+
+def test_closing_the_scene_during_a_run_stops_it(widget):
+    w = widget
+    process = start_volume_mesh(w)
     slicer.mrmlScene.Clear(0)
     assert w.run is None and not w.processTimer.active
     assert process.wait(timeout=10) == "cancelled"
@@ -350,11 +355,7 @@ def test_closing_the_scene_after_a_run_ended_loads_nothing(widget):
     """The process has exited but the poll timer has not seen it yet: cancel() has
     nothing to stop, and the results must not land in the next scene."""
     w = widget
-    require_cfd(w)
-    model, curve, bsa = phantom_candidate()
-    design_in_widget(w, model, curve, bsa)
-    w.ui.volumeMeshButton.click()
-    process = w.run
+    process = start_volume_mesh(w)
     state = process.wait(timeout=120)  # no events processed: the timer does not poll
     if state == "failed" and "gmsh" in process.error_message().lower():
         pytest.skip(f"gmsh is not installed: {process.error_message()}")
