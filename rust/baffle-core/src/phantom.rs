@@ -443,7 +443,8 @@ fn suture_points_mm(params: &PhantomParams) -> Vec<Vec3> {
             let (a, b) = params.semi_axes_mm(sweep / params.sweep_angle_rad());
             // Clamped to the loop's own sweep range, so the rim margins still hold.
             let (sweep_lo, sweep_hi) = suture_sweep_range(params);
-            let sweep = (sweep + along_mm / (params.bend_radius_mm + a * section.cos())).clamp(sweep_lo, sweep_hi);
+            // max-then-min, not clamp: nonsense parameters (lo > hi) must not panic.
+            let sweep = (sweep + along_mm / (params.bend_radius_mm + a * section.cos())).max(sweep_lo).min(sweep_hi);
             params.wall_point_mm(sweep, section + across_mm / a.min(b))
         })
         .collect()
