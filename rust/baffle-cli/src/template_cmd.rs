@@ -6,7 +6,7 @@
 use crate::files::write_atomic;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::{pdf, svg, template_from_domain};
+use baffle_core::template::{pdf, svg, template_from_domain, FlattenMethod};
 use baffle_core::FaceLabels;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -32,6 +32,10 @@ pub struct TemplateArgs {
     /// Frame of the domain (the points are converted into it), as for `baffle design`.
     #[arg(long, value_enum, default_value_t = TemplateFrame::Lps)]
     pub surface_frame: TemplateFrame,
+    /// Flattening: lscm (conformal; keeps the seam's angles and edge lengths best) or
+    /// arap (LSCM then as-rigid-as-possible; smaller largest area change).
+    #[arg(long, value_enum, default_value_t = TemplateMethod::Lscm)]
+    pub method: TemplateMethod,
     #[arg(long, default_value_t = FaceLabels::default().baffle)]
     pub baffle_label: i32,
     #[arg(long, default_value_t = FaceLabels::default().vsd_cap)]
@@ -44,6 +48,12 @@ pub struct TemplateArgs {
 pub enum TemplateFrame {
     Lps,
     Ras,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum TemplateMethod {
+    Lscm,
+    Arap,
 }
 
 enum Format {
@@ -69,7 +79,11 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
     };
     let labels = FaceLabels { baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label, ..FaceLabels::default() };
     let text = TemplateText { patient_label: args.label.clone(), date: args.date.clone().unwrap_or_else(today_utc) };
-    let template = template_from_domain(&domain, &labels, &points.to_frame(frame), &points.labels, &text)
+    let method = match args.method {
+        TemplateMethod::Lscm => FlattenMethod::Lscm,
+        TemplateMethod::Arap => FlattenMethod::LscmArap,
+    };
+    let template = template_from_domain(&domain, &labels, &points.to_frame(frame), &points.labels, &text, method)
         .map_err(|e| format!("{}: {e}", args.domain.display()))?;
     let bytes = match format {
         Format::Pdf => pdf::to_pdf(&template.shapes),
@@ -90,7 +104,7 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
     write_atomic(&report_path, serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?.as_bytes())?;
     let r = &template.flat.report;
     println!(
-        "{}: seam {:.2} mm, perimeter {:.2} mm (error {:.1e}, LSCM scale {:.4}); area change median {:.2} % max {:.2} %; angle change median {:.2} max {:.2} deg",
+        "{}: seam {:.2} mm, perimeter {:.2} mm (error {:.1e}, map scaled by {:.4}); area change median {:.2} % max {:.2} %; angle change median {:.2} max {:.2} deg",
         args.out.display(),
         r.seam_length_3d_mm,
         r.perimeter_mm,

@@ -47,9 +47,21 @@ fn patient_design(name: &str, dir: &Path) -> Option<(PathBuf, PathBuf)> {
     Some((design.join("domain.vtp"), points))
 }
 
-fn template(domain: &Path, points: &Path, out: &Path, label: &str) -> serde_json::Value {
+fn template(domain: &Path, points: &Path, out: &Path, label: &str, method: &str) -> serde_json::Value {
     let stdout = ok(
-        baffle(&["template", "--domain", domain.to_str().unwrap(), "--points", points.to_str().unwrap(), "--out", out.to_str().unwrap(), "--label", label]),
+        baffle(&[
+            "template",
+            "--domain",
+            domain.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--label",
+            label,
+            "--method",
+            method,
+        ]),
         "template",
     );
     println!("{label}: {stdout}");
@@ -66,7 +78,7 @@ fn the_svg_is_in_mm_with_a_10_mm_bar_and_square_and_the_seam_length_outline() {
     let dir = temp_dir("svg");
     let (domain, points) = phantom_design(&dir);
     let svg_path = dir.join("template.svg");
-    let report = template(&domain, &points, &svg_path, "phantom");
+    let report = template(&domain, &points, &svg_path, "phantom", "lscm");
     let text = std::fs::read_to_string(&svg_path).unwrap();
     let doc = roxmltree::Document::parse(&text).unwrap();
     let root = doc.root_element();
@@ -185,9 +197,10 @@ fn pdf_templates_print_the_scale_bar_at_10_mm() {
             cases.push((name.to_string(), files));
         }
     }
-    for (name, (domain, points)) in &cases {
+    for ((name, (domain, points)), method) in cases.iter().zip(["lscm", "arap"].iter().cycle()) {
         let pdf = dir.join(format!("{name}.pdf"));
-        let report = template(domain, points, &pdf, name);
+        let report = template(domain, points, &pdf, name, method);
+        assert!(report["flattening"]["method"].as_str().unwrap().to_lowercase().contains(method), "{name}: {report}");
         let bytes = std::fs::read(&pdf).unwrap();
         assert!(bytes.starts_with(b"%PDF-1.4") && bytes.ends_with(b"%%EOF\n"));
         let f = &report["flattening"];
@@ -206,7 +219,15 @@ fn a_wrong_extension_and_a_domain_without_a_baffle_are_named() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("must end in .pdf or .svg"));
     let out = baffle(&[
-        "template", "--domain", domain.to_str().unwrap(), "--points", points.to_str().unwrap(), "--out", dir.join("t.svg").to_str().unwrap(), "--baffle-label", "99",
+        "template",
+        "--domain",
+        domain.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        dir.join("t.svg").to_str().unwrap(),
+        "--baffle-label",
+        "99",
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("domain.vtp") && err.contains("ModelFaceID 99"), "{err}");

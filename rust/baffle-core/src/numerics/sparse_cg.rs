@@ -37,12 +37,7 @@ impl SparseSym {
         for i in 0..self.n {
             row_start[i + 1] += row_start[i];
         }
-        Csr {
-            n: self.n,
-            row_start,
-            cols: triplets.iter().map(|&((_, j), _)| j).collect(),
-            values: triplets.iter().map(|&(_, v)| v).collect(),
-        }
+        Csr { n: self.n, row_start, cols: triplets.iter().map(|&((_, j), _)| j).collect(), values: triplets.iter().map(|&(_, v)| v).collect() }
     }
 }
 
@@ -54,9 +49,7 @@ impl Csr {
     }
 
     pub fn diagonal(&self) -> Vec<f64> {
-        (0..self.n)
-            .map(|i| (self.row_start[i]..self.row_start[i + 1]).find(|&k| self.cols[k] == i).map_or(0.0, |k| self.values[k]))
-            .collect()
+        (0..self.n).map(|i| (self.row_start[i]..self.row_start[i + 1]).find(|&k| self.cols[k] == i).map_or(0.0, |k| self.values[k])).collect()
     }
 }
 

@@ -17,7 +17,8 @@ pub const CHECK_SQUARE_SIDE_MM: f64 = 10.0;
 const PATCH_BOX_MM: (f64, f64, f64, f64) = (15.0, 45.0, 195.0, 245.0);
 /// Area distortion at which the colour map saturates (+-10 %).
 pub const COLOUR_RANGE: f64 = 0.10;
-const TEXT_MM: f64 = 3.5;
+/// Suture point and rim labels: small, as a baffle is only 20-35 mm across.
+const TEXT_MM: f64 = 2.2;
 
 /// A suture point as the surgeon placed it: its number and its place on the template.
 #[derive(Clone, Debug)]
@@ -40,12 +41,40 @@ pub const BLACK: Rgb = Rgb(0.0, 0.0, 0.0);
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
-    Triangle { points: [(f64, f64); 3], fill: Rgb },
-    Polyline { points: Vec<(f64, f64)>, closed: bool, width_mm: f64, colour: Rgb, id: Option<&'static str> },
-    Rect { x: f64, y: f64, w: f64, h: f64, fill: Option<Rgb>, stroke_mm: Option<f64>, id: &'static str },
-    Dot { x: f64, y: f64, radius_mm: f64, colour: Rgb },
+    Triangle {
+        points: [(f64, f64); 3],
+        fill: Rgb,
+    },
+    Polyline {
+        points: Vec<(f64, f64)>,
+        closed: bool,
+        width_mm: f64,
+        colour: Rgb,
+        id: Option<&'static str>,
+    },
+    Rect {
+        x: f64,
+        y: f64,
+        w: f64,
+        h: f64,
+        fill: Option<Rgb>,
+        stroke_mm: Option<f64>,
+        id: &'static str,
+    },
+    Dot {
+        x: f64,
+        y: f64,
+        radius_mm: f64,
+        colour: Rgb,
+    },
     /// Left-anchored text, baseline at y; `centred` shifts it left by half its width.
-    Text { x: f64, y: f64, size_mm: f64, text: String, centred: bool },
+    Text {
+        x: f64,
+        y: f64,
+        size_mm: f64,
+        text: String,
+        centred: bool,
+    },
 }
 
 /// A named part of the seam (boundary positions, in loop order) drawn over the outline.
@@ -72,7 +101,7 @@ pub fn layout(flat: &FlatPatch, markers: &[Marker], rims: &[Rim], text: &Templat
     for m in markers {
         let p = to_page(m.uv_mm);
         shapes.push(Shape::Dot { x: p.0, y: p.1, radius_mm: 0.6, colour: BLACK });
-        let (x, y) = pushed_out(p, centre, 3.5);
+        let (x, y) = pushed_out(p, centre, 4.0);
         shapes.push(Shape::Text { x, y: y + 0.35 * TEXT_MM, size_mm: TEXT_MM, text: m.label.clone(), centred: true });
     }
     shapes.extend(page_furniture(flat, text));
@@ -91,7 +120,10 @@ fn page_transform(flat: &FlatPatch) -> Result<impl Fn(Vec2) -> (f64, f64), Strin
     if size.x > x1 - x0 || size.y > y1 - y0 {
         return Err(format!(
             "the flattened baffle ({:.1} x {:.1} mm) does not fit the A4 template's {:.0} x {:.0} mm patch area at 1:1",
-            size.x, size.y, x1 - x0, y1 - y0
+            size.x,
+            size.y,
+            x1 - x0,
+            y1 - y0
         ));
     }
     let mid = (lo + hi) / 2.0;

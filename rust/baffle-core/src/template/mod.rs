@@ -24,6 +24,24 @@ use nalgebra::Vector2;
 
 pub type Vec2 = Vector2<f64>;
 
+/// How the baffle is flattened (see the module's header for why LSCM is the default).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum FlattenMethod {
+    #[default]
+    Lscm,
+    /// LSCM, then as-rigid-as-possible local/global iterations (Liu et al. 2008).
+    LscmArap,
+}
+
+impl FlattenMethod {
+    pub fn describe(self) -> &'static str {
+        match self {
+            FlattenMethod::Lscm => "LSCM (least-squares conformal map), two pinned seam vertices, scaled to the seam length",
+            FlattenMethod::LscmArap => "LSCM then ARAP (as-rigid-as-possible) iterations, scaled to the seam length",
+        }
+    }
+}
+
 /// The baffle flattened to the plane (mm), with its distortion.
 #[derive(Clone, Debug)]
 pub struct FlatPatch {
@@ -63,15 +81,24 @@ pub struct FlattenReport {
     pub area_flat_mm2: f64,
     pub triangles: usize,
     pub cg_iterations: usize,
+    pub arap_iterations: usize,
 }
 
+/// ARAP stops when an iteration lowers its energy by less than this fraction.
+const ARAP_REL_TOL: f64 = 1e-5;
+const ARAP_MAX_ITERATIONS: usize = 200;
+
 /// Flatten a disk-topology surface (mm). Errors name what is wrong with the input.
-pub fn flatten(mesh: &TriMesh) -> Result<FlatPatch, String> {
+pub fn flatten(mesh: &TriMesh, method: FlattenMethod) -> Result<FlatPatch, String> {
     let boundary = single_boundary(mesh)?;
     let (pin_a, pin_b) = farthest_pair(mesh, &boundary);
     let d_mm = (mesh.points[pin_b as usize] - mesh.points[pin_a as usize]).norm();
     let pins = [(pin_a, Vec2::zeros()), (pin_b, Vec2::new(d_mm, 0.0))];
-    let (uv, cg_iterations) = lscm(mesh, &pins)?;
+    let (conformal, cg_iterations) = lscm(mesh, &pins)?;
+    let (uv, arap_iterations) = match method {
+        FlattenMethod::Lscm => (conformal, 0),
+        FlattenMethod::LscmArap => arap(mesh, conformal, pin_a, ARAP_MAX_ITERATIONS, ARAP_REL_TOL)?,
+    };
     let seam_3d = loop_length(&boundary, |i| mesh.points[i as usize].into());
     let perimeter_unscaled = loop_length(&boundary, |i| lift(uv[i as usize]));
     if !(perimeter_unscaled > 0.0) {
@@ -85,7 +112,7 @@ pub fn flatten(mesh: &TriMesh) -> Result<FlatPatch, String> {
     let edge_errors = seam_edge_errors(mesh, &uv_mm, &boundary);
     let area_err: Vec<f64> = area_ratio.iter().map(|r| (r - 1.0).abs()).collect();
     let report = FlattenReport {
-        method: "LSCM (least-squares conformal map), two pinned seam vertices, scaled to the seam length",
+        method: method.describe(),
         seam_length_3d_mm: seam_3d,
         perimeter_mm,
         perimeter_error: (perimeter_mm - seam_3d).abs() / seam_3d,
@@ -100,6 +127,7 @@ pub fn flatten(mesh: &TriMesh) -> Result<FlatPatch, String> {
         area_flat_mm2: mesh.triangles.iter().map(|&t| flat_area(&uv_mm, t)).sum(),
         triangles: mesh.triangles.len(),
         cg_iterations,
+        arap_iterations,
     };
     if let Some(t) = area_ratio.iter().position(|r| !(*r > 0.0)) {
         return Err(format!("flattening folded triangle {t} (flat area ratio {:.3})", area_ratio[t]));
@@ -147,12 +175,13 @@ pub fn template_from_domain(
     suture_points_mm: &[Vec3],
     point_labels: &[String],
     text: &drawing::TemplateText,
+    method: FlattenMethod,
 ) -> Result<Template, String> {
     let baffle = domain.with_labels(|l| l == labels.baffle);
     if baffle.triangles.is_empty() {
         return Err(format!("the domain has no baffle triangles (ModelFaceID {})", labels.baffle));
     }
-    let flat = flatten(&baffle)?;
+    let flat = flatten(&baffle, method)?;
     let seam: Vec<Vec3> = flat.boundary.iter().map(|&i| baffle.points[i as usize]).collect();
     let mut markers = Vec::new();
     let mut suture_offsets_mm = Vec::new();
@@ -170,10 +199,7 @@ pub fn template_from_domain(
         Ok(seam.iter().map(|p| nearest(&cap.points, p).1).collect())
     };
     let (to_vsd, to_aorta) = (distances(labels.vsd_cap, "VSD")?, distances(labels.aortic_cap, "aortic")?);
-    let rims = [
-        rim("VSD", drawing::Rgb(0.0, 0.45, 0.0), &to_vsd, &to_aorta),
-        rim("Ao", drawing::Rgb(0.55, 0.0, 0.55), &to_aorta, &to_vsd),
-    ];
+    let rims = [rim("VSD", drawing::Rgb(0.0, 0.45, 0.0), &to_vsd, &to_aorta), rim("Ao", drawing::Rgb(0.55, 0.0, 0.55), &to_aorta, &to_vsd)];
     let shapes = drawing::layout(&flat, &markers, &rims, text)?;
     Ok(Template {
         seam_to_vsd_cap_mm: min(&to_vsd),
@@ -188,12 +214,7 @@ pub fn template_from_domain(
 
 /// Index of the point of `points` nearest to `p`, and its distance (mm).
 fn nearest(points: &[Vec3], p: &Vec3) -> (usize, f64) {
-    points
-        .iter()
-        .enumerate()
-        .map(|(k, q)| (k, (q - p).norm()))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .unwrap_or((0, f64::INFINITY))
+    points.iter().enumerate().map(|(k, q)| (k, (q - p).norm())).min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((0, f64::INFINITY))
 }
 
 fn single_boundary(mesh: &TriMesh) -> Result<Vec<u32>, String> {
@@ -222,72 +243,131 @@ fn farthest_pair(mesh: &TriMesh, boundary: &[u32]) -> (u32, u32) {
     (best.0, best.1)
 }
 
+/// The unknowns of a flattening: two per vertex (u, v), except at pinned vertices.
+struct Unknowns {
+    pinned: Vec<Option<Vec2>>,
+    /// Column of (vertex, coordinate), `usize::MAX` when pinned.
+    col: Vec<usize>,
+    count: usize,
+}
+
+impl Unknowns {
+    fn new(vertices: usize, pins: &[(u32, Vec2)]) -> Self {
+        let mut pinned: Vec<Option<Vec2>> = vec![None; vertices];
+        for &(v, p) in pins {
+            pinned[v as usize] = Some(p);
+        }
+        let mut col = vec![usize::MAX; 2 * vertices];
+        let mut count = 0;
+        for v in (0..vertices).filter(|&v| pinned[v].is_none()) {
+            col[2 * v] = count;
+            col[2 * v + 1] = count + 1;
+            count += 2;
+        }
+        Unknowns { pinned, col, count }
+    }
+
+    fn positions(&self, x: &[f64]) -> Vec<Vec2> {
+        (0..self.pinned.len()).map(|v| self.pinned[v].unwrap_or_else(|| Vec2::new(x[self.col[2 * v]], x[self.col[2 * v + 1]]))).collect()
+    }
+
+    /// Add the least-squares row (sum of coefficient x variable = target) to the normal
+    /// equations: row^T row into `system` (when given), row^T (target - pinned part) into
+    /// `rhs`. Variables are 2 * vertex + coordinate.
+    fn add_row(&self, row: &[(usize, f64)], target: f64, system: Option<&mut SparseSym>, rhs: &mut [f64]) {
+        let known: f64 = row.iter().filter_map(|&(var, a)| self.pinned[var / 2].map(|p| a * p[var % 2])).sum();
+        for &(vi, ai) in row.iter().filter(|&&(v, _)| self.col[v] != usize::MAX) {
+            rhs[self.col[vi]] += ai * (target - known);
+        }
+        if let Some(system) = system {
+            for &(vi, ai) in row.iter().filter(|&&(v, _)| self.col[v] != usize::MAX) {
+                for &(vj, aj) in row.iter().filter(|&&(v, _)| self.col[v] != usize::MAX) {
+                    system.add(self.col[vi], self.col[vj], ai * aj);
+                }
+            }
+        }
+    }
+}
+
+/// Every triangle's barycentric gradients in its own frame, and sqrt(area) as row weight.
+fn triangle_frames(mesh: &TriMesh) -> Result<Vec<([Vec2; 3], f64)>, String> {
+    (0..mesh.triangles.len())
+        .map(|t| {
+            let grads = local_gradients(mesh, mesh.triangles[t]).ok_or_else(|| format!("baffle triangle {t} is degenerate (zero area)"))?;
+            Ok((grads, mesh.triangle_area_mm2(t).sqrt()))
+        })
+        .collect()
+}
+
 /// LSCM: per triangle, in its own orthonormal frame, the Cauchy-Riemann residuals
 /// u_x - v_y and u_y + v_x of the linear map, weighted by the triangle's area; their
 /// sum of squares is minimized with the pinned vertices fixed (normal equations, CG).
 fn lscm(mesh: &TriMesh, pins: &[(u32, Vec2)]) -> Result<(Vec<Vec2>, usize), String> {
-    let n = mesh.points.len();
-    // Unknown index of (vertex, coordinate), None when pinned.
-    let mut pinned: Vec<Option<Vec2>> = vec![None; n];
-    for &(v, p) in pins {
-        pinned[v as usize] = Some(p);
+    let unknowns = Unknowns::new(mesh.points.len(), pins);
+    let mut system = SparseSym::new(unknowns.count);
+    let mut rhs = vec![0.0; unknowns.count];
+    for (tri, (grads, w)) in mesh.triangles.iter().zip(triangle_frames(mesh)?) {
+        let var = |k: usize, c: usize| 2 * tri[k] as usize + c;
+        let r1: Vec<(usize, f64)> = (0..3).flat_map(|k| [(var(k, 0), w * grads[k].x), (var(k, 1), -w * grads[k].y)]).collect();
+        let r2: Vec<(usize, f64)> = (0..3).flat_map(|k| [(var(k, 0), w * grads[k].y), (var(k, 1), w * grads[k].x)]).collect();
+        unknowns.add_row(&r1, 0.0, Some(&mut system), &mut rhs);
+        unknowns.add_row(&r2, 0.0, Some(&mut system), &mut rhs);
     }
-    let mut col = vec![usize::MAX; 2 * n];
-    let mut free = 0;
-    for v in 0..n {
-        if pinned[v].is_none() {
-            col[2 * v] = free;
-            col[2 * v + 1] = free + 1;
-            free += 2;
-        }
-    }
-    let mut system = SparseSym::new(free);
-    let mut rhs = vec![0.0; free];
-    for (t, &tri) in mesh.triangles.iter().enumerate() {
-        let grads = local_gradients(mesh, tri).ok_or_else(|| format!("baffle triangle {t} is degenerate (zero area)"))?;
-        let w = mesh.triangle_area_mm2(t).sqrt();
-        // Row coefficients over (u_k, v_k) for the two residuals.
-        let rows: [[(usize, f64); 6]; 2] = [
-            std::array::from_fn(|j| {
-                let (k, c) = (j / 2, j % 2);
-                (2 * tri[k] as usize + c, w * if c == 0 { grads[k].x } else { -grads[k].y })
-            }),
-            std::array::from_fn(|j| {
-                let (k, c) = (j / 2, j % 2);
-                (2 * tri[k] as usize + c, w * if c == 0 { grads[k].y } else { grads[k].x })
-            }),
-        ];
-        for row in &rows {
-            accumulate_row(row, &col, &pinned, &mut system, &mut rhs);
-        }
-    }
-    let (x, iterations) = conjugate_gradient(&system.finish(), &rhs, 1e-12, 20 * free + 100)
-        .map_err(|e| format!("LSCM solve: {e}"))?;
-    let uv = (0..n)
-        .map(|v| pinned[v].unwrap_or_else(|| Vec2::new(x[col[2 * v]], x[col[2 * v + 1]])))
-        .collect();
-    Ok((uv, iterations))
+    let (x, iterations) = conjugate_gradient(&system.finish(), &rhs, 1e-12, 20 * unknowns.count + 100).map_err(|e| format!("LSCM solve: {e}"))?;
+    Ok((unknowns.positions(&x), iterations))
 }
 
-/// Add row^T row to the normal equations; pinned columns go to the right-hand side.
-fn accumulate_row(row: &[(usize, f64); 6], col: &[usize], pinned: &[Option<Vec2>], system: &mut SparseSym, rhs: &mut [f64]) {
-    let known: f64 = row
-        .iter()
-        .filter_map(|&(var, a)| pinned[var / 2].map(|p| a * p[var % 2]))
-        .sum();
-    for &(vi, ai) in row {
-        let i = col[vi];
-        if i == usize::MAX {
-            continue;
-        }
-        rhs[i] -= ai * known;
-        for &(vj, aj) in row {
-            let j = col[vj];
-            if j != usize::MAX {
-                system.add(i, j, ai * aj);
-            }
+/// ARAP refinement (Liu et al. 2008), local/global: each triangle's Jacobian is fitted
+/// to its closest rotation (local), then all vertices to those rotations in least
+/// squares (global, the same matrix every time), until the energy
+/// sum A_t |J_t - R_t|^2 stops falling by more than `rel_tol`.
+fn arap(mesh: &TriMesh, start: Vec<Vec2>, pin: u32, max_iterations: usize, rel_tol: f64) -> Result<(Vec<Vec2>, usize), String> {
+    let frames = triangle_frames(mesh)?;
+    let unknowns = Unknowns::new(mesh.points.len(), &[(pin, start[pin as usize])]);
+    let rows = |tri: [u32; 3], grads: &[Vec2; 3], w: f64, a: usize, b: usize| -> [(usize, f64); 3] {
+        std::array::from_fn(|k| (2 * tri[k] as usize + a, w * grads[k][b]))
+    };
+    let mut system = SparseSym::new(unknowns.count);
+    let mut scratch = vec![0.0; unknowns.count];
+    for (tri, (grads, w)) in mesh.triangles.iter().zip(&frames) {
+        for (a, b) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+            unknowns.add_row(&rows(*tri, grads, *w, a, b), 0.0, Some(&mut system), &mut scratch);
         }
     }
+    let system = system.finish();
+    let mut uv = start;
+    let mut last_energy = f64::INFINITY;
+    for iteration in 1..=max_iterations {
+        let mut rhs = vec![0.0; unknowns.count];
+        let mut energy = 0.0;
+        for (tri, (grads, w)) in mesh.triangles.iter().zip(&frames) {
+            let j = jacobian(&uv, *tri, grads);
+            let r = closest_rotation(&j);
+            energy += w * w * (j - r).norm_squared();
+            for (a, b) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                unknowns.add_row(&rows(*tri, grads, *w, a, b), w * r[(a, b)], None, &mut rhs);
+            }
+        }
+        if last_energy.is_finite() && last_energy - energy <= rel_tol * last_energy {
+            return Ok((uv, iteration - 1));
+        }
+        last_energy = energy;
+        let (x, _) = conjugate_gradient(&system, &rhs, 1e-10, 20 * unknowns.count + 100).map_err(|e| format!("ARAP solve: {e}"))?;
+        uv = unknowns.positions(&x);
+    }
+    Ok((uv, max_iterations))
+}
+
+/// The flat map's Jacobian on a triangle (rows u, v; columns the triangle's x, y).
+fn jacobian(uv: &[Vec2], tri: [u32; 3], grads: &[Vec2; 3]) -> nalgebra::Matrix2<f64> {
+    (0..3).map(|k| uv[tri[k] as usize] * grads[k].transpose()).sum()
+}
+
+/// The rotation nearest to a 2x2 matrix (Frobenius norm).
+fn closest_rotation(j: &nalgebra::Matrix2<f64>) -> nalgebra::Matrix2<f64> {
+    let angle = (j[(1, 0)] - j[(0, 1)]).atan2(j[(0, 0)] + j[(1, 1)]);
+    let (s, c) = angle.sin_cos();
+    nalgebra::Matrix2::new(c, -s, s, c)
 }
 
 /// Gradients of the three barycentric coordinates in the triangle's own frame

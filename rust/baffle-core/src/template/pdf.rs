@@ -13,9 +13,7 @@ pub fn to_pdf(shapes: &[Shape]) -> Vec<u8> {
     let objects = [
         "<< /Type /Catalog /Pages 2 0 R >>".to_string(),
         "<< /Type /Pages /Kids [3 0 R] /Count 1 >>".to_string(),
-        format!(
-            "<< /Type /Page /Parent 2 0 R /MediaBox [0 0 {w_pt:.4} {h_pt:.4}] /Resources << /Font << /F1 4 0 R >> >> /Contents 5 0 R >>"
-        ),
+        format!("<< /Type /Page /Parent 2 0 R /MediaBox [0 0 {w_pt:.4} {h_pt:.4}] /Resources << /Font << /F1 4 0 R >> >> /Contents 5 0 R >>"),
         "<< /Type /Font /Subtype /Type1 /BaseFont /Helvetica /Encoding /WinAnsiEncoding >>".to_string(),
         format!("<< /Length {} >>\nstream\n{content}endstream", content.len()),
     ];
@@ -46,11 +44,8 @@ fn content_stream(shapes: &[Shape]) -> String {
                 writeln!(s, "{} {:.3} {:.3} m {:.3} {:.3} l {:.3} {:.3} l h f", fill_op(*fill), a.0, y(a.1), b.0, y(b.1), c.0, y(c.1))
             }
             Shape::Polyline { points, closed, width_mm, colour, .. } => {
-                let path: Vec<String> = points
-                    .iter()
-                    .enumerate()
-                    .map(|(k, p)| format!("{:.3} {:.3} {}", p.0, y(p.1), if k == 0 { "m" } else { "l" }))
-                    .collect();
+                let path: Vec<String> =
+                    points.iter().enumerate().map(|(k, p)| format!("{:.3} {:.3} {}", p.0, y(p.1), if k == 0 { "m" } else { "l" })).collect();
                 writeln!(s, "{} {width_mm} w {} {}", stroke_op(*colour), path.join(" "), if *closed { "h S" } else { "S" })
             }
             Shape::Rect { x, y: top, w, h, fill, stroke_mm, .. } => {

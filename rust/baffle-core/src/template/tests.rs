@@ -30,14 +30,16 @@ fn cylinder_piece() -> TriMesh {
 
 #[test]
 fn a_cylinder_piece_flattens_without_distortion() {
-    let flat = flatten(&cylinder_piece()).unwrap();
-    let r = &flat.report;
-    assert!(r.perimeter_error < 1e-3, "{r:?}");
-    assert!(r.area_distortion_max < 1e-6, "{r:?}");
-    assert!(r.angle_distortion_max_deg < 1e-4, "{r:?}");
-    assert!(r.seam_edge_error_max < 1e-6, "{r:?}");
-    // The unrolled rectangle: 18 mm (arc) by 25 mm.
-    assert!((r.area_flat_mm2 - r.area_3d_mm2).abs() < 1e-6 * r.area_3d_mm2);
+    for method in [FlattenMethod::Lscm, FlattenMethod::LscmArap] {
+        let flat = flatten(&cylinder_piece(), method).unwrap();
+        let r = &flat.report;
+        assert!(r.perimeter_error < 1e-3, "{r:?}");
+        assert!(r.area_distortion_max < 1e-6, "{r:?}");
+        assert!(r.angle_distortion_max_deg < 1e-4, "{r:?}");
+        assert!(r.seam_edge_error_max < 1e-6, "{r:?}");
+        // The unrolled rectangle: 18 mm (arc) by 25 mm.
+        assert!((r.area_flat_mm2 - r.area_3d_mm2).abs() < 1e-6 * r.area_3d_mm2);
+    }
 }
 
 #[test]
@@ -47,15 +49,18 @@ fn a_sphere_cap_shows_its_distortion() {
         let (a, b) = ((s - 0.5) * 1.0, (t - 0.5) * 1.0);
         Vec3::new(15.0 * a.sin() * b.cos(), 15.0 * b.sin(), 15.0 * a.cos() * b.cos())
     });
-    let r = flatten(&cap).unwrap().report;
-    assert!(r.area_distortion_max > 0.02, "{r:?}");
-    assert!(r.angle_distortion_median_deg < 1.0, "conformal: angles nearly kept, {r:?}");
-    assert!(r.perimeter_error < 1e-9, "{r:?}");
+    let lscm = flatten(&cap, FlattenMethod::Lscm).unwrap().report;
+    assert!(lscm.area_distortion_max > 0.02, "{lscm:?}");
+    assert!(lscm.angle_distortion_median_deg < 1.0, "conformal: angles nearly kept, {lscm:?}");
+    assert!(lscm.perimeter_error < 1e-9, "{lscm:?}");
+    // ARAP trades angles for areas.
+    let arap = flatten(&cap, FlattenMethod::LscmArap).unwrap().report;
+    assert!(arap.arap_iterations > 0 && arap.area_distortion_max < lscm.area_distortion_max, "{arap:?} vs {lscm:?}");
 }
 
 #[test]
 fn the_flat_patch_keeps_the_winding() {
-    let flat = flatten(&cylinder_piece()).unwrap();
+    let flat = flatten(&cylinder_piece(), FlattenMethod::LscmArap).unwrap();
     assert!(flat.area_ratio.iter().all(|r| *r > 0.0));
 }
 
@@ -75,6 +80,6 @@ fn a_tube_is_refused_with_its_boundary_count() {
             }
         }
     }
-    let err = flatten(&welded).unwrap_err();
+    let err = flatten(&welded, FlattenMethod::Lscm).unwrap_err();
     assert!(err.contains("one boundary loop") && err.contains("2"), "{err}");
 }
