@@ -153,19 +153,18 @@ fn pushed_out(p: (f64, f64), centre: (f64, f64), by_mm: f64) -> (f64, f64) {
     (p.0 + by_mm * dx / len, p.1 + by_mm * dy / len)
 }
 
-/// The rim as runs of consecutive seam edges, thick and coloured, named at its middle.
+/// The rim as runs of consecutive seam edges, thick and coloured, named at the middle
+/// of its longest run.
 fn rim_shapes(rim: &Rim, outline: &[(f64, f64)], centre: (f64, f64)) -> Vec<Shape> {
-    let n = outline.len();
-    let on: Vec<bool> = (0..n).map(|k| rim.boundary_positions.contains(&k)).collect();
-    let mut shapes = Vec::new();
-    for run in runs(&on) {
-        let points: Vec<(f64, f64)> = run.iter().map(|&k| outline[k]).collect();
-        if points.len() >= 2 {
-            shapes.push(Shape::Polyline { points, closed: false, width_mm: 1.0, colour: rim.colour, id: None });
-        }
-    }
-    if let Some(mid) = rim.boundary_positions.get(rim.boundary_positions.len() / 2) {
-        let (x, y) = pushed_out(outline[*mid], centre, 8.0);
+    let on: Vec<bool> = (0..outline.len()).map(|k| rim.boundary_positions.contains(&k)).collect();
+    let runs = runs(&on);
+    let mut shapes: Vec<Shape> = runs
+        .iter()
+        .filter(|run| run.len() >= 2)
+        .map(|run| Shape::Polyline { points: run.iter().map(|&k| outline[k]).collect(), closed: false, width_mm: 1.0, colour: rim.colour, id: None })
+        .collect();
+    if let Some(longest) = runs.iter().max_by_key(|run| run.len()) {
+        let (x, y) = pushed_out(outline[longest[longest.len() / 2]], centre, 8.0);
         shapes.push(Shape::Text { x, y, size_mm: TEXT_MM, text: rim.name.to_string(), centred: true });
     }
     shapes
