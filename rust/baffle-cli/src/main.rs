@@ -23,6 +23,7 @@ mod feasibility;
 mod files;
 mod simulate_cmd;
 mod simulate_svmp;
+mod template_cmd;
 mod verdict;
 
 #[derive(Parser)]
@@ -64,6 +65,9 @@ enum Command {
     /// Prepare (from --segmentations or --labelmap), design, mesh and simulate in one run,
     /// and write report.json and report.html.
     Plan(plan_cmd::PlanArgs),
+    /// True-scale patch template (A4 PDF or SVG): the designed baffle flattened, suture
+    /// points numbered, VSD and aortic rims, 10 mm scale bar and check square.
+    Template(template_cmd::TemplateArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
@@ -199,6 +203,7 @@ fn main() -> ExitCode {
         Command::Centerline(args) => centerline_cmd::run_centerline(&args),
         Command::ExportSvmp(args) => export_cmd::run_export(&args),
         Command::Plan(args) => plan_cmd::run_plan(&args),
+        Command::Template(args) => template_cmd::run_template(&args),
         Command::Phantom { out, heart: false } => write_phantom(&out),
         Command::Phantom { out, heart: true } => prepare_cmd::write_synthetic_heart(&out),
     };

@@ -32,6 +32,7 @@ pub mod compare;
 pub mod voxel;
 pub mod flow_centerline;
 pub mod reference_data;
+pub mod template;
 
 pub use design::{design, DesignOptions, DesignReport, DesignResult};
 pub use error::DesignError;

@@ -1,0 +1,119 @@
+//! `baffle template`: the true-scale patch template the surgeon cuts the baffle from
+//! (issue 17): the designed baffle flattened (LSCM, scaled to the seam length), the
+//! suture points numbered, the VSD and aortic rims, a 10 mm scale bar and check square,
+//! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %.
+
+use crate::files::write_atomic;
+use baffle_core::io::{read_points, read_surface, CoordinateSystem};
+use baffle_core::template::drawing::{today_utc, TemplateText};
+use baffle_core::template::{pdf, svg, template_from_domain, FlattenMethod};
+use baffle_core::FaceLabels;
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct TemplateArgs {
+    /// Designed domain (domain.vtp from `baffle design`): ModelFaceID baffle, VSD and aortic caps.
+    #[arg(long)]
+    pub domain: PathBuf,
+    /// The surgeon's suture points (.mrk.json, .fcsv, CSV or JSON), numbered on the template.
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Output: .pdf (A4, vector) or .svg (A4, viewBox in mm). A JSON report with the
+    /// perimeter and distortion figures is written beside it (<stem>-report.json).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Patient label printed on the template.
+    #[arg(long, default_value = "")]
+    pub label: String,
+    /// Date printed on the template (default: today, UTC).
+    #[arg(long)]
+    pub date: Option<String>,
+    /// Frame of the domain (the points are converted into it), as for `baffle design`.
+    #[arg(long, value_enum, default_value_t = TemplateFrame::Lps)]
+    pub surface_frame: TemplateFrame,
+    /// Flattening: lscm (conformal; keeps the seam's angles and edge lengths best) or
+    /// arap (LSCM then as-rigid-as-possible; smaller largest area change).
+    #[arg(long, value_enum, default_value_t = TemplateMethod::Lscm)]
+    pub method: TemplateMethod,
+    #[arg(long, default_value_t = FaceLabels::default().baffle)]
+    pub baffle_label: i32,
+    #[arg(long, default_value_t = FaceLabels::default().vsd_cap)]
+    pub vsd_label: i32,
+    #[arg(long, default_value_t = FaceLabels::default().aortic_cap)]
+    pub aortic_label: i32,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum TemplateFrame {
+    Lps,
+    Ras,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum TemplateMethod {
+    Lscm,
+    Arap,
+}
+
+enum Format {
+    Pdf,
+    Svg,
+}
+
+fn format_of(path: &std::path::Path) -> Result<Format, String> {
+    match path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).as_deref() {
+        Some("pdf") => Ok(Format::Pdf),
+        Some("svg") => Ok(Format::Svg),
+        _ => Err(format!("{}: --out must end in .pdf or .svg", path.display())),
+    }
+}
+
+pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
+    let format = format_of(&args.out)?;
+    let domain = read_surface(&args.domain).map_err(|e| format!("{}: {e}", args.domain.display()))?;
+    let points = read_points(&args.points).map_err(|e| format!("{}: {e}", args.points.display()))?;
+    let frame = match args.surface_frame {
+        TemplateFrame::Lps => CoordinateSystem::Lps,
+        TemplateFrame::Ras => CoordinateSystem::Ras,
+    };
+    let labels = FaceLabels { baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label, ..FaceLabels::default() };
+    let text = TemplateText { patient_label: args.label.clone(), date: args.date.clone().unwrap_or_else(today_utc) };
+    let method = match args.method {
+        TemplateMethod::Lscm => FlattenMethod::Lscm,
+        TemplateMethod::Arap => FlattenMethod::LscmArap,
+    };
+    let template = template_from_domain(&domain, &labels, &points.to_frame(frame), &points.labels, &text, method)
+        .map_err(|e| format!("{}: {e}", args.domain.display()))?;
+    let bytes = match format {
+        Format::Pdf => pdf::to_pdf(&template.shapes),
+        Format::Svg => svg::to_svg(&template.shapes).into_bytes(),
+    };
+    write_atomic(&args.out, &bytes)?;
+    let report = serde_json::json!({
+        "flattening": template.flat.report,
+        "suture_point_to_seam_mm": template.suture_offsets_mm,
+        "vsd_rim_seam_vertices": template.vsd_rim_vertices,
+        "aortic_rim_seam_vertices": template.aortic_rim_vertices,
+        "seam_to_vsd_cap_mm": template.seam_to_vsd_cap_mm,
+        "seam_to_aortic_cap_mm": template.seam_to_aortic_cap_mm,
+        "page": "A4 portrait 210 x 297 mm, 1:1 at 100 %",
+    });
+    let stem = args.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let report_path = args.out.with_file_name(format!("{stem}-report.json"));
+    write_atomic(&report_path, serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?.as_bytes())?;
+    let r = &template.flat.report;
+    println!(
+        "{}: seam {:.2} mm, perimeter {:.2} mm (error {:.1e}, map scaled by {:.4}); area change median {:.2} % max {:.2} %; angle change median {:.2} max {:.2} deg",
+        args.out.display(),
+        r.seam_length_3d_mm,
+        r.perimeter_mm,
+        r.perimeter_error,
+        r.scale,
+        100.0 * r.area_distortion_median,
+        100.0 * r.area_distortion_max,
+        r.angle_distortion_median_deg,
+        r.angle_distortion_max_deg
+    );
+    Ok(())
+}
