@@ -20,6 +20,7 @@ pub struct KeptRegion {
 
 /// Split the imprinted surface along the seam loop and keep the side with both caps.
 pub fn keep_capped_side(mesh: &TriMesh, seam_loop: &[u32], labels: &FaceLabels) -> Result<KeptRegion, DesignError> {
+    check_connected(mesh)?;
     let seam_edges: HashSet<(u32, u32)> =
         (0..seam_loop.len()).map(|i| edge_key(seam_loop[i], seam_loop[(i + 1) % seam_loop.len()])).collect();
     let component = components_across(mesh, &seam_edges);
@@ -48,6 +49,21 @@ pub fn keep_capped_side(mesh: &TriMesh, seam_loop: &[u32], labels: &FaceLabels) 
     }
     let (sub, _) = mesh.submesh(&keep);
     region_from_mesh(sub, discarded_area_mm2)
+}
+
+/// A second part (a stray shell, a detached cap) would show up only as a seam that
+/// "splits the surface into 3": name it as what it is.
+fn check_connected(mesh: &TriMesh) -> Result<(), DesignError> {
+    let component = components_across(mesh, &HashSet::new());
+    let count = component.iter().copied().max().map_or(0, |c| c as usize + 1);
+    if count <= 1 {
+        return Ok(());
+    }
+    let mut sizes = vec![0usize; count];
+    component.iter().for_each(|&c| sizes[c as usize] += 1);
+    Err(DesignError::Surface(format!(
+        "the surface has {count} disconnected parts ({sizes:?} triangles); the design needs one closed ventricle surface"
+    )))
 }
 
 /// Remesh the kept region isotropically, preserving the seam (bit-identical
