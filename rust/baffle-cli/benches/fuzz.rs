@@ -63,7 +63,9 @@ fn main() {
     let slots = targets.len() + usize::from(fuzz_design);
     let per_target = Duration::from_secs_f64(settings.seconds / slots.max(1) as f64);
     let mut total_findings = 0;
-    println!("fuzz: {} s over {slots} targets, seed {}", settings.seconds, settings.seed);
+    // An allocation failure aborts the process (no hook on stable Rust): the input it
+    // died on is then still in the scratch folder.
+    println!("fuzz: {} s over {slots} targets, seed {}, scratch {}", settings.seconds, settings.seed, scratch.display());
     for (i, target) in targets.iter().enumerate() {
         let tally = fuzz_reader(target, &settings, &scratch, per_target, settings.seed.wrapping_add(i as u64));
         total_findings += report(target.name, target.seeds.len(), &tally);
