@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs every test of the project: Rust (cargo test + the design and solver benchmarks' smoke modes, one pass of the kernel bench),
+# Runs every test of the project: Rust (cargo test + the design and solver benchmarks' smoke modes, a 20 s fuzz run, one pass of the kernel bench),
 # the C/C++/VTK integration tests (CMake + ctest, incl. valgrind) and the Python
 # package's tests (pip install ./python + pytest) and the 3D Slicer module's tests on
 # slicer-core (scripts/test_slicer.sh). Exits non-zero on any failure.
@@ -22,6 +22,9 @@ if [[ -f rust/baffle-cli/benches/design.rs ]]; then
 else
   step "skipping the benchmark smoke run: rust/baffle-cli/benches/design.rs does not exist yet"
 fi
+
+step "cargo bench -p baffle-cli --bench fuzz -- --seconds 20 (readers and design on perturbed surfaces: no panic, no hang)"
+cargo bench -p baffle-cli --bench fuzz -- --seconds 20
 
 step "cargo bench -p baffle-cfd --bench solver -- --smoke"
 cargo bench -p baffle-cfd --bench solver -- --smoke

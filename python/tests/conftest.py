@@ -1,5 +1,6 @@
 """Shared fixtures: the patient data directory (BAFFLE_DATA_DIR, else ../shared/data
-beside the repository); tests that need it skip with a note when it is absent."""
+beside the repository); tests that need it skip with a note when it is absent
+(and fail under CI=true)."""
 
 import json
 import os
@@ -14,6 +15,14 @@ def data_dir() -> Path:
     return Path(os.environ.get("BAFFLE_DATA_DIR") or REPO.parent / "shared" / "data")
 
 
+def missing_data(folder: Path) -> None:
+    """Skip a real-data test, with a note; under CI=true fail it instead, so a broken
+    path cannot turn the real-data checks into silent passes."""
+    if os.environ.get("CI", "").lower() in ("true", "1"):
+        pytest.fail(f"patient data not found at {folder} (CI=true: the real-data checks must run; set BAFFLE_DATA_DIR)")
+    pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
+
+
 @pytest.fixture
 def patient_input():
     """(design_input directory, BSA m2) of a patient, or skip."""
@@ -22,7 +31,7 @@ def patient_input():
         root = data_dir()
         folder = root / patient / "design_input"
         if not (folder / "capped_ventricle.vtp").exists():
-            pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
+            missing_data(folder)
         bsa_m2 = json.loads((root / "patients.json").read_text())["patients"][patient]["bsa_m2"]
         return folder, bsa_m2
 

@@ -69,6 +69,15 @@ def test_bad_arrays_are_rejected(phantom):
         baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, seam_sample=3)
 
 
+def test_options_are_range_checked_by_the_library(phantom):
+    # The same DesignOptions::validate as the CLI: a NaN distance must not switch the check off.
+    surface, points, bsa_m2 = phantom
+    with pytest.raises(baffle.BaffleError, match=r"max_point_distance_mm = NaN is outside \[0, 100\]"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, max_point_distance_mm=float("nan"))
+    with pytest.raises(baffle.BaffleError, match="remesh_edge_mm = 0.000001 is outside"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, remesh_edge_mm=1e-6)
+
+
 def test_progress_false_cancels(phantom):
     surface, points, bsa_m2 = phantom
     seen = []

@@ -70,6 +70,7 @@ fn design_error(e: DesignError) -> CallError {
         DesignError::Surface(_) | DesignError::MissingLabel { .. } | DesignError::SuturePoints(_) | DesignError::Target(_) => {
             BaffleStatus::InvalidInput
         }
+        DesignError::Options(_) => BaffleStatus::InvalidArgument,
         DesignError::Cancelled(_) => BaffleStatus::Cancelled,
         DesignError::Seam(_) | DesignError::Baffle(_) | DesignError::Infeasible { .. } | DesignError::Numerical { .. } => BaffleStatus::DesignFailed,
     };

@@ -145,50 +145,28 @@ impl BaffleDesignOptions {
         })
     }
 
-    /// The core's options, with every tunable range-checked (so no value can make
-    /// the design allocate without bound or loop forever).
+    /// The core's options, range-checked by `DesignOptions::validate` (so no value can
+    /// make the design allocate without bound or loop forever).
     pub(crate) fn design_options(&self) -> Result<DesignOptions, CallError> {
-        let labels = FaceLabels {
-            wall: self.wall_label,
-            baffle: self.baffle_label,
-            vsd_cap: self.vsd_cap_label,
-            aortic_cap: self.aortic_cap_label,
-        };
-        let all = [labels.wall, labels.baffle, labels.vsd_cap, labels.aortic_cap];
-        if (1..4).any(|i| all[..i].contains(&all[i])) {
-            return Err(CallError::invalid(format!("options: the four labels must differ, got {all:?}")));
-        }
-        Ok(DesignOptions {
-            labels,
-            seam_samples: in_range_count("seam_samples", self.seam_samples, 16, 100_000)?,
-            interior_control_points: in_range_count("interior_control_points", self.interior_control_points, 0, 1_000)?,
-            max_correction_rounds: in_range_count("max_correction_rounds", self.max_correction_rounds, 0, 100)?,
-            max_point_distance_mm: in_range("max_point_distance_mm", self.max_point_distance_mm, 0.0, 100.0)?,
-            remesh_edge_mm: match self.remesh {
-                0 => None,
-                _ => Some(in_range("remesh_edge_mm", self.remesh_edge_mm, 0.05, 20.0)?),
+        let options = DesignOptions {
+            labels: FaceLabels {
+                wall: self.wall_label,
+                baffle: self.baffle_label,
+                vsd_cap: self.vsd_cap_label,
+                aortic_cap: self.aortic_cap_label,
             },
-            baffle_edge_mm: in_range("baffle_edge_mm", self.baffle_edge_mm, 0.05, 20.0)?,
-            centerline_spacing_mm: in_range("centerline_spacing_mm", self.centerline_spacing_mm, 0.01, 20.0)?,
-            area_margin: in_range("area_margin", self.area_margin, 1.0, 2.0)?,
-            max_wall_fraction: in_range("max_wall_fraction", self.max_wall_fraction, 0.0, 1.0)?,
-            tps_regularization: in_range("tps_regularization", self.tps_regularization, 0.0, 1e6)?,
-        })
-    }
-}
-
-fn in_range(name: &str, value: f64, min: f64, max: f64) -> Result<f64, CallError> {
-    if value.is_finite() && (min..=max).contains(&value) {
-        Ok(value)
-    } else {
-        Err(CallError::invalid(format!("options.{name} = {value} is outside [{min}, {max}]")))
-    }
-}
-
-fn in_range_count(name: &str, value: u32, min: u32, max: u32) -> Result<usize, CallError> {
-    if (min..=max).contains(&value) {
-        Ok(value as usize)
-    } else {
-        Err(CallError::invalid(format!("options.{name} = {value} is outside [{min}, {max}]")))
+            seam_samples: self.seam_samples as usize,
+            interior_control_points: self.interior_control_points as usize,
+            max_correction_rounds: self.max_correction_rounds as usize,
+            max_point_distance_mm: self.max_point_distance_mm,
+            remesh_edge_mm: (self.remesh != 0).then_some(self.remesh_edge_mm),
+            baffle_edge_mm: self.baffle_edge_mm,
+            centerline_spacing_mm: self.centerline_spacing_mm,
+            area_margin: self.area_margin,
+            max_wall_fraction: self.max_wall_fraction,
+            tps_regularization: self.tps_regularization,
+        };
+        options.validate().map_err(|e| CallError::invalid(e.to_string()))?;
+        Ok(options)
     }
 }

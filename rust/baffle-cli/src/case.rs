@@ -350,6 +350,10 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
         "steady" => RunMode::Steady,
         other => return Err(format!("time.mode '{other}': expected transient or steady")),
     };
+    if t.steps == Some(0) {
+        // Zero would still run the first step and report it as a finished run.
+        return Err("time.steps (or --steps) is 0; a run needs at least 1 step".into());
+    }
     s.dt_s = t.dt_s;
     s.cycles = t.cycles;
     if let Some(n) = t.nonlinear_iterations {

@@ -137,10 +137,10 @@ struct DesignArgs {
     aortic_label: i32,
     /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
     /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
-    #[arg(long, value_parser = parse_point, requires = "aortic_cap_point")]
+    #[arg(long, value_parser = parse_point, requires = "aortic_cap_point", allow_hyphen_values = true)]
     vsd_cap_point: Option<Vec3>,
     /// A point on the aortic-annulus cap (see --vsd-cap-point).
-    #[arg(long, value_parser = parse_point, requires = "vsd_cap_point")]
+    #[arg(long, value_parser = parse_point, requires = "vsd_cap_point", allow_hyphen_values = true)]
     aortic_cap_point: Option<Vec3>,
     /// A reference baffle to compare with (area ratio, symmetric surface distance),
     /// written to reference_comparison.json; e.g. the paper's published_baffle.vtp.
@@ -172,7 +172,7 @@ struct TargetArgs {
     #[arg(long, requires = "height_cm")]
     weight_kg: Option<f64>,
     /// Annulus z-score for --bsa or --height-cm/--weight-kg.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     z_score: f64,
 }
 
@@ -260,6 +260,8 @@ fn print_progress_tag(fraction: f64, stage: &str) {
 
 /// `baffle design` with the progress sent to `progress`.
 fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
+    // Options first: a bad number is refused before any file is read.
+    let options = design_options(args)?;
     let (surface, points, default_bsa) = if args.phantom {
         let p = phantom_default();
         (p.surface, p.suture_points_mm, Some(p.bsa_m2))
@@ -268,21 +270,6 @@ fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bo
         (surface, points, None)
     };
     let target = target_from(&args.target, default_bsa)?;
-    let options = DesignOptions {
-        labels: FaceLabels {
-            wall: args.wall_label,
-            baffle: args.baffle_label,
-            vsd_cap: args.vsd_label,
-            aortic_cap: args.aortic_label,
-        },
-        seam_samples: args.seam_samples,
-        max_point_distance_mm: args.max_point_distance_mm,
-        remesh_edge_mm: (!args.no_remesh).then_some(args.remesh_edge_mm),
-        baffle_edge_mm: args.baffle_edge_mm,
-        interior_control_points: args.control_points,
-        centerline_spacing_mm: args.centerline_spacing_mm,
-        ..DesignOptions::default()
-    };
     let result = design(&surface, &points, &target, &options, progress).map_err(|e| feasibility::design_failure(&args.out, e))?;
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
@@ -302,6 +289,27 @@ fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bo
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// The design options of the command line, range-checked in the one place the C ABI also uses.
+fn design_options(args: &DesignArgs) -> Result<DesignOptions, String> {
+    let options = DesignOptions {
+        labels: FaceLabels {
+            wall: args.wall_label,
+            baffle: args.baffle_label,
+            vsd_cap: args.vsd_label,
+            aortic_cap: args.aortic_label,
+        },
+        seam_samples: args.seam_samples,
+        max_point_distance_mm: args.max_point_distance_mm,
+        remesh_edge_mm: (!args.no_remesh).then_some(args.remesh_edge_mm),
+        baffle_edge_mm: args.baffle_edge_mm,
+        interior_control_points: args.control_points,
+        centerline_spacing_mm: args.centerline_spacing_mm,
+        ..DesignOptions::default()
+    };
+    options.validate().map_err(|e| e.to_string())?;
+    Ok(options)
 }
 
 fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<(), String> {

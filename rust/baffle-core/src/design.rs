@@ -151,6 +151,7 @@ pub fn design(
     let mut clock = Clock::new(progress);
     let labels = options.labels;
     clock.stage(0.0, "validate")?;
+    options.validate()?;
     let target_area_mm2 = target.area_mm2().map_err(DesignError::Target)?;
     let (surface, input_was_inward_wound) = validated_surface(surface, &labels)?;
     let validate_ms = clock.lap();

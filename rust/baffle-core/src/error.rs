@@ -11,6 +11,9 @@ pub enum DesignError {
     /// A required face label is absent from the surface.
     #[error("surface has no triangles labelled {label} ({what}); labels present: {present:?}")]
     MissingLabel { label: i32, what: &'static str, present: Vec<i32> },
+    /// A design option is outside its range (see `option_ranges`).
+    #[error("option {0}")]
+    Options(String),
     /// The suture points are unusable (too few, too far from the surface, ...).
     #[error("suture points: {0}")]
     SuturePoints(String),

@@ -34,7 +34,7 @@
 //! published one) or an interior face set of the volume mesh (the extended domain, whose
 //! own end caps are then the seeds). Millimetres throughout.
 
-use crate::mesh::{TriMesh, Vec3};
+use crate::mesh::{manifold_report, TriMesh, Vec3};
 use crate::spatial::{ray_triangle, TriangleBvh};
 use crate::voxel::{voxelize, Grid};
 use rayon::prelude::*;
@@ -106,10 +106,22 @@ impl<'a> Lumen<'a> {
     /// The path runs between the end caps `inflow_cap` and `outflow_cap` of the surface
     /// and is trimmed at `planes` (e.g. interior face sets of the extended domain's mesh).
     pub fn with_end_caps(surface: &'a TriMesh, inflow_cap: i32, outflow_cap: i32, planes: [MeasurementPlane; 2]) -> Result<Lumen<'a>, String> {
+        check_closed(surface)?;
         let cap = |label| MeasurementPlane::from_label(surface, label).ok_or_else(|| format!("the surface has no end cap labelled {label}"));
         let (inflow_seed, outflow_seed) = (cap(inflow_cap)?.centroid(), cap(outflow_cap)?.centroid());
         Ok(Lumen { surface, open_labels: vec![inflow_cap, outflow_cap], inflow_seed, outflow_seed, planes })
     }
+}
+
+/// The voxelized inside of an open surface leaks out through its holes; a centerline
+/// of it would be a path through whatever the flood fill found.
+fn check_closed(surface: &TriMesh) -> Result<(), String> {
+    let report = manifold_report(surface);
+    if report.boundary_edges == 0 {
+        return Ok(());
+    }
+    let at = report.example_edge.map(|(a, b)| format!(", e.g. between points {a} and {b}")).unwrap_or_default();
+    Err(format!("the surface is open: {} boundary edges{at}; the lumen must be closed", report.boundary_edges))
 }
 
 #[derive(Clone, Copy, Debug)]

@@ -27,6 +27,8 @@ pub mod amplitudes;
 pub mod envelope;
 pub mod surface;
 pub mod design;
+pub mod option_ranges;
+pub mod perturb;
 pub mod outputs;
 pub mod compare;
 pub mod voxel;

@@ -20,9 +20,11 @@ pub struct KeptRegion {
 
 /// Split the imprinted surface along the seam loop and keep the side with both caps.
 pub fn keep_capped_side(mesh: &TriMesh, seam_loop: &[u32], labels: &FaceLabels) -> Result<KeptRegion, DesignError> {
+    let neighbors = mesh.triangle_neighbors();
+    check_connected(mesh, &neighbors)?;
     let seam_edges: HashSet<(u32, u32)> =
         (0..seam_loop.len()).map(|i| edge_key(seam_loop[i], seam_loop[(i + 1) % seam_loop.len()])).collect();
-    let component = components_across(mesh, &seam_edges);
+    let component = components_across(mesh, &neighbors, &seam_edges);
     let count = component.iter().copied().max().map_or(0, |c| c + 1);
     if count != 2 {
         return Err(DesignError::Seam(format!(
@@ -50,6 +52,21 @@ pub fn keep_capped_side(mesh: &TriMesh, seam_loop: &[u32], labels: &FaceLabels) 
     region_from_mesh(sub, discarded_area_mm2)
 }
 
+/// A second part (a stray shell, a detached cap) would show up only as a seam that
+/// "splits the surface into 3": name it as what it is.
+fn check_connected(mesh: &TriMesh, neighbors: &[[u32; 3]]) -> Result<(), DesignError> {
+    let component = components_across(mesh, neighbors, &HashSet::new());
+    let count = component.iter().copied().max().map_or(0, |c| c as usize + 1);
+    if count <= 1 {
+        return Ok(());
+    }
+    let mut sizes = vec![0usize; count];
+    component.iter().for_each(|&c| sizes[c as usize] += 1);
+    Err(DesignError::Surface(format!(
+        "the surface has {count} disconnected parts ({sizes:?} triangles); the design needs one closed ventricle surface"
+    )))
+}
+
 /// Remesh the kept region isotropically, preserving the seam (bit-identical
 /// vertices), the cap rims and the labels.
 pub fn remesh_kept(region: &KeptRegion, target_edge_mm: f64) -> Result<KeptRegion, DesignError> {
@@ -69,8 +86,7 @@ fn region_from_mesh(mesh: TriMesh, discarded_area_mm2: f64) -> Result<KeptRegion
 
 /// Connected components of triangles, joined across every edge that is not a seam
 /// edge (and is shared by exactly two triangles).
-fn components_across(mesh: &TriMesh, seam_edges: &HashSet<(u32, u32)>) -> Vec<u32> {
-    let neighbors = mesh.triangle_neighbors();
+fn components_across(mesh: &TriMesh, neighbors: &[[u32; 3]], seam_edges: &HashSet<(u32, u32)>) -> Vec<u32> {
     let mut component = vec![u32::MAX; mesh.triangles.len()];
     let mut next_id = 0;
     let mut stack = Vec::new();

@@ -13,15 +13,23 @@ pub fn reference_data_dir() -> PathBuf {
 }
 
 /// The reference data directory if it holds the dataset; otherwise `None`, with a
-/// note on stderr so a skipped check is visible.
+/// note on stderr so a skipped check is visible. Under `CI=true` a missing dataset
+/// panics instead: a broken path must not turn every real-data check into a pass.
 pub fn reference_data_if_present() -> Option<PathBuf> {
     let dir = reference_data_dir();
     if dir.join("patients.json").is_file() {
-        Some(dir)
-    } else {
-        eprintln!("note: patient data not found at {}; real-data checks skipped", dir.display());
-        None
+        return Some(dir);
     }
+    if running_in_ci() {
+        panic!("patient data not found at {} (CI=true: the real-data checks must run; set BAFFLE_DATA_DIR)", dir.display());
+    }
+    eprintln!("note: patient data not found at {}; real-data checks skipped", dir.display());
+    None
+}
+
+/// `CI` set to `true` or `1` (as `.ci/run` and most CI services do).
+pub fn running_in_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v.eq_ignore_ascii_case("true") || v == "1")
 }
 
 /// The published seam of a patient (`<patient>/design_input/published_seam.vtp`, a

@@ -49,7 +49,7 @@ fn checked(name: &str, value: f64, (min, max): (f64, f64)) -> Result<f64, String
     if value.is_finite() && value >= min && value <= max {
         Ok(value)
     } else {
-        Err(format!("target area: {name} = {value} is outside the plausible range [{min}, {max}]"))
+        Err(format!("{name} = {value} is outside the plausible range [{min}, {max}]"))
     }
 }
 
@@ -58,7 +58,7 @@ fn checked_positive(name: &str, value: f64) -> Result<f64, String> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(format!("target area: {name} = {value} must be a positive finite number"))
+        Err(format!("{name} = {value} must be a positive finite number"))
     }
 }
 
@@ -95,7 +95,7 @@ impl TargetArea {
                 let weight_kg = checked("weight (kg)", weight_kg, WEIGHT_RANGE_KG)?;
                 checked("Haycock BSA (m2)", haycock_bsa_m2(height_cm, weight_kg), BSA_RANGE_M2)
             }
-            _ => Err(format!("target area: {self:?} does not specify a body size")),
+            _ => Err(format!("{self:?} does not specify a body size")),
         }
     }
 
@@ -141,7 +141,6 @@ fn boston_diameter_mm(bsa_m2: f64, z_score: f64) -> Result<f64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
 
     fn round2(v: f64) -> f64 {
         (v * 100.0).round() / 100.0
@@ -221,17 +220,9 @@ mod tests {
         assert_eq!(parsed, TargetArea::Bsa { bsa_m2: 0.33, z_score: 0.0 });
     }
 
-    fn data_dir() -> PathBuf {
-        crate::reference_data::reference_data_dir()
-    }
-
     #[test]
     fn patients_p2_p3_match_published_targets() {
-        let dir = data_dir();
-        if !dir.is_dir() {
-            println!("skipping: patient data directory {} is absent", dir.display());
-            return;
-        }
+        let Some(dir) = crate::reference_data::reference_data_if_present() else { return };
         let text = std::fs::read_to_string(dir.join("patients.json")).expect("patients.json is readable");
         let table: serde_json::Value = serde_json::from_str(&text).expect("patients.json is valid JSON");
         for id in ["p2", "p3"] {

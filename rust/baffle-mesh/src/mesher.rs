@@ -44,8 +44,9 @@ pub struct MeshOptions {
     pub interior_surfaces: Vec<TriMesh>,
     /// Keep gmsh's input, script, log and output (their directory is printed to stderr).
     pub keep_temp: bool,
-    /// gmsh is stopped after this long.
-    pub timeout: Duration,
+    /// gmsh is stopped after this long; `None`: a limit derived from the expected
+    /// number of tetrahedra (see [`gmsh_time_limit`]).
+    pub timeout: Option<Duration>,
     /// gmsh threads (`-nt`).
     pub threads: usize,
     /// Remesh the boundary at `edge_length_mm` first (see the module doc); off keeps the
@@ -62,7 +63,7 @@ impl Default for MeshOptions {
             gmsh_executable: None,
             interior_surfaces: Vec::new(),
             keep_temp: false,
-            timeout: Duration::from_secs(600),
+            timeout: None,
             threads: 2,
             remesh_surface: false,
             optimize_netgen: false,
@@ -78,11 +79,12 @@ pub fn mesh_surface(
     opts: &MeshOptions,
 ) -> Result<(TetMesh, QualityReport), MeshError> {
     check_options(opts)?;
+    let expected_tets = check_expected_size(surface, opts.edge_length_mm)?;
     let boundary = prepared_boundary(surface, opts)?;
     let input = MeshInput::new(&boundary, &opts.interior_surfaces)?;
     let gmsh = find_gmsh(opts.gmsh_executable.as_deref())?;
     let work = WorkDir::create(opts.keep_temp)?;
-    let msh = run_in(&work.path, &input, opts, &gmsh)?;
+    let msh = run_in(&work.path, &input, opts, &gmsh, gmsh_time_limit(opts, expected_tets))?;
     let mesh = assemble(&input, &msh)?;
     check_volume(&mesh, input.enclosed_volume_mm3)?;
     let report = quality_report(&mesh)
@@ -113,6 +115,36 @@ pub fn split_interior_labels(
     Ok((surface.with_labels(|l| !interior_labels.contains(&l)), interior))
 }
 
+/// Most tetrahedra a mesh may have: the CFD needs about 1.5 kB a tetrahedron (p2's
+/// 147k-tet mesh: 224 MB), so 5 million is about 8 GB, and gmsh would take hours.
+pub const MAX_TETRAHEDRA: f64 = 5e6;
+
+/// Tetrahedra gmsh makes at `edge_length_mm` in `volume_mm3`: a regular tetrahedron of
+/// edge L holds L^3 / (6 sqrt 2); gmsh's are smaller near the boundary, hence twice that.
+pub fn expected_tetrahedra(volume_mm3: f64, edge_length_mm: f64) -> f64 {
+    2.0 * volume_mm3 * 6.0 * std::f64::consts::SQRT_2 / edge_length_mm.powi(3)
+}
+
+/// Refuse, before any work, a mesh too large for the machine (a tiny edge length
+/// otherwise runs gmsh until it is killed); returns the expected count.
+fn check_expected_size(surface: &TriMesh, edge_length_mm: f64) -> Result<f64, MeshError> {
+    let volume_mm3 = surface.signed_volume_mm3().abs();
+    let expected = expected_tetrahedra(volume_mm3, edge_length_mm);
+    if expected > MAX_TETRAHEDRA {
+        return Err(MeshError::InvalidInput(format!(
+            "an edge length of {edge_length_mm} mm would need about {expected:.2e} tetrahedra for the {volume_mm3:.0} mm3 \
+             enclosed (at most {MAX_TETRAHEDRA:.0e}, about 8 GB for the CFD); use a longer edge"
+        )));
+    }
+    Ok(expected)
+}
+
+/// gmsh's time limit: the caller's, or 2 minutes plus 1 ms per expected tetrahedron
+/// (gmsh makes tens of thousands a second, so this is generous even on a busy machine).
+pub fn gmsh_time_limit(opts: &MeshOptions, expected_tets: f64) -> Duration {
+    opts.timeout.unwrap_or_else(|| Duration::from_secs_f64(120.0 + expected_tets / 1000.0))
+}
+
 fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {
     if opts.remesh_surface && !opts.interior_surfaces.is_empty() {
         return Err(MeshError::InvalidInput(
@@ -125,7 +157,7 @@ fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {
             opts.edge_length_mm
         )));
     }
-    if opts.threads == 0 || opts.timeout.is_zero() {
+    if opts.threads == 0 || opts.timeout.is_some_and(|t| t.is_zero()) {
         return Err(MeshError::InvalidInput(
             "threads and timeout must be positive".into(),
         ));
@@ -416,6 +448,7 @@ fn run_in(
     input: &MeshInput,
     opts: &MeshOptions,
     gmsh: &crate::gmsh::GmshCommand,
+    time_limit: Duration,
 ) -> Result<MshVolume, MeshError> {
     write_file(
         &dir.join("surface.msh"),
@@ -436,7 +469,7 @@ fn run_in(
     .chain([OsString::from(opts.threads.to_string())])
     .collect();
     let log = dir.join("gmsh.log");
-    run_gmsh(gmsh, &args, dir, &log, opts.timeout)?;
+    run_gmsh(gmsh, &args, dir, &log, time_limit)?;
     let out = dir.join("volume.msh");
     if !out.is_file() {
         return Err(failed(
@@ -760,7 +793,7 @@ mod tests {
         let fake = fake_gmsh("hangs", "sleep 30");
         let opts = MeshOptions {
             gmsh_executable: Some(fake),
-            timeout: Duration::from_millis(300),
+            timeout: Some(Duration::from_millis(300)),
             ..Default::default()
         };
         let start = std::time::Instant::now();

@@ -50,15 +50,25 @@ pub fn read_labelmap(path: &Path) -> Result<LabelMap, PrepareError> {
     } else if name.ends_with(".nii") {
         parse_nifti(&bytes).map_err(fail)
     } else if name.ends_with(".nii.gz") {
-        parse_nifti(&gunzip(&bytes)?).map_err(fail)
+        gunzip(&bytes).and_then(|raw| parse_nifti(&raw)).map_err(fail)
     } else {
         Err(fail("unknown label map extension (expected .nrrd, .nii or .nii.gz)".into()))
     }
 }
 
-fn gunzip(bytes: &[u8]) -> Result<Vec<u8>, PrepareError> {
+/// Largest decompressed label map (4 GiB): a corrupt or hostile gzip stream must not
+/// exhaust memory.
+const MAX_GUNZIPPED_BYTES: u64 = 1 << 32;
+
+fn gunzip(bytes: &[u8]) -> Result<Vec<u8>, String> {
     let mut out = Vec::new();
-    flate2::read::MultiGzDecoder::new(bytes).read_to_end(&mut out).map_err(|e| PrepareError::Read(format!("gzip: {e}")))?;
+    flate2::read::MultiGzDecoder::new(bytes)
+        .take(MAX_GUNZIPPED_BYTES + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| format!("the gzip stream is truncated or corrupt ({e})"))?;
+    if out.len() as u64 > MAX_GUNZIPPED_BYTES {
+        return Err(format!("the gzip stream unpacks to more than {MAX_GUNZIPPED_BYTES} bytes"));
+    }
     Ok(out)
 }
 
@@ -181,7 +191,7 @@ pub fn parse_nrrd(bytes: &[u8]) -> Result<LabelMap, String> {
     let payload = &bytes[header_end + 2..];
     let data = match field("encoding")? {
         "raw" => payload.to_vec(),
-        "gzip" | "gz" => gunzip(payload).map_err(|e| e.to_string())?,
+        "gzip" | "gz" => gunzip(payload)?,
         other => return Err(format!("unsupported NRRD encoding '{other}'")),
     };
     let labels = decode(&data, sample, voxel_count(&dims)?, little_endian)?;
@@ -468,6 +478,14 @@ mod tests {
         let huge = String::from_utf8(nrrd_bytes(&map, "raw")).unwrap().replace("sizes: 4 3 2", "sizes: 4000000000 4000000000 4000000000");
         assert!(parse_nrrd(huge.as_bytes()).unwrap_err().contains("overflows"));
         assert!(read_labelmap(Path::new("/nonexistent/seg.nrrd")).unwrap_err().to_string().contains("seg.nrrd"));
+        let dir = std::env::temp_dir().join(format!("baffle-labelmap-cut-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cut = dir.join("cut.nii.gz");
+        let gz = gzip(&nifti_bytes(&map));
+        std::fs::write(&cut, &gz[..gz.len() / 2]).unwrap();
+        let msg = read_labelmap(&cut).unwrap_err().to_string();
+        assert!(msg.contains("cut.nii.gz") && msg.contains("truncated or corrupt"), "{msg}");
+        std::fs::remove_dir_all(&dir).ok();
         let short = LabelMap { labels: vec![1; 5], ..map.clone() };
         assert!(pools_from_labelmap(&short, &PoolLabels::default(), &LabelSurfaceOptions::default()).unwrap_err().to_string().contains("5 labels"));
         let err = pools_from_labelmap(&map, &PoolLabels { lv: 42, ..PoolLabels::default() }, &LabelSurfaceOptions::default());

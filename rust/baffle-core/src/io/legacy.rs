@@ -98,7 +98,9 @@ fn cells_of(section: &str, cells: Option<VertexNumbers>) -> Result<Vec<Vec<u32>>
 
 /// `n i_1 .. i_n` records.
 fn counted_cells(section: &str, num_cells: usize, list: &[u32]) -> Result<Vec<Vec<u32>>, IoErrorKind> {
-    let mut cells = Vec::with_capacity(num_cells);
+    // The count comes from the file: a cell takes at least one value of the list, so
+    // the list bounds the allocation (found by the fuzz harness: 50 GB for a bad count).
+    let mut cells = Vec::with_capacity(num_cells.min(list.len()));
     let mut pos = 0usize;
     for c in 0..num_cells {
         let n = *list.get(pos).ok_or_else(|| malformed(format!("{section}: list ends before cell {c}")))? as usize;
@@ -150,6 +152,12 @@ mod tests {
         assert_eq!(counted_cells("POLYGONS", 2, &[3, 0, 1, 2, 2, 0, 1]).unwrap(), vec![vec![0, 1, 2], vec![0, 1]]);
         let msg = counted_cells("POLYGONS", 2, &[3, 0, 1, 2, 3, 0]).unwrap_err().to_string();
         assert!(msg.contains("cell 1"), "{msg}");
+    }
+
+    #[test]
+    fn a_huge_cell_count_is_an_error_not_an_allocation() {
+        let msg = counted_cells("POLYGONS", usize::MAX / 8, &[3, 0, 1, 2]).unwrap_err().to_string();
+        assert!(msg.contains("list ends before cell 1"), "{msg}");
     }
 
     #[test]

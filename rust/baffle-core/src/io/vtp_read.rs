@@ -17,6 +17,7 @@ use crate::mesh::Vec3;
 
 /// Parse a whole `.vtp` file.
 pub(crate) fn parse_vtp(bytes: &[u8]) -> Result<PolyData, IoErrorKind> {
+    check_complete(bytes)?;
     let appended_start = find(bytes, b"<AppendedData");
     let xml_part = &bytes[..appended_start.unwrap_or(bytes.len())];
     let doc = scan_document(xml_part)?;
@@ -80,6 +81,17 @@ struct Document {
 struct Appended<'a> {
     base64: bool,
     data: &'a [u8],
+}
+
+/// A file cut short (an interrupted copy or write) can still hold whole arrays; only
+/// its missing closing tag shows it is not the whole surface.
+fn check_complete(bytes: &[u8]) -> Result<(), IoErrorKind> {
+    let end = bytes.iter().rposition(|b| !b.is_ascii_whitespace() && *b != 0).map_or(0, |i| i + 1);
+    if bytes[..end].ends_with(b"</VTKFile>") {
+        Ok(())
+    } else {
+        Err(malformed(format!("the file ends after {end} bytes without </VTKFile>: it is truncated")))
+    }
 }
 
 fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
@@ -725,5 +737,17 @@ mod tests {
             </Piece></PolyData></VTKFile>"#;
         let msg = parse_vtp(xml).unwrap_err().to_string();
         assert!(msg.contains("Points") && msg.contains("expected 6"), "{msg}");
+    }
+
+    #[test]
+    fn a_file_cut_before_its_closing_tags_is_truncated() {
+        let xml = br#"<VTKFile type="PolyData"><PolyData><Piece NumberOfPoints="1">
+            <Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">0 0 0</DataArray></Points>
+            </Piece>"#;
+        let msg = parse_vtp(xml).unwrap_err().to_string();
+        assert!(msg.contains("without </VTKFile>: it is truncated"), "{msg}");
+        let mut whole = xml.to_vec();
+        whole.extend_from_slice(b"</PolyData></VTKFile>\n\0");
+        parse_vtp(&whole).unwrap();
     }
 }

@@ -39,9 +39,10 @@ impl Default for RemeshOptions {
 /// label-boundary edges as features. Errors name the offending point, triangle or edge.
 pub fn remesh_isotropic(mesh: &TriMesh, opts: &RemeshOptions) -> Result<TriMesh, String> {
     validate_input(mesh, opts)?;
+    let budget = TriangleBudget::new(mesh, opts.target_edge_mm)?;
     let mut remesher = Remesher::new(mesh, opts)?;
     for _ in 0..opts.iterations {
-        remesher.split_long_edges();
+        remesher.split_long_edges(&budget)?;
         remesher.collapse_short_edges();
         remesher.flip_toward_regular_valence();
         remesher.smooth_tangentially();
@@ -76,6 +77,47 @@ fn validate_input(mesh: &TriMesh, opts: &RemeshOptions) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// Most triangles a remesh may need (about 100 MB of half-edge mesh, 4 times that
+/// while splitting): a design never needs more, and a tiny target edge must be
+/// refused up front, not run out of memory.
+pub const MAX_REMESH_TRIANGLES: usize = 2_000_000;
+
+/// The work bound of one remesh: an isotropic mesh of the input's area at the target
+/// edge has A / (sqrt(3)/4 L^2) triangles; splitting may overshoot that by the
+/// rounding at short features, so allow a few times it (and the input's own count).
+struct TriangleBudget {
+    max_triangles: usize,
+    area_mm2: f64,
+    target_edge_mm: f64,
+}
+
+impl TriangleBudget {
+    fn new(mesh: &TriMesh, target_edge_mm: f64) -> Result<Self, String> {
+        let area_mm2 = mesh.area_mm2();
+        let isotropic = area_mm2 / (3f64.sqrt() / 4.0 * target_edge_mm * target_edge_mm);
+        let needed = isotropic + mesh.triangles.len() as f64;
+        if needed > MAX_REMESH_TRIANGLES as f64 {
+            return Err(format!(
+                "the remesher would need more than {MAX_REMESH_TRIANGLES} triangles (about {needed:.0} for {area_mm2:.1} mm2 \
+                 at a target edge of {target_edge_mm} mm); use a longer edge"
+            ));
+        }
+        Ok(TriangleBudget { max_triangles: (4.0 * needed) as usize + 1024, area_mm2, target_edge_mm })
+    }
+
+    /// A named error when `triangles` exceeds the budget; `near` is where the remesher was working.
+    fn check(&self, triangles: usize, near: Vec3) -> Result<(), String> {
+        if triangles <= self.max_triangles {
+            return Ok(());
+        }
+        Err(format!(
+            "the remesher would need more than {} triangles ({:.1} mm2 at a target edge of {} mm) and stopped: \
+             splitting long edges does not converge near ({:.2}, {:.2}, {:.2}) mm",
+            self.max_triangles, self.area_mm2, self.target_edge_mm, near.x, near.y, near.z
+        ))
+    }
 }
 
 /// Largest allowed normal change of a triangle moved by a collapse, and largest
@@ -115,7 +157,31 @@ impl Remesher {
             nbrs_b: Vec::new(),
         };
         remesher.count_feature_edges();
+        remesher.check_boundary_resolvable()?;
         Ok(remesher)
+    }
+
+    /// A boundary edge that may not be split and is longer than twice the longest
+    /// allowed edge can never be resolved: every split of its triangle leaves a new
+    /// apex nearer to it, one of whose edges to its ends stays longer than 4/3 L, so
+    /// splitting would go on until memory runs out.
+    fn check_boundary_resolvable(&self) -> Result<(), String> {
+        if self.split_boundary {
+            return Ok(());
+        }
+        let limit_sq = 4.0 * self.high_sq();
+        let m = &self.mesh;
+        match live_halfedges(m).find(|&h| m.is_boundary_edge(h) && m.edge_length_sq(h) > limit_sq) {
+            None => Ok(()),
+            Some(h) => {
+                let [a, b] = [m.origin(h), m.target(h)].map(|v| m.pos[v as usize]);
+                Err(format!(
+                    "the boundary (seam) edge from ({:.2}, {:.2}, {:.2}) to ({:.2}, {:.2}, {:.2}) mm is {:.2} mm long; \
+                     with the seam kept, the remesher resolves at most {:.2} mm (8/3 of the {} mm target edge)",
+                    a.x, a.y, a.z, b.x, b.y, b.z, (b - a).norm(), limit_sq.sqrt(), self.target_mm
+                ))
+            }
+        }
     }
 
     fn high_sq(&self) -> f64 {
@@ -151,7 +217,7 @@ impl Remesher {
 
     // ---- split -------------------------------------------------------------
 
-    fn split_long_edges(&mut self) {
+    fn split_long_edges(&mut self, budget: &TriangleBudget) -> Result<(), String> {
         let high_sq = self.high_sq();
         loop {
             let mut splits = 0;
@@ -166,15 +232,24 @@ impl Remesher {
                     }
                 }
                 f += 1;
+                budget.check(self.mesh.corners.len(), self.mesh.pos[self.mesh.corners[f - 1][0] as usize])?;
             }
             if splits == 0 {
-                break;
+                return Ok(());
             }
         }
     }
 
+    /// Flat triangles (the ear-clipped slivers where the seam was imprinted, and
+    /// whatever a bump of the wall stretches out of them) are never split: a flat
+    /// triangle has no area for the split to converge on, and splitting it at
+    /// midpoints only makes more flat triangles (a 3.7 mm bump on p2 grew 40,000 of
+    /// them before running out of memory). Collapses and flips remove them instead.
     fn may_split(&self, h: u32) -> bool {
-        self.split_boundary || !self.mesh.is_boundary_edge(h)
+        let m = &self.mesh;
+        let t = m.twin[h as usize];
+        let flat = |f: usize| m.face_normal2(f).norm() < self.min_normal_len();
+        (self.split_boundary || t != NONE) && !flat(face_of(h)) && (t == NONE || !flat(face_of(t)))
     }
 
     fn split(&mut self, h: u32) {

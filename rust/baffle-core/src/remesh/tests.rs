@@ -404,3 +404,46 @@ fn remesh_timing_5000_points() {
     let measured = if best_cpu_ms.is_finite() { best_cpu_ms } else { best_wall_ms };
     assert!(measured < 60.0, "remeshing took {measured:.1} ms");
 }
+
+#[test]
+fn a_tiny_target_edge_is_refused_up_front_by_the_triangle_budget() {
+    let mesh = flat_triangle_between_two_fans();
+    let err = remesh_isotropic(&mesh, &RemeshOptions { target_edge_mm: 1e-6, ..RemeshOptions::default() }).unwrap_err();
+    assert!(err.contains("the remesher would need more than 2000000 triangles"), "{err}");
+}
+
+/// An open square whose diagonal a-b carries a flat triangle (c, a, b), c the
+/// midpoint of a-b: the shape of an ear-clipped sliver along the imprinted seam.
+fn flat_triangle_between_two_fans() -> TriMesh {
+    let points = vec![
+        Vec3::new(0.0, 0.0, 0.0),  // a
+        Vec3::new(4.0, 0.0, 0.0),  // b
+        Vec3::new(2.0, 0.0, 0.0),  // c, on a-b
+        Vec3::new(2.0, 3.0, 0.0),  // d
+        Vec3::new(2.0, -3.0, 0.0), // e
+    ];
+    let triangles = vec![[0, 2, 3], [2, 1, 3], [2, 0, 1], [0, 4, 1]];
+    TriMesh::new(points, triangles, vec![2; 4])
+}
+
+#[test]
+fn a_long_edge_held_by_a_flat_triangle_ends_in_the_budget_not_an_abort() {
+    // The flat triangle is not split, so a-b (4 mm) stays; the triangle below it then
+    // cannot be resolved at 0.3 mm, and the split stops at the budget with the place.
+    let mesh = flat_triangle_between_two_fans();
+    let opts = RemeshOptions { target_edge_mm: 0.3, split_boundary: true, ..RemeshOptions::default() };
+    let err = remesh_isotropic(&mesh, &opts).unwrap_err();
+    assert!(err.contains("the remesher would need more than") && err.contains("does not converge near"), "{err}");
+}
+
+#[test]
+fn a_seam_edge_longer_than_the_remesher_can_resolve_is_named() {
+    // One triangle whose boundary edges are all 10 mm: kept as the seam, they cannot be resolved at 1 mm.
+    let mesh = TriMesh::new(
+        vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(10.0, 0.0, 0.0), Vec3::new(5.0, 8.0, 0.0)],
+        vec![[0, 1, 2]],
+        vec![2],
+    );
+    let err = remesh_isotropic(&mesh, &RemeshOptions { target_edge_mm: 1.0, ..RemeshOptions::default() }).unwrap_err();
+    assert!(err.contains("the boundary (seam) edge from (0.00, 0.00, 0.00) to (10.00, 0.00, 0.00) mm is 10.00 mm long"), "{err}");
+}

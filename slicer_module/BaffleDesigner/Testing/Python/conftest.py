@@ -1,7 +1,8 @@
 """Fixtures for the BaffleDesigner logic tests on real MRML classes (PyPI slicer-core):
 a headless scene, the p2 patient inputs loaded through Slicer's own storage nodes, and
 the built-in phantom. Patient data: $BAFFLE_DATA_DIR, else ../shared/data beside the
-repository; tests that need it skip with a note when it is absent."""
+repository; tests that need it skip with a note when it is absent
+(and fail under CI=true)."""
 
 import os
 import sys
@@ -28,11 +29,19 @@ def data_dir() -> Path:
     return Path(os.environ.get("BAFFLE_DATA_DIR") or REPO.parent / "shared" / "data")
 
 
+def missing_data(folder: Path) -> None:
+    """Skip a real-data test, with a note; under CI=true fail it instead, so a broken
+    path cannot turn the real-data checks into silent passes."""
+    if os.environ.get("CI", "").lower() in ("true", "1"):
+        pytest.fail(f"patient data not found at {folder} (CI=true: the real-data checks must run; set BAFFLE_DATA_DIR)")
+    pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
+
+
 def p2_inputs():
     folder = data_dir() / "p2" / "design_input"
     surface, points = folder / "capped_ventricle.vtp", folder / "suture_points.mrk.json"
     if not (surface.exists() and points.exists()):
-        pytest.skip(f"patient data not found at {folder} (set BAFFLE_DATA_DIR)")
+        missing_data(folder)
     return surface, points
 
 

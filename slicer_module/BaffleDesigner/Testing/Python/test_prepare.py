@@ -10,7 +10,7 @@ import pytest
 import vtk
 from vtkmodules.util import numpy_support
 
-from conftest import bdlogic, column, curve_from_points, data_dir, has_subcommand, load_closed_curve, load_model, p2_inputs, slicer, translation_node
+from conftest import bdlogic, column, curve_from_points, data_dir, has_subcommand, missing_data, load_closed_curve, load_model, p2_inputs, slicer, translation_node
 from BaffleDesignerLib import prepare, process
 from test_logic import open_and_nonmanifold_edges
 
@@ -19,7 +19,7 @@ def p2_segmentation(scene, structures=("LV", "RV", "aorta"), names=None):
     """A segmentation node of p2's blood pools, one closed-surface segment per file."""
     folder = data_dir() / "p2" / "segmentations"
     if not folder.exists():
-        pytest.skip(f"patient segmentations not found at {folder} (set BAFFLE_DATA_DIR)")
+        missing_data(folder)
     segmentation = scene.AddNewNodeByClass("vtkMRMLSegmentationNode", "p2 blood pools")
     segmentation.SetSourceRepresentationToClosedSurface()
     for structure, name in zip(structures, names or structures):
