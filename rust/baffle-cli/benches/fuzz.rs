@@ -127,7 +127,7 @@ fn report(name: &str, corpus: usize, t: &Tally) -> usize {
 }
 
 fn fuzz_reader(target: &Target, settings: &Settings, scratch: &Path, budget: Duration, seed: u64) -> Tally {
-    let mut rng = SplitMix64(seed);
+    let mut rng = SplitMix64::new(seed);
     let mut tally = Tally::default();
     let path = scratch.join(format!("input.{}", target.extension));
     let start = Instant::now();
@@ -421,18 +421,18 @@ fn perturbed(case: &DesignCase, rng: &mut SplitMix64) -> TriMesh {
     let s = &case.surface;
     match rng.below(4) {
         0 | 1 => {
-            let height = 0.5 + 5.5 * (rng.symmetric() + 1.0) / 2.0;
+            let height = 0.5 + 5.5 * (rng.symmetric_unit() + 1.0) / 2.0;
             let sign = if rng.below(4) == 0 { -1.0 } else { 1.0 };
             bump_wall(s, rng.below(s.points.len()), 5 + rng.below(116), sign * height, 2)
         }
-        2 => jitter(s, 0.02 + 0.3 * (rng.symmetric() + 1.0) / 2.0, rng.next_u64()),
+        2 => jitter(s, 0.02 + 0.3 * (rng.symmetric_unit() + 1.0) / 2.0, rng.next_u64()),
         _ => flip_triangle(s, rng.below(s.triangles.len())),
     }
 }
 
 fn fuzz_design_on_perturbed_surfaces(settings: &Settings, budget: Duration) -> (usize, Tally) {
     let corpus = design_corpus();
-    let mut rng = SplitMix64(settings.seed ^ 0xD5);
+    let mut rng = SplitMix64::new(settings.seed ^ 0xD5);
     let mut tally = Tally::default();
     let start = Instant::now();
     while start.elapsed() < budget {

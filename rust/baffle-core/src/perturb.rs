@@ -2,6 +2,7 @@
 //! patch of wall pushed out (a bump, as a hypertrophied trabecula or a segmentation
 //! leak would), noise, flipped triangles. Each keeps the triangles' connectivity.
 
+pub use crate::numerics::random::SplitMix64;
 use crate::mesh::{TriMesh, Vec3};
 
 /// Move the `count` wall vertices nearest to point `center` (only vertices whose
@@ -24,10 +25,10 @@ pub fn bump_wall(mesh: &TriMesh, center: usize, count: usize, height_mm: f64, wa
 /// Move every vertex by `amplitude_mm` times a pseudo-random vector of each
 /// component in [-1, 1] (deterministic in `seed`).
 pub fn jitter(mesh: &TriMesh, amplitude_mm: f64, seed: u64) -> TriMesh {
-    let mut rng = SplitMix64(seed);
+    let mut rng = SplitMix64::new(seed);
     let mut out = mesh.clone();
     for p in &mut out.points {
-        *p += Vec3::new(rng.symmetric(), rng.symmetric(), rng.symmetric()) * amplitude_mm;
+        *p += Vec3::new(rng.symmetric_unit(), rng.symmetric_unit(), rng.symmetric_unit()) * amplitude_mm;
     }
     out
 }
@@ -54,29 +55,6 @@ fn vertex_normals_and_wall(mesh: &TriMesh, wall_label: i32) -> (Vec<Vec3>, Vec<b
     (normals, wall_only)
 }
 
-/// A small, fast, seedable generator (Steele et al. 2014), enough for test inputs.
-#[derive(Clone, Debug)]
-pub struct SplitMix64(pub u64);
-
-impl SplitMix64 {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, n) (n > 0).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n.max(1) as u64) as usize
-    }
-
-    /// Uniform in [-1, 1].
-    pub fn symmetric(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-}
 
 #[cfg(test)]
 mod tests {

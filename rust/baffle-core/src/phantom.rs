@@ -431,7 +431,7 @@ fn suture_points_mm(params: &PhantomParams) -> Vec<Vec3> {
     }
     let loop_length_mm = cumulative_mm[cumulative_mm.len() - 1];
     let spacing_mm = loop_length_mm / count.max(1) as f64;
-    let mut jitter = crate::phantom_family::SplitMix64::new(params.suture_jitter_seed);
+    let mut jitter = crate::numerics::random::SplitMix64::new(params.suture_jitter_seed);
     (0..count)
         .map(|i| {
             let target_mm = loop_length_mm * i as f64 / count as f64;

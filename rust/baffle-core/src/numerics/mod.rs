@@ -89,3 +89,4 @@ mod tests {
         assert!((x - 2f64.cbrt()).abs() < 1e-12, "{x}");
     }
 }
+pub mod random;
