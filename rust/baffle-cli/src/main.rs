@@ -176,8 +176,9 @@ struct TargetArgs {
     z_score: f64,
 }
 
+/// The frame a surface's coordinates are in (the points are converted into it).
 #[derive(Clone, Copy, ValueEnum)]
-enum Frame {
+pub(crate) enum Frame {
     Lps,
     Ras,
 }

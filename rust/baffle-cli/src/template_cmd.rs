@@ -4,6 +4,7 @@
 //! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %.
 
 use crate::files::write_atomic;
+use crate::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::template::drawing::{today_utc, TemplateText};
 use baffle_core::template::{pdf, svg, template_from_domain, FlattenMethod};
@@ -30,8 +31,8 @@ pub struct TemplateArgs {
     #[arg(long)]
     pub date: Option<String>,
     /// Frame of the domain (the points are converted into it), as for `baffle design`.
-    #[arg(long, value_enum, default_value_t = TemplateFrame::Lps)]
-    pub surface_frame: TemplateFrame,
+    #[arg(long, value_enum, default_value_t = Frame::Lps)]
+    pub surface_frame: Frame,
     /// Flattening: lscm (conformal; keeps the seam's angles and edge lengths best) or
     /// arap (LSCM then as-rigid-as-possible; smaller largest area change).
     #[arg(long, value_enum, default_value_t = TemplateMethod::Lscm)]
@@ -42,12 +43,6 @@ pub struct TemplateArgs {
     pub vsd_label: i32,
     #[arg(long, default_value_t = FaceLabels::default().aortic_cap)]
     pub aortic_label: i32,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-pub enum TemplateFrame {
-    Lps,
-    Ras,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -73,10 +68,7 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
     let format = format_of(&args.out)?;
     let domain = read_surface(&args.domain).map_err(|e| format!("{}: {e}", args.domain.display()))?;
     let points = read_points(&args.points).map_err(|e| format!("{}: {e}", args.points.display()))?;
-    let frame = match args.surface_frame {
-        TemplateFrame::Lps => CoordinateSystem::Lps,
-        TemplateFrame::Ras => CoordinateSystem::Ras,
-    };
+    let frame = CoordinateSystem::from(args.surface_frame);
     let labels = FaceLabels { baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label, ..FaceLabels::default() };
     let text = TemplateText { patient_label: args.label.clone(), date: args.date.clone().unwrap_or_else(today_utc) };
     let method = match args.method {

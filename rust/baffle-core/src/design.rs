@@ -520,6 +520,7 @@ struct FittedBaffle {
 }
 
 /// What the fit of the final surface works on, fixed for every target tried.
+#[derive(Clone, Copy)]
 struct FitInputs<'a> {
     initial: &'a Domain,
     patch: &'a InitialPatch,
@@ -534,7 +535,7 @@ const FEASIBILITY_BISECTIONS: usize = 8;
 impl FitInputs<'_> {
     /// The final surface for `target_area_mm2` and the checks of the domain it makes.
     fn fit_checked(&self, sections: &mut [SectionState], target_area_mm2: f64) -> Result<FittedBaffle, DesignError> {
-        let mut fitted = fit_baffle(self.initial, self.patch, self.seam_mm, sections, target_area_mm2, self.options)?;
+        let mut fitted = fit_baffle(self, sections, target_area_mm2)?;
         let start = Instant::now();
         check_domain(&fitted.domain.mesh, &fitted.domain, &self.options.labels)?;
         fitted.checks_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -561,14 +562,8 @@ impl FitInputs<'_> {
 /// where a section of the final surface falls short of the target (the TPS passes
 /// near, not exactly through, every loop), its amplitude is raised by the shortfall
 /// and the envelope and surface are rebuilt.
-fn fit_baffle(
-    initial: &Domain,
-    patch: &InitialPatch,
-    seam_mm: &[Vec3],
-    sections: &mut [SectionState],
-    target_area_mm2: f64,
-    options: &DesignOptions,
-) -> Result<FittedBaffle, DesignError> {
+fn fit_baffle(fit: &FitInputs, sections: &mut [SectionState], target_area_mm2: f64) -> Result<FittedBaffle, DesignError> {
+    let FitInputs { initial, patch, seam_mm, options } = *fit;
     let required_mm2 = options.area_margin * target_area_mm2;
     for s in sections.iter_mut() {
         s.crosses = None;

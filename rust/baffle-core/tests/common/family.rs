@@ -1,5 +1,7 @@
 //! One member of the phantom family designed and checked: shared by the CI sweep
-//! (`tests/phantom_family.rs`) and the larger one (`examples/phantom_sweep.rs`).
+//! (`tests/phantom_family.rs`) and the larger one (`examples/phantom_sweep.rs`); the
+//! independent check of a design is also the patients' (`tests/seam_variants.rs`).
+#![allow(dead_code)]
 
 use baffle_core::phantom::phantom;
 use baffle_core::phantom_family::FamilyMember;
@@ -22,6 +24,9 @@ pub enum Outcome {
 pub fn verified_smallest_section_mm2(result: &DesignResult) -> Result<f64, String> {
     if baffle_verify::edge_usage_counts(&result.domain) != (0, 0) {
         return Err("the domain is open or non-manifold".into());
+    }
+    if !baffle_verify::signed_volume_mm3(&result.domain).is_ok_and(|v| v > 0.0) {
+        return Err("the domain is not wound outward".into());
     }
     let target_mm2 = result.report.target_area_mm2;
     let mut smallest = f64::INFINITY;
