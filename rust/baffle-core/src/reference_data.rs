@@ -21,7 +21,10 @@ pub fn reference_data_if_present() -> Option<PathBuf> {
         return Some(dir);
     }
     if running_in_ci() {
-        panic!("patient data not found at {} (CI=true: the real-data checks must run; set BAFFLE_DATA_DIR)", dir.display());
+        panic!(
+            "patient data not found at {} (CI=true: the real-data checks must run; set BAFFLE_DATA_DIR)",
+            dir.display()
+        );
     }
     eprintln!("note: patient data not found at {}; real-data checks skipped", dir.display());
     None
@@ -65,6 +68,27 @@ pub fn evenly_spaced_on_loop(closed: &[crate::Vec3], n: usize, phase: f64) -> Ve
         .collect()
 }
 
+/// Suture points as a surgeon's clicks scatter: `evenly_spaced_on_loop`'s points, each
+/// moved by a random offset of up to `radius_mm` along each axis and put back onto the
+/// nearest wall triangle (label `wall_label`) of `surface`.
+pub fn scattered_clicks(
+    surface: &crate::TriMesh,
+    bvh: &crate::spatial::TriangleBvh,
+    wall_label: i32,
+    on_loop: &[crate::Vec3],
+    radius_mm: f64,
+    rng: &mut crate::numerics::random::SplitMix64,
+) -> Vec<crate::Vec3> {
+    on_loop
+        .iter()
+        .filter_map(|p| {
+            let offset = crate::Vec3::new(rng.symmetric_unit(), rng.symmetric_unit(), rng.symmetric_unit()) * radius_mm;
+            bvh.closest_point_filtered(surface, p + offset, |t| surface.face_ids[t as usize] == wall_label)
+                .map(|hit| hit.point)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -72,7 +96,8 @@ mod tests {
 
     #[test]
     fn evenly_spaced_points_on_a_square() {
-        let square = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        let square =
+            [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
         let points = evenly_spaced_on_loop(&square, 8, 0.0);
         assert_eq!(points.len(), 8);
         assert!((points[1] - Vec3::new(0.5, 0.0, 0.0)).norm() < 1e-12);

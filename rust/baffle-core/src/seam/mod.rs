@@ -9,6 +9,7 @@
 //! added first). `imprint` then inserts this path into the mesh as an exact edge
 //! loop, so the baffle and the wall share the seam's vertices exactly.
 
+mod detour;
 mod imprint;
 
 pub use imprint::{imprint_seam, ImprintedSeam};
@@ -18,6 +19,7 @@ use crate::mesh::{FaceLabels, TriMesh, Vec3};
 use crate::numerics::pca::best_fit_plane;
 use crate::numerics::spline::ClosedSpline;
 use crate::spatial::{ClosestHit, TriangleBvh};
+use detour::WallGraph;
 
 /// Where a point of the seam's path lies on the input surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,43 +88,66 @@ pub fn project_seam(
     check_points_on_wall(surface, bvh, labels, points, max_point_distance_mm)?;
     let ordered = order_by_pca_angle(points);
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
-    let projector = WallProjector { surface, bvh, labels };
+    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
     let samples = spline
         .resample_uniform_arclength(sample_count.max(16))
         .iter()
         .enumerate()
         .map(|(i, q)| projector.project(*q, i))
         .collect::<Result<Vec<_>, _>>()?;
-    let tracer = PathTracer { projector, neighbors: surface.triangle_neighbors() };
+    let tracer =
+        PathTracer { projector, neighbors: surface.triangle_neighbors(), wall: WallGraph::new(surface, labels.wall) };
     let (path, samples_mm) = tracer.trace_closed(&samples)?;
     Ok(ProjectedSeam { ordered_points_mm: ordered, samples_mm, path })
 }
 
-/// Projects points onto the RV wall, refusing points that sit over a cap.
+/// Projects points onto the RV wall. A spline sample over a cap is moved onto the
+/// cap's rim, the nearest wall, when it is at most the suture-point tolerance inside
+/// it: the surgeon's points lie along the VSD rim, where the baffle is sewn, and the
+/// spline between two of them may bulge over the cap. Deeper inside, the points do
+/// not describe a seam on the wall and the sample is refused.
 struct WallProjector<'a> {
     surface: &'a TriMesh,
     bvh: &'a TriangleBvh,
     labels: &'a FaceLabels,
+    max_rim_shift_mm: f64,
 }
 
 impl WallProjector<'_> {
     fn project(&self, q: Vec3, sample: usize) -> Result<ClosestHit, DesignError> {
-        let (surface, labels) = (self.surface, self.labels);
+        let labels = self.labels;
         let wall = self
-            .bvh
-            .closest_point_filtered(surface, q, |t| surface.face_ids[t as usize] == labels.wall)
+            .wall_hit(q)
             .ok_or_else(|| DesignError::Seam(format!("seam sample {sample} found no wall triangle")))?;
-        if let Some(any) = self.bvh.closest_point(surface, q) {
-            let label = surface.face_ids[any.triangle as usize];
-            if label != labels.wall && wall.distance_mm > any.distance_mm + CAP_MARGIN_MM {
+        if let Some((label, inside_cap_mm)) = self.over_cap(q, &wall) {
+            if inside_cap_mm > self.max_rim_shift_mm {
                 return Err(DesignError::Seam(format!(
-                    "the seam crosses the {} (label {label}) near sample {sample}; move the suture points \
-                     near it away from the cap rim",
-                    cap_name(labels, label)
+                    "the seam crosses the {} (label {label}) near sample {sample} ({:.2}, {:.2}, {:.2}), \
+                     {inside_cap_mm:.2} mm inside its rim (at most {:.2} mm is moved onto the rim); move the \
+                     suture points near it onto the wall around the cap",
+                    cap_name(labels, label),
+                    q.x,
+                    q.y,
+                    q.z,
+                    self.max_rim_shift_mm
                 )));
             }
         }
         Ok(wall)
+    }
+
+    fn wall_hit(&self, q: Vec3) -> Option<ClosestHit> {
+        let surface = self.surface;
+        self.bvh.closest_point_filtered(surface, q, |t| surface.face_ids[t as usize] == self.labels.wall)
+    }
+
+    /// The cap `q` lies over (nearer to it than to the wall, `wall` being q's wall
+    /// projection), and how much nearer.
+    fn over_cap(&self, q: Vec3, wall: &ClosestHit) -> Option<(i32, f64)> {
+        let any = self.bvh.closest_point(self.surface, q)?;
+        let label = self.surface.face_ids[any.triangle as usize];
+        let inside_cap_mm = wall.distance_mm - any.distance_mm;
+        (label != self.labels.wall && inside_cap_mm > CAP_MARGIN_MM).then_some((label, inside_cap_mm))
     }
 }
 
@@ -130,6 +155,7 @@ impl WallProjector<'_> {
 struct PathTracer<'a> {
     projector: WallProjector<'a>,
     neighbors: Vec<[u32; 3]>,
+    wall: WallGraph,
 }
 
 impl PathTracer<'_> {
@@ -176,17 +202,42 @@ impl PathTracer<'_> {
             samples_mm.push(mid.point);
             return self.connect(&mid, b, depth + 1, sample, path, samples_mm);
         }
-        let tri_b = surface.triangles[b.triangle as usize];
-        match tri_a.iter().find(|v| tri_b.contains(v)) {
-            Some(&v) => {
-                push_vertex(path, v, surface.points[v as usize]);
+        // Bisected to micrometres and still not adjacent: the projection jumps (see
+        // `detour`); the seam follows the wall's edges across the gap.
+        match self.wall.detour(surface, a, b) {
+            Ok(chain) => {
+                chain.into_iter().for_each(|v| push_vertex(path, v, surface.points[v as usize]));
                 Ok(())
             }
-            None => Err(DesignError::Seam(format!(
-                "could not trace the seam on the surface near sample {sample}: its projection jumps \
-                 across a fold of the wall"
-            ))),
+            Err(walk_mm) => Err(self.untraceable(a, b, sample, walk_mm)),
         }
+    }
+
+    /// Why the seam cannot go from `a` to `b` on the wall: it crosses a cap (the
+    /// midpoint lies over one), or it jumps across a fold whose way round is `walk_mm`.
+    fn untraceable(&self, a: &ClosestHit, b: &ClosestHit, sample: usize, walk_mm: f64) -> DesignError {
+        let (p, midpoint) = (a.point, 0.5 * (a.point + b.point));
+        let cap = self.projector.wall_hit(midpoint).and_then(|wall| self.projector.over_cap(midpoint, &wall));
+        DesignError::Seam(match cap {
+            Some((label, _)) => format!(
+                "the seam crosses the {} near sample {sample} ({:.2}, {:.2}, {:.2}): it enters the cap on one side \
+                 and leaves it on another; move the suture points so the seam goes around the cap",
+                cap_name(self.projector.labels, label),
+                p.x,
+                p.y,
+                p.z
+            ),
+            None => format!(
+                "could not trace the seam on the wall near sample {sample} ({:.2}, {:.2}, {:.2}): its projection \
+                 jumps {:.2} mm across a fold of the wall, and the way round on the wall is {}; move the suture \
+                 points near it onto one side of the fold",
+                p.x,
+                p.y,
+                p.z,
+                detour::jump_mm(a, b),
+                if walk_mm.is_finite() { format!("{walk_mm:.1} mm long") } else { "not within reach".to_string() }
+            ),
+        })
     }
 }
 
@@ -297,8 +348,13 @@ fn check_points_on_wall(
                 max_point_distance_mm
             )));
         }
+        // A point on a cap's rim is as near the wall as the cap: only a point nearer a
+        // cap than the wall by the margin is on the cap.
         let label = surface.face_ids[hit.triangle as usize];
-        if label != labels.wall {
+        let wall_distance_mm = bvh
+            .closest_point_filtered(surface, *p, |t| surface.face_ids[t as usize] == labels.wall)
+            .map_or(f64::INFINITY, |w| w.distance_mm);
+        if label != labels.wall && wall_distance_mm > hit.distance_mm + CAP_MARGIN_MM {
             return Err(DesignError::SuturePoints(format!(
                 "point {} lies on the {} (label {label}), not on the RV wall",
                 i + 1,

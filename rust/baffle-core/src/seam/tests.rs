@@ -1,8 +1,8 @@
 //! Tests of the seam: projection, tracing and insertion on a box made of small triangles.
 use super::*;
 use crate::mesh::edge_key;
-use std::collections::HashSet;
 use crate::mesh::manifold_report;
+use std::collections::HashSet;
 
 /// A closed box [0,4]^3 made of small right triangles, all labelled wall.
 fn grid_box(n: usize) -> TriMesh {
@@ -103,14 +103,15 @@ fn a_seam_that_crosses_itself_is_rejected() {
     let mesh = grid_box(8);
     let bvh = TriangleBvh::new(&mesh).unwrap();
     let labels = FaceLabels::default();
-    let projector = WallProjector { surface: &mesh, bvh: &bvh, labels: &labels };
+    let projector = WallProjector { surface: &mesh, bvh: &bvh, labels: &labels, max_rim_shift_mm: 2.0 };
     let samples: Vec<ClosestHit> = (0..200)
         .map(|k| {
             let a = k as f64 / 200.0 * std::f64::consts::TAU;
             projector.project(Vec3::new(2.0 + 1.5 * a.sin(), 2.0 + 1.2 * a.sin() * a.cos(), 4.0), k).unwrap()
         })
         .collect();
-    let tracer = PathTracer { projector, neighbors: mesh.triangle_neighbors() };
+    let tracer =
+        PathTracer { projector, neighbors: mesh.triangle_neighbors(), wall: WallGraph::new(&mesh, labels.wall) };
     let (path, samples_mm) = tracer.trace_closed(&samples).unwrap();
     let seam = ProjectedSeam { ordered_points_mm: Vec::new(), samples_mm, path };
     let err = imprint_seam(&mesh, &seam).unwrap_err();
@@ -154,4 +155,106 @@ fn seam_across_a_cap_is_rejected() {
         .and_then(|s| imprint_seam(&mesh, &s).map(|_| ()))
         .unwrap_err();
     assert!(err.to_string().contains("VSD cap"), "{err}");
+}
+
+/// Label as VSD cap (11) every triangle whose centroid satisfies `inside`.
+fn with_cap(mut mesh: TriMesh, inside: impl Fn(Vec3) -> bool) -> TriMesh {
+    for t in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.triangle_points(t);
+        if inside((a + b + c) / 3.0) {
+            mesh.face_ids[t] = 11;
+        }
+    }
+    mesh
+}
+
+/// Eight points on a circle of radius 1.5 around (cx, 2) on the top face, offset by
+/// half a spacing so the leftmost point of the circle lies between two of them.
+fn octagon_on_top(cx: f64) -> Vec<Vec3> {
+    (0..8)
+        .map(|k| {
+            let a = (k as f64 + 0.5) / 8.0 * std::f64::consts::TAU;
+            Vec3::new(cx + 1.5 * a.cos(), 2.0 + 1.5 * a.sin(), 4.0)
+        })
+        .collect()
+}
+
+#[test]
+fn a_seam_bulging_over_a_cap_rim_follows_the_rim() {
+    // Cap: the top face's strip x < 1. The points stay on the wall (leftmost at x =
+    // 1.014), the spline between the two leftmost bulges to x = 0.9, 0.1 mm over the cap.
+    let mesh = with_cap(grid_box(8), |c| (c.z - 4.0).abs() < 1e-9 && c.x < 1.0);
+    let bvh = TriangleBvh::new(&mesh).unwrap();
+    let labels = FaceLabels::default();
+    let points = octagon_on_top(2.4);
+    let seam = project_seam(&mesh, &bvh, &labels, &points, 200, 2.0).unwrap();
+    let leftmost = seam.path.iter().map(|p| p.position_mm.x).fold(f64::INFINITY, f64::min);
+    assert!((leftmost - 1.0).abs() < 1e-9, "the seam runs along the rim x = 1, not {leftmost}");
+    let imprinted = imprint_seam(&mesh, &seam).unwrap();
+    assert!(manifold_report(&imprinted.mesh).is_closed_manifold());
+    // With a tolerance below the bulge the same points are refused, and the distance named.
+    let err = project_seam(&mesh, &bvh, &labels, &points, 200, 0.08).unwrap_err().to_string();
+    assert!(err.contains("crosses the VSD cap") && err.contains("inside its rim"), "{err}");
+}
+
+#[test]
+fn a_suture_point_on_a_cap_rim_is_on_the_wall() {
+    let mesh = with_cap(grid_box(8), |c| (c.z - 4.0).abs() < 1e-9 && c.x < 1.0);
+    let bvh = TriangleBvh::new(&mesh).unwrap();
+    let mut points = octagon_on_top(2.5);
+    points[3] = Vec3::new(1.0, 2.3, 4.0);
+    project_seam(&mesh, &bvh, &FaceLabels::default(), &points, 200, 2.0).unwrap();
+}
+
+#[test]
+fn a_seam_across_a_cap_band_is_refused_by_name() {
+    // A 0.5 mm band x in [1.75, 2.25] over the top and down both sides y = 0 and y = 4:
+    // the seam cannot go around it, and its spline is only 0.25 mm deep in it.
+    let mesh = with_cap(grid_box(16), |c| (c.x - 2.0).abs() < 0.25 && (c.z > 3.99 || c.y < 1e-9 || c.y > 4.0 - 1e-9));
+    let bvh = TriangleBvh::new(&mesh).unwrap();
+    let points: Vec<Vec3> = octagon_on_top(2.0).into_iter().filter(|p| (p.x - 2.0).abs() > 0.3).collect();
+    let err = project_seam(&mesh, &bvh, &FaceLabels::default(), &points, 200, 2.0).unwrap_err().to_string();
+    assert!(err.contains("crosses the VSD cap") && err.contains("leaves it on another"), "{err}");
+}
+
+/// The box squashed to a 4 x 4 x 0.2 mm slab: its top and bottom are 0.2 mm apart
+/// in space and at least 4 mm apart along the surface.
+fn slab() -> TriMesh {
+    let mut mesh = grid_box(8);
+    mesh.points.iter_mut().for_each(|p| p.z *= 0.05);
+    mesh
+}
+
+#[test]
+fn a_short_jump_is_walked_along_wall_edges() {
+    let mesh = slab();
+    let bvh = TriangleBvh::new(&mesh).unwrap();
+    let graph = WallGraph::new(&mesh, 2);
+    let (a, b) = (
+        bvh.closest_point(&mesh, Vec3::new(1.1, 1.2, 0.3)).unwrap(),
+        bvh.closest_point(&mesh, Vec3::new(2.1, 1.3, 0.3)).unwrap(),
+    );
+    let chain = graph.detour(&mesh, &a, &b).unwrap();
+    assert!(mesh.triangles[a.triangle as usize].contains(&chain[0]));
+    assert!(mesh.triangles[b.triangle as usize].contains(chain.last().unwrap()));
+    let edges: HashSet<(u32, u32)> =
+        mesh.triangles.iter().flat_map(|t| (0..3).map(move |k| edge_key(t[k], t[(k + 1) % 3]))).collect();
+    assert!(
+        chain.windows(2).all(|w| edges.contains(&edge_key(w[0], w[1]))),
+        "consecutive chain vertices share an edge"
+    );
+    let walk: f64 = chain.windows(2).map(|w| (mesh.points[w[0] as usize] - mesh.points[w[1] as usize]).norm()).sum();
+    assert!(walk < 2.0, "walk {walk}");
+}
+
+#[test]
+fn a_jump_through_a_thin_fold_is_refused_with_its_way_round() {
+    let mesh = slab();
+    let bvh = TriangleBvh::new(&mesh).unwrap();
+    let (top, bottom) = (
+        bvh.closest_point(&mesh, Vec3::new(2.1, 2.2, 0.3)).unwrap(),
+        bvh.closest_point(&mesh, Vec3::new(2.1, 2.2, -0.1)).unwrap(),
+    );
+    let walk_mm = WallGraph::new(&mesh, 2).detour(&mesh, &top, &bottom).unwrap_err();
+    assert!(walk_mm > 3.0, "the way round the slab's rim is at least 4 mm, not {walk_mm}");
 }
