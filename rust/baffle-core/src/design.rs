@@ -10,7 +10,7 @@ use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
 use crate::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
 use crate::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
 use crate::seam::{imprint_seam, project_seam};
-use crate::spatial::TriangleBvh;
+use crate::spatial::{Aabb, TriangleBvh};
 use crate::surface::Domain;
 use crate::target::TargetArea;
 use serde::Serialize;
@@ -806,6 +806,11 @@ fn check_watertight(mesh: &TriMesh, what: &str) -> Result<(), DesignError> {
     Ok(())
 }
 
+/// The bounding box of the domain's kept wall and caps (every triangle before the baffle's).
+fn wall_bounds(mesh: &TriMesh, domain: &Domain) -> Aabb {
+    Aabb::from_points(mesh.triangles[..domain.first_baffle_triangle].iter().flatten().map(|&v| &mesh.points[v as usize]))
+}
+
 /// The final domain must be closed, manifold, outward and free of self-intersections.
 fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<(), DesignError> {
     check_watertight(mesh, "the merged domain")?;
@@ -823,6 +828,15 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
         let [p, q, r] = mesh.triangle_points(t as usize);
         let c = (p + q + r) / 3.0;
         let what = if label == labels.baffle { "itself" } else { "the ventricle wall" };
+        // A baffle blown far out of the ventricle meets itself out there too: naming
+        // that place would send the user looking where no anatomy is.
+        let beyond_mm = wall_bounds(mesh, domain).distance_squared_mm2(&c).sqrt();
+        if beyond_mm > 1.0 {
+            return Err(DesignError::Baffle(format!(
+                "reaching the target area pushes the baffle out of the ventricle ({beyond_mm:.0} mm beyond its \
+                 walls, where it passes through {what}); the suture line leaves too little room for the required tunnel"
+            )));
+        }
         return Err(DesignError::Baffle(format!(
             "reaching the target area makes the baffle pass through {what} near ({:.1}, {:.1}, {:.1}); \
              the suture line leaves too little room for the required tunnel",

@@ -94,6 +94,10 @@ fn scattered_clicks_design_or_are_refused(patient: &str) {
         }
     }
     println!("{patient}: {designed} of 12 scattered clicks designed and verified; refused:\n{}", refused.join("\n"));
+    let bounds = bvh.bounds().expanded(1.0);
+    for place in refused.iter().flat_map(|e| named_places(e)) {
+        assert!(bounds.distance_squared_mm2(&place) == 0.0, "a refusal names {place:?}, outside the ventricle");
+    }
     let untraced: Vec<&String> = refused.iter().filter(|e| e.contains("could not trace")).collect();
     assert!(untraced.is_empty(), "seams lost to tracing:\n{untraced:?}");
 }
@@ -111,4 +115,17 @@ fn p2_scattered_clicks_design_or_are_refused() {
 #[test]
 fn p3_scattered_clicks_design_or_are_refused() {
     scattered_clicks_design_or_are_refused("p3");
+}
+
+/// The places "(x, y, z)" a message names.
+fn named_places(message: &str) -> Vec<baffle_core::Vec3> {
+    message
+        .split('(')
+        .skip(1)
+        .filter_map(|rest| {
+            let inside = rest.split(')').next()?;
+            let xyz: Vec<f64> = inside.split(',').map(|c| c.trim().parse().ok()).collect::<Option<_>>()?;
+            (xyz.len() == 3).then(|| baffle_core::Vec3::new(xyz[0], xyz[1], xyz[2]))
+        })
+        .collect()
 }
