@@ -123,7 +123,7 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
             a: names.0,
             b: names.1,
             what,
-            distance_mm: closest_approach_mm(a, b),
+            distance_mm: closest_approach(a, b).0,
         })
     };
     let vsd = find_loop((LV, RV), ("LV", "RV"), "VSD", &structures[0], &pools.lv)?;
@@ -131,7 +131,8 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     let loops_ms = lap();
 
     let cuts = [cut("VSD", &vsd), cut("aortic annulus", &aortic)];
-    let clipped = clip_between(&union, &cuts, 0.05 * options.voxel_mm).map_err(|m| PrepareError::geometry("clip", m))?;
+    let clipped = clip_between(&union, &cuts, 0.05 * options.voxel_mm)
+        .map_err(|m| PrepareError::geometry("clip", m + &aorta_on_lv(&pools.aorta, &structures[1], options.voxel_mm)))?;
     let clip_ms = lap();
 
     let l = &options.labels;
@@ -235,9 +236,28 @@ fn union_mask(pools: &BloodPools, grid: &Grid) -> Vec<bool> {
         .collect()
 }
 
-/// Smallest distance (mm) from a point of `a` to the surface of `b`.
-fn closest_approach_mm(a: &TriMesh, b: &Structure) -> f64 {
-    a.points.par_iter().filter_map(|&p| b.bvh.closest_point(b.surface, p).map(|h| h.distance_mm)).reduce(|| f64::INFINITY, f64::min)
+/// Smallest distance (mm) from a point of `a` to the surface of `b`, and that point of `a`.
+fn closest_approach(a: &TriMesh, b: &Structure) -> (f64, Vec3) {
+    a.points
+        .par_iter()
+        .filter_map(|&p| b.bvh.closest_point(b.surface, p).map(|h| (h.distance_mm, p)))
+        .reduce(|| (f64::INFINITY, Vec3::zeros()), |x, y| if y.0 < x.0 { y } else { x })
+}
+
+/// Why the cuts fail where the aorta meets the LV (as over a subaortic VSD): the
+/// union of the pools then joins the VSD and the annulus, and neither plane cuts the
+/// surface along its own loop. Empty when the aorta stays two voxels clear of the LV.
+fn aorta_on_lv(aorta: &TriMesh, lv: &Structure, voxel_mm: f64) -> String {
+    let (gap_mm, at) = closest_approach(aorta, lv);
+    if gap_mm > 2.0 * voxel_mm {
+        return String::new();
+    }
+    format!(
+        "; the aorta comes within {gap_mm:.2} mm of the LV near ({:.1}, {:.1}, {:.1}), so the VSD and the aortic \
+         annulus meet there: the capped ventricle needs the two openings apart (check the segmentations there, \
+         or design on a capped ventricle made by hand)",
+        at.x, at.y, at.z
+    )
 }
 
 fn cut<'a>(name: &'a str, lp: &'a InterfaceLoop) -> Cut<'a> {

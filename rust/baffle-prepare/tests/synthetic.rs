@@ -91,3 +91,22 @@ fn bad_options_are_errors_not_panics() {
         assert!(matches!(err, PrepareError::Option(_)), "{err}");
     }
 }
+
+/// The aorta tilted from the RV's top towards the VSD by `tilt_deg` (the
+/// `aorta_tilt` example prints the whole family): from 30 degrees it meets the LV.
+fn tilted_aorta(tilt_deg: f64) -> BloodPools {
+    let t = tilt_deg.to_radians();
+    let (center, axis) = (Vec3::new(RV_CENTER_X, 0.0, 0.0), Vec3::new(-t.sin(), 0.0, t.cos()));
+    BloodPools { aorta: capped_tube(center + axis * 4.0, center + axis * 25.0, AORTA_RADIUS, 20, 64), ..pools() }
+}
+
+#[test]
+fn an_aorta_leaning_towards_the_vsd_is_capped_until_it_meets_the_lv() {
+    // 0.5 mm clear of the LV at 25 degrees.
+    let (mesh, report) = prepare(&tilted_aorta(25.0), &options()).unwrap();
+    assert!(manifold_report(&mesh).is_closed_manifold());
+    assert!((report.aortic_cap.area_mm2 / (std::f64::consts::PI * AORTA_RADIUS * AORTA_RADIUS) - 1.0).abs() < 0.15);
+    // Touching it at 40 degrees: refused, with where and why.
+    let err = prepare(&tilted_aorta(40.0), &options()).unwrap_err().to_string();
+    assert!(err.contains("the aorta comes within") && err.contains("of the LV near ("), "{err}");
+}
