@@ -86,6 +86,7 @@ pub fn project_seam(
         )));
     }
     check_points_on_wall(surface, bvh, labels, points, max_point_distance_mm)?;
+    check_points_enclose(points)?;
     let ordered = order_by_pca_angle(points);
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
     let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
@@ -319,6 +320,25 @@ fn edge_crossing(surface: &TriMesh, a: &ClosestHit, b: &ClosestHit, edge: [u32; 
         _ => e0 + along * along_edge,
     };
     PathPoint { position_mm, place }
+}
+
+/// Suture points spread this much less across their main direction than along it
+/// (RMS; the published seams: 0.69-0.71, the phantom 0.45) lie along a line or a
+/// shallow arc and go around nothing: their angle order is then arbitrary and the
+/// seam would only be reported as crossing itself.
+const MIN_SPREAD_RATIO: f64 = 0.2;
+
+/// The suture points must spread in two directions, around the VSD and the annulus.
+fn check_points_enclose(points: &[Vec3]) -> Result<(), DesignError> {
+    let [along, across, _] = best_fit_plane(points).singular_values.map(|s| s / (points.len() as f64).sqrt());
+    if across < MIN_SPREAD_RATIO * along {
+        return Err(DesignError::SuturePoints(format!(
+            "the {} points lie almost on a line (RMS spread {across:.2} mm across it against {along:.2} mm along \
+             it): place them around the VSD and the aortic annulus, which the seam must enclose",
+            points.len()
+        )));
+    }
+    Ok(())
 }
 
 /// Every suture point must lie on the RV wall (not a cap) within the tolerance.
