@@ -19,6 +19,7 @@ use crate::quality::{quality_report, QualityReport};
 use crate::tetmesh::{face_key, FaceSet, TetMesh};
 use baffle_core::mesh::manifold_report;
 use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::spatial::TriangleBvh;
 use baffle_core::{TriMesh, Vec3};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::ffi::OsString;
@@ -181,7 +182,30 @@ fn prepared_boundary(surface: &TriMesh, opts: &MeshOptions) -> Result<TriMesh, M
     } else {
         surface.clone()
     };
+    check_not_self_intersecting(&surface)?;
     Ok(without_unused_points(&surface))
+}
+
+/// gmsh fails on a surface that passes through itself with pages of its log; say
+/// where instead, before gmsh starts.
+fn check_not_self_intersecting(surface: &TriMesh) -> Result<(), MeshError> {
+    let bvh = TriangleBvh::new(surface).map_err(MeshError::InvalidInput)?;
+    let pairs = bvh.self_intersections_par(surface, |_, _| true);
+    let Some(&(a, b)) = pairs.first() else {
+        return Ok(());
+    };
+    let [p, q, r] = surface.triangle_points(a as usize);
+    let at = (p + q + r) / 3.0;
+    Err(MeshError::InvalidInput(format!(
+        "the surface passes through itself: triangles {a} (label {}) and {b} (label {}) cross near \
+         ({:.2}, {:.2}, {:.2}) mm ({} crossing pairs in all); gmsh cannot mesh it",
+        surface.face_ids[a as usize],
+        surface.face_ids[b as usize],
+        at.x,
+        at.y,
+        at.z,
+        pairs.len()
+    )))
 }
 
 fn check_labelled_surface(mesh: &TriMesh, what: &str) -> Result<(), MeshError> {
@@ -770,6 +794,24 @@ mod tests {
         closed.triangles.push([1, 2, 3]);
         closed.face_ids.push(2);
         closed
+    }
+
+    #[test]
+    fn a_surface_through_itself_is_named_before_gmsh_runs() {
+        // Two closed tetrahedra in one surface, the second shifted into the first.
+        let (a, mut b) = (closed_tet(), closed_tet());
+        b.points.iter_mut().for_each(|p| *p += Vec3::new(0.2, 0.2, 0.2));
+        let offset = a.points.len() as u32;
+        let mut both = a.clone();
+        both.points.extend(b.points);
+        both.triangles.extend(b.triangles.iter().map(|t| t.map(|i| i + offset)));
+        both.face_ids.extend(b.face_ids);
+        let opts = MeshOptions {
+            gmsh_executable: Some("/nonexistent/gmsh".into()),
+            ..Default::default()
+        };
+        let err = mesh_surface(&both, &opts).unwrap_err().to_string();
+        assert!(err.contains("passes through itself") && err.contains("cross near ("), "{err}");
     }
 
     #[cfg(unix)]
