@@ -415,6 +415,9 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
     for warning in &outcome.warnings {
         println!("warning: {warning}");
     }
+    if let Some(reason) = &outcome.pictures_missing {
+        println!("note: the report has no 3D pictures: {reason}");
+    }
     // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
     println!("{}", outcome.verdict_line);
     Ok(())
