@@ -352,8 +352,9 @@ class Picture:
     def add_legend(self, name, color):
         self.legend.append((name, color))
 
-    def look(self, points, look, right, up):
-        """Parallel camera looking along `look` at the box of `points` (mm), `up` up."""
+    def look(self, points, look, right, up, margin=1.25):
+        """Parallel camera looking along `look` at the box of `points` (mm), `up` up; the
+        box fills 1/margin of the scene's height or width."""
         import numpy as np
 
         look, right, up = (np.asarray(v, dtype=float) / np.linalg.norm(v) for v in (look, right, up))
@@ -361,7 +362,7 @@ class Picture:
         center = right * (u.min() + u.max()) / 2 + up * (v.min() + v.max()) / 2 + look * (w.min() + w.max()) / 2
         width_px, height_px = self.scene_px
         # Half the height shown (mm): the box with room for the title and the scale bar.
-        half_height = max((v.max() - v.min()) / 2, (u.max() - u.min()) / 2 * height_px / width_px) * 1.25
+        half_height = max((v.max() - v.min()) / 2, (u.max() - u.min()) / 2 * height_px / width_px) * margin
         camera = self.scene.GetActiveCamera()
         camera.ParallelProjectionOn()
         camera.SetFocalPoint(*center)
@@ -508,6 +509,32 @@ def speed_cut(peak, origin, normal):
     return cut
 
 
+def rim_tube(cap, radius_mm):
+    """The boundary loop of a cap as a tube: the cap's outline, which hides nothing behind it."""
+    from vtkmodules.vtkFiltersCore import vtkFeatureEdges, vtkTubeFilter
+
+    edges = vtkFeatureEdges()
+    edges.SetInputData(cap)
+    edges.BoundaryEdgesOn()
+    edges.FeatureEdgesOff()
+    edges.ManifoldEdgesOff()
+    edges.NonManifoldEdgesOff()
+    tube = vtkTubeFilter()
+    tube.SetInputConnection(edges.GetOutputPort())
+    tube.SetRadius(radius_mm)
+    tube.SetNumberOfSides(12)
+    tube.Update()
+    return tube.GetOutput()
+
+
+def size_mm(data):
+    """The diagonal of the bounding box of `data` (mm)."""
+    import numpy as np
+
+    points = points_of(data)
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+
+
 def centerline_tube(centerline, radius_mm):
     from vtkmodules.vtkFiltersCore import vtkTubeFilter
 
@@ -554,10 +581,8 @@ def context_picture(plan, view, ras):
             picture.add_legend(label, COLORS[part])
     picture.add(surface_actor(centerline_tube(plan.centerline, 0.3), COLORS["centerline"]))
     picture.add_legend("flow centerline", COLORS["centerline"])
-    everything = [points_of(plan.cfd_domain)] + [points_of(s) for s in plan.anatomy.values()]
-    import numpy as np
-
-    picture.look(np.vstack(everything), look, right, up)
+    # Framed on the CFD domain: the anatomy around it may run off the edges.
+    picture.look(points_of(plan.cfd_domain), look, right, up, margin=1.4)
     return picture
 
 
@@ -590,12 +615,15 @@ def aortic_face_on_picture(plan, ras):
     up = superior - look * superior.dot(look)
     up = up / np.linalg.norm(up) if np.linalg.norm(up) > 1e-6 else np.cross(look, [1.0, 0.0, 0.0])
     right = np.cross(look, up)
-    picture = Picture("Aortic annulus cap face-on (seen from the aorta)", ras)
-    for part, label, opacity in (("wall", "RV wall", 0.35), ("baffle", "baffle", 0.55), ("vsd", "VSD cap", 1.0), ("aortic", "aortic cap", 0.65)):
+    picture = Picture("Into the aortic annulus, face-on (from the aorta)", ras)
+    for part, label, opacity in (("wall", "RV wall", 0.3), ("baffle", "baffle", 1.0), ("vsd", "VSD cap", 1.0)):
         data = plan.part(plan.domain, part)
         if data is not None:
             picture.add(surface_actor(data, COLORS[part], opacity))
             picture.add_legend(label, COLORS[part])
+    # The annulus as its rim: the pathway behind it stays in sight.
+    picture.add(surface_actor(rim_tube(cap, 0.006 * size_mm(plan.domain)), COLORS["aortic"]))
+    picture.add_legend("aortic annulus (rim)", COLORS["aortic"])
     picture.look(points_of(plan.domain), look, right, up)
     return picture
 
@@ -654,13 +682,15 @@ def pressure_picture(plan, anterior, ras):
     picture = Picture(f"{anterior[1]}: pressure along the flow centerline", ras, colorbar=(table, "p - aortic plane\nat peak (mmHg)"))
     picture.add(surface_actor(plan.cfd_wall(), COLORS["domain"], 0.2))
     picture.add_legend("CFD domain wall", COLORS["domain"])
-    for part, label in (("vsd", "VSD plane"), ("aortic", "aortic plane")):
+    pathway = size_mm(plan.domain)
+    for part, label in (("vsd", "VSD plane (rim)"), ("aortic", "aortic plane (rim)")):
         data = plan.part(plan.cfd_domain, part)
         if data is not None:
-            picture.add(surface_actor(data, COLORS[part], 0.45))
+            picture.add(surface_actor(rim_tube(data, 0.005 * pathway), COLORS[part]))
             picture.add_legend(label, COLORS[part])
-    picture.add(colored_actor(centerline_tube(plan.centerline, 0.6), name, table))
-    picture.look(points_of(plan.cfd_domain), *anterior[2:])
+    picture.add(colored_actor(centerline_tube(plan.centerline, 0.025 * pathway), name, table))
+    # Framed on the designed pathway (VSD to aortic plane), where the centerline runs.
+    picture.look(points_of(plan.domain), *anterior[2:], margin=1.5)
     return picture, (low, high)
 
 
