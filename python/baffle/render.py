@@ -26,11 +26,13 @@ from pathlib import Path
 
 WIDTH_PX, HEIGHT_PX = 800, 600
 # The 3D scene's share of the width; the legend and the colour bar take the rest.
-SCENE_WIDTH = 0.75
+SCENE_WIDTH = 0.72
 
 # ModelFaceID of the plan's surfaces (the design's defaults; --*-label override them).
 DEFAULT_LABELS = {"wall": 2, "baffle": 10, "vsd": 11, "aortic": 16, "inflow": 20, "outflow": 21}
 
+# Text sizes (px of the 800 x 600 picture, which the report shows at 480 px wide).
+TITLE_PX, LETTER_PX, LABEL_PX = 25, 30, 22
 # One colour per part in every picture (RGB 0-1).
 COLORS = {
     "wall": (0.80, 0.55, 0.51),
@@ -253,7 +255,7 @@ def colored_actor(data, array, table):
     return actor
 
 
-def text_actor(text, x, y, size=20, color=(0.1, 0.1, 0.1), bold=False, justify="left", vertical="bottom"):
+def text_actor(text, x, y, size=20, color=(0.1, 0.1, 0.1), bold=False, justify="left", vertical="bottom", backdrop=False):
     from vtkmodules.vtkRenderingCore import vtkTextActor
 
     actor = vtkTextActor()
@@ -262,6 +264,10 @@ def text_actor(text, x, y, size=20, color=(0.1, 0.1, 0.1), bold=False, justify="
     prop.SetFontSize(size)
     prop.SetColor(*color)
     prop.SetBold(bold)
+    if backdrop:
+        # Readable over the 3D scene: a half-white box behind the text.
+        prop.SetBackgroundColor(1.0, 1.0, 1.0)
+        prop.SetBackgroundOpacity(0.75)
     {"left": prop.SetJustificationToLeft, "center": prop.SetJustificationToCentered, "right": prop.SetJustificationToRight}[justify]()
     {"bottom": prop.SetVerticalJustificationToBottom, "center": prop.SetVerticalJustificationToCentered, "top": prop.SetVerticalJustificationToTop}[vertical]()
     actor.SetDisplayPosition(int(x), int(y))
@@ -329,14 +335,14 @@ class Picture:
         bar.SetNumberOfLabels(5)
         bar.SetLabelFormat("%.2f")
         bar.SetUnconstrainedFontSize(True)
-        bar.SetBarRatio(0.3)
+        bar.SetBarRatio(0.25)
         bar.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
         bar.GetPositionCoordinate().SetValue(0.1, 0.05)
         bar.SetWidth(0.8)
         bar.SetHeight(0.5)
         prop = bar.GetLabelTextProperty()
         prop.SetColor(0.1, 0.1, 0.1)
-        prop.SetFontSize(16)
+        prop.SetFontSize(LABEL_PX)
         prop.ShadowOff()
         prop.ItalicOff()
         prop.BoldOff()
@@ -344,7 +350,7 @@ class Picture:
         # Text positions are window pixels; the panel starts at the scene's right edge.
         x = self.scene_px[0] + 14
         for k, line in enumerate(title.split("\n")):
-            self.side.AddViewProp(text_actor(line, x, HEIGHT_PX * 0.57 + 22 * (1 - k), size=17, bold=k == 0))
+            self.side.AddViewProp(text_actor(line, x, HEIGHT_PX * 0.57 + (LABEL_PX + 4) * (1 - k), size=LABEL_PX, bold=k == 0))
 
     def add(self, actor):
         self.scene.AddActor(actor)
@@ -385,23 +391,23 @@ class Picture:
             (letter(up), width_px / 2, height_px - 40, "center", "top"),
             (letter(-up), width_px / 2, 12, "center", "bottom"),
         ):
-            self.scene.AddViewProp(text_actor(text, x, y, size=24, color=grey, bold=True, justify=h, vertical=v))
-        self.scene.AddViewProp(text_actor(self.title, 12, height_px - 10, size=20, bold=True, vertical="top"))
+            self.scene.AddViewProp(text_actor(text, x, y, size=LETTER_PX, color=grey, bold=True, justify=h, vertical=v, backdrop=True))
+        self.scene.AddViewProp(text_actor(self.title, 12, height_px - 10, size=TITLE_PX, bold=True, vertical="top", backdrop=True))
         # Scale bar: a round length about a fifth of the scene's width, at the bottom left.
         length_mm = round_length_mm(0.2 * width_px / self.px_per_mm)
         x0, y0, bar_px = 20, 24, length_mm * self.px_per_mm
         self.scene.AddViewProp(shape_2d([(x0, y0), (x0 + bar_px, y0)], (0.1, 0.1, 0.1), line_width=4))
         for x in (x0, x0 + bar_px):
             self.scene.AddViewProp(shape_2d([(x, y0 - 5), (x, y0 + 5)], (0.1, 0.1, 0.1), line_width=2))
-        self.scene.AddViewProp(text_actor(f"{length_mm:g} mm", x0 + bar_px / 2, y0 + 8, size=17, justify="center"))
+        self.scene.AddViewProp(text_actor(f"{length_mm:g} mm", x0 + bar_px / 2, y0 + 8, size=LABEL_PX, justify="center", backdrop=True))
         # The legend of the parts at the top of the side panel, the colour bar below it.
-        x = width_px + 14
+        x = width_px + 10
         for k, (name, color) in enumerate(self.legend):
-            y = height_px - 36 - 24 * k
+            y = height_px - 40 - (LABEL_PX + 8) * k
             # A 2D shape's points are the panel's own pixels, a text's the window's.
-            square = [(14, y), (30, y), (30, y + 16), (14, y + 16)]
+            square = [(10, y), (30, y), (30, y + 20), (10, y + 20)]
             self.side.AddViewProp(shape_2d(square, color))
-            self.side.AddViewProp(text_actor(name, x + 24, y, size=16))
+            self.side.AddViewProp(text_actor(name, x + 24, y, size=LABEL_PX))
         if self.colorbar:
             self._colorbar(*self.colorbar)
 
@@ -564,23 +570,23 @@ def array_range(data, name):
 def context_picture(plan, view, ras):
     """The CFD domain in the anatomy: LV, RV, aorta translucent, baffle and caps opaque."""
     key, name, look, right, up = view
-    picture = Picture(f"{name}: CFD domain in context", ras)
+    picture = Picture(f"{name}, in context", ras)
     for structure, surface in plan.anatomy.items():
         picture.add(surface_actor(surface, COLORS[structure], 0.15))
-        picture.add_legend(f"{structure} (segment)", COLORS[structure])
+        picture.add_legend(f"{structure} segment", COLORS[structure])
     # The CFD domain's own wall shows where the flow is computed (the extension's ends).
     picture.add(surface_actor(plan.part(plan.cfd_domain, "wall"), COLORS["domain"], 0.3))
-    picture.add_legend("CFD domain wall", COLORS["domain"])
+    picture.add_legend("CFD wall", COLORS["domain"])
     shown = [("baffle", "baffle", 1.0), ("vsd", "VSD plane", 0.9), ("aortic", "aortic plane", 0.9)]
     if plan.extended:
-        shown += [("inflow", "mid-LV inflow cap", 1.0), ("outflow", "STJ outflow cap", 1.0)]
+        shown += [("inflow", "inflow (mid-LV)", 1.0), ("outflow", "outflow (STJ)", 1.0)]
     for part, label, opacity in shown:
         data = plan.part(plan.cfd_domain, part)
         if data is not None:
             picture.add(surface_actor(data, COLORS[part], opacity))
             picture.add_legend(label, COLORS[part])
     picture.add(surface_actor(centerline_tube(plan.centerline, 0.3), COLORS["centerline"]))
-    picture.add_legend("flow centerline", COLORS["centerline"])
+    picture.add_legend("centerline", COLORS["centerline"])
     # Framed on the CFD domain: the anatomy around it may run off the edges.
     picture.look(points_of(plan.cfd_domain), look, right, up, margin=1.4)
     return picture
@@ -615,7 +621,7 @@ def aortic_face_on_picture(plan, ras):
     up = superior - look * superior.dot(look)
     up = up / np.linalg.norm(up) if np.linalg.norm(up) > 1e-6 else np.cross(look, [1.0, 0.0, 0.0])
     right = np.cross(look, up)
-    picture = Picture("Into the aortic annulus, face-on (from the aorta)", ras)
+    picture = Picture("Aortic annulus, face-on", ras)
     for part, label, opacity in (("wall", "RV wall", 0.3), ("baffle", "baffle", 1.0), ("vsd", "VSD cap", 1.0)):
         data = plan.part(plan.domain, part)
         if data is not None:
@@ -623,7 +629,7 @@ def aortic_face_on_picture(plan, ras):
             picture.add_legend(label, COLORS[part])
     # The annulus as its rim: the pathway behind it stays in sight.
     picture.add(surface_actor(rim_tube(cap, 0.006 * size_mm(plan.domain)), COLORS["aortic"]))
-    picture.add_legend("aortic annulus (rim)", COLORS["aortic"])
+    picture.add_legend("aortic annulus", COLORS["aortic"])
     picture.look(points_of(plan.domain), look, right, up)
     return picture
 
@@ -650,15 +656,15 @@ def speed_pictures(plan, anterior, ras):
     cut = speed_cut(plan.peak, origin, normal)
     low, high = 0.0, max(array_range(cut, "speed_m_s")[1], 1e-6)
     table = lookup_table("speed", low, high)
-    bar = (table, "speed at peak\n(m/s)")
+    bar = (table, "speed\nat peak (m/s)")
 
-    in_context = Picture(f"{anterior[1]}: peak speed on a cut along the flow", ras, colorbar=bar)
+    in_context = Picture(f"{anterior[1]}: peak speed on a cut", ras, colorbar=bar)
     in_context.add(surface_actor(plan.cfd_wall(), COLORS["domain"], 0.2))
     baffle = plan.part(plan.cfd_domain, "baffle")
     if baffle is not None:
         in_context.add(surface_actor(baffle, COLORS["baffle"], 0.35))
         in_context.add_legend("baffle", COLORS["baffle"])
-    in_context.add_legend("CFD domain wall", COLORS["domain"])
+    in_context.add_legend("CFD wall", COLORS["domain"])
     in_context.add(colored_actor(cut, "speed_m_s", table))
     in_context.look(points_of(plan.cfd_domain), *anterior[2:])
 
@@ -679,11 +685,11 @@ def pressure_picture(plan, anterior, ras):
     # Symmetric about 0 so white is the aortic plane's mean pressure.
     extent = max(abs(low), abs(high), 1e-3)
     table = lookup_table("pressure", -extent, extent)
-    picture = Picture(f"{anterior[1]}: pressure along the flow centerline", ras, colorbar=(table, "p - aortic plane\nat peak (mmHg)"))
+    picture = Picture(f"{anterior[1]}: centerline pressure", ras, colorbar=(table, "p - aortic\nplane (mmHg)"))
     picture.add(surface_actor(plan.cfd_wall(), COLORS["domain"], 0.2))
-    picture.add_legend("CFD domain wall", COLORS["domain"])
+    picture.add_legend("CFD wall", COLORS["domain"])
     pathway = size_mm(plan.domain)
-    for part, label in (("vsd", "VSD plane (rim)"), ("aortic", "aortic plane (rim)")):
+    for part, label in (("vsd", "VSD plane"), ("aortic", "aortic plane")):
         data = plan.part(plan.cfd_domain, part)
         if data is not None:
             picture.add(surface_actor(rim_tube(data, 0.005 * pathway), COLORS[part]))
@@ -724,7 +730,7 @@ def render_plan(folder, ras=False, labels=None):
     add(
         "aortic_cap_face_on.png",
         aortic_face_on_picture(plan, ras),
-        "The designed pathway seen straight into the aortic-annulus cap (superior kept up): the VSD cap behind it through the translucent baffle and RV wall.",
+        "The designed pathway seen straight into the aortic annulus (its rim in yellow) from the aorta: the baffle and, beside it, the VSD cap, through the translucent RV wall; the letters give the patient's directions.",
         "anatomy",
     )
     in_context, face_on, v_max = speed_pictures(plan, anterior, ras)

@@ -319,17 +319,10 @@ impl Html {
             escape(&picture.caption)
         );
     }
-    /// The rendered pictures of one section, or why there are none.
-    fn pictures(&mut self, rendered: &pictures::Pictures, section: &str) {
-        match rendered {
-            pictures::Pictures::Rendered { pictures, .. } => {
-                for picture in pictures.iter().filter(|p| p.section == section) {
-                    self.picture(picture);
-                }
-            }
-            pictures::Pictures::NotRendered(reason) => {
-                let _ = writeln!(self.0, "<p class=\"warning\">The 3D pictures could not be rendered: {}.</p>", escape(reason));
-            }
+    /// The rendered pictures of one section of the report.
+    fn pictures(&mut self, pictures: &[pictures::Picture], section: &str) {
+        for picture in pictures.iter().filter(|p| p.section == section) {
+            self.picture(picture);
         }
     }
     fn table(&mut self, header: &[&str], rows: &[Vec<String>]) {
@@ -636,6 +629,26 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         let _ = writeln!(html.0, "<p class=\"warning\">Warning: {}</p>", escape(warning));
     }
     html.para(&domain_text(&cfd_domain));
+    match &rendered {
+        pictures::Pictures::Rendered { pictures, notes } => {
+            html.heading("Baffle and pathway");
+            html.pictures(pictures, "anatomy");
+            for note in notes {
+                html.para(&format!("Note: {note}."));
+            }
+            html.para(&format!(
+                "Views named from the input's frame ({}); the letters at the edges give the patient's directions (R/L, A/P, S/I), the bar at the bottom left the scale. The pictures are also in pictures/ beside this report, at full size.",
+                if ras { "RAS, --surface-frame ras" } else { "LPS, as Slicer writes models" }
+            ));
+            html.heading("Flow at peak");
+            html.pictures(pictures, "flow");
+        }
+        pictures::Pictures::NotRendered(reason) => {
+            html.heading("Pictures");
+            let _ = writeln!(html.0, "<p class=\"warning\">The 3D pictures could not be rendered: {}.</p>", escape(reason));
+        }
+    }
+
     html.heading("The paper's quantities");
     let mut rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
     match &paper {
@@ -661,20 +674,6 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         html.table(&["Cap", "ModelFaceID", "Area (mm²)", "Centroid (mm)"], &prepare_rows(prepare));
         html.para(&format!("Built from the segmentations in {} s.", format_value(prepare["wall_time_s"].as_f64().unwrap_or(f64::NAN), 1)));
     }
-    html.heading("Baffle and pathway");
-    html.pictures(&rendered, "anatomy");
-    if let pictures::Pictures::Rendered { notes, .. } = &rendered {
-        for note in notes {
-            html.para(&format!("Note: {note}."));
-        }
-    }
-    html.para(&format!(
-        "Views named from the input's frame ({}); the letters at the edges give the patient's directions (R/L, A/P, S/I), the bar at the bottom left the scale. The pictures are also in pictures/ beside this report, at full size.",
-        if ras { "RAS, --surface-frame ras" } else { "LPS, as Slicer writes models" }
-    ));
-    html.heading("Flow at peak");
-    html.pictures(&rendered, "flow");
-
     html.heading("Section area");
     html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
 
