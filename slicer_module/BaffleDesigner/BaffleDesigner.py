@@ -466,7 +466,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.showError("Loading the plan report failed", str(error))
             return
         self.planReport = report
-        layout = self.ui.planPicturesLayout
+        layout = self.ui.planPicturesWidget.layout()
         while layout.count():
             item = layout.takeAt(0)
             if item.widget() is not None:
