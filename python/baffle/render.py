@@ -579,7 +579,8 @@ def context_picture(plan, view, ras):
     picture.add_legend("CFD wall", COLORS["domain"])
     shown = [("baffle", "baffle", 1.0), ("vsd", "VSD plane", 0.9), ("aortic", "aortic plane", 0.9)]
     if plan.extended:
-        shown += [("inflow", "inflow (mid-LV)", 1.0), ("outflow", "outflow (STJ)", 1.0)]
+        # Half see-through: the mid-LV cap is wide and would hide the LV behind it.
+        shown += [("inflow", "inflow (mid-LV)", 0.55), ("outflow", "outflow (STJ)", 0.55)]
     for part, label, opacity in shown:
         data = plan.part(plan.cfd_domain, part)
         if data is not None:
