@@ -408,6 +408,7 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
         println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
         done += stage.weight;
     }
+    progress.report(1.0, "report", "writing the report and rendering its pictures (VTK)");
     let outcome = report::write_reports(args, &stages, &records)?;
     progress.report(1.0, "report", "written");
     progress.finish(None);
