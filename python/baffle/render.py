@@ -477,9 +477,11 @@ class Plan:
     def part(self, surface, *names):
         return with_labels(surface, [self.labels[n] for n in names])
 
-    def cfd_wall(self):
-        """The CFD domain's outer surface (its interior measurement planes left out)."""
-        return self.part(self.cfd_domain, "wall", "baffle", "inflow", "outflow") if self.extended else self.domain
+    def cfd_wall(self, *also):
+        """The CFD domain's wall, with the parts named in `also` ("baffle", ...): neither the
+        VSD and aortic planes nor, for the designed domain, its end caps, which would hide
+        what lies behind them."""
+        return self.part(self.cfd_domain, "wall", *also)
 
 
 def mid_centerline(centerline):
@@ -660,7 +662,7 @@ def speed_pictures(plan, anterior, ras):
     bar = (table, "speed\nat peak (m/s)")
 
     in_context = Picture(f"{anterior[1]}: peak speed on a cut", ras, colorbar=bar)
-    in_context.add(surface_actor(plan.cfd_wall(), COLORS["domain"], 0.2))
+    in_context.add(surface_actor(plan.cfd_wall("inflow", "outflow"), COLORS["domain"], 0.2))
     baffle = plan.part(plan.cfd_domain, "baffle")
     if baffle is not None:
         in_context.add(surface_actor(baffle, COLORS["baffle"], 0.35))
@@ -687,7 +689,7 @@ def pressure_picture(plan, anterior, ras):
     extent = max(abs(low), abs(high), 1e-3)
     table = lookup_table("pressure", -extent, extent)
     picture = Picture(f"{anterior[1]}: centerline pressure", ras, colorbar=(table, "p - aortic\nplane (mmHg)"))
-    picture.add(surface_actor(plan.cfd_wall(), COLORS["domain"], 0.2))
+    picture.add(surface_actor(plan.cfd_wall("baffle", "inflow", "outflow"), COLORS["domain"], 0.2))
     picture.add_legend("CFD wall", COLORS["domain"])
     pathway = size_mm(plan.domain)
     for part, label in (("vsd", "VSD plane"), ("aortic", "aortic plane")):
