@@ -466,12 +466,16 @@ class Plan:
         self.anatomy = self._anatomy()
 
     def _anatomy(self):
-        """The LV, RV and aorta segment surfaces the prepare stage read, when it read a folder."""
+        """The LV, RV and aorta segment surfaces the prepare stage read, when it read a
+        folder (a relative one is taken from the current directory, as the plan was run);
+        `self.anatomy_note` says why there are none."""
         folder = self.report.get("inputs", {}).get("segmentations")
         if not folder:
+            self.anatomy_note = "no LV, RV and aorta segment surfaces (the plan did not start from --segmentations): the context views show the CFD domain alone"
             return {}
-        folder = Path(folder) if Path(folder).is_absolute() else Path.cwd() / folder
-        found = {name: find_structure(folder, stems) for name, stems in STRUCTURE_STEMS.items()}
+        found = {name: find_structure(Path(folder), stems) for name, stems in STRUCTURE_STEMS.items()}
+        missing = [name for name, path in found.items() if path is None]
+        self.anatomy_note = f"segment surfaces not found in {folder}: {', '.join(missing)}" if missing else ""
         return {name: read_surface(path) for name, path in found.items() if path is not None}
 
     def part(self, surface, *names):
@@ -713,9 +717,7 @@ def render_plan(folder, ras=False, labels=None):
     frame = "RAS" if ras else "LPS"
     views = anatomical_views(ras)
     anterior = views[0]
-    notes = []
-    if not plan.anatomy:
-        notes.append("no LV, RV and aorta segment surfaces (the plan did not start from --segmentations): the context views show the CFD domain alone")
+    notes = [plan.anatomy_note] if plan.anatomy_note else []
     pictures = []
 
     def add(file, picture, caption, section):
