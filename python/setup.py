@@ -3,7 +3,9 @@ library inside the package, so `pip install ./python` gives a working `import ba
 
 The cargo target directory is $CARGO_TARGET_DIR or the repository's ./target (shared
 with `cargo test` and CMake, so nothing is compiled twice). Set BAFFLE_LIBRARY to an
-existing libbaffle to skip the cargo build (it is then copied instead)."""
+existing libbaffle to skip the cargo build (it is then copied instead). pip hides a build's
+output unless -v, so cargo's progress is written to the user's terminal (/dev/tty) when
+there is one; BAFFLE_BUILD_QUIET=1 keeps it quiet."""
 
 import os
 import shutil
@@ -33,8 +35,27 @@ def cargo_built_library() -> Path:
     target_dir = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
     command = ["cargo", "build", "--release", "-p", "baffle-capi", "--target-dir", str(target_dir)]
     print("baffle:", " ".join(command), flush=True)
-    subprocess.run(command, cwd=REPO, check=True)
+    terminal = user_terminal()
+    if terminal is not None:
+        terminal.write(f"baffle: building the native library (a first build takes minutes): {' '.join(command)}\n")
+        terminal.flush()
+    try:
+        # Cargo's progress goes to the terminal: pip shows a build's own output only with -v.
+        subprocess.run(command, cwd=REPO, check=True, stdout=terminal, stderr=terminal)
+    finally:
+        if terminal is not None:
+            terminal.close()
     return target_dir / "release" / library_name()
+
+
+def user_terminal():
+    """The user's terminal, which pip does not capture, or None (CI, no terminal)."""
+    if os.environ.get("BAFFLE_BUILD_QUIET"):
+        return None
+    try:
+        return open("/dev/tty", "w")
+    except OSError:
+        return None
 
 
 class BuildWithLibrary(build_py):

@@ -14,6 +14,9 @@ if ! command -v cargo >/dev/null; then
 fi
 # gmsh (PyPI wheel) is the volume mesher `baffle mesh` runs as a child process.
 python3 -c "import gmsh" >/dev/null 2>&1 || command -v gmsh >/dev/null || bash scripts/install_gmsh.sh
+# vtk (PyPI wheel) renders the report's 3D pictures offscreen; without it the report says so.
+python3 -c "import vtk" >/dev/null 2>&1 || python3 -m pip install --quiet --disable-pip-version-check vtk numpy \
+  || echo "sample: could not install vtk (pip install vtk): the report will have no 3D pictures" >&2
 cargo build --release -p baffle-cli
 rm -rf out/sample/plan
 ./target/release/baffle phantom --heart --out out/sample/heart

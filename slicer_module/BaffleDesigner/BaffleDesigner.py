@@ -24,6 +24,7 @@ from BaffleDesignerLib import environment as bdenvironment
 from BaffleDesignerLib import logic as bdlogic
 from BaffleDesignerLib import prepare as bdprepare
 from BaffleDesignerLib import process as bdprocess
+from BaffleDesignerLib import report as bdreport
 from BaffleDesignerLib import simulation as bdsimulation
 
 
@@ -56,7 +57,7 @@ SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 PREPARE = "prepare"
 # The BaffleDesignerLib modules in import order (each imports only those before it), for reload.
-LIB_MODULES = ("environment", "process", "logic", "prepare", "simulation")
+LIB_MODULES = ("environment", "process", "logic", "prepare", "simulation", "report")
 CHECKING = "checking the baffle program ..."
 
 
@@ -120,6 +121,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.simulateButton.connect("clicked(bool)", self.onSimulate)
         self.ui.cancelButton.connect("clicked(bool)", self.onCancel)
         self.ui.compareButton.connect("clicked(bool)", self.onCompare)
+        self.ui.loadPlanButton.connect("clicked(bool)", self.onLoadPlan)
+        self.ui.openReportButton.connect("clicked(bool)", self.onOpenReport)
+        self.planReport = None
 
         self.executable = bdprocess.find_baffle_executable()
         self.logic.executable = self.executable
@@ -445,6 +449,51 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.showTable(table)
 
     # ---- separate processes: volume mesh, simulation (mesh then CFD) ----------------
+
+    # ---- a `baffle plan` folder: verdict and pictures ----------------------------------
+
+    def onLoadPlan(self):
+        folder = qt.QFileDialog.getExistingDirectory(self.parent, "A baffle plan folder (its --out)")
+        if folder:
+            self.showPlanReport(folder)
+
+    def showPlanReport(self, folder):
+        """The plan's verdict and its rendered pictures (those of report.html), each
+        scaled to the panel's width with its caption; or why there are none."""
+        try:
+            report = bdreport.read_plan(folder)
+        except bdreport.PlanReportError as error:
+            self.showError("Loading the plan report failed", str(error))
+            return
+        self.planReport = report
+        layout = self.ui.planPicturesWidget.layout()
+        while layout.count():
+            item = layout.takeAt(0)
+            if item.widget() is not None:
+                item.widget().deleteLater()
+        colour = {"passes": "#3c763d", "fails": "#a94442", "inconclusive": "#8a6d3b"}[report.verdict]
+        self.ui.planVerdictLabel.setStyleSheet(f"color: {colour}; font-weight: bold")
+        self.ui.planVerdictLabel.text = "\n".join([report.verdict_line] + [f"Warning: {w}" for w in report.warnings])
+        self.ui.openReportButton.enabled = os.path.isfile(report.html)
+        if report.pictures_missing:
+            layout.addWidget(self._wrappedLabel(f"The plan has no 3D pictures: {report.pictures_missing}"))
+        width = max(240, self.ui.planReportCollapsibleButton.width - 30)
+        for picture in report.pictures:
+            image = qt.QLabel()
+            image.setPixmap(qt.QPixmap(picture.path).scaledToWidth(width, qt.Qt.SmoothTransformation))
+            image.toolTip = picture.path
+            layout.addWidget(image)
+            layout.addWidget(self._wrappedLabel(picture.caption))
+        self.setStatus(f"Plan {folder}: {len(report.pictures)} pictures loaded.")
+
+    def _wrappedLabel(self, text):
+        label = qt.QLabel(text)
+        label.wordWrap = True
+        return label
+
+    def onOpenReport(self):
+        if self.planReport is not None:
+            qt.QDesktopServices.openUrl(qt.QUrl.fromLocalFile(self.planReport.html))
 
     def workDirectory(self, kind):
         return tempfile.mkdtemp(prefix=f"BaffleDesigner-{kind.replace(' ', '-')}-", dir=slicer.app.temporaryPath)

@@ -408,12 +408,16 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
         println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
         done += stage.weight;
     }
+    progress.report(1.0, "report", "writing the report and rendering its pictures (VTK)");
     let outcome = report::write_reports(args, &stages, &records)?;
     progress.report(1.0, "report", "written");
     progress.finish(None);
     println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
     for warning in &outcome.warnings {
         println!("warning: {warning}");
+    }
+    if let Some(reason) = &outcome.pictures_missing {
+        println!("note: the report has no 3D pictures: {reason}");
     }
     // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
     println!("{}", outcome.verdict_line);

@@ -166,19 +166,6 @@ impl PeakFields {
         Ok(PeakFields { points_mm, tets: peak.mesh.tets, pressure_mmhg, velocity_m_s })
     }
 
-    pub fn points_mm(&self) -> Vec<Vec3> {
-        self.points_mm.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect()
-    }
-
-    pub fn tets(&self) -> &[[u32; 4]] {
-        &self.tets
-    }
-
-    /// The speed (m/s) at each point.
-    pub fn speed_m_s(&self) -> Vec<f64> {
-        (0..self.points_mm.len()).map(|i| self.velocity_m_s.iter().map(|c| c[i] * c[i]).sum::<f64>().sqrt()).collect()
-    }
-
     /// The fields at `points_mm`: each velocity component is interpolated in its tet
     /// (the P1 field itself), then its magnitude taken.
     pub fn profile(&self, points_mm: &[Vec3]) -> Profile {

@@ -1,10 +1,10 @@
-//! The plan's report: report.json and a self-contained report.html (inline SVG, no
-//! scripts, no external references), built only from the stages' own files.
+//! The plan's report: report.json and a self-contained report.html (inline SVG charts,
+//! PNG pictures as data URLs, no scripts, no external references), built only from the
+//! stages' own files. The 3D pictures are VTK's (see `pictures`).
 
 mod paper;
+mod pictures;
 mod svg_plot;
-mod svg_render;
-mod svg_slice;
 
 use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
@@ -129,8 +129,6 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
 /// The flow-domain centerline of the centerline stage (mm) and the nominal run's
 /// pressure and speed sampled along it.
 struct CenterlineProfile {
-    /// The nominal run's peak fields (peak.vtu) the profile was sampled from.
-    fields: PeakFields,
     vtp: std::path::PathBuf,
     line: baffle_core::io::PolyData,
     length_mm: f64,
@@ -149,9 +147,8 @@ fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile,
         _ => return Err(format!("{}: no point array s_mm", vtp.display())),
     };
     let length_mm = number(&read_json(&json_path)?, "/length_mm", &json_path)?;
-    let fields = PeakFields::read(peak_path)?;
-    let profile = fields.profile(&line.points);
-    Ok(CenterlineProfile { fields, vtp, line, length_mm, s_mm, profile })
+    let profile = PeakFields::read(peak_path)?.profile(&line.points);
+    Ok(CenterlineProfile { vtp, line, length_mm, s_mm, profile })
 }
 
 impl CenterlineProfile {
@@ -312,6 +309,22 @@ impl Html {
     fn figure(&mut self, svg: &str, caption: &str) {
         let _ = writeln!(self.0, "<figure>{svg}<figcaption>{}</figcaption></figure>", escape(caption));
     }
+    /// A rendered picture, embedded (the PNG file stays in pictures/ beside the report).
+    fn picture(&mut self, picture: &pictures::Picture) {
+        let _ = writeln!(
+            self.0,
+            "<figure class=\"picture\"><img src=\"data:image/png;base64,{}\" alt=\"{}\"/><figcaption>{}</figcaption></figure>",
+            pictures::base64(&picture.png),
+            escape(&picture.title),
+            escape(&picture.caption)
+        );
+    }
+    /// The rendered pictures of one section of the report.
+    fn pictures(&mut self, pictures: &[pictures::Picture], section: &str) {
+        for picture in pictures.iter().filter(|p| p.section == section) {
+            self.picture(picture);
+        }
+    }
     fn table(&mut self, header: &[&str], rows: &[Vec<String>]) {
         self.0.push_str("<table><tr>");
         for h in header {
@@ -331,7 +344,8 @@ impl Html {
 
 const STYLE: &str = "body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}\
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}\
-figure{display:inline-block;margin:0.5em}figcaption{font-size:0.85em;color:#555}\
+figure{display:inline-block;margin:0.5em;vertical-align:top}figcaption{font-size:0.85em;color:#555}\
+figure.picture{width:480px}figure.picture img{width:480px;height:auto;border:1px solid #ddd}\
 .passes{background:#dff0d8;padding:0.6em;border:1px solid #3c763d}.fails{background:#f2dede;padding:0.6em;border:1px solid #a94442}\
 .inconclusive{background:#fcf8e3;padding:0.6em;border:1px solid #8a6d3b}.warning{color:#8a6d3b}";
 
@@ -431,26 +445,6 @@ fn short_path(path: &Path) -> String {
     parts.into_iter().rev().collect::<Vec<_>>().join("/")
 }
 
-/// The peak speed on a plane through the middle of the flow-domain centerline that holds
-/// its direction there, turned as close to the anterior view as that allows.
-fn speed_cut_figure(line: &CenterlineProfile, anterior: &svg_render::View) -> Option<(String, String)> {
-    let points = &line.line.points;
-    let mid = points.len() / 2;
-    let (origin, tangent) = (points.get(mid)?, (points.get(mid + 1)? - points.get(mid.checked_sub(1)?)?).try_normalize(1e-9)?);
-    let normal = (anterior.look - tangent * tangent.dot(&anterior.look)).try_normalize(1e-6)?;
-    // Seen face-on from the anterior side, with the screen's up as near the patient's superior.
-    let look = if normal.dot(&anterior.look) >= 0.0 { normal } else { -normal };
-    let up = (anterior.up - look * anterior.up.dot(&look)).try_normalize(1e-6)?;
-    let view = svg_render::View { name: "cut".into(), look, right: look.cross(&up), up };
-    let polygons = svg_slice::cut(&line.fields.points_mm(), line.fields.tets(), &line.fields.speed_m_s(), *origin, normal);
-    let caption = format!(
-        "Speed at peak flow (m/s) on a plane through the middle of the flow-domain centerline (s = {:.1} mm) that contains its direction there, seen from the anterior side; {} cut tetrahedra.",
-        line.s_mm.get(mid).copied().unwrap_or(f64::NAN),
-        polygons.len()
-    );
-    Some((svg_slice::render_cut(&polygons, &view), caption))
-}
-
 /// The nominal run's residual history: a steady solve's relative residual per iteration
 /// against its target, or a transient run's per-step residual; log10 scale.
 fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, String)> {
@@ -503,6 +497,8 @@ fn input_path(args: &PlanArgs) -> Option<&Path> {
 /// What the command line says at the end: the warnings, then the verdict line.
 pub struct Outcome {
     pub warnings: Vec<String>,
+    /// Why the report has no 3D pictures, when it has none.
+    pub pictures_missing: Option<String>,
     pub verdict_line: String,
 }
 
@@ -552,7 +548,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             })
         })
         .collect();
-    let report = json!({
+    let mut report = json!({
         "status": "completed",
         "created_utc": utc_now(),
         "patient": patient_label(args, paper.as_ref()),
@@ -592,6 +588,26 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         "dp_over_cycle": { "time_in_cycle_s": dp_cycle.iter().map(|p| p.0).collect::<Vec<_>>(), "dp_mmhg": dp_cycle.iter().map(|p| p.1).collect::<Vec<_>>() },
     });
     write_json(&out.join("report.json"), &report)?;
+    // The renderer reads report.json and the stages' files (centerline.vtp with its fields).
+    let d = &args.design;
+    let ras = matches!(d.surface_frame, crate::Frame::Ras);
+    let labels = [
+        ("wall", d.wall_label),
+        ("baffle", d.baffle_label),
+        ("vsd", d.vsd_label),
+        ("aortic", d.aortic_label),
+        ("inflow", baffle_prepare::extend::INFLOW_CAP_LABEL),
+        ("outflow", baffle_prepare::extend::OUTFLOW_CAP_LABEL),
+    ];
+    let rendered = pictures::render(out, ras, &labels);
+    report["pictures"] = match &rendered {
+        pictures::Pictures::Rendered { pictures, notes } => json!({
+            "rendered": true, "renderer": "VTK (python/baffle/render.py)",
+            "files": pictures.iter().map(|p| &p.file).collect::<Vec<_>>(), "notes": notes,
+        }),
+        pictures::Pictures::NotRendered(reason) => json!({ "rendered": false, "reason": reason }),
+    };
+    write_json(&out.join("report.json"), &report)?;
 
     let mut html = Html(String::new());
     let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
@@ -613,6 +629,26 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         let _ = writeln!(html.0, "<p class=\"warning\">Warning: {}</p>", escape(warning));
     }
     html.para(&domain_text(&cfd_domain));
+    match &rendered {
+        pictures::Pictures::Rendered { pictures, notes } => {
+            html.heading("Baffle and pathway");
+            html.pictures(pictures, "anatomy");
+            for note in notes {
+                html.para(&format!("Note: {note}."));
+            }
+            html.para(&format!(
+                "Views named from the input's frame ({}); the letters at the edges give the patient's directions (R/L, A/P, S/I), the bar at the bottom left the scale. The pictures are also in pictures/ beside this report, at full size.",
+                if ras { "RAS, --surface-frame ras" } else { "LPS, as Slicer writes models" }
+            ));
+            html.heading("Flow at peak");
+            html.pictures(pictures, "flow");
+        }
+        pictures::Pictures::NotRendered(reason) => {
+            html.heading("Pictures");
+            let _ = writeln!(html.0, "<p class=\"warning\">The 3D pictures could not be rendered: {}.</p>", escape(reason));
+        }
+    }
+
     html.heading("The paper's quantities");
     let mut rows: Vec<Vec<String>> = table.iter().map(|q| vec![q.label.to_string(), format_value(q.value, q.decimals), q.unit.to_string()]).collect();
     match &paper {
@@ -638,40 +674,6 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         html.table(&["Cap", "ModelFaceID", "Area (mm²)", "Centroid (mm)"], &prepare_rows(prepare));
         html.para(&format!("Built from the segmentations in {} s.", format_value(prepare["wall_time_s"].as_f64().unwrap_or(f64::NAN), 1)));
     }
-    html.heading("Baffle and pathway");
-    let domain = baffle_core::io::read_surface_labeled(&design_dir.join("domain.vtp")).map_err(|e| e.to_string())?.mesh;
-    let d = &args.design;
-    let palette = svg_render::Palette(&[
-        (d.wall_label, [205, 140, 130]),
-        (d.baffle_label, [70, 130, 230]),
-        (d.vsd_label, [90, 180, 90]),
-        (d.aortic_label, [230, 190, 60]),
-        (baffle_prepare::extend::INFLOW_CAP_LABEL, [150, 90, 200]),
-        (baffle_prepare::extend::OUTFLOW_CAP_LABEL, [60, 190, 190]),
-    ]);
-    let ras = matches!(d.surface_frame, crate::Frame::Ras);
-    let views = svg_render::anatomical_views(ras);
-    // Superior in the file's frame (z in both LPS and RAS), kept up in the face-on view.
-    let face_on = svg_render::face_on_view(&domain, d.aortic_label, "into the aortic annulus, its cap face-on", baffle_core::Vec3::z());
-    for view in views.iter().chain(&face_on) {
-        html.figure(&svg_render::render_view(&domain, view, &palette, &flow_line.line.points), &format!("Designed pathway, {} view", view.name));
-    }
-    html.para("Colours: RV wall (red), baffle (blue), VSD cap (green), aortic cap (yellow); dashed: the flow-domain centerline the results are sampled on (hidden inside the pathway). Views named from the input's frame (LPS unless --surface-frame ras); the bar at the bottom left gives the scale.");
-    if cfd_domain["extended"] == true {
-        let extended = baffle_core::io::read_surface_labeled(&crate::plan_cmd::extended_surface_path(out)).map_err(|e| e.to_string())?.mesh;
-        // The interior measurement planes are inside the closed surface: not drawn.
-        let outside = extended.with_labels(|l| l != d.vsd_label && l != d.aortic_label);
-        for view in &views {
-            html.figure(&svg_render::render_view(&outside, view, &palette, &flow_line.line.points), &format!("Extended CFD domain, {} view", view.name));
-        }
-        html.para("The CFD domain in context: the LV back to the mid-LV inflow cap (purple) and the aorta up to the STJ outflow cap (cyan), the RV wall around the baffle (blue).");
-    }
-
-    if let Some((svg, caption)) = speed_cut_figure(&flow_line, &views[0]) {
-        html.heading("Flow at peak");
-        html.figure(&svg, &caption);
-    }
-
     html.heading("Section area");
     html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
 
@@ -737,7 +739,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
     html.0.push_str("</body></html>\n");
     write_atomic(&out.join("report.html"), html.0.as_bytes())?;
-    Ok(Outcome { warnings, verdict_line })
+    let pictures_missing = match rendered {
+        pictures::Pictures::NotRendered(reason) => Some(reason),
+        pictures::Pictures::Rendered { .. } => None,
+    };
+    Ok(Outcome { warnings, pictures_missing, verdict_line })
 }
 
 #[cfg(test)]

@@ -142,6 +142,24 @@ def test_setup_connects_the_panel(widget):
     assert w.logic.parameters(curve).flow_mode == "pulsatile"
 
 
+def test_a_plan_folder_shows_its_verdict_and_pictures(widget, tmp_path):
+    from plan_folder import plan_folder
+
+    w = widget
+    w.showPlanReport(str(plan_folder(tmp_path / "rendered")))
+    assert w.ui.planVerdictLabel.text.startswith("INCONCLUSIVE: ") and "Warning: poor mesh" in w.ui.planVerdictLabel.text
+    assert w.ui.openReportButton.enabled
+    layout = w.ui.planPicturesWidget.layout()
+    labels = [layout.itemAt(k).widget() for k in range(layout.count())]
+    images = [label for label in labels if not label.pixmap.isNull()]
+    assert len(images) == 2 and all(image.pixmap.width() >= 240 for image in images)
+    assert [label.text for label in labels if label.pixmap.isNull()] == ["caption of context_anterior.png", "caption of speed_cut_face_on.png"]
+    # Another plan replaces them; one without pictures says why.
+    w.showPlanReport(str(plan_folder(tmp_path / "without", rendered=False)))
+    harness.process_events_for(0.1)  # the replaced labels are deleted
+    assert layout.count() == 1 and "python3 could not be started" in layout.itemAt(0).widget().text
+
+
 def slow_program(tmp_path, name, delay_s):
     """A program `name` that answers anything (--help, --version) after delay_s."""
     path = tmp_path / name
