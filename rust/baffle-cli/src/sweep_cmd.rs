@@ -95,6 +95,10 @@ fn folder_name(z_score: Option<f64>, target_area_mm2: f64) -> String {
 }
 
 pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
+    // Design options that make no sense per target are refused, not silently dropped.
+    if args.design.reference_baffle.is_some() || args.design.progress_tags {
+        return Err("baffle sweep takes neither --reference-baffle nor --progress-tags (run baffle design on one target)".into());
+    }
     let options = design_options(&args.design)?;
     let (surface, points, default_bsa) = design_inputs(&args.design)?;
     let targets = sweep_targets(args, default_bsa)?;
