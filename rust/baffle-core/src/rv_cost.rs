@@ -15,13 +15,13 @@
 //! an edge times the wall area (~0.01 mL on p2), below the figures' last digit.
 
 use crate::mesh::{TriMesh, Vec3};
-use crate::spatial::{winding_number, TriangleBvh};
+use crate::spatial::{Aabb, TriangleBvh};
 use serde::Serialize;
 
 const MM3_PER_ML: f64 = 1000.0;
-/// A closest point this close to a triangle's edge (in barycentric weight) may take the
-/// neighbour's side; the winding number decides those points.
-const EDGE_WEIGHT: f64 = 1e-6;
+/// A nearest point whose barycentric weight for a corner is at most this lies on the
+/// opposite edge (or, with two such weights, at a corner).
+const FEATURE_WEIGHT: f64 = 1e-9;
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RvCost {
@@ -57,18 +57,48 @@ pub fn rv_cost(ventricle: &TriMesh, bvh: &TriangleBvh, domain: &TriMesh, baffle:
     }
 }
 
-/// Outside a closed outward surface: on the outer side of the nearest triangle, or, when
-/// the nearest point is on an edge or corner (where the side of one triangle is not the
-/// surface's), by the winding number.
+/// Outside a closed outward surface: on the outer side of the angle-weighted pseudo-normal
+/// at the nearest point (Baerentzen and Aanaes 2005), which decides correctly whether that
+/// point is inside a triangle, on an edge or at a corner (a single triangle's side does
+/// not, where the surface folds between neighbours).
 fn is_outside(surface: &TriMesh, bvh: &TriangleBvh, q: Vec3) -> bool {
     let Some(hit) = bvh.closest_point(surface, q) else {
         return false;
     };
-    if hit.barycentric.iter().all(|&w| w > EDGE_WEIGHT) {
-        (q - hit.point).dot(&surface.triangle_normal2(hit.triangle as usize)) > 0.0
-    } else {
-        winding_number(surface, q) < 0.5
-    }
+    let t = hit.triangle as usize;
+    let corners = surface.triangles[t];
+    let feature: Vec<u32> = (0..3).filter(|&k| hit.barycentric[k] > FEATURE_WEIGHT).map(|k| corners[k]).collect();
+    let normal = match feature.len() {
+        3 => surface.triangle_normal2(t),
+        _ => pseudo_normal(surface, bvh, &feature),
+    };
+    (q - hit.point).dot(&normal) > 0.0
+}
+
+/// Sum of the unit normals of the triangles holding every vertex of `feature` (an edge:
+/// its two triangles; a vertex: its fan, each weighted by its angle there).
+fn pseudo_normal(surface: &TriMesh, bvh: &TriangleBvh, feature: &[u32]) -> Vec3 {
+    let at = surface.points[feature[0] as usize];
+    let mut sum = Vec3::zeros();
+    bvh.triangles_overlapping_box(surface, &Aabb::from_points([&at]), |t| {
+        let corners = surface.triangles[t as usize];
+        if !feature.iter().all(|v| corners.contains(v)) {
+            return;
+        }
+        let unit = surface.triangle_normal2(t as usize).normalize();
+        let weight = match feature {
+            [v] => {
+                let k = corners.iter().position(|c| c == v).unwrap_or(0);
+                let [a, b, c] = [k, (k + 1) % 3, (k + 2) % 3].map(|i| surface.points[corners[i] as usize]);
+                (b - a).angle(&(c - a))
+            }
+            _ => 1.0,
+        };
+        if unit.iter().all(|x| x.is_finite()) {
+            sum += weight * unit;
+        }
+    });
+    sum
 }
 
 #[cfg(test)]
@@ -109,6 +139,32 @@ mod tests {
         let bvh = TriangleBvh::new(&ventricle).unwrap();
         let cost = rv_cost(&ventricle, &bvh, &domain, &domain);
         assert!((cost.baffle_area_outside_ventricle_mm2 - 12.0).abs() < 1e-9, "{cost:?}");
+    }
+
+    #[test]
+    fn the_inside_test_agrees_with_the_winding_number_near_corners_edges_and_faces() {
+        use crate::numerics::random::SplitMix64;
+        use crate::spatial::winding_number;
+        let ventricle = phantom_default().surface;
+        let bvh = TriangleBvh::new(&ventricle).unwrap();
+        let mut rng = SplitMix64::new(17);
+        let mut outside = 0;
+        for k in 0..2000 {
+            // Near a vertex, in a random direction, within about an edge length.
+            let v = ventricle.points[k * 7919 % ventricle.points.len()];
+            let d = Vec3::new(rng.symmetric_unit(), rng.symmetric_unit(), rng.symmetric_unit());
+            let q = v + d * rng.between(0.1, 1.5);
+            let by_winding = winding_number(&ventricle, q) < 0.5;
+            assert_eq!(is_outside(&ventricle, &bvh, q), by_winding, "at {q:?}");
+            outside += by_winding as usize;
+        }
+        assert!(outside > 500 && outside < 1500, "{outside} of 2000 outside");
+        // A cube's corner and edge regions: the nearest point is a vertex or an edge there.
+        let cube = cube(10.0);
+        let bvh = TriangleBvh::new(&cube).unwrap();
+        for (q, out) in [([11.0, 11.0, 11.0], true), ([11.0, 5.0, 11.0], true), ([-0.5, -0.5, 5.0], true), ([9.9, 9.9, 9.9], false), ([5.0, 5.0, 5.0], false)] {
+            assert_eq!(is_outside(&cube, &bvh, Vec3::from(q)), out, "{q:?}");
+        }
     }
 
     #[test]
