@@ -802,7 +802,7 @@ class BaffleDesignerLogic:
 
     def updateCompareTable(self, simulation_note: str = "not simulated"):
         """One table of all candidates: target area, baffle area, smallest constrained
-        section, status, and the simulation's peak pressure difference, v_max and 10 mmHg
+        section, RV volume left after the baffle, status, and the simulation's peak pressure difference, v_max and 10 mmHg
         verdict; dp and v_max stay empty (NaN) with `simulation_note` for candidates
         without a simulation result."""
         node = None
@@ -831,6 +831,7 @@ class BaffleDesignerLogic:
             "Min section area": "MinSectionAreaMm2",
             "Constrained sections": "ConstrainedSections",
             "Max feasible area": "MaxFeasibleAreaMm2",  # set when the target is out of reach
+            "RV after": "RvVolumeAfterMl",  # the capped ventricle's volume outside the pathway
             "dp": "SimulationDpMmhg",
             "v_max": "SimulationMaxVelocityMS",
         }
@@ -852,6 +853,7 @@ class BaffleDesignerLogic:
         node.SetAndObserveTable(table)
         for column in ("Target area", "Baffle area", "Min section area", "Max feasible area"):
             node.SetColumnUnitLabel(column, "mm2")
+        node.SetColumnUnitLabel("RV after", "mL")
         node.SetColumnUnitLabel("dp", "mmHg")
         node.SetColumnUnitLabel("v_max", "m/s")
         return node

@@ -202,6 +202,8 @@ def test_candidates_compare_table(p2_scene):
     assert target[1] == pytest.approx(90.0)
     assert np.all(minimum[:2] >= target[:2])
     assert area[1] > area[0]  # a larger target needs a larger baffle
+    rv_after = column(table, "RV after")
+    assert rv_after[1] < rv_after[0] and np.isnan(rv_after[2])  # the larger tunnel leaves less
     assert np.isnan(target[2]) and column(table, "Status")[2] == "not designed"
     assert np.all(np.isnan(column(table, "dp")))
     assert column(table, "Simulation") == ["not simulated: test"] * 3
