@@ -106,8 +106,9 @@ unsafe fn face_labels(labels: *const i32) -> Result<FaceLabels, CallError> {
     if labels.is_null() {
         return Ok(FaceLabels::default());
     }
-    let [baffle, vsd_cap, aortic_cap] = [*labels, *labels.add(1), *labels.add(2)];
-    Ok(FaceLabels { baffle, vsd_cap, aortic_cap, ..FaceLabels::default() })
+    // NULL was handled above; in_slice checks the alignment.
+    let values = in_slice(labels, 3, "labels")?;
+    Ok(FaceLabels { baffle: values[0], vsd_cap: values[1], aortic_cap: values[2], ..FaceLabels::default() })
 }
 
 /// The flattening's figures, where each suture point and rim sits, and the per-triangle
