@@ -91,3 +91,12 @@ def test_bad_template_input_is_named(phantom_design):
         baffle.template(result.domain, points, point_labels=["a", "b"])
     with pytest.raises(ValueError, match=r"\.pdf or \.svg"):
         baffle.template(result.domain, points).save("template.png")
+
+
+def test_other_face_labels(phantom_design):
+    result, points = phantom_design
+    relabelled = baffle.Mesh(result.domain.points, result.domain.triangles, np.where(result.domain.labels == 10, 20, result.domain.labels))
+    t = baffle.template(relabelled, points, baffle_label=20)
+    assert len(t.flat.triangles) == len(result.baffle.triangles)
+    with pytest.raises(baffle.BaffleError, match="ModelFaceID 10"):
+        baffle.template(relabelled, points)
