@@ -10,6 +10,9 @@
     report.verdict, report.reason, report.dp_peak_mmhg           # "passes" / "fails" / "inconclusive"
     fields = baffle.read_fields("out/plan/simulate-nominal/peak.vtu")   # mm, m/s, mmHg; needs vtk
 
+    t = baffle.template(result.domain, points, patient_label="p2")   # the patch template
+    t.save("template.pdf"); t.report["flattening"]["area_distortion_max"]; t.flat.points
+
 With the `vtk` module importable, `baffle.vtk_adapters` converts vtkPolyData.
 """
 
@@ -17,6 +20,7 @@ from ._lib import ABI_VERSION, BaffleError, Cancelled, version
 from .design import DesignResult, Mesh, design, phantom
 from .markups import read_markups
 from .results import PlanReport, read_fields, read_points, read_report, read_surface
+from .template import Template, template
 
 __all__ = [
     "ABI_VERSION",
@@ -32,6 +36,8 @@ __all__ = [
     "read_points",
     "read_report",
     "read_surface",
+    "template",
+    "Template",
     "version",
 ]
 __version__ = "0.1.0"

@@ -15,6 +15,8 @@ ABI_VERSION = 1
 STATUS_OK = 0
 STATUS_CANCELLED = 7
 FRAMES = {"LPS": 0, "RAS": 1}
+FLATTEN_METHODS = {"lscm": 0, "arap": 1}
+TEMPLATE_FORMATS = {"pdf": 0, "svg": 1}
 TARGET_KINDS = {"area_mm2": 0, "annulus_diameter_mm": 1, "bsa": 2, "height_weight": 3}
 
 
@@ -116,6 +118,11 @@ _SIGNATURES = {
     "baffle_result_copy_seam": ([c_void_p, _D, c_size_t], c_int),
     "baffle_phantom": ([POINTER(c_void_p), POINTER(_D), _SZ, _D], c_int),
     "baffle_read_suture_points": ([c_char_p, c_int32, POINTER(_D), _SZ], c_int),
+    "baffle_template": ([c_void_p, _D, c_size_t, c_char_p, c_char_p, c_char_p, _I32, c_int32, POINTER(c_void_p)], c_int),
+    "baffle_template_free": ([c_void_p], None),
+    "baffle_template_flat_mesh": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_template_report_json": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_template_document": ([c_void_p, c_int32, POINTER(c_void_p), _SZ], c_int),
 }
 
 

@@ -124,6 +124,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.loadPlanButton.connect("clicked(bool)", self.onLoadPlan)
         self.ui.openReportButton.connect("clicked(bool)", self.onOpenReport)
         self.planReport = None
+        self.ui.flattenButton.connect("clicked(bool)", self.onFlatten)
+        self.ui.saveTemplateButton.connect("clicked(bool)", self.onSaveTemplate)
 
         self.executable = bdprocess.find_baffle_executable()
         self.logic.executable = self.executable
@@ -274,6 +276,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                 widget.enabled = enabled and not self.packageProblem
                 widget.toolTip = self.packageProblem or widget.toolTip
             self.ui.compareButton.enabled = enabled
+            self.updateTemplateButtons()
             idle = enabled and self.run is None
             self.ui.volumeMeshButton.enabled = idle and not self.volumeMeshReason
             self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or "Tetrahedral mesh of the domain by `baffle mesh`."
@@ -353,7 +356,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             a = lambda name: float(curve.GetAttribute("BaffleDesigner." + name))
             return (
                 f"{curve.GetName()}: target {a('TargetAreaMm2'):.1f} mm2, baffle {a('BaffleAreaMm2'):.1f} mm2, "
-                f"smallest section {a('MinSectionAreaMm2'):.1f} mm2 ({curve.GetAttribute('BaffleDesigner.DesignTimeMs')} ms)"
+                f"smallest section {a('MinSectionAreaMm2'):.1f} mm2 ({curve.GetAttribute('BaffleDesigner.DesignTimeMs')} ms)\n"
+                f"RV {a('RvVolumeBeforeMl'):.2f} mL before, {a('RvVolumeAfterMl'):.2f} mL after the baffle"
+                + (" (net: the baffle leaves the capped ventricle)" if a("BaffleAreaOutsideVentricleMm2") > 0 else "")
             )
         if status == "failed":
             return f"{curve.GetName()}: {curve.GetAttribute('BaffleDesigner.Error')}"
@@ -398,6 +403,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.ui.progressBar.format = ""
         self.setStatus(self.curveSummary(curve))
         self.showOutputs(curve)
+        self.updateTemplateButtons()
 
     def onDesignProgress(self, fraction, stage):
         self.ui.progressBar.value = int(1000 * fraction)
@@ -422,6 +428,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         # good baffle stays in place.
         if curve is self.curve:
             self.setStatus(self.curveSummary(curve), error=error is not None)
+            self.updateTemplateButtons()
 
     def showOutputs(self, curve, chartRole=bdlogic.REF_CHART, tableRole=bdlogic.REF_TABLE):
         """The candidate's chart and table in a layout that has both views: ShowChartInLayout
@@ -441,6 +448,55 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def showTable(self, table):
         slicer.app.applicationLogic().GetSelectionNode().SetActiveTableID(table.GetID())
         slicer.app.applicationLogic().PropagateTableSelection()
+
+    def updateTemplateButtons(self):
+        """Flatten and Save template need a designed candidate (its domain model)."""
+        curve = self.curve
+        designed = curve is not None and curve.GetAttribute("BaffleDesigner.Status") == "designed"
+        for button in (self.ui.flattenButton, self.ui.saveTemplateButton):
+            button.enabled = designed and not self.packageProblem
+
+    def templateLine(self, curve):
+        a = lambda name: curve.GetAttribute("BaffleDesigner." + name)
+        return (
+            f"Template ({a('TemplateMethod')}): seam {a('TemplateSeamLengthMm')} mm, perimeter error {a('TemplatePerimeterErrorPct')} %, "
+            f"area change median {a('TemplateAreaChangeMedianPct')} % / max {a('TemplateAreaChangeMaxPct')} %, "
+            f"angle change max {a('TemplateAngleChangeMaxDeg')} deg"
+        )
+
+    def onFlatten(self):
+        if self.curve is None:
+            return
+        try:
+            with slicer.util.WaitCursor():
+                self.logic.flattenTemplate(self.curve)
+        except bdlogic.BaffleDesignerError as error:
+            self.showError("Flattening failed", str(error))
+            return
+        self.setStatus(f"{self.curveSummary(self.curve)}\n{self.templateLine(self.curve)}")
+
+    def askTemplatePath(self, default):
+        """The file to save the template to ('' when cancelled)."""
+        chosen = qt.QFileDialog.getSaveFileName(
+            slicer.util.mainWindow(), "Save patch template", default, "PDF, A4 1:1 (*.pdf);;SVG, A4 1:1 (*.svg)"
+        )
+        # PythonQt returns the path; PySide returns (path, filter).
+        return chosen[0] if isinstance(chosen, tuple) else chosen
+
+    def onSaveTemplate(self):
+        if self.curve is None:
+            return
+        default = os.path.join(qt.QDir.homePath(), f"{self.curve.GetName()} template.pdf")
+        path = self.askTemplatePath(default)
+        if not path:
+            return
+        try:
+            with slicer.util.WaitCursor():
+                saved = self.logic.saveTemplate(self.curve, path)
+        except bdlogic.BaffleDesignerError as error:
+            self.showError("Saving the template failed", str(error))
+            return
+        self.setStatus(f"{self.templateLine(self.curve)}\nsaved {saved} (print at 100 %, check the 10 mm square)")
 
     def onCompare(self):
         reason = self.simulateReason

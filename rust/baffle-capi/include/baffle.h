@@ -109,6 +109,11 @@ typedef struct BaffleMesh BaffleMesh;
 typedef struct BaffleResult BaffleResult;
 
 /*
+ Opaque, immutable patch template from baffle_template().
+ */
+typedef struct BaffleTemplate BaffleTemplate;
+
+/*
  Options of baffle_design(). Fill with baffle_design_options_init(), then set
  the target (and any tunables). Lengths in mm.
  */
@@ -466,6 +471,72 @@ double baffle_last_max_feasible_area_mm2(void);
  The pointer stays valid until the next baffle_* call on this thread.
  */
 const char *baffle_last_error(void);
+
+/*
+ Flatten the baffle of a designed `domain` (closed, labelled as baffle_design
+ writes it) into a patch template. `suture_points_mm` (double[suture_points_len],
+ the domain's frame) are drawn at their nearest seam vertex and named by
+ `point_labels` (NULL, or one label per line, '\n'-separated; an empty line or a
+ missing one numbers the point 1, 2, ...). `patient_label` and `date` (NULL: today,
+ UTC) are printed on the page. `labels` is NULL (baffle 10, VSD cap 11, aortic cap
+ 16) or int32[3]: the baffle's, the VSD cap's and the aortic cap's ModelFaceID.
+ `method` is a BaffleFlattenMethod. On success `*out_template` is a new handle (free
+ with baffle_template_free).
+
+ # Safety
+ Pointers must be NULL or valid (strings NUL-terminated, arrays for their lengths).
+ */
+enum BaffleStatus baffle_template(const struct BaffleMesh *domain,
+                                  const double *suture_points_mm,
+                                  size_t suture_points_len,
+                                  const char *point_labels,
+                                  const char *patient_label,
+                                  const char *date,
+                                  const int32_t *labels,
+                                  int32_t method,
+                                  struct BaffleTemplate **out_template);
+
+/*
+ Free a template (NULL is ignored).
+
+ # Safety
+ `template` must be NULL or a handle from this library not yet freed.
+ */
+void baffle_template_free(struct BaffleTemplate *template_);
+
+/*
+ The flattened baffle as a new mesh handle (free with baffle_mesh_free): points
+ (u, v, 0) in mm at true scale, the baffle's triangles, every label the baffle's.
+
+ # Safety
+ `template` must be NULL or a live handle; `out_mesh` NULL or writable.
+ */
+enum BaffleStatus baffle_template_flat_mesh(const struct BaffleTemplate *template_,
+                                            struct BaffleMesh **out_mesh);
+
+/*
+ The template's report as a NUL-terminated JSON object ("flattening": seam length,
+ perimeter and its error, area and angle distortion median / max; per suture point
+ its distance to the seam; per triangle "area_ratio" and "angle_error_deg"); free it
+ with baffle_free.
+
+ # Safety
+ `template` must be NULL or a live handle; `out_json` NULL or writable.
+ */
+enum BaffleStatus baffle_template_report_json(const struct BaffleTemplate *template_,
+                                              char **out_json);
+
+/*
+ The printable page (`format`: a BaffleTemplateFormat) as a new byte array
+ (uint8_t[*out_len], free with baffle_free), to be written to a file as it is.
+
+ # Safety
+ `template` must be NULL or a live handle; the outputs NULL or writable.
+ */
+enum BaffleStatus baffle_template_document(const struct BaffleTemplate *template_,
+                                           int32_t format,
+                                           uint8_t **out_bytes,
+                                           size_t *out_len);
 
 #ifdef __cplusplus
 }  // extern "C"

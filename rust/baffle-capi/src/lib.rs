@@ -15,6 +15,7 @@ mod options;
 mod points;
 mod result;
 mod status;
+mod template;
 
 pub use alloc::baffle_free;
 pub use design::{baffle_design, BaffleProgressFn};
@@ -28,6 +29,10 @@ pub use result::{
     baffle_result_baffle, baffle_result_centerline_count, baffle_result_copy_centerline, baffle_result_copy_sections,
     baffle_result_copy_seam, baffle_result_domain, baffle_result_free, baffle_result_report_json,
     baffle_result_section_count, baffle_result_seam_count, baffle_result_target_area_mm2, BaffleResult,
+};
+pub use template::{
+    baffle_template, baffle_template_document, baffle_template_flat_mesh, baffle_template_free, baffle_template_report_json, BaffleFlattenMethod,
+    BaffleTemplate, BaffleTemplateFormat,
 };
 pub use status::{baffle_last_error, baffle_last_max_feasible_area_mm2, BaffleStatus};
 

@@ -320,3 +320,76 @@ fn an_unreachable_target_reports_the_largest_feasible_one() {
     assert!(baffle_last_max_feasible_area_mm2().is_nan());
     unsafe { baffle_result_free(result) };
 }
+
+#[test]
+fn the_template_of_a_phantom_design_is_flat_true_scale_and_printable() {
+    let p = phantom();
+    let (status, result) = run_design(&p, &bsa_options(p.bsa_m2), None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    let baffle_area_mm2 = report(result)["baffle_area_mm2"].as_f64().unwrap();
+    let mut domain = null_mut();
+    assert_eq!(unsafe { baffle_result_domain(result, &mut domain) }, BaffleStatus::Ok);
+    let (names, patient, date) = (c"A\n\nC", c"phantom", c"2026-12-02");
+    let mut template = null_mut();
+    let status = unsafe {
+        baffle_template(domain, p.points.as_ptr(), p.points.len(), names.as_ptr(), patient.as_ptr(), date.as_ptr(), null(), BaffleFlattenMethod::Lscm as i32, &mut template)
+    };
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+
+    let mut json: *mut c_char = null_mut();
+    assert_eq!(unsafe { baffle_template_report_json(template, &mut json) }, BaffleStatus::Ok);
+    let doc: serde_json::Value = serde_json::from_str(unsafe { CStr::from_ptr(json) }.to_str().unwrap()).unwrap();
+    unsafe { baffle_free(json.cast()) };
+    let flattening = &doc["flattening"];
+    assert!(flattening["perimeter_error"].as_f64().unwrap() <= 0.01, "{flattening}");
+    assert!((flattening["area_3d_mm2"].as_f64().unwrap() - baffle_area_mm2).abs() < 1e-6 * baffle_area_mm2);
+    assert_eq!(doc["suture_point_to_seam_mm"].as_array().unwrap().len(), p.points.len() / 3);
+
+    // The flat mesh: z = 0, one area ratio per triangle, and its area the report's flat area.
+    let mut flat = null_mut();
+    assert_eq!(unsafe { baffle_template_flat_mesh(template, &mut flat) }, BaffleStatus::Ok);
+    let (mut np, mut nt) = (0, 0);
+    unsafe { baffle_mesh_point_count(flat, &mut np) };
+    unsafe { baffle_mesh_triangle_count(flat, &mut nt) };
+    let (mut pts, mut tris) = (vec![0.0; 3 * np], vec![0i64; 3 * nt]);
+    assert_eq!(unsafe { baffle_mesh_copy_points(flat, pts.as_mut_ptr(), pts.len()) }, BaffleStatus::Ok);
+    assert_eq!(unsafe { baffle_mesh_copy_triangles(flat, tris.as_mut_ptr(), tris.len()) }, BaffleStatus::Ok);
+    assert!(pts.chunks(3).all(|q| q[2] == 0.0));
+    assert_eq!(doc["area_ratio"].as_array().unwrap().len(), nt);
+    let flat_area: f64 = tris
+        .chunks(3)
+        .map(|t| {
+            let q = |k: usize| [pts[3 * t[k] as usize], pts[3 * t[k] as usize + 1]];
+            let (a, b, c) = (q(0), q(1), q(2));
+            0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).abs()
+        })
+        .sum();
+    assert!((flat_area - flattening["area_flat_mm2"].as_f64().unwrap()).abs() < 1e-9 * flat_area);
+
+    for (format, magic) in [(BaffleTemplateFormat::Pdf, b"%PDF".as_slice()), (BaffleTemplateFormat::Svg, b"<?xml".as_slice())] {
+        let (mut bytes, mut len) = (null_mut(), 0usize);
+        assert_eq!(unsafe { baffle_template_document(template, format as i32, &mut bytes, &mut len) }, BaffleStatus::Ok);
+        let page = unsafe { std::slice::from_raw_parts(bytes, len) }.to_vec();
+        unsafe { baffle_free(bytes.cast()) };
+        assert!(page.starts_with(magic) || (format == BaffleTemplateFormat::Svg && page.starts_with(b"<svg")), "{:?}", &page[..8]);
+        assert!(page.windows(7).any(|w| w == b"phantom"), "the patient label is on the page");
+    }
+    let (mut bytes, mut len) = (null_mut(), 0usize);
+    assert_eq!(unsafe { baffle_template_document(template, 7, &mut bytes, &mut len) }, BaffleStatus::InvalidArgument);
+    assert!(last_error().contains("format = 7"), "{}", last_error());
+
+    // A domain without a baffle is named, not a crash.
+    let (tp, tt, tl) = tetra();
+    let (_, tetra_mesh) = new_mesh(&tp, &tt, &tl);
+    let mut none = null_mut();
+    let status = unsafe { baffle_template(tetra_mesh, null(), 0, null(), null(), null(), null(), 0, &mut none) };
+    assert_eq!(status, BaffleStatus::InvalidInput);
+    assert!(none.is_null() && last_error().contains("no baffle triangles"), "{}", last_error());
+    unsafe {
+        baffle_mesh_free(tetra_mesh);
+        baffle_mesh_free(flat);
+        baffle_template_free(template);
+        baffle_mesh_free(domain);
+        baffle_result_free(result);
+    }
+}

@@ -23,6 +23,7 @@ mod feasibility;
 mod files;
 mod simulate_cmd;
 mod simulate_svmp;
+mod sweep_cmd;
 mod template_cmd;
 mod verdict;
 
@@ -68,6 +69,10 @@ enum Command {
     /// True-scale patch template (A4 PDF or SVG): the designed baffle flattened, suture
     /// points numbered, VSD and aortic rims, 10 mm scale bar and check square.
     Template(template_cmd::TemplateArgs),
+    /// Designs at several targets on one input (--z-scores or --areas-mm2): a table
+    /// (CSV, markdown, JSON) and a plot (SVG) of baffle area, RV volume and the largest
+    /// feasible target, so the team sees what a larger tunnel costs the ventricle.
+    Sweep(sweep_cmd::SweepArgs),
     /// Write the built-in synthetic phantom (capped ventricle + suture points).
     Phantom {
         /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
@@ -205,6 +210,7 @@ fn main() -> ExitCode {
         Command::ExportSvmp(args) => export_cmd::run_export(&args),
         Command::Plan(args) => plan_cmd::run_plan(&args),
         Command::Template(args) => template_cmd::run_template(&args),
+        Command::Sweep(args) => sweep_cmd::run_sweep(&args),
         Command::Phantom { out, heart: false } => write_phantom(&out),
         Command::Phantom { out, heart: true } => prepare_cmd::write_synthetic_heart(&out),
     };
@@ -263,13 +269,7 @@ fn print_progress_tag(fraction: f64, stage: &str) {
 fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     // Options first: a bad number is refused before any file is read.
     let options = design_options(args)?;
-    let (surface, points, default_bsa) = if args.phantom {
-        let p = phantom_default();
-        (p.surface, p.suture_points_mm, Some(p.bsa_m2))
-    } else {
-        let (surface, points) = read_inputs(args)?;
-        (surface, points, None)
-    };
+    let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
     let result = design(&surface, &points, &target, &options, progress).map_err(|e| feasibility::design_failure(&args.out, e))?;
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
@@ -285,11 +285,36 @@ fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bo
         r.min_constrained_final_area_mm2,
         r.timings.total_ms
     );
+    println!("{}", rv_cost_line(&r.rv_cost));
     if let Some(path) = &args.reference_baffle {
         compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?;
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// Surface, suture points (in the surface's frame) and the BSA that comes with the
+/// phantom (None for files).
+fn design_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>, Option<f64>), String> {
+    if args.phantom {
+        let p = phantom_default();
+        return Ok((p.surface, p.suture_points_mm, Some(p.bsa_m2)));
+    }
+    let (surface, points) = read_inputs(args)?;
+    Ok((surface, points, None))
+}
+
+/// The RV cost in one line, saying when the baffle leaves the capped ventricle (then the
+/// volumes are net figures, e.g. on an input that encloses only the pathway).
+fn rv_cost_line(c: &baffle_core::rv_cost::RvCost) -> String {
+    let line = format!(
+        "RV (capped ventricle) {:.2} mL before, {:.2} mL after the baffle (the pathway takes {:.2} mL)",
+        c.rv_volume_before_ml, c.rv_volume_after_ml, c.rv_volume_taken_ml
+    );
+    match c.baffle_area_outside_ventricle_mm2 {
+        a if a > 0.0 => format!("{line}; {a:.1} mm2 of the baffle lies outside the capped ventricle, so these are net volumes, not the RV cavity"),
+        _ => line,
+    }
 }
 
 /// The design options of the command line, range-checked in the one place the C ABI also uses.

@@ -219,3 +219,38 @@ fn centerline_of_an_extended_domain_is_trimmed_at_its_interior_planes() {
     assert!((doc2["length_mm"].as_f64().unwrap() - length).abs() < 1e-9, "{} vs {length}", doc2["length_mm"]);
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `baffle sweep`: every target is a row, an infeasible one with the largest target the
+/// seam admits (which then designs), and each designed target's files are kept.
+#[test]
+fn a_sweep_lists_every_target_and_the_infeasible_end() {
+    let out_dir = temp_dir("sweep");
+    let out = baffle(&["sweep", "--phantom", "--areas-mm2", "60,1500", "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("sweep.json")).unwrap()).unwrap();
+    let rows = doc["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[0]["status"], "designed");
+    let designed = report(&out_dir.join("area-60"));
+    assert_eq!(rows[0]["baffle_area_mm2"], designed["baffle_area_mm2"]);
+    assert_eq!(rows[0]["rv_volume_after_ml"], designed["rv_volume_after_ml"]);
+    assert!(rows[0]["max_feasible_area_mm2"].is_null());
+    assert_eq!(rows[1]["status"], "infeasible");
+    let largest = rows[1]["max_feasible_area_mm2"].as_f64().unwrap();
+    assert!(60.0 < largest && largest < 1500.0, "{}", rows[1]);
+    assert!(!rows[1]["reason"].as_str().unwrap().is_empty() && rows[1]["baffle_area_mm2"].is_null());
+    let csv = std::fs::read_to_string(out_dir.join("sweep.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    assert!(std::fs::read_to_string(out_dir.join("sweep.md")).unwrap().contains("| infeasible |"));
+    assert!(std::fs::read_to_string(out_dir.join("sweep.svg")).unwrap().contains("largest feasible"));
+    // The largest feasible target designs.
+    let again = temp_dir("sweep-largest");
+    let out = baffle(&["sweep", "--phantom", "--areas-mm2", &format!("{largest}"), "--out", again.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("baffle "), "{}", String::from_utf8_lossy(&out.stdout));
+    // z-scores need the body size.
+    let out = baffle(&["sweep", "--phantom", "--target-area-mm2", "60", "--z-scores=-1,0", "--out", again.to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--z-scores needs the body size"));
+    std::fs::remove_dir_all(&out_dir).unwrap();
+    std::fs::remove_dir_all(&again).unwrap();
+}

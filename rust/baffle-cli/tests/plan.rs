@@ -118,7 +118,7 @@ fn phantom_plan_reports_the_stages_own_figures() {
     let quality = read_json(&out.join("mesh-nominal/mesh-quality.json"));
     let summary = read_json(&out.join("simulate-nominal/summary.json"));
     let sources = [
-        (&design, ["target_area_mm2", "centerline_length_mm", "baffle_area_mm2", "baffle_triangles"].as_slice()),
+        (&design, ["target_area_mm2", "centerline_length_mm", "baffle_area_mm2", "baffle_triangles", "rv_volume_before_ml", "rv_volume_after_ml"].as_slice()),
         (&quality, ["tetrahedra", "min_scaled_jacobian", "p1_scaled_jacobian", "p99_aspect_ratio"].as_slice()),
         (&summary, ["dp_peak_mmhg", "max_velocity_m_s"].as_slice()),
     ];

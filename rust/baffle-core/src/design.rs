@@ -9,6 +9,7 @@ use crate::mesh::{edge_key, manifold_report, FaceLabels, TriMesh, Vec3};
 use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
 use crate::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
 use crate::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
+use crate::rv_cost::{rv_cost, RvCost};
 use crate::seam::{imprint_seam, project_seam};
 use crate::spatial::{Aabb, TriangleBvh};
 use crate::surface::Domain;
@@ -110,6 +111,9 @@ pub struct DesignReport {
     pub min_constrained_final_area_mm2: f64,
     pub correction_rounds: usize,
     pub input_was_inward_wound: bool,
+    /// RV volume before and after the baffle (`rv_volume_before_ml`, ... at the top level).
+    #[serde(flatten)]
+    pub rv_cost: RvCost,
     pub sections: Vec<SectionRecord>,
     pub timings: StepTimes,
 }
@@ -231,6 +235,7 @@ pub fn design(
         min_constrained_final_area_mm2: sections.iter().filter(|s| s.is_checked()).filter_map(|s| s.final_area_mm2).fold(f64::INFINITY, f64::min),
         correction_rounds: fitted.rounds,
         input_was_inward_wound,
+        rv_cost: rv_cost(&surface, &bvh, &fitted.domain.mesh, &baffle),
         sections: sections.iter().map(SectionState::record).collect(),
         timings: StepTimes {
             validate_ms,

@@ -35,6 +35,7 @@ pub mod voxel;
 pub mod flow_centerline;
 pub mod reference_data;
 pub mod template;
+pub mod rv_cost;
 
 pub use design::{design, DesignOptions, DesignReport, DesignResult};
 pub use error::DesignError;

@@ -44,6 +44,7 @@ REF_SERIES_FINAL = "BaffleDesignerSeriesFinalArea"
 REF_SERIES_RAW = "BaffleDesignerSeriesRawArea"
 REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
 REF_PREPARED = "BaffleDesignerPreparedVentricle"  # capped ventricle made from a segmentation
+REF_FLAT_TEMPLATE = "BaffleDesignerFlatTemplate"  # the baffle flattened at true scale
 REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
 REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
 # Simulation results (BaffleDesignerLib.simulation).
@@ -296,6 +297,8 @@ class BaffleDesignerLogic:
         self._pending: Dict[str, float] = {}
         self._dragging: set = set()  # IDs of curves with a control point being dragged
         self.design_count = 0
+        # The latest patch template of each candidate (curve ID -> baffle.Template).
+        self._templates: Dict[str, object] = {}
         self.prepare_count = 0
         # `baffle prepare` runs for segmentation inputs: the program (None: found on first
         # use), its environment (None: this process's) and the folder of its work folders
@@ -487,6 +490,9 @@ class BaffleDesignerLogic:
             ("MinSectionAreaMm2", report["min_constrained_final_area_mm2"]),
             ("ConstrainedSections", report["constrained_sections"]),
             ("CenterlineLengthMm", report["centerline_length_mm"]),
+            ("RvVolumeBeforeMl", f"{report['rv_volume_before_ml']:.3f}"),
+            ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
+            ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
             ("DesignTimeMs", f"{elapsed_ms:.0f}"),
         ):
             curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
@@ -630,6 +636,76 @@ class BaffleDesignerLogic:
             if not chart.HasPlotSeriesNodeID(series.GetID()):
                 chart.AddAndObservePlotSeriesNodeID(series.GetID())
 
+    # ---- patch template ---------------------------------------------------------------
+
+    @staticmethod
+    def suturePointLabels(curve) -> List[str]:
+        """Labels of the defined control points, in the order of suturePointsWorld."""
+        return [
+            curve.GetNthControlPointLabel(i)
+            for i in range(curve.GetNumberOfControlPoints())
+            if curve.GetNthControlPointPositionStatus(i) == curve.PositionDefined
+        ]
+
+    def flattenTemplate(self, curve, method: str = "lscm", patient_label: Optional[str] = None):
+        """Flatten the candidate's designed baffle into the true-scale patch template
+        (baffle.template): the flat model node (u, v, 0 in mm, cell array area_ratio), the
+        template's figures as curve attributes, and the template kept for saveTemplate.
+        Needs a design; the suture points are named as in the curve."""
+        self._check_curve(curve)
+        domain_node = curve.GetNodeReference(REF_DOMAIN)
+        if domain_node is None or domain_node.GetPolyData() is None:
+            raise BaffleDesignerError(f"{curve.GetName()}: design the baffle first (no domain to flatten)")
+        baffle, vtk_adapters = library()
+        mesh = vtk_adapters.polydata_to_mesh(domain_node.GetPolyData())
+        label = curve.GetName() if patient_label is None else patient_label
+        try:
+            template = baffle.template(
+                mesh, self.suturePointsWorld(curve), point_labels=self.suturePointLabels(curve), patient_label=label, method=method
+            )
+        except baffle.BaffleError as error:
+            raise BaffleDesignerError(f"{curve.GetName()}: template failed: {error}") from error
+        polydata = vtk_adapters.mesh_to_polydata(template.flat)
+        polydata.GetCellData().AddArray(_vtk_double_array("area_ratio", template.area_ratio))
+        node = self._model(curve, REF_FLAT_TEMPLATE, "flat template", polydata, (0.85, 0.25, 0.2))
+        node.SetAttribute(ATTRIBUTE_PREFIX + "DomainMTime", str(domain_node.GetPolyData().GetMTime()))
+        f = template.report["flattening"]
+        for name, value in (
+            ("TemplateMethod", method),
+            ("TemplateSeamLengthMm", f"{f['seam_length_3d_mm']:.2f}"),
+            ("TemplatePerimeterErrorPct", f"{100 * f['perimeter_error']:.2g}"),
+            ("TemplateAreaChangeMedianPct", f"{100 * f['area_distortion_median']:.1f}"),
+            ("TemplateAreaChangeMaxPct", f"{100 * f['area_distortion_max']:.1f}"),
+            ("TemplateAngleChangeMaxDeg", f"{f['angle_distortion_max_deg']:.1f}"),
+        ):
+            curve.SetAttribute(ATTRIBUTE_PREFIX + name, value)
+        self._templates[curve.GetID()] = template
+        return template
+
+    def saveTemplate(self, curve, path, method: str = "lscm", patient_label: Optional[str] = None) -> str:
+        """Write the candidate's patch template to `path` (.pdf or .svg, A4, 1:1 at 100 %),
+        flattening first when there is no template of the current design."""
+        if not str(path).lower().endswith((".pdf", ".svg")):
+            raise BaffleDesignerError(f"{path}: save the template as .pdf or .svg")
+        template = self._templates.get(curve.GetID()) if curve is not None else None
+        flat = curve.GetNodeReference(REF_FLAT_TEMPLATE) if curve is not None else None
+        domain = curve.GetNodeReference(REF_DOMAIN) if curve is not None else None
+        current = (
+            template is not None
+            and flat is not None
+            and domain is not None
+            and flat.GetAttribute(ATTRIBUTE_PREFIX + "DomainMTime") == str(domain.GetPolyData().GetMTime())
+            and curve.GetAttribute(ATTRIBUTE_PREFIX + "TemplateMethod") == method
+        )
+        if not current:
+            template = self.flattenTemplate(curve, method, patient_label)
+        try:
+            saved = str(template.save(path))
+        except OSError as error:
+            raise BaffleDesignerError(f"{path}: {error}") from error
+        curve.SetAttribute(ATTRIBUTE_PREFIX + "TemplatePath", saved)
+        return saved
+
     # ---- auto-update ------------------------------------------------------------------
 
     def setAutoUpdate(self, curve, enabled: bool) -> None:
@@ -726,7 +802,7 @@ class BaffleDesignerLogic:
 
     def updateCompareTable(self, simulation_note: str = "not simulated"):
         """One table of all candidates: target area, baffle area, smallest constrained
-        section, status, and the simulation's peak pressure difference, v_max and 10 mmHg
+        section, RV volume left after the baffle, status, and the simulation's peak pressure difference, v_max and 10 mmHg
         verdict; dp and v_max stay empty (NaN) with `simulation_note` for candidates
         without a simulation result."""
         node = None
@@ -755,6 +831,7 @@ class BaffleDesignerLogic:
             "Min section area": "MinSectionAreaMm2",
             "Constrained sections": "ConstrainedSections",
             "Max feasible area": "MaxFeasibleAreaMm2",  # set when the target is out of reach
+            "RV after": "RvVolumeAfterMl",  # the capped ventricle's volume outside the pathway
             "dp": "SimulationDpMmhg",
             "v_max": "SimulationMaxVelocityMS",
         }
@@ -776,6 +853,7 @@ class BaffleDesignerLogic:
         node.SetAndObserveTable(table)
         for column in ("Target area", "Baffle area", "Min section area", "Max feasible area"):
             node.SetColumnUnitLabel(column, "mm2")
+        node.SetColumnUnitLabel("RV after", "mL")
         node.SetColumnUnitLabel("dp", "mmHg")
         node.SetColumnUnitLabel("v_max", "m/s")
         return node

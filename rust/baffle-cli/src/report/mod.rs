@@ -4,7 +4,7 @@
 
 mod paper;
 mod pictures;
-mod svg_plot;
+pub(crate) mod svg_plot;
 
 use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
@@ -116,6 +116,8 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
         row("flow_centerline_length_mm", "Flow-domain centerline length", centerline.length_mm, "mm", 2),
         row("baffle_area_mm2", "Baffle area", d("/baffle_area_mm2")?, "mm²", 1),
         row("baffle_triangles", "Baffle triangles", d("/baffle_triangles")?, "", 0),
+        row("rv_volume_before_ml", "RV volume before the baffle (capped ventricle)", d("/rv_volume_before_ml")?, "mL", 2),
+        row("rv_volume_after_ml", "RV volume after the baffle (outside the pathway)", d("/rv_volume_after_ml")?, "mL", 2),
         row("tetrahedra", "Tetrahedra", q("/tetrahedra")?, "", 0),
         row("min_scaled_jacobian", "Scaled Jacobian, min", q("/min_scaled_jacobian")?, "", 3),
         row("p1_scaled_jacobian", "Scaled Jacobian, 1st percentile", q("/p1_scaled_jacobian")?, "", 3),

@@ -202,6 +202,8 @@ def test_candidates_compare_table(p2_scene):
     assert target[1] == pytest.approx(90.0)
     assert np.all(minimum[:2] >= target[:2])
     assert area[1] > area[0]  # a larger target needs a larger baffle
+    rv_after = column(table, "RV after")
+    assert rv_after[1] < rv_after[0] and np.isnan(rv_after[2])  # the larger tunnel leaves less
     assert np.isnan(target[2]) and column(table, "Status")[2] == "not designed"
     assert np.all(np.isnan(column(table, "dp")))
     assert column(table, "Simulation") == ["not simulated: test"] * 3
@@ -298,3 +300,54 @@ def test_section_loop_area_of_a_cylinder():
     assert loop is not None
     assert bdlogic.polygon_area(loop) == pytest.approx(math.pi * 16.0, rel=1e-3)
     assert bdlogic.section_loop(triangles.GetOutput(), (0.0, 50.0, 0.0), (0.0, 1.0, 0.0)) is None
+
+
+def test_rv_volumes_are_on_the_candidate(p2_scene):
+    scene, logic, model, curve = p2_scene
+    result = logic.design(curve)
+    report = result.report
+    mass = vtk.vtkMassProperties()
+    mass.SetInputData(model.GetPolyData())
+    mass.Update()
+    # The model's own volume (VTK) is the RV volume before the baffle.
+    assert float(curve.GetAttribute("BaffleDesigner.RvVolumeBeforeMl")) == pytest.approx(mass.GetVolume() / 1e3, abs=1e-3)
+    after = report["rv_volume_before_ml"] - report["rv_volume_taken_ml"]
+    assert float(curve.GetAttribute("BaffleDesigner.RvVolumeAfterMl")) == pytest.approx(after, abs=1e-3)
+
+
+def test_flatten_and_save_template(p2_scene, tmp_path):
+    scene, logic, model, curve = p2_scene
+    with pytest.raises(bdlogic.BaffleDesignerError, match="design the baffle first"):
+        logic.flattenTemplate(curve)
+    result = logic.design(curve)
+    template = logic.flattenTemplate(curve)
+
+    # The flat model: the baffle's triangles in the plane, with the per-triangle area change.
+    flat = curve.GetNodeReference(bdlogic.REF_FLAT_TEMPLATE)
+    polydata = flat.GetPolyData()
+    assert polydata.GetNumberOfPolys() == len(result.baffle.triangles)
+    assert np.all(points_of(polydata)[:, 2] == 0.0)
+    ratio = numpy_support.vtk_to_numpy(polydata.GetCellData().GetArray("area_ratio"))
+    np.testing.assert_allclose(ratio, template.area_ratio)
+    # The flat outline is as long as the 3D seam (the surgeon sews the seam).
+    seam = result.seam_points_mm
+    seam_mm = np.linalg.norm(np.roll(seam, -1, axis=0) - seam, axis=1).sum()
+    assert float(curve.GetAttribute("BaffleDesigner.TemplateSeamLengthMm")) == pytest.approx(seam_mm, abs=0.01)
+    assert float(curve.GetAttribute("BaffleDesigner.TemplatePerimeterErrorPct")) <= 1.0
+    assert 0.0 < float(curve.GetAttribute("BaffleDesigner.TemplateAreaChangeMaxPct")) < 100.0
+
+    # Save reuses the template of the current design; the page names the suture points as
+    # the curve does.
+    path = logic.saveTemplate(curve, tmp_path / "p2 template.svg")
+    assert curve.GetNodeReference(bdlogic.REF_FLAT_TEMPLATE) is flat and logic._templates[curve.GetID()] is template
+    svg = (tmp_path / "p2 template.svg").read_text()
+    assert path == str(tmp_path / "p2 template.svg") and 'width="210mm"' in svg
+    assert all(f">{curve.GetNthControlPointLabel(i)}<" in svg for i in range(curve.GetNumberOfControlPoints()))
+    assert (tmp_path / "t.pdf").exists() is False and logic.saveTemplate(curve, tmp_path / "t.pdf")
+    assert (tmp_path / "t.pdf").read_bytes().startswith(b"%PDF")
+    # A new design makes the kept template stale: saving flattens again.
+    logic.design(curve)
+    logic.saveTemplate(curve, tmp_path / "again.pdf")
+    assert logic._templates[curve.GetID()] is not template
+    with pytest.raises(bdlogic.BaffleDesignerError, match=r"\.pdf or \.svg"):
+        logic.saveTemplate(curve, tmp_path / "template.png")

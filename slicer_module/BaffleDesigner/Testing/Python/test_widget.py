@@ -257,6 +257,30 @@ def test_design_on_p2_shows_table_and_chart_and_repaints_progress(widget):
     assert any(v.GetPlotChartNodeID() == chart.GetID() for v in plot_views)
 
 
+def test_flatten_and_save_template_buttons(widget, tmp_path, monkeypatch):
+    w = widget
+    model, curve = p2_candidate()
+    w.ui.curveSelector.setCurrentNode(curve)
+    assert not w.ui.flattenButton.enabled and not w.ui.saveTemplateButton.enabled  # nothing designed yet
+    design_in_widget(w, model, curve, 0.37)
+    assert "RV" in w.ui.statusLabel.text and "mL after the baffle" in w.ui.statusLabel.text
+    assert w.ui.flattenButton.enabled and w.ui.saveTemplateButton.enabled
+    w.ui.flattenButton.click()
+    flat = curve.GetNodeReference(bdlogic().REF_FLAT_TEMPLATE)
+    assert flat is not None and flat.GetPolyData().GetNumberOfPolys() > 100
+    assert "perimeter error" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    # Save: the file dialog answers with a path (PySide's (path, filter) as PythonQt's path).
+    target = tmp_path / "p2 template.pdf"
+    monkeypatch.setattr(qt.QFileDialog, "getSaveFileName", staticmethod(lambda *args: (str(target), "PDF (*.pdf)")))
+    w.ui.saveTemplateButton.click()
+    assert target.read_bytes().startswith(b"%PDF"), w.ui.statusLabel.text
+    assert "saved" in w.ui.statusLabel.text and curve.GetAttribute("BaffleDesigner.TemplatePath") == str(target)
+    # A cancelled dialog writes nothing and says nothing went wrong.
+    monkeypatch.setattr(qt.QFileDialog, "getSaveFileName", staticmethod(lambda *args: ("", "")))
+    w.ui.saveTemplateButton.click()
+    assert "saved" in w.ui.statusLabel.text
+
+
 def test_old_show_outputs_leaves_the_table_out_of_the_layout(widget):
     """What the module did before: ShowChartInLayout from the default layout switches to
     a plot layout without a table view (slicer-core's real plots logic)."""

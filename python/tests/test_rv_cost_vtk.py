@@ -1,0 +1,137 @@
+"""The design's RV volumes re-measured with VTK, independently of the library's
+divergence-theorem sums: vtkMassProperties for the closed surfaces, and a point grid
+classified by vtkSelectEnclosedPoints for the part of the capped ventricle outside the
+designed domain (the RV cavity after the baffle) and the domain outside the ventricle.
+
+On p2's capped ventricle made from the segmentations (`baffle prepare`, the whole RV
+between the VSD and aortic planes) the baffle runs inside the ventricle; on p2's
+published design input, which encloses only the published pathway, it does not, and
+the library says so (baffle_area_outside_ventricle_mm2 > 0)."""
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import REPO, data_dir, missing_data
+
+vtk_core = pytest.importorskip("vtkmodules.vtkCommonCore")
+from vtkmodules.vtkCommonCore import vtkPoints  # noqa: E402
+from vtkmodules.vtkCommonDataModel import vtkPolyData  # noqa: E402
+from vtkmodules.vtkFiltersCore import vtkMassProperties  # noqa: E402
+from vtkmodules.vtkFiltersModeling import vtkSelectEnclosedPoints  # noqa: E402
+from vtkmodules.vtkIOXML import vtkXMLPolyDataReader  # noqa: E402
+from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy  # noqa: E402
+
+GRID_MM = 0.3
+
+
+def cli() -> Path:
+    """The `baffle` command of this tree (cargo test/build --release -p baffle-cli)."""
+    path = Path(os.environ.get("BAFFLE_CLI") or REPO / "target" / "release" / "baffle")
+    if not path.exists():
+        if os.environ.get("CI", "").lower() in ("true", "1"):
+            pytest.fail(f"{path} not found (CI=true: build it with cargo build --release -p baffle-cli)")
+        pytest.skip(f"{path} not found (cargo build --release -p baffle-cli, or set BAFFLE_CLI)")
+    return path
+
+
+def run(*args):
+    done = subprocess.run([str(cli()), *map(str, args)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def read_vtp(path):
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    assert reader.GetOutput().GetNumberOfCells() > 0, f"cannot read {path}"
+    return reader.GetOutput()
+
+
+def volume_mm3(polydata) -> float:
+    mass = vtkMassProperties()
+    mass.SetInputData(polydata)
+    mass.Update()
+    return mass.GetVolume()
+
+
+def inside(surface, points: np.ndarray) -> np.ndarray:
+    """Which points lie inside the closed surface (VTK's ray-parity test)."""
+    cloud = vtkPolyData()
+    vtk_points = vtkPoints()
+    vtk_points.SetData(numpy_to_vtk(points, deep=True))
+    cloud.SetPoints(vtk_points)
+    select = vtkSelectEnclosedPoints()
+    select.SetInputData(cloud)
+    select.SetSurfaceData(surface)
+    select.SetTolerance(1e-6)
+    select.Update()
+    return vtk_to_numpy(select.GetOutput().GetPointData().GetArray("SelectedPoints")).astype(bool)
+
+
+def grid_over(polydata, spacing_mm: float) -> np.ndarray:
+    """Cell centres of a grid over the surface's bounds (offset off round coordinates)."""
+    b = polydata.GetBounds()
+    axes = [np.arange(b[2 * a] - spacing_mm * 0.37, b[2 * a + 1] + spacing_mm, spacing_mm) for a in range(3)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def check_rv_volumes(ventricle_path, domain_path, report):
+    ventricle, domain = read_vtp(ventricle_path), read_vtp(domain_path)
+    before, taken = volume_mm3(ventricle), volume_mm3(domain)
+    assert report["rv_volume_before_ml"] == pytest.approx(before / 1e3, rel=1e-6)
+    assert report["rv_volume_taken_ml"] == pytest.approx(taken / 1e3, rel=1e-6)
+    # The domain's grid cells inside / outside the ventricle: the ventricle's volume
+    # outside the domain is V(ventricle) - V(domain inside it).
+    cells = grid_over(domain, GRID_MM)
+    in_domain = inside(domain, cells)
+    in_ventricle = inside(ventricle, cells[in_domain])
+    cell_mm3 = GRID_MM**3
+    domain_in_ventricle_mm3 = in_ventricle.sum() * cell_mm3
+    domain_outside_mm3 = (~in_ventricle).sum() * cell_mm3
+    # The grid counts the domain within about 1 % here (0.3 mm cells on ~1-2 mL).
+    assert in_domain.sum() * cell_mm3 == pytest.approx(taken, rel=0.02)
+    cavity_after_mm3 = before - domain_in_ventricle_mm3
+    outside_area = report["baffle_area_outside_ventricle_mm2"]
+    if outside_area == 0.0:
+        assert domain_outside_mm3 < 0.01 * taken, f"{domain_outside_mm3} mm3 of the domain lies outside the ventricle"
+        assert report["rv_volume_after_ml"] == pytest.approx(cavity_after_mm3 / 1e3, abs=0.02 * taken / 1e3)
+    else:
+        assert domain_outside_mm3 > 0.0
+        # A net figure: the cavity left minus the pathway beyond the ventricle.
+        assert report["rv_volume_after_ml"] == pytest.approx((cavity_after_mm3 - domain_outside_mm3) / 1e3, abs=0.02 * taken / 1e3)
+    return cavity_after_mm3
+
+
+def patient(name):
+    root = data_dir() / name
+    if not (root / "segmentations" / "RV.vtp").exists():
+        missing_data(root)
+    bsa_m2 = json.loads((data_dir() / "patients.json").read_text())["patients"][name]["bsa_m2"]
+    return root, bsa_m2
+
+
+def test_rv_volumes_on_the_segmented_ventricle_by_vtk(tmp_path):
+    root, bsa_m2 = patient("p2")
+    capped = tmp_path / "capped_ventricle.vtp"
+    run("prepare", "--segmentations", root / "segmentations", "--out", capped)
+    run("design", "--surface", capped, "--points", root / "design_input" / "suture_points.mrk.json", "--bsa", bsa_m2, "--out", tmp_path / "design")
+    report = json.loads((tmp_path / "design" / "report.json").read_text())
+    assert report["baffle_area_outside_ventricle_mm2"] == 0.0, "the baffle runs inside the whole RV"
+    check_rv_volumes(capped, tmp_path / "design" / "domain.vtp", report)
+    # The prepared ventricle is the segmented RV blood pool, less what lies beyond the
+    # VSD and aortic planes and the smoothing: within a few percent of RV.vtp.
+    assert report["rv_volume_before_ml"] == pytest.approx(volume_mm3(read_vtp(root / "segmentations" / "RV.vtp")) / 1e3, rel=0.1)
+
+
+def test_rv_volumes_on_the_published_input_are_net_and_said_so(tmp_path):
+    root, bsa_m2 = patient("p2")
+    folder = root / "design_input"
+    run("design", "--surface", folder / "capped_ventricle.vtp", "--points", folder / "suture_points.mrk.json", "--bsa", bsa_m2, "--out", tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    check_rv_volumes(folder / "capped_ventricle.vtp", tmp_path / "domain.vtp", report)
