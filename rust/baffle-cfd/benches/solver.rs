@@ -15,7 +15,10 @@
 //!   1e-3): the difference of dp and v_max, step by step;
 //! - `--full`: one complete 4-cycle run (2728 steps): wall time, dp at peak flow,
 //!   periodicity (cycle 3 vs 4);
-//! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs.
+//! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs;
+//! - `--scaling`: GMRES iterations and time per step against the mesh size, on one tube
+//!   (radius 4 mm, length 40 mm, Re ~2,700 at peak flow) meshed at 9.7k, 45k and 150k
+//!   tets, S steps from rest at t = T, median over N runs.
 //!
 //! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
 
@@ -37,13 +40,16 @@ struct Options {
     steady: bool,
     full: bool,
     smoke: bool,
+    scaling: bool,
+    /// Two-level preconditioner's aggregate size (0: ILU(0) alone).
+    coarse: usize,
     compare_schemes: bool,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, compare_schemes: false, t0_s: 0.1, picard: None };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -61,6 +67,8 @@ fn options() -> Result<Options, String> {
             "--steady" => o.steady = true,
             "--full" => o.full = true,
             "--smoke" => o.smoke = true,
+            "--scaling" => o.scaling = true,
+            "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
             "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
             "--picard" => o.picard = Some(value("--picard")?.parse().map_err(|e| format!("--picard: {e}"))?),
@@ -295,10 +303,50 @@ fn smoke() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
+/// Per-step cost against mesh size on one geometry: a tube refined in all directions
+/// by about 1.6x per level (rings 6/10/15, layers 2.5x rings).
+fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let outlets = vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }];
+    // Q_mean 20 mL/s: Q_peak 65 mL/s, mean speed 1.3 m/s in the 8 mm tube, Re ~2,700.
+    let settings = CaseSettings::new(INLET, Waveform::default_for_mean(20.0)?, outlets);
+    for (rings, layers) in [(6, 15), (10, 25), (15, 37)] {
+        let mesh = tube(0.4, 4.0, rings, layers, &[]);
+        let mut case = window(&settings, o.t0_s, o.steps);
+        case.coarse_aggregate_nodes = o.coarse;
+        let (mut step_s, mut iterations) = (Vec::new(), Vec::new());
+        for _ in 0..o.runs {
+            let (summary, _) = run_window(&mesh, &case, o.steps)?;
+            let t = &summary.timings;
+            let n = summary.steps.len() as f64;
+            step_s.push((t.total_s - t.setup_s) / n);
+            iterations.push(summary.steps.iter().map(|r| r.linear_iterations).sum::<usize>() as f64 / n);
+        }
+        println!(
+            "tube {} tets ({} nodes), coarse aggregates of {} nodes: median {:.3} s/step (min {:.3}), {:.1} GMRES it/step, over {} runs of {} steps from t = {} s; load {}",
+            mesh.tets.len(),
+            mesh.points_cm.len(),
+            o.coarse,
+            median(step_s.clone()),
+            step_s.iter().cloned().fold(f64::INFINITY, f64::min),
+            median(iterations),
+            o.runs,
+            o.steps,
+            o.t0_s,
+            load_average()
+        );
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let o = options()?;
     if o.smoke {
         return smoke();
+    }
+    if o.scaling {
+        scaling(&o)?;
+        println!("peak memory {:.0} MB", peak_memory_mb());
+        return Ok(());
     }
     let start = Instant::now();
     let (mesh, settings) = p2_case()?;

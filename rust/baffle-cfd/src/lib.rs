@@ -6,6 +6,7 @@
 
 pub mod assembly;
 pub mod boundary;
+pub mod coarse;
 mod error;
 pub mod hemodynamics;
 pub mod linear;

@@ -50,6 +50,9 @@ pub struct CaseSettings {
     /// Inner GMRES in f32 with f64 iterative refinement (`linear::solve_refined`)
     /// instead of GMRES in f64: same tolerance on the f64 residual, less memory traffic.
     pub mixed_precision: bool,
+    /// Two-level preconditioner ([`crate::coarse`]): after ILU(0), a coarse-grid
+    /// correction on aggregates of about this many nodes (0: ILU(0) alone).
+    pub coarse_aggregate_nodes: usize,
     /// Steady mode: pseudo time step (s) of the pseudo-transient continuation, or
     /// infinite for plain Picard iterations; iterations and residual reduction target.
     pub steady_pseudo_dt_s: f64,
@@ -85,6 +88,7 @@ impl CaseSettings {
             gmres_restart: 60,
             max_linear_iterations: 600,
             mixed_precision: true,
+            coarse_aggregate_nodes: 0,
             steady_pseudo_dt_s: 0.01,
             steady_pseudo_dt_max_s: f64::INFINITY,
             steady_newton_below: 1e-2,

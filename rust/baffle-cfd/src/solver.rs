@@ -110,6 +110,7 @@ use std::time::Instant;
 
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
+use crate::coarse::{aggregate, Aggregates, CoarseCorrection};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
@@ -385,6 +386,8 @@ struct Solver<'a> {
     /// f64 ILU(0) of the whole matrix in one partition (no couplings dropped), made
     /// only when a stalled step is retried with [`Effort::Strong`].
     ilu_whole: Option<BlockIlu<f64>>,
+    /// The two-level preconditioner's aggregates (made on the first solve when enabled).
+    aggregates: Option<Aggregates>,
     timings: Timings,
 }
 
@@ -447,6 +450,17 @@ impl Attempt {
             1 => solve.to_string(),
             n => format!("{solve} on {n} sub-steps of dt/{n}"),
         }
+    }
+}
+
+/// z = M^-1 r: ILU(0), then (two-level) the coarse correction of the residual it leaves.
+fn two_level<T: Scalar>(ilu: &BlockIlu<f32>, coarse: Option<&CoarseCorrection>, apply_a: &dyn Fn(&[T], &mut [T]), r: &[T], z: &mut [T]) {
+    ilu.apply(r, z);
+    if let Some(coarse) = coarse {
+        let mut w = vec![T::default(); r.len()];
+        apply_a(z, &mut w);
+        w.iter_mut().zip(r).for_each(|(wi, ri)| *wi = T::from_f64(ri.to_f64() - wi.to_f64()));
+        coarse.add_correction(&w, z);
     }
 }
 
@@ -591,13 +605,20 @@ impl<'a> Solver<'a> {
             let t2;
             let out = match effort {
                 Effort::Normal if s.mixed_precision => {
+                    if s.coarse_aggregate_nodes > 0 && self.aggregates.is_none() {
+                        self.aggregates = Some(aggregate(pattern, s.coarse_aggregate_nodes));
+                    }
+                    let coarse = self.aggregates.clone().map(|agg| {
+                        let rank_one: Vec<(f64, &[f64])> = problem.outlets.iter().map(|o| (o.resistance_dyn_s_cm5, &o.flux_weights[..])).collect();
+                        CoarseCorrection::new(pattern, vals, &rank_one, agg, &problem.dirichlet)
+                    });
                     let ilu = refactored(&mut self.ilu_low, pattern, parts, vals).map_err(singular)?;
                     convert_into(vals, &mut self.vals_low);
                     t2 = Instant::now();
                     let vals_low = &self.vals_low;
                     let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
-                    let apply_m = |v: &[f64], z: &mut [f64]| ilu.apply(v, z);
-                    let apply_m_low = |v: &[f32], z: &mut [f32]| ilu.apply(v, z);
+                    let apply_m = |v: &[f64], z: &mut [f64]| two_level(ilu, coarse.as_ref(), &apply_a, v, z);
+                    let apply_m_low = |v: &[f32], z: &mut [f32]| two_level(ilu, coarse.as_ref(), &apply_a_low, v, z);
                     solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Normal => {
@@ -985,6 +1006,7 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
         ilu_low: None,
         ilu: None,
         ilu_whole: None,
+        aggregates: None,
         timings: Timings::default(),
     };
     solver.timings.setup_s = start_time.elapsed().as_secs_f64();
