@@ -155,6 +155,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
     for &mixed in &o.precisions {
         let mut s = window(settings, o.t0_s, o.steps);
         s.mixed_precision = mixed;
+        s.coarse_aggregate_nodes = o.coarse;
         if let Some(k) = o.picard {
             s.max_nonlinear_iterations = k;
         }
@@ -168,8 +169,9 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
             let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
             let step_s = (t.total_s - t.setup_s) / n;
             println!(
-                "  run {k} ({}): {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
+                "  run {k} ({}, coarse aggregates of {} nodes): {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
                 if case.mixed_precision { "mixed" } else { "f64" },
+                case.coarse_aggregate_nodes,
                 t.assembly_s / n,
                 t.preconditioner_s / n,
                 t.gmres_s / n,

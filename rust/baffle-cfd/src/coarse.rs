@@ -5,7 +5,19 @@
 //! space of aggregates captures, the idea behind aggregation AMG and deflation
 //! (Nicolaides 1987; Vanek, Mandel and Brezina 1996), here with a single coarse level.
 
+use rayon::prelude::*;
+
 use crate::sparse::{BlockPattern, Scalar, B, BB};
+
+/// Most aggregates the coarse level is given: its dense LU (4 unknowns per aggregate)
+/// then costs at most ~1 GFLOP a solve, whatever the mesh.
+pub const MAX_AGGREGATES: usize = 256;
+
+/// The aggregate size for `n_nodes` nodes: `size`, or larger so that there are at most
+/// about [`MAX_AGGREGATES`].
+pub fn aggregate_size(n_nodes: usize, size: usize) -> usize {
+    size.max(n_nodes.div_ceil(MAX_AGGREGATES))
+}
 
 /// Nodes grouped into connected aggregates of about `size` nodes each.
 #[derive(Clone, Debug)]
@@ -136,13 +148,13 @@ fn lu_in_place(a: &mut [f64], n: usize) -> Vec<usize> {
         }
         let (done, rest) = a.split_at_mut((k + 1) * n);
         let row_k = &done[k * n..];
-        for row in rest.chunks_exact_mut(n) {
+        rest.par_chunks_exact_mut(n).with_min_len(16).for_each(|row| {
             let l = row[k] / d;
             row[k] = l;
             if l != 0.0 {
                 row[k + 1..].iter_mut().zip(&row_k[k + 1..]).for_each(|(x, y)| *x -= l * y);
             }
-        }
+        });
     }
     perm
 }

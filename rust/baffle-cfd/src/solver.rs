@@ -110,7 +110,7 @@ use std::time::Instant;
 
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
-use crate::coarse::{aggregate, Aggregates, CoarseCorrection};
+use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
@@ -453,8 +453,20 @@ impl Attempt {
     }
 }
 
+/// The coarse correction of the two-level preconditioner for the matrix `vals` (None
+/// when `aggregate_nodes` is 0); the aggregates are made on the first call.
+fn coarse_correction(aggregates: &mut Option<Aggregates>, problem: &Problem, vals: &[f64], aggregate_nodes: usize) -> Option<CoarseCorrection> {
+    if aggregate_nodes == 0 {
+        return None;
+    }
+    let size = aggregate_size(problem.pattern.n_rows(), aggregate_nodes);
+    let aggregates = aggregates.get_or_insert_with(|| aggregate(&problem.pattern, size)).clone();
+    let rank_one: Vec<(f64, &[f64])> = problem.outlets.iter().map(|o| (o.resistance_dyn_s_cm5, &o.flux_weights[..])).collect();
+    Some(CoarseCorrection::new(&problem.pattern, vals, &rank_one, aggregates, &problem.dirichlet))
+}
+
 /// z = M^-1 r: ILU(0), then (two-level) the coarse correction of the residual it leaves.
-fn two_level<T: Scalar>(ilu: &BlockIlu<f32>, coarse: Option<&CoarseCorrection>, apply_a: &dyn Fn(&[T], &mut [T]), r: &[T], z: &mut [T]) {
+fn two_level<S: Scalar, T: Scalar>(ilu: &BlockIlu<S>, coarse: Option<&CoarseCorrection>, apply_a: &dyn Fn(&[T], &mut [T]), r: &[T], z: &mut [T]) {
     ilu.apply(r, z);
     if let Some(coarse) = coarse {
         let mut w = vec![T::default(); r.len()];
@@ -605,13 +617,7 @@ impl<'a> Solver<'a> {
             let t2;
             let out = match effort {
                 Effort::Normal if s.mixed_precision => {
-                    if s.coarse_aggregate_nodes > 0 && self.aggregates.is_none() {
-                        self.aggregates = Some(aggregate(pattern, s.coarse_aggregate_nodes));
-                    }
-                    let coarse = self.aggregates.clone().map(|agg| {
-                        let rank_one: Vec<(f64, &[f64])> = problem.outlets.iter().map(|o| (o.resistance_dyn_s_cm5, &o.flux_weights[..])).collect();
-                        CoarseCorrection::new(pattern, vals, &rank_one, agg, &problem.dirichlet)
-                    });
+                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
                     let ilu = refactored(&mut self.ilu_low, pattern, parts, vals).map_err(singular)?;
                     convert_into(vals, &mut self.vals_low);
                     t2 = Instant::now();
@@ -622,9 +628,10 @@ impl<'a> Solver<'a> {
                     solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Normal => {
+                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
                     let ilu = refactored(&mut self.ilu, pattern, parts, vals).map_err(singular)?;
                     t2 = Instant::now();
-                    gmres(&apply_a, &|v, z| ilu.apply(v, z), &r, &mut dx, tol, restart, max_iterations)
+                    gmres(&apply_a, &|v, z| two_level(ilu, coarse.as_ref(), &apply_a, v, z), &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Strong => {
                     let whole = [0..pattern.n_rows()];

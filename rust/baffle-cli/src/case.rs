@@ -120,6 +120,9 @@ pub struct TimeSpec {
     pub linear_tolerance: Option<f64>,
     /// GMRES iterations per linear solve at most (default 600).
     pub max_linear_iterations: Option<usize>,
+    /// Preconditioner of the linear solves: "ilu" (block ILU(0)) or "two-level" (ILU(0)
+    /// and a coarse correction on node aggregates, `baffle_cfd::coarse`).
+    pub preconditioner: Option<String>,
     pub steady_tolerance: Option<f64>,
     pub steady_max_iterations: Option<usize>,
 }
@@ -134,6 +137,7 @@ impl Default for TimeSpec {
             nonlinear_iterations: None,
             linear_tolerance: None,
             max_linear_iterations: None,
+            preconditioner: None,
             steady_tolerance: None,
             steady_max_iterations: None,
         }
@@ -382,6 +386,12 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
     }
     if let Some(v) = t.max_linear_iterations {
         s.max_linear_iterations = v;
+    }
+    match t.preconditioner.as_deref() {
+        None => {}
+        Some("ilu") => s.coarse_aggregate_nodes = 0,
+        Some("two-level") => s.coarse_aggregate_nodes = baffle_cfd::TWO_LEVEL_AGGREGATE_NODES,
+        Some(other) => return Err(format!("time.preconditioner '{other}': expected ilu or two-level")),
     }
     if let Some(v) = t.steady_tolerance {
         s.steady_tolerance = v;

@@ -48,6 +48,9 @@ pub struct SimulateArgs {
     /// Time step (s) (overrides time.dt_s).
     #[arg(long)]
     dt_s: Option<f64>,
+    /// Preconditioner of the linear solves: ilu or two-level (overrides time.preconditioner).
+    #[arg(long, value_parser = ["ilu", "two-level"])]
+    preconditioner: Option<String>,
     /// Cardiac cycles (overrides time.cycles).
     #[arg(long)]
     cycles: Option<usize>,
@@ -356,8 +359,11 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
     let cycle: Vec<&Row> = if steady || period_steps == 0 || last_step < period_steps {
         rows.iter().collect()
     } else {
-        let end = last_step - last_step % period_steps;
-        rows.iter().filter(|r| r.step > end - period_steps && r.step <= end).collect()
+        // Cycle k ends at the step nearest k periods (a period need not be a whole number
+        // of steps: p3's 0.4918 s is 491.8 steps, and the solver's 4 cycles are 1967).
+        let cycles_done = ((last_step as f64 + 0.5) * settings.dt_s / flow.period_s).floor() as usize;
+        let (start, end) = (cycle_end_step(cycles_done - 1, flow.period_s, settings.dt_s), cycle_end_step(cycles_done, flow.period_s, settings.dt_s));
+        rows.iter().filter(|r| r.step > start && r.step <= end).collect()
     };
     let peak = cycle.iter().copied().max_by(|x, y| x.prescribed_inflow_ml_s.total_cmp(&y.prescribed_inflow_ml_s));
     let mean = |f: &dyn Fn(&Row) -> f64| if cycle.is_empty() { f64::NAN } else { cycle.iter().map(|r| f(r)).sum::<f64>() / cycle.len() as f64 };
@@ -378,7 +384,7 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
         "steps_done": rows.len(),
         // Transient: the steps of all the case's cycles (a run stopped short of them has no
         // final cycle); quick: the steps to the first flow peak.
-        "steps_planned": (!steady).then(|| if quick { case::first_peak_step(settings) } else { period_steps * settings.cycles }),
+        "steps_planned": (!steady).then(|| if quick { case::first_peak_step(settings) } else { cycle_end_step(settings.cycles, flow.period_s, settings.dt_s) }),
         "retried_steps": rows.iter().filter(|r| r.retries > 0).count(),
         "last_step": last_step,
         "last_time_s": rows.last().map(|r| r.time_s),
@@ -411,6 +417,12 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
             "steady_max_iterations": steady.then_some(settings.steady_max_iterations),
         },
     })
+}
+
+/// The time step at which cycle k ends: the one nearest k periods, as the solver counts
+/// a run's steps (round(cycles x period / dt)).
+fn cycle_end_step(k: usize, period_s: f64, dt_s: f64) -> usize {
+    (k as f64 * period_s / dt_s).round() as usize
 }
 
 /// Cycle N-1 vs N of the inlet-outlet pressure difference ([`baffle_cfd::periodicity_nrmsd`]).
@@ -459,6 +471,9 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     if let Some(c) = args.cycles {
         case.time.cycles = c;
     }
+    if let Some(p) = &args.preconditioner {
+        case.time.preconditioner = Some(p.clone());
+    }
     if let Some(v) = args.vtu_every {
         case.output.vtu_every_steps = v;
     }
@@ -488,7 +503,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     let step_limit = case.time.steps.or(quick.then(|| case::first_peak_step(&settings))).filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
     let peak_step_in_cycle = (flow.peak_time_in_cycle_s / settings.dt_s).round();
-    let n_steps = if steady { settings.steady_max_iterations } else { step_limit.unwrap_or((settings.cycles as f64 * period_steps) as usize) };
+    let n_steps = if steady { settings.steady_max_iterations } else { step_limit.unwrap_or(cycle_end_step(settings.cycles, flow.period_s, settings.dt_s)) };
     let cp_every = case.output.checkpoint_every_steps;
     let vtu_every = case.output.vtu_every_steps;
     let mut io_error: Option<String> = None;

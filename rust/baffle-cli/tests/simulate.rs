@@ -429,3 +429,19 @@ fn a_step_that_fails_every_retry_says_what_to_try() {
     assert!(s["message"].as_str().unwrap().contains("Try a smaller time step"), "{s}");
     std::fs::remove_dir_all(case.parent().unwrap()).ok();
 }
+
+#[test]
+fn a_period_of_a_fractional_number_of_steps_still_finishes_its_last_cycle() {
+    // 19.6 steps a cycle (as p3's 0.4918 s is 491.8): 3 cycles are the solver's 59 steps,
+    // and the reported peak is the third cycle's, not the second's.
+    let case = tube_case("fractional", 3, 8, &[], r#"{ "q_mean_ml_s": 0.5, "period_s": 0.0196 }"#, r#"{ "dt_s": 0.001, "cycles": 3 }"#);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = summary(&out_dir);
+    assert_eq!((s["last_step"].as_u64(), s["steps_planned"].as_u64()), (Some(59), Some(59)), "{s}");
+    assert!(!s["doubts"].as_array().unwrap().iter().any(|d| d.as_str().unwrap().contains("before its last cycle")), "{s}");
+    let peak = s["peak_time_s"].as_f64().unwrap();
+    assert!(peak > 2.0 * 0.0196 && peak <= 0.059, "peak at {peak} s is not in the third cycle");
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+}
