@@ -101,6 +101,15 @@
 //! resistance outlets' rank-one terms (39.6 instead of 40.0 GMRES iterations a step:
 //! the ~12-iteration plateau of every solve does not come from the outlets).
 //!
+//! Fourth session (issue 14, 2026-12-02, load 7-12 from other jobs): ILU(0)'s GMRES
+//! iterations grow with the mesh (tubes of 9.7k / 45k / 150k tets: 49 / 108 / 283 a
+//! step; p2's published mesh 40). The default preconditioner is now two-level
+//! ([`crate::coarse`]): ILU(0), then a Galerkin coarse correction on node aggregates
+//! (piecewise-constant u, v, w, p; dense LU of at most 4 x 256 unknowns). Tubes 31 / 41
+//! / 45 iterations, 0.033 / 0.36 / 1.65 s a step against 0.043 / 0.78 / 6.2 s; p2's
+//! published mesh 15.3 iterations, 0.61 against 1.07 s a step, the same dp to 0.06 %.
+//! A step whose solve stalls is retried down [`RETRY_LADDER`] before the run fails.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
