@@ -18,7 +18,7 @@
 //! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs;
 //! - `--scaling`: GMRES iterations and time per step against the mesh size, on one tube
 //!   (radius 4 mm, length 40 mm, Re ~2,700 at peak flow) meshed at 9.7k, 45k and 150k
-//!   tets, S steps from rest at t = T, median over N runs.
+//!   tets (`--big`: and 622k), S steps from rest at t = T, median over N runs.
 //!
 //! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
 
@@ -43,13 +43,15 @@ struct Options {
     scaling: bool,
     /// Two-level preconditioner's aggregate size (0: ILU(0) alone).
     coarse: usize,
+    /// `--scaling` also on a 622k-tet tube.
+    big: bool,
     compare_schemes: bool,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, compare_schemes: false, t0_s: 0.1, picard: None };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -68,6 +70,7 @@ fn options() -> Result<Options, String> {
             "--full" => o.full = true,
             "--smoke" => o.smoke = true,
             "--scaling" => o.scaling = true,
+            "--big" => o.big = true,
             "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
             "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
@@ -311,7 +314,8 @@ fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     let outlets = vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }];
     // Q_mean 20 mL/s: Q_peak 65 mL/s, mean speed 1.3 m/s in the 8 mm tube, Re ~2,700.
     let settings = CaseSettings::new(INLET, Waveform::default_for_mean(20.0)?, outlets);
-    for (rings, layers) in [(6, 15), (10, 25), (15, 37)] {
+    let sizes = [(6, 15), (10, 25), (15, 37), (24, 60)];
+    for &(rings, layers) in &sizes[..if o.big { 4 } else { 3 }] {
         let mesh = tube(0.4, 4.0, rings, layers, &[]);
         let mut case = window(&settings, o.t0_s, o.steps);
         case.coarse_aggregate_nodes = o.coarse;
