@@ -2,7 +2,8 @@
 # Build the `baffle` command and run its main job on the built-in synthetic heart (LV, RV
 # and aorta as segment surfaces, and suture points): `baffle plan` prepares the capped
 # ventricle, designs the baffle, extends the domain (mid-LV inflow, STJ outflow), meshes it
-# at 1.25 mm (gmsh) and runs the quick steady CFD estimate at peak flow, then prints the
+# at 1.25 mm (gmsh) and runs the quick CFD estimate (pulsatile from rest to the first flow
+# peak), then prints the
 # verdict (PASSES / FAILS / INCONCLUSIVE with its reason) and where report.html is.
 # Results go to out/sample (heart/: the inputs; plan/: one subfolder per stage, report.json,
 # report.html).
@@ -21,4 +22,4 @@ cargo build --release -p baffle-cli
 rm -rf out/sample/plan
 ./target/release/baffle phantom --heart --out out/sample/heart
 ./target/release/baffle plan --segmentations out/sample/heart --points out/sample/heart/suture_points.mrk.json \
-  --bsa 0.2 --bp 107/78 --steady --edge-length-mm 1.25 --out out/sample/plan
+  --bsa 0.2 --bp 107/78 --quick --edge-length-mm 1.25 --out out/sample/plan

@@ -15,7 +15,10 @@
 //!   1e-3): the difference of dp and v_max, step by step;
 //! - `--full`: one complete 4-cycle run (2728 steps): wall time, dp at peak flow,
 //!   periodicity (cycle 3 vs 4);
-//! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs.
+//! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs;
+//! - `--scaling`: GMRES iterations and time per step against the mesh size, on one tube
+//!   (radius 4 mm, length 40 mm, Re ~2,700 at peak flow) meshed at 9.7k, 45k and 150k
+//!   tets (`--big`: and 622k), S steps from rest at t = T, median over N runs.
 //!
 //! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
 
@@ -37,13 +40,18 @@ struct Options {
     steady: bool,
     full: bool,
     smoke: bool,
+    scaling: bool,
+    /// Two-level preconditioner's aggregate size (0: ILU(0) alone).
+    coarse: usize,
+    /// `--scaling` also on a 622k-tet tube.
+    big: bool,
     compare_schemes: bool,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, compare_schemes: false, t0_s: 0.1, picard: None };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -61,6 +69,9 @@ fn options() -> Result<Options, String> {
             "--steady" => o.steady = true,
             "--full" => o.full = true,
             "--smoke" => o.smoke = true,
+            "--scaling" => o.scaling = true,
+            "--big" => o.big = true,
+            "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
             "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
             "--picard" => o.picard = Some(value("--picard")?.parse().map_err(|e| format!("--picard: {e}"))?),
@@ -147,6 +158,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
     for &mixed in &o.precisions {
         let mut s = window(settings, o.t0_s, o.steps);
         s.mixed_precision = mixed;
+        s.coarse_aggregate_nodes = o.coarse;
         if let Some(k) = o.picard {
             s.max_nonlinear_iterations = k;
         }
@@ -160,8 +172,9 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
             let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
             let step_s = (t.total_s - t.setup_s) / n;
             println!(
-                "  run {k} ({}): {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
+                "  run {k} ({}, coarse aggregates of {} nodes): {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
                 if case.mixed_precision { "mixed" } else { "f64" },
+                case.coarse_aggregate_nodes,
                 t.assembly_s / n,
                 t.preconditioner_s / n,
                 t.gmres_s / n,
@@ -295,10 +308,51 @@ fn smoke() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
+/// Per-step cost against mesh size on one geometry: a tube refined in all directions
+/// by about 1.6x per level (rings 6/10/15, layers 2.5x rings).
+fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let outlets = vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }];
+    // Q_mean 20 mL/s: Q_peak 65 mL/s, mean speed 1.3 m/s in the 8 mm tube, Re ~2,700.
+    let settings = CaseSettings::new(INLET, Waveform::default_for_mean(20.0)?, outlets);
+    let sizes = [(6, 15), (10, 25), (15, 37), (24, 60)];
+    for &(rings, layers) in &sizes[..if o.big { 4 } else { 3 }] {
+        let mesh = tube(0.4, 4.0, rings, layers, &[]);
+        let mut case = window(&settings, o.t0_s, o.steps);
+        case.coarse_aggregate_nodes = o.coarse;
+        let (mut step_s, mut iterations) = (Vec::new(), Vec::new());
+        for _ in 0..o.runs {
+            let (summary, _) = run_window(&mesh, &case, o.steps)?;
+            let t = &summary.timings;
+            let n = summary.steps.len() as f64;
+            step_s.push((t.total_s - t.setup_s) / n);
+            iterations.push(summary.steps.iter().map(|r| r.linear_iterations).sum::<usize>() as f64 / n);
+        }
+        println!(
+            "tube {} tets ({} nodes), coarse aggregates of {} nodes: median {:.3} s/step (min {:.3}), {:.1} GMRES it/step, over {} runs of {} steps from t = {} s; load {}",
+            mesh.tets.len(),
+            mesh.points_cm.len(),
+            o.coarse,
+            median(step_s.clone()),
+            step_s.iter().cloned().fold(f64::INFINITY, f64::min),
+            median(iterations),
+            o.runs,
+            o.steps,
+            o.t0_s,
+            load_average()
+        );
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let o = options()?;
     if o.smoke {
         return smoke();
+    }
+    if o.scaling {
+        scaling(&o)?;
+        println!("peak memory {:.0} MB", peak_memory_mb());
+        return Ok(());
     }
     let start = Instant::now();
     let (mesh, settings) = p2_case()?;

@@ -18,6 +18,11 @@ pub enum CfdError {
         "linear solver failed at step {step} (t = {time_s:.4} s): relative residual {residual:.3e} after {iterations} GMRES iterations"
     )]
     LinearSolver { step: usize, time_s: f64, iterations: usize, residual: f64 },
+    /// A time step that failed on every rung of the solver's retry ladder.
+    #[error(
+        "time step {step} (t = {time_s:.4} s) failed on every retry ({tried}). Try a smaller time step (dt), a larger GMRES budget (max_linear_iterations), or a coarser or better-shaped mesh (check its smallest scaled Jacobian); on meshes of several hundred thousand tetrahedra the external svMultiPhysics engine may be needed"
+    )]
+    StepFailed { step: usize, time_s: f64, tried: String },
     #[error("cancelled at t = {time_s:.4} s")]
     Cancelled { time_s: f64 },
 }

@@ -6,6 +6,7 @@
 
 pub mod assembly;
 pub mod boundary;
+pub mod coarse;
 mod error;
 pub mod hemodynamics;
 pub mod linear;
@@ -24,7 +25,7 @@ mod test_data;
 
 pub use error::CfdError;
 pub use mesh::{Face, FlowMesh, ValidationReport};
-pub use settings::{CaseSettings, InflowProfile, Outlet, RunMode};
+pub use settings::{CaseSettings, InflowProfile, Outlet, RunMode, TWO_LEVEL_AGGREGATE_NODES};
 pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, SteadyProgress, StepResult, StepView, Summary, Timings};
 pub use periodicity::periodicity_nrmsd;
 pub use waveform::Waveform;

@@ -101,6 +101,15 @@
 //! resistance outlets' rank-one terms (39.6 instead of 40.0 GMRES iterations a step:
 //! the ~12-iteration plateau of every solve does not come from the outlets).
 //!
+//! Fourth session (issue 14, 2026-12-02, load 7-12 from other jobs): ILU(0)'s GMRES
+//! iterations grow with the mesh (tubes of 9.7k / 45k / 150k tets: 49 / 108 / 283 a
+//! step; p2's published mesh 40). The default preconditioner is now two-level
+//! ([`crate::coarse`]): ILU(0), then a Galerkin coarse correction on node aggregates
+//! (piecewise-constant u, v, w, p; dense LU of at most 4 x 256 unknowns). Tubes 31 / 41
+//! / 45 iterations, 0.033 / 0.36 / 1.65 s a step against 0.043 / 0.78 / 6.2 s; p2's
+//! published mesh 15.3 iterations, 0.61 against 1.07 s a step, the same dp to 0.06 %.
+//! A step whose solve stalls is retried down [`RETRY_LADDER`] before the run fails.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
@@ -110,6 +119,7 @@ use std::time::Instant;
 
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
+use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
@@ -142,6 +152,9 @@ pub struct StepResult {
     pub linear_iterations: usize,
     /// Relative nonlinear residual at the last check of the step.
     pub residual: f64,
+    /// How many times the step was retried after a stalled linear solve (0: the first
+    /// attempt was accepted); see [`RETRY_LADDER`].
+    pub retries: usize,
 }
 
 impl StepResult {
@@ -379,16 +392,103 @@ struct Solver<'a> {
     vals_low: Vec<f32>,
     ilu_low: Option<BlockIlu<f32>>,
     ilu: Option<BlockIlu<f64>>,
+    /// f64 ILU(0) of the whole matrix in one partition (no couplings dropped), made
+    /// only when a stalled step is retried with [`Effort::Strong`].
+    ilu_whole: Option<BlockIlu<f64>>,
+    /// The two-level preconditioner's aggregates (made on the first solve when enabled).
+    aggregates: Option<Aggregates>,
     timings: Timings,
 }
 
-/// The ILU(0) factors of `vals`, refactored in `slot`'s storage (factored anew on the first call).
-fn refactored<'s, T: Scalar>(slot: &'s mut Option<BlockIlu<T>>, problem: &Problem, vals: &[f64]) -> Result<&'s BlockIlu<T>, usize> {
+/// The ILU(0) factors of `vals` on the row partitions `parts`, refactored in `slot`'s
+/// storage (factored anew on the first call).
+fn refactored<'s, T: Scalar>(
+    slot: &'s mut Option<BlockIlu<T>>,
+    pattern: &BlockPattern,
+    parts: &[std::ops::Range<usize>],
+    vals: &[f64],
+) -> Result<&'s BlockIlu<T>, usize> {
     match slot {
-        Some(ilu) => ilu.refactor(&problem.pattern, vals)?,
-        None => *slot = Some(BlockIlu::factor(&problem.pattern, vals, problem.parts.clone())?),
+        Some(ilu) => ilu.refactor(pattern, vals)?,
+        None => *slot = Some(BlockIlu::factor(pattern, vals, parts.to_vec())?),
     }
     Ok(slot.as_ref().expect("factored above"))
+}
+
+/// How hard a step's linear solves try.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Effort {
+    /// As the settings say (mixed precision, ILU(0) per thread partition).
+    Normal,
+    /// f64 GMRES with twice the restart length and [`STRONG_BUDGET_FACTOR`] times the
+    /// iteration budget, preconditioned by ILU(0) of the whole matrix (one partition,
+    /// no couplings dropped; single-threaded) and the coarse correction.
+    Strong,
+}
+
+/// The Strong effort's GMRES budget, in multiples of `max_linear_iterations`.
+const STRONG_BUDGET_FACTOR: usize = 4;
+
+/// One way to attempt a time step: the linear solves' effort and the number of equal
+/// sub-steps the step is split into (backward Euler each; a smaller step makes the
+/// system more diagonally dominant through its mass term).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Attempt {
+    effort: Effort,
+    substeps: usize,
+}
+
+/// A time step whose linear solve stalls (or whose ILU(0) meets a singular pivot) is
+/// tried again down this ladder before the run fails: first a stronger linear solve
+/// at the same step, then the step as 2 and 4 sub-steps with it.
+pub const RETRY_LADDER_LEN: usize = 3;
+const RETRY_LADDER: [Attempt; RETRY_LADDER_LEN + 1] = [
+    Attempt { effort: Effort::Normal, substeps: 1 },
+    Attempt { effort: Effort::Strong, substeps: 1 },
+    Attempt { effort: Effort::Strong, substeps: 2 },
+    Attempt { effort: Effort::Strong, substeps: 4 },
+];
+
+impl Attempt {
+    fn describe(&self) -> String {
+        let solve = match self.effort {
+            Effort::Normal => "the configured solve",
+            Effort::Strong => "f64 GMRES with whole-matrix ILU(0), the coarse correction and 4x the iterations",
+        };
+        match self.substeps {
+            1 => solve.to_string(),
+            n => format!("{solve} on {n} sub-steps of dt/{n}"),
+        }
+    }
+}
+
+/// The coarse correction of the two-level preconditioner for the matrix `vals` (None
+/// when `aggregate_nodes` is 0); the aggregates are made on the first call.
+fn coarse_correction(aggregates: &mut Option<Aggregates>, problem: &Problem, vals: &[f64], aggregate_nodes: usize) -> Option<CoarseCorrection> {
+    if aggregate_nodes == 0 {
+        return None;
+    }
+    let size = aggregate_size(problem.pattern.n_rows(), aggregate_nodes);
+    let aggregates = aggregates.get_or_insert_with(|| aggregate(&problem.pattern, size)).clone();
+    let rank_one: Vec<(f64, &[f64])> = problem.outlets.iter().map(|o| (o.resistance_dyn_s_cm5, &o.flux_weights[..])).collect();
+    Some(CoarseCorrection::new(&problem.pattern, vals, &rank_one, aggregates, &problem.dirichlet))
+}
+
+/// z = M^-1 r: ILU(0), then (two-level) the coarse correction of the residual it leaves.
+fn two_level<S: Scalar, T: Scalar>(ilu: &BlockIlu<S>, coarse: Option<&CoarseCorrection>, apply_a: &dyn Fn(&[T], &mut [T]), r: &[T], z: &mut [T]) {
+    ilu.apply(r, z);
+    if let Some(coarse) = coarse {
+        let mut w = vec![T::default(); r.len()];
+        apply_a(z, &mut w);
+        w.iter_mut().zip(r).for_each(|(wi, ri)| *wi = T::from_f64(ri.to_f64() - wi.to_f64()));
+        coarse.add_correction(&w, z);
+    }
+}
+
+/// x + ratio (x - prev): the linear extrapolation of the state to the end of the next
+/// (sub-)step, `ratio` being that step's length over the gap between prev and x.
+fn extrapolate(x: &mut [f64], prev: &[f64], ratio: f64) {
+    x.iter_mut().zip(prev).for_each(|(xi, pi)| *xi += ratio * (*xi - pi));
 }
 
 /// What one step's Picard loop did.
@@ -483,6 +583,7 @@ impl<'a> Solver<'a> {
         tol: f64,
         newton: bool,
         check_last: bool,
+        effort: Effort,
         step: usize,
         time_s: f64,
     ) -> Result<StepStats, CfdError> {
@@ -521,20 +622,36 @@ impl<'a> Solver<'a> {
             let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
             let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
             let (tol, restart, max_iterations) = (s.linear_tolerance, s.gmres_restart, s.max_linear_iterations);
+            let (pattern, parts) = (&problem.pattern, &problem.parts);
             let t2;
-            let out = if s.mixed_precision {
-                let ilu = refactored(&mut self.ilu_low, problem, vals).map_err(singular)?;
-                convert_into(vals, &mut self.vals_low);
-                t2 = Instant::now();
-                let vals_low = &self.vals_low;
-                let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
-                let apply_m = |v: &[f64], z: &mut [f64]| ilu.apply(v, z);
-                let apply_m_low = |v: &[f32], z: &mut [f32]| ilu.apply(v, z);
-                solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
-            } else {
-                let ilu = refactored(&mut self.ilu, problem, vals).map_err(singular)?;
-                t2 = Instant::now();
-                gmres(&apply_a, &|v, z| ilu.apply(v, z), &r, &mut dx, tol, restart, max_iterations)
+            let out = match effort {
+                Effort::Normal if s.mixed_precision => {
+                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
+                    let ilu = refactored(&mut self.ilu_low, pattern, parts, vals).map_err(singular)?;
+                    convert_into(vals, &mut self.vals_low);
+                    t2 = Instant::now();
+                    let vals_low = &self.vals_low;
+                    let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
+                    let apply_m = |v: &[f64], z: &mut [f64]| two_level(ilu, coarse.as_ref(), &apply_a, v, z);
+                    let apply_m_low = |v: &[f32], z: &mut [f32]| two_level(ilu, coarse.as_ref(), &apply_a_low, v, z);
+                    solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
+                }
+                Effort::Normal => {
+                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
+                    let ilu = refactored(&mut self.ilu, pattern, parts, vals).map_err(singular)?;
+                    t2 = Instant::now();
+                    gmres(&apply_a, &|v, z| two_level(ilu, coarse.as_ref(), &apply_a, v, z), &r, &mut dx, tol, restart, max_iterations)
+                }
+                Effort::Strong => {
+                    // The coarse correction too, even when the case asked for ILU(0) alone.
+                    let nodes = if s.coarse_aggregate_nodes > 0 { s.coarse_aggregate_nodes } else { crate::settings::TWO_LEVEL_AGGREGATE_NODES };
+                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, nodes);
+                    let whole = [0..pattern.n_rows()];
+                    let ilu = refactored(&mut self.ilu_whole, pattern, &whole, vals).map_err(singular)?;
+                    t2 = Instant::now();
+                    let apply_m = |v: &[f64], z: &mut [f64]| two_level(ilu, coarse.as_ref(), &apply_a, v, z);
+                    gmres(&apply_a, &apply_m, &r, &mut dx, tol, 2 * restart, STRONG_BUDGET_FACTOR * max_iterations)
+                }
             };
             self.timings.preconditioner_s += (t2 - t1).as_secs_f64();
             self.timings.gmres_s += t2.elapsed().as_secs_f64();
@@ -573,7 +690,7 @@ impl<'a> Solver<'a> {
             .collect()
     }
 
-    fn step_result(&self, x: &[f64], step: usize, time_s: f64, q_in: f64, stats: &StepStats) -> Result<StepResult, CfdError> {
+    fn step_result(&self, x: &[f64], step: usize, time_s: f64, q_in: f64, stats: &StepStats, retries: usize) -> Result<StepResult, CfdError> {
         let faces = self.face_results(x);
         let inflow_ml_s = -faces[self.problem.inlet_face].flow_ml_s;
         let outflow_ml_s = self.problem.outlets.iter().map(|o| faces[o.face].flow_ml_s).sum();
@@ -595,14 +712,58 @@ impl<'a> Solver<'a> {
             nonlinear_iterations: stats.nonlinear_iterations,
             linear_iterations: stats.linear_iterations,
             residual: stats.residual,
+            retries,
         })
     }
 
 
+    /// Time step `step` from x (x_prev: the state one step before), retried down
+    /// [`RETRY_LADDER`] when a linear solve stalls or ILU(0) meets a singular pivot.
+    /// Returns the accepted attempt's statistics and its rung (0: no retry).
+    fn advance(&mut self, x: &mut [f64], x_prev: &[f64], step: usize, time_s: f64) -> Result<(StepStats, usize), CfdError> {
+        let x_start = x.to_vec();
+        let mut failures = Vec::new();
+        for (rung, attempt) in RETRY_LADDER.iter().enumerate() {
+            x.copy_from_slice(&x_start);
+            match self.attempt_step(attempt, x, x_prev, step, time_s) {
+                Ok(stats) => return Ok((stats, rung)),
+                Err(e @ (CfdError::LinearSolver { .. } | CfdError::Diverged { .. })) => failures.push((attempt.describe(), e)),
+                Err(e) => return Err(e),
+            }
+        }
+        x.copy_from_slice(&x_start);
+        let tried = failures.iter().map(|(how, e)| format!("{how}: {e}")).collect::<Vec<_>>().join("; ");
+        Err(CfdError::StepFailed { step, time_s, tried })
+    }
+
+    /// One attempt at the step ending at `time_s`: `attempt.substeps` backward-Euler
+    /// sub-steps, each started from the linear extrapolation of the states before it.
+    fn attempt_step(&mut self, attempt: &Attempt, x: &mut [f64], x_prev: &[f64], step: usize, time_s: f64) -> Result<StepStats, CfdError> {
+        let s = self.settings;
+        let sub_dt = s.dt_s / attempt.substeps as f64;
+        let phys = self.physics(false, sub_dt);
+        let semi_implicit = s.max_nonlinear_iterations == 1;
+        let mut total = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 0.0 };
+        let (mut prev, mut gap) = (x_prev.to_vec(), s.dt_s);
+        for k in 1..=attempt.substeps {
+            let t = time_s - s.dt_s + k as f64 * sub_dt;
+            let x_old = x.to_vec();
+            // Initial guess (and, semi-implicit, the convection velocity): linear
+            // extrapolation, second-order accurate in dt.
+            extrapolate(x, &prev, sub_dt / gap);
+            self.set_inflow(x, s.inflow.flow_ml_s(t));
+            let stats = self.step(&phys, x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;
+            total.nonlinear_iterations += stats.nonlinear_iterations;
+            total.linear_iterations += stats.linear_iterations;
+            total.residual = stats.residual;
+            (prev, gap) = (x_old, sub_dt);
+        }
+        Ok(total)
+    }
+
     fn transient(&mut self, start: Option<&SolverState>, observer: &mut Observer) -> Result<Outcome, CfdError> {
         let s = self.settings;
         let n_steps = (s.cycles as f64 * s.inflow.period_s() / s.dt_s).round() as usize;
-        let phys = self.physics(false, s.dt_s);
         let (first, mut x, mut x_prev) = match start {
             Some(state) if state.steady.is_some() => {
                 return Err(CfdError::Settings("the start state is of a steady solve, not of a transient run".into()));
@@ -615,22 +776,17 @@ impl<'a> Solver<'a> {
             None => (1, vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B]),
         };
         let mut results = Vec::with_capacity(n_steps);
-        let semi_implicit = s.max_nonlinear_iterations == 1;
         let mut cancelled_at = None;
         for step in first..=n_steps {
             let time_s = step as f64 * s.dt_s;
             let q_in = s.inflow.flow_ml_s(time_s);
             let x_old = x.clone();
-            // Initial guess (and, semi-implicit, the convection velocity): linear
-            // extrapolation 2 x_n - x_(n-1), second-order accurate in dt.
-            x.iter_mut().zip(&x_prev).for_each(|(xi, pi)| *xi = 2.0 * *xi - pi);
+            let (stats, retries) = self.advance(&mut x, &x_prev, step, time_s)?;
             x_prev.copy_from_slice(&x_old);
-            self.set_inflow(&mut x, q_in);
-            let stats =
-                self.step(&phys, &mut x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, step, time_s)?;
-            let result = self.step_result(&x, step, time_s, q_in, &stats)?;
+            let result = self.step_result(&x, step, time_s, q_in, &stats, retries)?;
+            let retried = if retries > 0 { format!(" (retried: {})", RETRY_LADDER[retries].describe()) } else { String::new() };
             let msg = format!(
-                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={} gmres={}",
+                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={} gmres={}{retried}",
                 result.inflow_ml_s, result.max_velocity_cm_s / crate::vtu::CM_S_PER_M_S, stats.nonlinear_iterations, stats.linear_iterations
             );
             results.push(result);
@@ -688,7 +844,7 @@ impl<'a> Solver<'a> {
             let x_old = x.clone();
             let last = it > s.steady_max_iterations;
             let phys = self.physics(true, pseudo_dt);
-            let step_stats = self.step(&phys, &mut x, &x_old, usize::from(!last), 1.0, newton, false, it, t_peak)?;
+            let step_stats = self.step(&phys, &mut x, &x_old, usize::from(!last), 1.0, newton, false, Effort::Normal, it, t_peak)?;
             last_iteration = it;
             let reference = progress.map_or(step_stats.initial_residual, |p| p.reference_residual);
             let rel = if reference > 0.0 { step_stats.initial_residual / reference } else { 0.0 };
@@ -724,7 +880,7 @@ impl<'a> Solver<'a> {
                 break;
             }
         }
-        let result = self.step_result(&x, 0, t_peak, q_peak, &stats)?;
+        let result = self.step_result(&x, 0, t_peak, q_peak, &stats, 0)?;
         Ok(Outcome { steps: vec![result], x, x_prev: None, steady: progress, last_iteration, converged, cancelled_at })
     }
 }
@@ -869,6 +1025,8 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
         vals_low: Vec::new(),
         ilu_low: None,
         ilu: None,
+        ilu_whole: None,
+        aggregates: None,
         timings: Timings::default(),
     };
     solver.timings.setup_s = start_time.elapsed().as_secs_f64();

@@ -329,3 +329,43 @@ fn womersley_pressure_gradient_amplitude_and_phase() {
     assert!(amplitude_error.abs() < 0.05, "amplitude error {amplitude_error}");
     assert!(phase_error.abs() < 0.05, "phase error {phase_error}");
 }
+
+/// A short pulsatile tube run: 10 steps of 1 ms over one ejection.
+fn retry_case(max_linear_iterations: usize) -> CaseSettings {
+    let inflow = Waveform::Ejection { period_s: 0.01, q_mean_ml_s: 2.0 };
+    let mut s = CaseSettings::new(INLET, inflow, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 500.0 }]);
+    s.cycles = 1;
+    // Tight, so that a solve accepted at 100x the tolerance is still accurate to ~1e-4.
+    s.linear_tolerance = 1e-6;
+    s.max_linear_iterations = max_linear_iterations;
+    s
+}
+
+#[test]
+fn a_stalled_linear_solve_is_retried_and_the_run_goes_on() {
+    // A GMRES budget too small for the configured solve forces every step onto the
+    // retry ladder; the retried steps must give the unhindered run's answer.
+    let mesh = tube(RADIUS_CM, 1.0, 3, 8, &[]);
+    let free = simulate(&mesh, &retry_case(600), &mut |_, _| true).unwrap();
+    let fewest = free.steps.iter().map(|s| s.linear_iterations).min().unwrap();
+    assert!(free.steps.iter().all(|s| s.retries == 0));
+    let capped = simulate(&mesh, &retry_case(fewest / 2), &mut |_, _| true).unwrap();
+    assert!(capped.steps.iter().any(|s| s.retries > 0), "fewest GMRES iterations a step {fewest}; {:?}", capped.steps.iter().map(|s| s.retries).collect::<Vec<_>>());
+    let p = |s: &crate::StepResult| s.face(INLET).unwrap().mean_pressure_dyn_cm2;
+    let scale = free.steps.iter().map(|s| p(s).abs()).fold(0.0, f64::max);
+    for (a, b) in capped.steps.iter().zip(&free.steps) {
+        // Both solved each step to the linear tolerance (or accepted at 100x it).
+        assert!((p(a) - p(b)).abs() <= 1e-3 * scale, "step {}: {} vs {} (largest {scale})", a.step, p(a), p(b));
+    }
+}
+
+#[test]
+fn a_step_that_fails_every_retry_says_what_was_tried_and_what_to_try() {
+    let mesh = tube(RADIUS_CM, 1.0, 3, 8, &[]);
+    let mut s = retry_case(1);
+    s.linear_tolerance = 1e-12;
+    let msg = simulate(&mesh, &s, &mut |_, _| true).unwrap_err().to_string();
+    assert!(msg.starts_with("time step 1 (t = 0.0010 s) failed on every retry"), "{msg}");
+    assert!(msg.contains("the configured solve: linear solver failed") && msg.contains("on 4 sub-steps of dt/4"), "{msg}");
+    assert!(msg.contains("Try a smaller time step"), "{msg}");
+}

@@ -27,14 +27,14 @@ use std::time::Instant;
 #[command(
     mut_arg("surface", |a| a.help("Capped ventricle (.vtp, .vtk or .stl, mm, ModelFaceID); or give --segmentations DIR, --labelmap FILE or --phantom instead")),
     after_help = "Examples:\n  \
-    # quick steady estimate from Slicer's segment surfaces (LV, RV, aorta), CFD on the extended domain\n  \
+    # quick estimate (from rest to the first flow peak) from Slicer's segment surfaces (LV, RV, aorta), CFD on the extended domain\n  \
     baffle plan --segmentations ../shared/data/p2/segmentations --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
-    --bsa 0.37 --bp 107/78 --hr 133 --steady --edge-length-mm 1.25 --out out/plan-p2\n  \
+    --bsa 0.37 --bp 107/78 --hr 133 --quick --edge-length-mm 1.25 --out out/plan-p2\n  \
     # the paper's pulsatile run with its mesh study, from a capped ventricle\n  \
     baffle plan --surface ../shared/data/p2/design_input/capped_ventricle.vtp --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
     --bsa 0.37 --bp 107/78 --hr 133 --pulsatile --mesh-study --out out/plan-p2-full\n  \
     # the built-in synthetic phantom\n  \
-    baffle plan --phantom --bp 107/78 --steady --out out/plan-phantom\n\
+    baffle plan --phantom --bp 107/78 --quick --out out/plan-phantom\n\
 Ends with report.json and report.html in --out; the last line printed is the verdict: PASSES, FAILS or INCONCLUSIVE (with its reason)."
 )]
 pub struct PlanArgs {
@@ -52,9 +52,14 @@ pub struct PlanArgs {
     /// Heart rate (beats/min); default: the built-in period of 0.682 s.
     #[arg(long)]
     pub hr: Option<f64>,
-    /// Steady run with the inflow held at Q_peak (quick estimate).
-    #[arg(long, conflicts_with = "pulsatile")]
+    /// Steady run with the inflow held at Q_peak. It may not converge where the peak flow
+    /// is not steady (p2's and p3's extended domains); the verdict is then INCONCLUSIVE.
+    #[arg(long, conflicts_with_all = ["pulsatile", "quick"])]
     pub steady: bool,
+    /// Quick estimate: a pulsatile run from rest up to the first flow peak (a twentieth of
+    /// 4 cycles' steps; on p2 and p3 within 0.6 % of the fourth cycle's peak dp).
+    #[arg(long, conflicts_with = "pulsatile")]
+    pub quick: bool,
     /// Pulsatile run over --cycles cardiac cycles (the default, as the paper).
     #[arg(long)]
     pub pulsatile: bool,
@@ -217,7 +222,7 @@ fn check_arguments(args: &PlanArgs) -> Result<(), String> {
 
 pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
     check_arguments(args)?;
-    let simulate_weight = if args.steady { 4.0 } else { 4.0 * args.cycles as f64 };
+    let simulate_weight = if args.steady || args.quick { 4.0 } else { 4.0 * args.cycles as f64 };
     let mut stages = Vec::new();
     if args.prepare.is_given() {
         stages.push(Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 });
@@ -283,9 +288,18 @@ fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, S
             ..Inflow::default()
         },
         outlet: OutletSpec { sbp_mmhg: Some(args.bp.0), dbp_mmhg: Some(args.bp.1), ..OutletSpec::default() },
-        time: TimeSpec { mode: if args.steady { "steady" } else { "transient" }.into(), cycles: args.cycles, ..TimeSpec::default() },
+        time: TimeSpec { mode: run_mode(args).into(), cycles: args.cycles, ..TimeSpec::default() },
         output: Default::default(),
     })
+}
+
+/// The case's time.mode: steady, quick (rest to the first flow peak) or transient.
+fn run_mode(args: &PlanArgs) -> &'static str {
+    match (args.steady, args.quick) {
+        (true, _) => "steady",
+        (_, true) => crate::case::QUICK_MODE,
+        _ => "transient",
+    }
 }
 
 /// Extended: inflow cap in, STJ cap out, dp between the VSD and aortic caps (interior);

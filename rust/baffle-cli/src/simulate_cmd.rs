@@ -35,14 +35,22 @@ pub struct SimulateArgs {
     /// mean flow; outlet_mean_pressure_mmhg is R x Q_peak, far above MAP because R = MAP /
     /// Q_mean. dp is unaffected: with rigid walls the outlet pressure only offsets the
     /// pressure field uniformly.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "quick")]
     steady: bool,
+    /// Quick estimate of the peak dp (overrides time.mode with "quick"): time-accurate
+    /// from rest up to the first flow peak of the waveform (about 110-170 steps instead of
+    /// 4 cycles); unlike --steady it converges where the peak flow is not steady.
+    #[arg(long)]
+    quick: bool,
     /// Stop after this time step (overrides time.steps).
     #[arg(long)]
     pub(crate) steps: Option<usize>,
     /// Time step (s) (overrides time.dt_s).
     #[arg(long)]
     dt_s: Option<f64>,
+    /// Preconditioner of the linear solves: ilu or two-level (overrides time.preconditioner).
+    #[arg(long, value_parser = ["ilu", "two-level"])]
+    preconditioner: Option<String>,
     /// Cardiac cycles (overrides time.cycles).
     #[arg(long)]
     cycles: Option<usize>,
@@ -82,6 +90,9 @@ pub(crate) struct Row {
     pub outflow_ml_s: f64,
     pub max_velocity_m_s: f64,
     pub residual: f64,
+    /// Rungs of the solver's retry ladder this step needed (0: none).
+    #[serde(default)]
+    pub retries: usize,
     pub face_ids: Vec<i32>,
     pub face_names: Vec<String>,
     pub face_pressure_mmhg: Vec<f64>,
@@ -97,6 +108,7 @@ impl Row {
             outflow_ml_s: r.outflow_ml_s,
             max_velocity_m_s: r.max_velocity_cm_s / 100.0,
             residual: r.residual,
+            retries: r.retries,
             face_ids: r.faces.iter().map(|f| f.id).collect(),
             face_names: r.faces.iter().map(|f| f.name.clone()).collect(),
             face_pressure_mmhg: r.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),
@@ -340,20 +352,24 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
     let (a, b) = dp_faces(case);
     let outlet = case.faces.outlets[0];
     let steady = settings.mode == RunMode::Steady;
+    let quick = case::is_quick(case);
     let period_steps = if steady { 0 } else { (flow.period_s / settings.dt_s).round() as usize };
     // The last complete cycle run (or all steps when less than one cycle was run).
     let last_step = rows.last().map_or(0, |r| r.step);
     let cycle: Vec<&Row> = if steady || period_steps == 0 || last_step < period_steps {
         rows.iter().collect()
     } else {
-        let end = last_step - last_step % period_steps;
-        rows.iter().filter(|r| r.step > end - period_steps && r.step <= end).collect()
+        // Cycle k ends at the step nearest k periods (a period need not be a whole number
+        // of steps: p3's 0.4918 s is 491.8 steps, and the solver's 4 cycles are 1967).
+        let cycles_done = ((last_step as f64 + 0.5) * settings.dt_s / flow.period_s).floor() as usize;
+        let (start, end) = (cycle_end_step(cycles_done - 1, flow.period_s, settings.dt_s), cycle_end_step(cycles_done, flow.period_s, settings.dt_s));
+        rows.iter().filter(|r| r.step > start && r.step <= end).collect()
     };
     let peak = cycle.iter().copied().max_by(|x, y| x.prescribed_inflow_ml_s.total_cmp(&y.prescribed_inflow_ml_s));
     let mean = |f: &dyn Fn(&Row) -> f64| if cycle.is_empty() { f64::NAN } else { cycle.iter().map(|r| f(r)).sum::<f64>() / cycle.len() as f64 };
     let inflow_sum: f64 = cycle.iter().map(|r| r.inflow_ml_s).sum();
     let outflow_sum: f64 = cycle.iter().map(|r| r.outflow_ml_s).sum();
-    let periodicity = if steady { None } else { periodicity_nrmsd(rows, period_steps, case.faces.inlet, outlet) };
+    let periodicity = if steady || quick { None } else { periodicity_nrmsd(rows, period_steps, case.faces.inlet, outlet) };
     let f = |v: f64| if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null };
     let engine = match report.engine {
         Engine::Embedded => "embedded",
@@ -363,11 +379,13 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
         "engine": engine,
         "status": ending.status,
         "message": ending.message,
-        "mode": if steady { "steady" } else { "transient" },
+        "mode": if steady { "steady" } else if quick { case::QUICK_MODE } else { "transient" },
         "converged": ending.converged,
         "steps_done": rows.len(),
-        // Transient: the steps of all the case's cycles (a run stopped short of them has no final cycle).
-        "steps_planned": (!steady).then(|| period_steps * settings.cycles),
+        // Transient: the steps of all the case's cycles (a run stopped short of them has no
+        // final cycle); quick: the steps to the first flow peak.
+        "steps_planned": (!steady).then(|| if quick { case::first_peak_step(settings) } else { cycle_end_step(settings.cycles, flow.period_s, settings.dt_s) }),
+        "retried_steps": rows.iter().filter(|r| r.retries > 0).count(),
         "last_step": last_step,
         "last_time_s": rows.last().map(|r| r.time_s),
         "peak_time_s": peak.map(|r| r.time_s),
@@ -399,6 +417,12 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
             "steady_max_iterations": steady.then_some(settings.steady_max_iterations),
         },
     })
+}
+
+/// The time step at which cycle k ends: the one nearest k periods, as the solver counts
+/// a run's steps (round(cycles x period / dt)).
+fn cycle_end_step(k: usize, period_s: f64, dt_s: f64) -> usize {
+    (k as f64 * period_s / dt_s).round() as usize
 }
 
 /// Cycle N-1 vs N of the inlet-outlet pressure difference ([`baffle_cfd::periodicity_nrmsd`]).
@@ -435,6 +459,9 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     if args.steady {
         case.time.mode = "steady".into();
     }
+    if args.quick {
+        case.time.mode = case::QUICK_MODE.into();
+    }
     if let Some(n) = args.steps {
         case.time.steps = Some(n);
     }
@@ -443,6 +470,9 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     }
     if let Some(c) = args.cycles {
         case.time.cycles = c;
+    }
+    if let Some(p) = &args.preconditioner {
+        case.time.preconditioner = Some(p.clone());
     }
     if let Some(v) = args.vtu_every {
         case.output.vtu_every_steps = v;
@@ -453,7 +483,11 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
     let output = Output { dir: &args.out, mesh: &mesh };
     let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
+    let quick = case::is_quick(&case);
     if args.engine == Engine::Svmultiphysics {
+        if quick {
+            return Err("the quick estimate (time.mode \"quick\", --quick) runs on the embedded engine; give svMultiPhysics a transient or steady case".into());
+        }
         return crate::simulate_svmp::run(args, &report, &output, start, progress);
     }
 
@@ -465,10 +499,11 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     };
 
     let stop = stop_on_signals()?;
-    let step_limit = case.time.steps.filter(|_| !steady);
+    // A quick run stops at the first flow peak unless told otherwise.
+    let step_limit = case.time.steps.or(quick.then(|| case::first_peak_step(&settings))).filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
     let peak_step_in_cycle = (flow.peak_time_in_cycle_s / settings.dt_s).round();
-    let n_steps = if steady { settings.steady_max_iterations } else { step_limit.unwrap_or((settings.cycles as f64 * period_steps) as usize) };
+    let n_steps = if steady { settings.steady_max_iterations } else { step_limit.unwrap_or(cycle_end_step(settings.cycles, flow.period_s, settings.dt_s)) };
     let cp_every = case.output.checkpoint_every_steps;
     let vtu_every = case.output.vtu_every_steps;
     let mut io_error: Option<String> = None;
@@ -537,7 +572,12 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
             progress.finish(None);
             // Divergence or linear-solver failure: keep the steps done, name the failure.
             report.write(&rows, &Ending { status: "failed", message: Some(e.to_string()), converged: false }, &residuals, wall)?;
-            return Err(format!("{e} (results of the {} steps before it in {})", rows.len(), args.out.display()));
+            let flags = if matches!(e, baffle_cfd::CfdError::StepFailed { .. }) {
+                " (here: --dt-s, \"max_linear_iterations\" in the case's \"time\", or --engine svmultiphysics)"
+            } else {
+                ""
+            };
+            return Err(format!("{e}{flags}; results of the {} steps before it in {}", rows.len(), args.out.display()));
         }
     };
     if steady {
@@ -562,6 +602,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     progress.finish(note.as_deref());
     let (status, message) = match (run.cancelled_at_s, signalled) {
         (Some(t), true) => ("stopped", Some(format!("stopped by signal after {}; continue with {resume}", at(t)))),
+        (Some(_), false) if limit_reached && quick => ("completed", None),
         (Some(_), false) if limit_reached => ("completed", Some(format!("step limit {} reached", n_steps))),
         (Some(t), false) => ("stopped", Some(format!("stopped at {}", at(t)))),
         (None, _) => ("completed", None),

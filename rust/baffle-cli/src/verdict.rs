@@ -84,17 +84,22 @@ pub fn run_doubts(summary: &Value) -> Vec<String> {
     let steady = summary["mode"] == "steady";
     if summary["converged"] != true {
         doubts.push(if steady {
-            "the steady solve did not reach its residual target (it stopped at the iteration cap): rerun pulsatile or with more iterations".into()
+            "the steady solve did not reach its residual target (it stopped at the iteration cap): rerun with --quick (from rest to the first flow peak) or pulsatile".into()
         } else {
             "the solve did not converge".into()
         });
     }
+    // A quick run ends at the first flow peak by design: no cycles to settle.
+    let quick = summary["mode"] == crate::case::QUICK_MODE;
     if !steady {
         if let (Some(done), Some(planned)) = (number(summary, "/last_step"), number(summary, "/steps_planned")) {
             if done < planned {
-                doubts.push(format!("the run stopped at time step {done:.0} of {planned:.0}, before its last cycle"));
+                let end = if quick { "the first flow peak" } else { "its last cycle" };
+                doubts.push(format!("the run stopped at time step {done:.0} of {planned:.0}, before {end}"));
             }
         }
+    }
+    if !steady && !quick {
         match number(summary, "/periodicity_nrmsd") {
             Some(p) if p > PERIODICITY_LIMIT => {
                 doubts.push(format!("the last two cycles differ (periodicity NRMSD {p:.3} > {PERIODICITY_LIMIT}): run more cycles"))
@@ -183,6 +188,19 @@ mod tests {
         s["periodicity_nrmsd"] = json!(1e-4);
         s["status"] = json!("stopped");
         assert!(run_doubts(&s)[0].starts_with("the CFD run stopped"));
+    }
+
+    #[test]
+    fn a_quick_run_is_judged_at_its_first_peak_without_cycles() {
+        let mut s = json!({ "status": "completed", "mode": "quick", "converged": true, "last_step": 109, "steps_planned": 109,
+            "periodicity_nrmsd": null, "mass_imbalance": 1e-5, "message": null });
+        assert!(run_doubts(&s).is_empty(), "{:?}", run_doubts(&s));
+        assert_eq!(Verdict::of(1.47, run_doubts(&s)), Verdict::Passes);
+        s["last_step"] = json!(60);
+        s["status"] = json!("stopped");
+        let doubts = run_doubts(&s);
+        assert!(doubts.iter().any(|d| d.contains("step 60 of 109, before the first flow peak")), "{doubts:?}");
+        assert!(!doubts.iter().any(|d| d.contains("periodicity")), "{doubts:?}");
     }
 
     #[test]

@@ -447,6 +447,27 @@ fn p2_at_a_coarse_mesh_is_below_the_planning_threshold() {
 }
 
 #[test]
+fn a_quick_plan_stops_at_the_first_flow_peak_and_is_judged_there() {
+    if skip_gmsh() {
+        return;
+    }
+    let out = temp_dir("quick");
+    let run = phantom_plan(&out, &["--quick", "--edge-length-mm", "1.6"], &[]);
+    assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let verdict = check_verdict(&out, &String::from_utf8_lossy(&run.stdout));
+    let summary = read_json(&out.join("simulate-nominal/summary.json"));
+    // The built-in waveform peaks at 0.164 s of its 0.682 s period: 164 steps of 1 ms.
+    assert_eq!((summary["mode"].as_str(), summary["last_step"].as_u64(), summary["steps_planned"].as_u64()), (Some("quick"), Some(164), Some(164)));
+    assert!((summary["peak_time_s"].as_f64().unwrap() - 0.164).abs() < 1e-9, "{summary}");
+    assert_eq!(summary["doubts"], serde_json::json!([]), "a finished quick run has nothing to doubt");
+    assert_ne!(verdict, "inconclusive");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Pressure difference from rest to the first flow peak"));
+    check_html(&out.join("report.html"));
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
 fn a_pulsatile_plan_reports_dp_over_the_last_cycle() {
     if skip_gmsh() {
         return;

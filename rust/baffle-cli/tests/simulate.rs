@@ -386,3 +386,62 @@ fn periodicity_of_a_short_period_run_matches_its_time_series() {
     assert!((nrmsd - rms / swing).abs() < 1e-9 * nrmsd.max(1e-12), "summary {nrmsd} vs timeseries {}", rms / swing);
     std::fs::remove_dir_all(out_dir.parent().unwrap()).ok();
 }
+
+#[test]
+fn a_quick_run_stops_at_the_first_flow_peak() {
+    // Period 0.05 s: the built-in ejection peaks at 0.164 / 0.682 of it, step 12 of 1 ms.
+    let inflow = r#"{ "q_mean_ml_s": 0.5, "period_s": 0.05 }"#;
+    let case = tube_case("quick", 3, 8, &[], inflow, r#"{ "mode": "quick", "dt_s": 0.001 }"#);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = summary(&out_dir);
+    assert_eq!((s["mode"].as_str(), s["status"].as_str(), s["last_step"].as_u64(), s["steps_planned"].as_u64()), (Some("quick"), Some("completed"), Some(12), Some(12)), "{s}");
+    assert!(s["message"].is_null() && s["doubts"] == serde_json::json!([]), "{s}");
+    assert!((s["peak_time_s"].as_f64().unwrap() - 0.012).abs() < 1e-12, "{s}");
+    assert!(out_dir.join("peak.vtu").is_file(), "the first peak's fields");
+    // --quick on the command line does the same for a transient case; --steady excludes it.
+    let transient = tube_case("quick-flag", 3, 8, &[], inflow, r#"{ "dt_s": 0.001 }"#);
+    let out_dir = transient.parent().unwrap().join("out");
+    let out = baffle(&["simulate", transient.to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--quick"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(summary(&out_dir)["last_step"], 12);
+    let out = baffle(&["simulate", transient.to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--quick", "--steady"]);
+    assert!(!out.status.success());
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+    std::fs::remove_dir_all(transient.parent().unwrap()).ok();
+}
+
+#[test]
+fn a_step_that_fails_every_retry_says_what_to_try() {
+    // One GMRES iteration towards 1e-12 cannot succeed on any rung of the retry ladder.
+    let inflow = r#"{ "q_mean_ml_s": 0.5, "period_s": 0.05 }"#;
+    let time = r#"{ "dt_s": 0.001, "cycles": 1, "linear_tolerance": 1e-12, "max_linear_iterations": 1 }"#;
+    let case = tube_case("stall", 3, 8, &[], inflow, time);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("time step 1 (t = 0.0010 s) failed on every retry") && err.contains("sub-steps of dt/4"), "{err}");
+    assert!(err.contains("--dt-s") && err.contains("max_linear_iterations"), "{err}");
+    let s = summary(&out_dir);
+    assert_eq!(s["status"], "failed");
+    assert!(s["message"].as_str().unwrap().contains("Try a smaller time step"), "{s}");
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+}
+
+#[test]
+fn a_period_of_a_fractional_number_of_steps_still_finishes_its_last_cycle() {
+    // 19.6 steps a cycle (as p3's 0.4918 s is 491.8): 3 cycles are the solver's 59 steps,
+    // and the reported peak is the third cycle's, not the second's.
+    let case = tube_case("fractional", 3, 8, &[], r#"{ "q_mean_ml_s": 0.5, "period_s": 0.0196 }"#, r#"{ "dt_s": 0.001, "cycles": 3 }"#);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = summary(&out_dir);
+    assert_eq!((s["last_step"].as_u64(), s["steps_planned"].as_u64()), (Some(59), Some(59)), "{s}");
+    assert!(!s["doubts"].as_array().unwrap().iter().any(|d| d.as_str().unwrap().contains("before its last cycle")), "{s}");
+    let peak = s["peak_time_s"].as_f64().unwrap();
+    assert!(peak > 2.0 * 0.0196 && peak <= 0.059, "peak at {peak} s is not in the third cycle");
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+}

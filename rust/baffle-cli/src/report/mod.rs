@@ -697,7 +697,13 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         html.para(&format!("Steady run at Q_peak: dp = {dp:.3} mmHg (VSD cap − aortic cap)."));
     } else {
         let series = [Series::line("dp", dp_cycle.clone(), "#1f77b4"), Series { dashed: true, ..Series::line("10 mmHg", vec![(0.0, DP_THRESHOLD_MMHG), (dp_cycle.last().map_or(1.0, |p| p.0), DP_THRESHOLD_MMHG)], "#d62728") }];
-        html.figure(&line_chart("Pressure difference over the last cycle", "time in cycle (s)", "dp (mmHg)", &series, true), "VSD cap − aortic cap mean pressure.");
+        // A quick run is judged at its first flow peak: there is no last cycle.
+        let (title, caption) = if nominal.summary["mode"] == crate::case::QUICK_MODE {
+            ("Pressure difference from rest to the first flow peak", "VSD cap − aortic cap mean pressure; the quick estimate starts from rest and stops at the first flow peak.")
+        } else {
+            ("Pressure difference over the last cycle", "VSD cap − aortic cap mean pressure.")
+        };
+        html.figure(&line_chart(title, "time in cycle (s)", "dp (mmHg)", &series, true), caption);
     }
     let end = flow_line.s_mm.last().copied().unwrap_or(1.0);
     let series = [
