@@ -52,7 +52,7 @@ Built on SlicerHeart's BafflePlanner conventions; geometry by the baffle library
 
 # Target modes in the order of the UI's targetModeComboBox, flow modes in flowModeComboBox's.
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
-FLOW_MODES = ("steady", "pulsatile")
+FLOW_MODES = bdlogic.FLOW_MODES
 SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 PREPARE = "prepare"

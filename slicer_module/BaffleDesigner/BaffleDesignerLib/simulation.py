@@ -88,7 +88,6 @@ def case_document(parameters: "bdlogic.DesignParameters", face_ids: List[int]) -
             f"the domain has no face {missing} (faces {face_ids}); the inflow is the VSD cap ({INLET_FACE_ID}) "
             f"and the outflow the aortic-annulus cap ({OUTLET_FACE_ID})"
         )
-    steady = parameters.flow_mode == "steady"
     return {
         "mesh": {"volume": "volume.vtu", "faces": "volume-faces.vtp", "format": "baffle", "units": "mm"},
         "faces": {
@@ -103,8 +102,7 @@ def case_document(parameters: "bdlogic.DesignParameters", face_ids: List[int]) -
             "profile": "plug",
         },
         "outlet": {"sbp_mmhg": parameters.systolic_mmhg, "dbp_mmhg": parameters.diastolic_mmhg},
-        # Steady: the flow held at Q_peak (a quick estimate of the peak pressure difference).
-        "time": {"mode": "steady" if steady else "transient"},
+        "time": {"mode": CASE_MODES[parameters.flow_mode]},
         "output": {"vtu_every_steps": 0, "checkpoint_every_steps": 50},
     }
 
@@ -115,6 +113,11 @@ def write_case(path: str, document: dict) -> None:
 
 
 # ---- reading the results (no scene access) ---------------------------------------------
+
+
+# The case's time.mode of each flow mode of the GUI (logic.FLOW_MODES), and back.
+CASE_MODES = {"quick": "quick", "steady": "steady", "pulsatile": "transient"}
+GUI_MODES = {case: gui for gui, case in CASE_MODES.items()}
 
 
 @dataclass
@@ -131,6 +134,11 @@ class SimulationResults:
     @property
     def steady(self) -> bool:
         return self.summary.get("mode") == "steady"
+
+    @property
+    def mode(self) -> str:
+        """The GUI's word for the run: quick, steady or pulsatile."""
+        return GUI_MODES.get(self.summary.get("mode"), "pulsatile")
 
     @property
     def doubts(self) -> List[str]:
@@ -271,24 +279,27 @@ def store_results(logic, curve, results: SimulationResults, out_dir: str, outdat
 
     series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
     series_node.SetAndObserveTable(_series_table(results))
-    _write_series_chart(logic, curve, series_node, results.steady)
+    _write_series_chart(logic, curve, series_node, results)
 
     for name, value in (
         ("SimulationStatus", "outdated" if outdated else "completed"),
         ("SimulationDpMmhg", results.dp_mmhg),
         ("SimulationMaxVelocityMS", results.max_velocity_m_s),
         ("SimulationVerdict", results.verdict),
-        ("SimulationMode", "steady" if results.steady else "pulsatile"),  # the GUI's words
+        ("SimulationMode", results.mode),  # the GUI's words
         ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
         ("SimulationDir", out_dir),
     ):
         curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
 
 
-def _write_series_chart(logic, curve, table_node, steady: bool) -> None:
+CHART_TITLES = {"quick": "from rest to the first flow peak", "steady": "steady solve at peak flow", "pulsatile": "pulsatile run"}
+
+
+def _write_series_chart(logic, curve, table_node, results) -> None:
     chart = logic._output_node(curve, bdlogic.REF_SIM_CHART, "vtkMRMLPlotChartNode", "simulation chart")
-    x_column, x_title = ("step", "iteration") if steady else ("time_s", "t (s)")
-    chart.SetTitle(f"{curve.GetName()}: {'steady solve at peak flow' if steady else 'pulsatile run'}")
+    x_column, x_title = ("step", "iteration") if results.steady else ("time_s", "t (s)")
+    chart.SetTitle(f"{curve.GetName()}: {CHART_TITLES[results.mode]}")
     chart.SetXAxisTitle(x_title)
     chart.SetYAxisTitle("dp (mmHg), Q (mL/s)")
     styles = (

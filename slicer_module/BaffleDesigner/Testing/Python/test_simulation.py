@@ -78,13 +78,31 @@ def test_case_document_of_a_candidate(phantom_scene):
     assert case["time"]["mode"] == "transient"
     assert case["mesh"]["volume"] == "volume.vtu" and case["mesh"]["units"] == "mm"
     json.dumps(case)  # a valid JSON document
-    assert simulation.case_document(bdlogic.DesignParameters(), faces)["time"]["mode"] == "steady"  # the default
-    with pytest.raises(bdlogic.BaffleDesignerError, match="flow mode must be one of steady, pulsatile"):
+    assert simulation.case_document(bdlogic.DesignParameters(), faces)["time"]["mode"] == "quick"  # the default
+    with pytest.raises(bdlogic.BaffleDesignerError, match="flow mode must be one of quick, steady, pulsatile"):
         simulation.case_document(bdlogic.DesignParameters(flow_mode="fast"), faces)
     with pytest.raises(bdlogic.BaffleDesignerError, match="heart_rate_bpm must be a positive number"):
         simulation.case_document(bdlogic.DesignParameters(heart_rate_bpm=0.0), faces)
     with pytest.raises(bdlogic.BaffleDesignerError, match="no face \\[16\\]"):
         simulation.case_document(bdlogic.DesignParameters(), [2, 10, 11])
+
+
+def test_quick_simulation_runs_from_rest_to_the_first_flow_peak(executable, tmp_path):
+    """The default flow mode: `baffle simulate --quick` on the phantom's 1.25 mm mesh."""
+    require_cfd(executable)
+    scene = slicer.vtkMRMLScene()
+    _, logic, _, curve = phantom_candidate(scene)
+    logic.setParameters(curve, bdlogic.DesignParameters(bsa_m2=logic.parameters(curve).bsa_m2, mesh_edge_length_mm=1.25))
+    assert logic.parameters(curve).flow_mode == "quick"
+    logic.design(curve)
+    job = logic.startSimulation(curve, executable, str(tmp_path))
+    assert finish(job, timeout=300) == process.COMPLETED, job.message
+    summary = json.load(open(os.path.join(curve.GetAttribute("BaffleDesigner.SimulationDir"), "summary.json")))
+    assert summary["mode"] == "quick" and summary["steps_done"] == summary["steps_planned"]  # stopped at the first peak
+    assert curve.GetAttribute("BaffleDesigner.SimulationMode") == "quick"
+    assert curve.GetAttribute("BaffleDesigner.SimulationVerdict") in ("pass", "fail", "inconclusive")
+    assert float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")) == pytest.approx(summary["dp_peak_mmhg"])
+    scene.Clear(1)
 
 
 def test_cfd_parameters_round_trip_on_the_curve(phantom_scene):

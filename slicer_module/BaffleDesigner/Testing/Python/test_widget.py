@@ -138,7 +138,7 @@ def test_setup_connects_the_panel(widget):
     assert w.ui.designButton.enabled
     w.ui.bsaSpinBox.value = 0.41  # valueChanged(double) -> stored on the candidate
     assert w.logic.parameters(curve).bsa_m2 == pytest.approx(0.41)
-    w.ui.flowModeComboBox.currentIndex = 1
+    w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("pulsatile")
     assert w.logic.parameters(curve).flow_mode == "pulsatile"
 
 
@@ -348,7 +348,7 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     require_cfd(w)
     model, curve, bsa = phantom_candidate()
     design_in_widget(w, model, curve, bsa)
-    w.ui.flowModeComboBox.currentIndex = 0  # steady
+    w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("steady")
     w.ui.meshEdgeLengthSpinBox.value = 1.25
     w.ui.simulateButton.click()
     assert w.run is not None and w.ui.cancelButton.enabled and not w.ui.simulateButton.enabled
@@ -360,7 +360,7 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     assert any(v.GetTableNodeID() == summary.GetID() for v in slicer.util.getNodesByClass("vtkMRMLTableViewNode"))
     dp = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
 
-    w.ui.flowModeComboBox.currentIndex = 1  # pulsatile: long enough to cancel
+    w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("pulsatile")  # long enough to cancel
     w.ui.simulateButton.click()
     wait_run(w, 120, until=lambda: w.run is not None and w.run.stage == "simulation" and (w.run.progress or 0) > 0)
     w.ui.cancelButton.click()
