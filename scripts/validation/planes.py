@@ -68,6 +68,10 @@ def read_xml(path):
     return reader.GetOutput()
 
 
+def points_of(path):
+    return vtk_to_numpy(read_xml(path).GetPoints().GetData()).astype(float)
+
+
 def load(peak_vtu, faces_vtp):
     grid = read_xml(peak_vtu)
     faces = read_xml(faces_vtp)
@@ -80,10 +84,10 @@ def load(peak_vtu, faces_vtp):
     return grid, points, pressure, velocity, gid[conn], labels
 
 
-def shifted_static(grid, centroid, normal, offset_mm, radius_mm):
-    """Area-weighted static pressure on the cut of the volume by the plane through
-    centroid + offset * normal, kept within radius_mm of the shifted centroid (the cut
-    of a curved domain can reach other parts of it)."""
+def shifted_plane(grid, centroid, normal, offset_mm, radius_mm):
+    """plane_means on the cut of the volume by the plane through centroid + offset *
+    normal, kept within radius_mm of the shifted centroid (the cut of a curved domain
+    can reach other parts of it)."""
     origin = np.asarray(centroid) + offset_mm * np.asarray(normal)
     plane = vtk.vtkPlane()
     plane.SetOrigin(*origin)
@@ -91,26 +95,22 @@ def shifted_static(grid, centroid, normal, offset_mm, radius_mm):
     cutter = vtk.vtkCutter()
     cutter.SetCutFunction(plane)
     cutter.SetInputData(grid)
-    cutter.Update()
     conn = vtk.vtkPolyDataConnectivityFilter()
     conn.SetInputConnection(cutter.GetOutputPort())
     conn.SetExtractionModeToClosestPointRegion()
     conn.SetClosestPoint(*origin)
-    conn.Update()
-    cut = conn.GetOutput()
-    if cut.GetNumberOfCells() == 0:
-        raise ValueError(f"the plane {offset_mm:+.1f} mm from {np.round(centroid, 2).tolist()} does not cut the mesh")
     tri = vtk.vtkTriangleFilter()
-    tri.SetInputData(cut)
+    tri.SetInputConnection(conn.GetOutputPort())
     tri.Update()
     cut = tri.GetOutput()
+    if cut.GetNumberOfCells() == 0:
+        raise ValueError(f"the plane {offset_mm:+.1f} mm from {np.round(centroid, 2).tolist()} does not cut the mesh")
     pts = vtk_to_numpy(cut.GetPoints().GetData()).astype(float)
     tris = vtk_to_numpy(cut.GetPolys().GetConnectivityArray()).reshape(-1, 3)
-    keep = np.linalg.norm(pts[tris].mean(axis=1) - origin, axis=1) <= radius_mm
-    tris = tris[keep]
-    area, _ = triangle_geometry(pts, tris)
+    tris = tris[np.linalg.norm(pts[tris].mean(axis=1) - origin, axis=1) <= radius_mm]
     p = vtk_to_numpy(cut.GetPointData().GetArray("pressure_mmhg")).astype(float)
-    return float((area * p[tris].mean(axis=1)).sum() / area.sum()), float(area.sum())
+    v = vtk_to_numpy(cut.GetPointData().GetArray("velocity_m_s")).astype(float)
+    return plane_means(pts, tris, p, v)
 
 
 def dp_definitions(peak_vtu, faces_vtp, planes=(11, 16), offsets_mm=()):
@@ -132,7 +132,12 @@ def dp_definitions(peak_vtu, faces_vtp, planes=(11, 16), offsets_mm=()):
         sign = 1.0 if a["flow_ml_s"] >= 0 else -1.0
         n = sign * np.asarray(a["normal"])
         radius = 1.5 * np.sqrt(a["area_mm2"] / np.pi)
-        p_shift, area = shifted_static(grid, a["centroid"], n, off, radius)
-        shifted[f"{off:+.1f}"] = {"dp_static_area": p_shift - b["static_area"], "area_mm2": area}
+        m = shifted_plane(grid, a["centroid"], n, off, radius)
+        shifted[f"{off:+.1f}"] = {
+            "dp_static_area": m["static_area"] - b["static_area"],
+            "dp_total_flux": m["total_flux"] - b["total_flux"],
+            "area_mm2": m["area_mm2"],
+            "flow_ml_s": abs(m["flow_ml_s"]),
+        }
     out["vsd_plane_shifted"] = shifted
     return out

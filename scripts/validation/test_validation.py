@@ -100,3 +100,52 @@ def test_outward_mm_flips_an_inward_tetrahedron_and_scales():
     assert np.array_equal(t, outward)
     p, t = published.outward_mm(pts, outward)
     assert np.array_equal(t, outward)
+
+
+def test_centerline_lengths_on_a_bent_path_between_tilted_discs():
+    import centerline_defs as cd
+
+    # Path along x from 0 to 10, then up along y to 10 (an L).
+    path = np.array([[x, 0.0, 0.0] for x in np.linspace(0, 10, 21)] + [[10.0, y, 0.0] for y in np.linspace(0.5, 10, 20)])
+    # VSD disc: x = 2 plane, a square of half-width 1 around the path.
+    vsd_pts = np.array([[2, -1, -1], [2, 1, -1], [2, 1, 1], [2, -1, 1]], float)
+    # Aortic disc: y = 6, square around (10, 6, 0); its infinite plane is also crossed nowhere earlier.
+    ao_pts = np.array([[9, 6, -1], [11, 6, -1], [11, 6, 1], [9, 6, 1]], float)
+    sq = np.array([[0, 1, 2], [0, 2, 3]])
+    r = cd.lengths(path, (vsd_pts, sq), (ao_pts, sq))
+    assert r["discs"] == pytest.approx(8.0 + 6.0)
+    assert r["infinite_planes"] == pytest.approx(14.0)
+    assert r["centroids"] == pytest.approx(math.hypot(8.0, 6.0))
+    assert r["closest_nodes"] == pytest.approx(math.sqrt(7 ** 2 + 5 ** 2))
+    # Move the aortic disc off the path: the infinite plane is still crossed, the disc is not.
+    r = cd.lengths(path, (vsd_pts, sq), (ao_pts + [5.0, 0, 0], sq))
+    assert "discs" not in r and r["infinite_planes"] == pytest.approx(14.0)
+
+
+def test_a_shifted_plane_cuts_the_volume_and_averages_linear_fields_exactly():
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+    box = vtk.vtkImageData()
+    box.SetDimensions(5, 5, 5)
+    box.SetSpacing(0.5, 0.5, 0.5)
+    tets = vtk.vtkDataSetTriangleFilter()
+    tets.SetInputData(box)
+    tets.Update()
+    grid = tets.GetOutput()
+    pts = vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
+    p = numpy_to_vtk(3.0 + 2.0 * pts[:, 0], deep=True)
+    p.SetName("pressure_mmhg")
+    v = np.zeros_like(pts)
+    v[:, 0] = 1.0
+    vel = numpy_to_vtk(v, deep=True)
+    vel.SetName("velocity_m_s")
+    grid.GetPointData().AddArray(p)
+    grid.GetPointData().AddArray(vel)
+    # Plane x = 0.5 shifted by +0.75 along x: x = 1.25, a 2 x 2 mm section.
+    m = planes.shifted_plane(grid, [0.5, 1.0, 1.0], [1.0, 0.0, 0.0], 0.75, 10.0)
+    assert m["static_area"] == pytest.approx(3.0 + 2.5)
+    assert m["area_mm2"] == pytest.approx(4.0)
+    assert abs(m["flow_ml_s"]) == pytest.approx(4.0)
+    with pytest.raises(ValueError, match="does not cut the mesh"):
+        planes.shifted_plane(grid, [0.5, 1.0, 1.0], [1.0, 0.0, 0.0], 5.0, 10.0)

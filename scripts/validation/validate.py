@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import centerline_defs  # noqa: E402
 import gci  # noqa: E402
 import planes  # noqa: E402
 import published  # noqa: E402
@@ -68,17 +69,21 @@ class Runner:
 
 
 def published_domain(r: Runner, patient, boundary_mm):
+    """The published designed domain in mm, outward, and (at the design's 0.85 mm) its
+    boundary remeshed by `baffle mesh --remesh-surface`, whose faces file is the surface."""
     d = r.work / patient / "published"
     d.mkdir(parents=True, exist_ok=True)
     mm = d / "published_mm.vtp"
     if not mm.exists():
         published.convert(r.data / patient / "published_M_final.vtp", mm)
+    if boundary_mm != DESIGN_BOUNDARY_MM:
+        return mm, {}  # `baffle extend --remesh-domain-edge-mm` remeshes it
     remeshed = d / f"remesh-{boundary_mm}.vtu"
     t = r.stage(remeshed, ["mesh", "--surface", mm, "--remesh-surface", "--edge-length-mm", boundary_mm, "--out", remeshed])
     return d / f"remesh-{boundary_mm}-faces.vtp", {"remesh": t}
 
 
-def designed_domain(r: Runner, patient, info, boundary_mm):
+def designed_domain(r: Runner, patient, info):
     d = r.work / patient / "designed"
     capped = d / "capped_ventricle.vtp"
     times = {"prepare": r.stage(capped, ["prepare", "--segmentations", r.data / patient / "segmentations", "--out", capped])}
@@ -87,12 +92,7 @@ def designed_domain(r: Runner, patient, info, boundary_mm):
         design / "domain.vtp",
         ["design", "--surface", capped, "--points", r.data / patient / "design_input" / "suture_points.mrk.json", "--bsa", info["bsa_m2"], "--out", design],
     )
-    domain = design / "domain.vtp"
-    if boundary_mm != DESIGN_BOUNDARY_MM:
-        remeshed = d / f"remesh-{boundary_mm}.vtu"
-        times["remesh"] = r.stage(remeshed, ["mesh", "--surface", domain, "--remesh-surface", "--edge-length-mm", boundary_mm, "--out", remeshed])
-        domain = d / f"remesh-{boundary_mm}-faces.vtp"
-    return domain, times
+    return design / "domain.vtp", times
 
 
 def write_case(path: Path, info, profile, cardiac_index, steps):
@@ -117,12 +117,13 @@ def run_row(r: Runner, spec, patients, common):
     if domain_kind == "published":
         domain, times = published_domain(r, patient, boundary)
     else:
-        domain, times = designed_domain(r, patient, info, boundary)
-    base = domain.parent / f"b{boundary}"
+        domain, times = designed_domain(r, patient, info)
+    base = r.work / patient / domain_kind / f"b{boundary}"
     extended = base / "extended.vtp"
     extend_argv = ["extend", "--domain", domain, "--segmentations", r.data / patient / "segmentations", "--out", extended]
     if boundary != DESIGN_BOUNDARY_MM:
-        extend_argv += ["--remesh-edge-mm", boundary]
+        # The whole boundary at this size, the planes conforming (mesh study).
+        extend_argv += ["--remesh-domain-edge-mm", boundary]
     times["extend"] = r.stage(extended, extend_argv)
     mesh_dir = base / f"mesh-{interior}"
     mesh = mesh_dir / "mesh.vtu"
@@ -138,10 +139,16 @@ def run_row(r: Runner, spec, patients, common):
     times["centerline"] = r.stage(
         cl, ["centerline", "--surface", extended, "--ends", "20,21", "--plane-faces", mesh_dir / "mesh-faces.vtp", "--results", fields, "--out", cl]
     )
+    # The whole path, inflow cap to outflow cap, for the other length definitions.
+    whole = base / "centerline-ends.vtp"
+    r.stage(whole, ["centerline", "--surface", extended, "--ends", "20,21", "--planes", "20,21", "--out", whole])
     summary = json.loads((sim / "summary.json").read_text())
     quality = json.loads((mesh_dir / "mesh-quality.json").read_text())
     centerline = json.loads((sim / "centerline.json").read_text())
     defs = planes.dp_definitions(fields, mesh_dir / "mesh-faces.vtp", offsets_mm=spec.get("vsd_offsets_mm", ()))
+    _, points, _, _, tris, labels = planes.load(fields, mesh_dir / "mesh-faces.vtp")
+    path = planes.points_of(whole)
+    lengths = centerline_defs.lengths(path, (points, tris[labels == 11]), (points, tris[labels == 16]))
     paper_dp = info["cfd_dp_peak_mmhg"] if spec["flow"] == "nominal" else None
     paper_v = info["cfd_centerline_vmax_m_s"] if spec["flow"] == "nominal" else None
     return Row(
@@ -163,10 +170,12 @@ def run_row(r: Runner, spec, patients, common):
         dp_static_nodes_mmhg=defs["static_nodes"],
         dp_total_area_mmhg=defs["total_area"],
         dp_total_flux_mmhg=defs["total_flux"],
-        dp_vsd_shifted_mmhg={k: v["dp_static_area"] for k, v in defs["vsd_plane_shifted"].items()},
+        vsd_plane_shifted=defs["vsd_plane_shifted"],
         vmax_centerline_m_s=centerline["v_max_m_s"],
         vmax_domain_m_s=summary["max_velocity_m_s"],
         centerline_length_mm=centerline["length_mm"],
+        centerline_lengths_mm=lengths,
+        paper_centerline_length_mm=info["flow_centerline_length_mm"],
         paper_dp_mmhg=paper_dp,
         paper_vmax_m_s=paper_v,
         stage_wall_time_s={k: round(v, 1) for k, v in times.items()},

@@ -148,7 +148,7 @@ pub fn gmsh_time_limit(opts: &MeshOptions, expected_tets: f64) -> Duration {
 fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {
     if opts.remesh_surface && !opts.interior_surfaces.is_empty() {
         return Err(MeshError::InvalidInput(
-            "remeshing the boundary would move it off the interior surfaces' rims; mesh a surface with interior surfaces as given".into(),
+            "remeshing the boundary would move it off the interior surfaces' rims; mesh a surface with interior surfaces as given (to refine an extended domain's boundary, remesh its designed domain: `baffle extend --remesh-domain-edge-mm`)".into(),
         ));
     }
     if !(opts.edge_length_mm.is_finite() && opts.edge_length_mm > 0.0) {
