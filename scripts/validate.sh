@@ -7,6 +7,8 @@
 #   --quick: published and designed domains of every patient to the first peak at 1.25 mm
 #   (default, full): plus inflow profile, fine interior mesh, elevated flow and the
 #   three-level mesh study with GCI
+# A stage whose output exists under OUT/work is reused (delete OUT after changing the
+# code); --smoke always starts from an empty OUT.
 # Patient data: BAFFLE_DATA_DIR, else ../shared/data beside the repository.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,7 +22,7 @@ while [[ $# -gt 0 ]]; do
     --full) mode=full ;;
     --out) out="$2"; shift ;;
     --patients) patients="$2"; shift ;;
-    -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
     *) echo "validate.sh: unknown argument $1" >&2; exit 2 ;;
   esac
   shift
@@ -35,6 +37,7 @@ baffle="$repo/target/release/baffle"
 if [[ ! -x "$baffle" ]]; then
   (cd "$repo" && nice -n 10 cargo build --release -p baffle-cli)
 fi
+if [[ "$mode" == smoke ]]; then rm -rf "$out"; fi
 start=$(date +%s)
 python3 "$repo/scripts/validation/validate.py" --mode "$mode" --data "$data" --out "$out" --baffle "$baffle" --patients "$patients"
 echo "validate.sh: $mode done in $(( $(date +%s) - start )) s; tables in $out/results.md, results.csv, results.json"

@@ -288,6 +288,10 @@ def main(argv=None):
         log(f"  -> {json.dumps({k: row.get(k) for k in ('tets', 'dp_mmhg', 'dp_total_flux_mmhg', 'vmax_centerline_m_s', 'wall_time_s', 'error') if k in row})}")
         write_outputs(args.out, rows)
     failed = [x for x in rows if "error" in x]
+    # A row without a finite dp, v_max or mesh is a failure too (the smoke run's check).
+    failed += [x for x in rows if "error" not in x and not (x["tets"] > 0 and all(math.isfinite(x[k]) for k in ("dp_mmhg", "vmax_centerline_m_s", "dp_total_flux_mmhg")))]
+    for x in failed:
+        log(f"FAILED row: {x['patient']} {x['domain']} {x.get('mesh')}: {x.get('error', 'a figure is not finite')}")
     return 1 if failed else 0
 
 
