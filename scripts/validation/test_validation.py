@@ -149,3 +149,17 @@ def test_a_shifted_plane_cuts_the_volume_and_averages_linear_fields_exactly():
     assert abs(m["flow_ml_s"]) == pytest.approx(4.0)
     with pytest.raises(ValueError, match="does not cut the mesh"):
         planes.shifted_plane(grid, [0.5, 1.0, 1.0], [1.0, 0.0, 0.0], 5.0, 10.0)
+
+
+def test_the_mesh_study_table_takes_three_levels_finest_first():
+    import validate
+
+    rows = []
+    for h, tets in ((1.25, 1000), (0.95, 2300), (0.75, 4700)):
+        rows.append({"patient": "p2", "domain": "published", "study": "gci", "boundary_mm": h, "tets": tets, "h_mm": validate.gci.representative_h(1000.0, tets),
+                     "dp_mmhg": 1.0 + 0.5 * h ** 2, "vmax_centerline_m_s": 1.5 - 0.1 * h, "dp_total_flux_mmhg": 2.0 + 0.2 * h})
+    study = validate.study_tables(rows)["p2 published"]
+    assert [lv["tets"] for lv in study["levels"]] == [4700, 2300, 1000]
+    assert study["dp_mmhg"]["extrapolated"] == pytest.approx(1.0, abs=0.05)
+    table = validate.gci_markdown({"p2 published": study})
+    assert "| p2 published | dp_mmhg |" in table and "| p2 published | vmax_centerline_m_s |" in table

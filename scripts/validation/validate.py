@@ -141,11 +141,12 @@ def run_row(r: Runner, spec, patients, common):
     )
     # The whole path, inflow cap to outflow cap, for the other length definitions.
     whole = base / "centerline-ends.vtp"
-    r.stage(whole, ["centerline", "--surface", extended, "--ends", "20,21", "--planes", "20,21", "--out", whole])
+    times["centerline_whole"] = r.stage(whole, ["centerline", "--surface", extended, "--ends", "20,21", "--planes", "20,21", "--out", whole])
     summary = json.loads((sim / "summary.json").read_text())
     quality = json.loads((mesh_dir / "mesh-quality.json").read_text())
     centerline = json.loads((sim / "centerline.json").read_text())
     defs = planes.dp_definitions(fields, mesh_dir / "mesh-faces.vtp", offsets_mm=spec.get("vsd_offsets_mm", ()))
+    ext = json.loads((base / "extended-report.json").read_text())
     _, points, _, _, tris, labels = planes.load(fields, mesh_dir / "mesh-faces.vtp")
     path = planes.points_of(whole)
     lengths = centerline_defs.lengths(path, (points, tris[labels == 11]), (points, tris[labels == 16]))
@@ -165,6 +166,16 @@ def run_row(r: Runner, spec, patients, common):
         volume_mm3=quality["volume_mm3"],
         h_mm=gci.representative_h(quality["volume_mm3"], quality["tetrahedra"]),
         min_scaled_jacobian=quality["min_scaled_jacobian"],
+        p1_scaled_jacobian=quality["p1_scaled_jacobian"],
+        p99_aspect_ratio=quality["p99_aspect_ratio"],
+        surface_triangles=ext["triangles"],
+        vsd_cap_mm2=ext["vsd_cap"]["area_mm2"],
+        aortic_cap_mm2=ext["aortic_cap"]["area_mm2"],
+        inflow_cap_mm2=ext["inflow_cap"]["area_mm2"],
+        inflow_cap_from_vsd_mm=ext["mid_lv_plane"]["distance_from_vsd_mm"],
+        outflow_cap_mm2=ext["outflow_cap"]["area_mm2"],
+        stj_found=ext["stj"]["found"],
+        stj_from_annulus_mm=ext["stj"]["distance_from_annulus_mm"],
         q_peak_ml_s=summary.get("q_peak_ml_s"),
         dp_mmhg=summary["dp_peak_mmhg"],
         dp_static_nodes_mmhg=defs["static_nodes"],
@@ -237,6 +248,55 @@ def markdown(rows):
     return "\n".join(out) + "\n"
 
 
+def geometry_markdown(rows):
+    """Table 4's side: the extended domain, its mesh and centerline lengths (one line per
+    distinct domain and mesh)."""
+    head = ("| patient | domain | mesh | tets | scaled Jacobian min / 1st pct | VSD / aortic cap (mm2) | inflow cap (mm2, mm from VSD) | outflow cap (mm2, mm above annulus, STJ found) "
+            "| centerline (mm): ours / infinite planes / whole path between discs / cap centroids | paper (mm) |")
+    out = [head, "|" + "---|" * (head.count("|") - 1)]
+    seen = set()
+    for r in rows:
+        key = (r["patient"], r["domain"], r.get("mesh"))
+        if "error" in r or key in seen:
+            continue
+        seen.add(key)
+        L = r["centerline_lengths_mm"]
+        out.append(
+            f"| {r['patient']} | {r['domain']} | {r['mesh']} | {r['tets']:,} | {r['min_scaled_jacobian']:.3f} / {r['p1_scaled_jacobian']:.3f} | {r['vsd_cap_mm2']:.1f} / {r['aortic_cap_mm2']:.1f} | "
+            f"{r['inflow_cap_mm2']:.0f}, {r['inflow_cap_from_vsd_mm']:.1f} | {r['outflow_cap_mm2']:.0f}, {r['stj_from_annulus_mm']:.1f}, {'yes' if r['stj_found'] else 'no'} | "
+            f"{r['centerline_length_mm']:.2f} / {fmt(L.get('infinite_planes'))} / {fmt(L.get('discs'))} / {L['centroids']:.2f} | {r['paper_centerline_length_mm']} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def shifted_markdown(rows):
+    """dp with the VSD plane moved along the flow (static and flow-weighted total)."""
+    out = []
+    for r in rows:
+        sh = r.get("vsd_plane_shifted") or {}
+        if "error" in r or not sh:
+            continue
+        if not out:
+            offs = list(sh.keys())
+            head = "| patient | domain | mesh | " + " | ".join(f"VSD plane {o} mm: static / total" for o in offs) + " |"
+            out = [head, "|" + "---|" * (head.count("|") - 1)]
+        out.append(f"| {r['patient']} | {r['domain']} | {r['mesh']} | " + " | ".join(f"{v['dp_static_area']:.2f} / {v['dp_total_flux']:.2f}" for v in sh.values()) + " |")
+    return "\n".join(out) + "\n" if out else ""
+
+
+def gci_markdown(study):
+    lines = ["| patient | quantity | levels (h mm: value) | observed order | extrapolated | GCI fine | oscillatory |", "|---|---|---|---|---|---|---|"]
+    for name, e in study.items():
+        for q in ("dp_mmhg", "vmax_centerline_m_s", "dp_total_flux_mmhg"):
+            g = e[q]
+            lv = ", ".join(f"{l['h_mm']:.3f}: {l[q]:.3f}" for l in e["levels"])
+            if "error" in g:
+                lines.append(f"| {name} | {q} | {lv} | {g['error']} | | | |")
+            else:
+                lines.append(f"| {name} | {q} | {lv} | {g['observed_order']:.2f} | {g['extrapolated']:.3f} | {100 * g['gci_fine']:.1f}% | {g['oscillatory']} |")
+    return "\n".join(lines) + "\n"
+
+
 def study_tables(rows):
     """GCI of dp and centerline v_max per patient and domain over the study's three levels."""
     out = {}
@@ -249,7 +309,7 @@ def study_tables(rows):
             continue
         rs.sort(key=lambda r: r["h_mm"])
         h = tuple(r["h_mm"] for r in rs)
-        entry = {"levels": [{"boundary_mm": r["boundary_mm"], "tets": r["tets"], "h_mm": r["h_mm"], "dp_mmhg": r["dp_mmhg"], "vmax_centerline_m_s": r["vmax_centerline_m_s"]} for r in rs]}
+        entry = {"levels": [{"boundary_mm": r["boundary_mm"], "tets": r["tets"], "h_mm": r["h_mm"], "dp_mmhg": r["dp_mmhg"], "vmax_centerline_m_s": r["vmax_centerline_m_s"], "dp_total_flux_mmhg": r["dp_total_flux_mmhg"]} for r in rs]}
         for q in ("dp_mmhg", "vmax_centerline_m_s", "dp_total_flux_mmhg"):
             try:
                 entry[q] = gci.gci(h, tuple(r[q] for r in rs))
@@ -305,10 +365,15 @@ def write_outputs(out, rows):
         w.writeheader()
         for r in rows:
             w.writerow({k: (json.dumps(v) if isinstance(v, dict) else v) for k, v in r.items()})
-    (out / "results.md").write_text(markdown(rows))
+    (out / "results.md").write_text(
+        "## Table 5: dp and v_max at the first peak of flow\n\n" + markdown(rows)
+        + "\n## The extended domains, meshes and centerline lengths\n\n" + geometry_markdown(rows)
+        + "\n## dp with the VSD plane moved along the flow (negative: into the LV)\n\n" + shifted_markdown(rows)
+    )
     study = study_tables(rows)
     if study:
         (out / "gci.json").write_text(json.dumps(study, indent=1))
+        (out / "gci.md").write_text(gci_markdown(study))
 
 
 if __name__ == "__main__":
