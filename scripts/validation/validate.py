@@ -118,7 +118,8 @@ def run_row(r: Runner, spec, patients, common):
         domain, times = published_domain(r, patient, boundary)
     else:
         domain, times = designed_domain(r, patient, info)
-    base = r.work / patient / domain_kind / f"b{boundary}"
+    # Beside the published domain, or beside the design's domain.vtp.
+    base = (r.work / patient / "published" if domain_kind == "published" else domain.parent) / f"b{boundary}"
     extended = base / "extended.vtp"
     extend_argv = ["extend", "--domain", domain, "--segmentations", r.data / patient / "segmentations", "--out", extended]
     if boundary != DESIGN_BOUNDARY_MM:
