@@ -132,7 +132,9 @@ def dp_definitions(peak_vtu, faces_vtp, planes=(11, 16), offsets_mm=()):
         sign = 1.0 if a["flow_ml_s"] >= 0 else -1.0
         n = sign * np.asarray(a["normal"])
         radius = 1.5 * np.sqrt(a["area_mm2"] / np.pi)
-        m = shifted_plane(grid, a["centroid"], n, off, radius)
+        # At offset 0 the cut runs through the face set's own triangles, where it is
+        # degenerate (both neighbouring tets); the face set itself is that plane.
+        m = a if off == 0 else shifted_plane(grid, a["centroid"], n, off, radius)
         shifted[f"{off:+.1f}"] = {
             "dp_static_area": m["static_area"] - b["static_area"],
             "dp_total_flux": m["total_flux"] - b["total_flux"],
