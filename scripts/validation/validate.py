@@ -41,15 +41,22 @@ def log(msg):
     print(msg, flush=True)
 
 
+class NotRun(Exception):
+    """--tables-only: a stage of the row has no output yet."""
+
+
 class Runner:
-    def __init__(self, baffle, data, work, nice):
+    def __init__(self, baffle, data, work, nice, tables_only=False):
         self.baffle, self.data, self.work, self.nice = baffle, data, work, nice
+        self.tables_only = tables_only
 
     def stage(self, out_marker: Path, argv, cwd=None):
         """Run `baffle argv` unless out_marker's stage already finished; its wall time (s)."""
         stamp = out_marker.with_name(out_marker.name + ".stage.json")
         if out_marker.exists() and stamp.exists():
             return json.loads(stamp.read_text())["wall_time_s"]
+        if self.tables_only:
+            raise NotRun(str(out_marker))
         out_marker.parent.mkdir(parents=True, exist_ok=True)
         cmd = (["nice", "-n", str(self.nice)] if self.nice else []) + [str(self.baffle)] + [str(a) for a in argv]
         log("  $ " + " ".join(cmd))
@@ -327,6 +334,7 @@ def main(argv=None):
     ap.add_argument("--baffle", type=Path, required=True)
     ap.add_argument("--patients", default="p1,p2,p3")
     ap.add_argument("--nice", type=int, default=5)
+    ap.add_argument("--tables-only", action="store_true", help="rebuild the tables from the stages already run; rows with a stage missing are left out")
     args = ap.parse_args(argv)
     meta = json.loads((args.data / "patients.json").read_text())
     wanted = [p for p in args.patients.split(",") if p]
@@ -334,11 +342,14 @@ def main(argv=None):
     if missing:
         sys.exit(f"{args.data}: no patient folder {', '.join(missing)}")
     args.out.mkdir(parents=True, exist_ok=True)
-    r = Runner(args.baffle.resolve(), args.data.resolve(), (args.out / "work").resolve(), args.nice)
+    r = Runner(args.baffle.resolve(), args.data.resolve(), (args.out / "work").resolve(), args.nice, args.tables_only)
     rows = []
     for s in row_specs(args.mode, wanted):
         try:
             row = run_row(r, s, meta["patients"], meta["common"])
+        except NotRun as e:
+            log(f"  not run yet ({e}): left out")
+            continue
         except (RuntimeError, ValueError, OSError, KeyError) as e:
             log(f"  FAILED: {e}")
             row = Row(patient=s["patient"], domain=s["domain"], mesh=f"{s['boundary_mm']} / {s['interior_mm']} mm", error=str(e))
