@@ -33,7 +33,10 @@ def triangle_geometry(points, tris):
 
 
 def plane_means(points, tris, pressure, velocity):
-    """The four plane figures (mmHg) of one triangulated plane; P1 fields on its nodes."""
+    """The four plane figures (mmHg) of one triangulated plane; P1 fields on its nodes.
+    Zero-area triangles (a cut running through mesh faces makes them) are dropped."""
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    tris = tris[np.linalg.norm(np.cross(b - a, c - a), axis=1) > 0]
     area, normal = triangle_geometry(points, tris)
     # One orientation for the plane: its mean normal; flow through it in that sense.
     n = (normal * area[:, None]).sum(axis=0)
@@ -114,8 +117,8 @@ def shifted_plane(grid, centroid, normal, offset_mm, radius_mm):
 
 
 def dp_definitions(peak_vtu, faces_vtp, planes=(11, 16), offsets_mm=()):
-    """dp = plane 1 - plane 2 (mmHg) by each definition; with offsets, the first plane
-    shifted along its flow direction (positive: downstream) by each offset."""
+    """dp = plane 1 - plane 2 (mmHg) by each definition; with offsets, dp with either
+    plane shifted along its flow direction (positive: downstream) by each offset."""
     grid, points, pressure, velocity, tris, labels = load(peak_vtu, faces_vtp)
     per_plane = {}
     for label in planes:
@@ -126,20 +129,28 @@ def dp_definitions(peak_vtu, faces_vtp, planes=(11, 16), offsets_mm=()):
     a, b = (per_plane[p] for p in planes)
     out = {k: a[k] - b[k] for k in ("static_area", "static_nodes", "total_area", "total_flux")}
     out["planes"] = {str(k): v for k, v in per_plane.items()}
+    out["vsd_plane_shifted"] = shifted_dp(grid, a, b, offsets_mm, move_first=True)
+    out["aortic_plane_shifted"] = shifted_dp(grid, a, b, offsets_mm, move_first=False)
+    return out
+
+
+def shifted_dp(grid, a, b, offsets_mm, move_first):
+    """dp with one of the two planes (a: first, b: second) moved along its flow direction
+    (positive: downstream), static (area-weighted) and total (flow-weighted)."""
+    moved, fixed = (a, b) if move_first else (b, a)
+    # The normal points with the flow through the plane (positive flux).
+    n = (1.0 if moved["flow_ml_s"] >= 0 else -1.0) * np.asarray(moved["normal"])
+    radius = 1.5 * np.sqrt(moved["area_mm2"] / np.pi)
     shifted = {}
     for off in offsets_mm:
-        # The normal points with the flow through the plane (positive flux).
-        sign = 1.0 if a["flow_ml_s"] >= 0 else -1.0
-        n = sign * np.asarray(a["normal"])
-        radius = 1.5 * np.sqrt(a["area_mm2"] / np.pi)
         # At offset 0 the cut runs through the face set's own triangles, where it is
         # degenerate (both neighbouring tets); the face set itself is that plane.
-        m = a if off == 0 else shifted_plane(grid, a["centroid"], n, off, radius)
+        m = moved if off == 0 else shifted_plane(grid, moved["centroid"], n, off, radius)
+        first, second = (m, fixed) if move_first else (fixed, m)
         shifted[f"{off:+.1f}"] = {
-            "dp_static_area": m["static_area"] - b["static_area"],
-            "dp_total_flux": m["total_flux"] - b["total_flux"],
+            "dp_static_area": first["static_area"] - second["static_area"],
+            "dp_total_flux": first["total_flux"] - second["total_flux"],
             "area_mm2": m["area_mm2"],
             "flow_ml_s": abs(m["flow_ml_s"]),
         }
-    out["vsd_plane_shifted"] = shifted
-    return out
+    return shifted

@@ -122,7 +122,8 @@ def test_centerline_lengths_on_a_bent_path_between_tilted_discs():
     assert "discs" not in r and r["infinite_planes"] == pytest.approx(14.0)
 
 
-def test_a_shifted_plane_cuts_the_volume_and_averages_linear_fields_exactly():
+def box_grid():
+    """A 2 mm tetrahedralized cube with p = 3 + 2 x (mmHg) and u = (1, 0, 0) m/s."""
     import vtk
     from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 
@@ -142,6 +143,11 @@ def test_a_shifted_plane_cuts_the_volume_and_averages_linear_fields_exactly():
     vel.SetName("velocity_m_s")
     grid.GetPointData().AddArray(p)
     grid.GetPointData().AddArray(vel)
+    return grid
+
+
+def test_a_shifted_plane_cuts_the_volume_and_averages_linear_fields_exactly():
+    grid = box_grid()
     # Plane x = 0.5 shifted by +0.75 along x: x = 1.25, a 2 x 2 mm section.
     m = planes.shifted_plane(grid, [0.5, 1.0, 1.0], [1.0, 0.0, 0.0], 0.75, 10.0)
     assert m["static_area"] == pytest.approx(3.0 + 2.5)
@@ -163,3 +169,16 @@ def test_the_mesh_study_table_takes_three_levels_finest_first():
     assert study["dp_mmhg"]["extrapolated"] == pytest.approx(1.0, abs=0.05)
     table = validate.gci_markdown({"p2 published": study})
     assert "| p2 published | dp_mmhg |" in table and "| p2 published | vmax_centerline_m_s |" in table
+
+
+def test_either_plane_moves_downstream():
+    grid = box_grid()
+    a = planes.shifted_plane(grid, [0.0, 1.0, 1.0], [1.0, 0.0, 0.0], 0.5, 10.0)  # x = 0.5
+    b = planes.shifted_plane(grid, [0.0, 1.0, 1.0], [1.0, 0.0, 0.0], 1.5, 10.0)  # x = 1.5
+    assert a["static_area"] - b["static_area"] == pytest.approx(-2.0)
+    moved_b = planes.shifted_dp(grid, a, b, [0.0, 0.25], move_first=False)
+    assert moved_b["+0.0"]["dp_static_area"] == pytest.approx(-2.0)
+    assert moved_b["+0.2"]["dp_static_area"] == pytest.approx(-2.5)  # b at x = 1.75
+    moved_a = planes.shifted_dp(grid, a, b, [-0.25], move_first=True)
+    assert moved_a["-0.2"]["dp_static_area"] == pytest.approx(-2.5)  # a at x = 0.25
+    assert moved_a["-0.2"]["dp_total_flux"] == pytest.approx(-2.5)  # uniform speed

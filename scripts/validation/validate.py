@@ -190,6 +190,7 @@ def run_row(r: Runner, spec, patients, common):
         dp_total_area_mmhg=defs["total_area"],
         dp_total_flux_mmhg=defs["total_flux"],
         vsd_plane_shifted=defs["vsd_plane_shifted"],
+        aortic_plane_shifted=defs["aortic_plane_shifted"],
         vmax_centerline_m_s=centerline["v_max_m_s"],
         vmax_domain_m_s=summary["max_velocity_m_s"],
         centerline_length_mm=centerline["length_mm"],
@@ -278,16 +279,16 @@ def geometry_markdown(rows):
     return "\n".join(out) + "\n"
 
 
-def shifted_markdown(rows):
-    """dp with the VSD plane moved along the flow (static and flow-weighted total)."""
+def shifted_markdown(rows, key):
+    """dp with one plane moved along the flow (static and flow-weighted total)."""
     out = []
     for r in rows:
-        sh = r.get("vsd_plane_shifted") or {}
+        sh = r.get(key) or {}
         if "error" in r or not sh:
             continue
         if not out:
             offs = list(sh.keys())
-            head = "| patient | domain | mesh | " + " | ".join(f"VSD plane {o} mm: static / total" for o in offs) + " |"
+            head = "| patient | domain | mesh | " + " | ".join(f"{o} mm: static / total" for o in offs) + " |"
             out = [head, "|" + "---|" * (head.count("|") - 1)]
         out.append(f"| {r['patient']} | {r['domain']} | {r['mesh']} | " + " | ".join(f"{v['dp_static_area']:.2f} / {v['dp_total_flux']:.2f}" for v in sh.values()) + " |")
     return "\n".join(out) + "\n" if out else ""
@@ -384,7 +385,8 @@ def write_outputs(out, rows):
     (out / "results.md").write_text(
         "## Table 5: dp and v_max at the first peak of flow\n\n" + markdown(rows)
         + "\n## The extended domains, meshes and centerline lengths\n\n" + geometry_markdown(rows)
-        + "\n## dp with the VSD plane moved along the flow (negative: into the LV)\n\n" + shifted_markdown(rows)
+        + "\n## dp with the VSD plane moved along the flow (negative: into the LV)\n\n" + shifted_markdown(rows, "vsd_plane_shifted")
+        + "\n## dp with the aortic plane moved along the flow (positive: into the aorta)\n\n" + shifted_markdown(rows, "aortic_plane_shifted")
     )
     study = study_tables(rows)
     if study:
