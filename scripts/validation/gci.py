@@ -10,6 +10,12 @@ by fixed-point iteration. Oscillatory convergence (s < 0) is reported as such.
 import math
 
 SAFETY_FACTOR = 1.25
+# Roache's conservative choice when the observed order cannot be trusted: the scheme's
+# formal order (P1-P1 stabilized elements: 2 for velocity) with safety factor 3.
+FORMAL_ORDER = 2.0
+CONSERVATIVE_SAFETY_FACTOR = 3.0
+# An observed order outside this range says the levels are not in the asymptotic range.
+CREDIBLE_ORDER = (0.5, 3.0)
 
 
 def representative_h(volume_mm3, cells):
@@ -44,10 +50,17 @@ def gci(h, f):
     extrapolated = (r21 ** p * f1 - f2) / (r21 ** p - 1.0)
     e_a21 = abs((f1 - f2) / f1)
     oscillatory = (f3 - f2) * (f2 - f1) < 0
+    asymptotic = CREDIBLE_ORDER[0] <= p <= CREDIBLE_ORDER[1] and not oscillatory
+    gci_fine = SAFETY_FACTOR * e_a21 / (r21 ** p - 1.0)
+    conservative = CONSERVATIVE_SAFETY_FACTOR * e_a21 / (r21 ** FORMAL_ORDER - 1.0)
     return {
         "observed_order": p,
         "extrapolated": extrapolated,
         "relative_change_21": e_a21,
-        "gci_fine": SAFETY_FACTOR * e_a21 / (r21 ** p - 1.0),
+        "gci_fine": gci_fine,
         "oscillatory": oscillatory,
+        "asymptotic": asymptotic,
+        # The band to report: the GCI when the order is credible, else the conservative one.
+        "gci_reported": gci_fine if asymptotic else conservative,
+        "band_abs": abs(f1) * (gci_fine if asymptotic else conservative),
     }

@@ -33,6 +33,20 @@ def test_celik_example_one():
     assert r["gci_fine"] == pytest.approx(0.022, abs=1e-3)
 
 
+def test_an_incredible_order_falls_back_to_the_conservative_band():
+    # Differences shrinking 10x per level at ratio 1.25: observed order ~10, not credible.
+    h = (0.4, 0.5, 0.625)
+    f = (1.0, 1.001, 1.011)
+    r = gci.gci(h, f)
+    assert r["observed_order"] > 5 and not r["asymptotic"]
+    assert r["gci_reported"] == pytest.approx(3.0 * 0.001 / (1.25 ** 2 - 1.0), rel=1e-6)
+    assert r["band_abs"] == pytest.approx(r["gci_reported"] * 1.0)
+    # A credible order keeps Roache's 1.25 GCI.
+    f = tuple(2.0 + 0.3 * x ** 1.7 for x in h)
+    r = gci.gci(h, f)
+    assert r["asymptotic"] and r["gci_reported"] == r["gci_fine"]
+
+
 def test_equal_levels_are_an_error_not_a_number():
     with pytest.raises(ValueError):
         gci.gci((0.5, 0.7, 1.0), (1.0, 1.0, 1.2))

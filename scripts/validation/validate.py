@@ -295,16 +295,22 @@ def shifted_markdown(rows, key):
 
 
 def gci_markdown(study):
-    lines = ["| patient | quantity | levels (edge mm, h mm: value, off the extrapolated) | observed order (3 finest) | extrapolated | GCI fine | oscillatory |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| patient | quantity | levels (edge mm, h mm: value, off the extrapolated) | observed order (3 finest) | extrapolated | GCI fine (Fs 1.25) | in the asymptotic range | reported band (GCI, or Fs 3 at order 2) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for name, e in study.items():
         for q in ("dp_mmhg", "vmax_centerline_m_s", "dp_total_flux_mmhg"):
             g = e[q]
             off = g.get("relative_to_extrapolated") or [float("nan")] * len(e["levels"])
             lv = ", ".join(f"{l['boundary_mm']}, {l['h_mm']:.3f}: {l[q]:.3f} ({100 * o:.0f}%)" for l, o in zip(e["levels"], off))
             if "error" in g:
-                lines.append(f"| {name} | {q} | {lv} | {g['error']} | | | |")
+                lines.append(f"| {name} | {q} | {lv} | {g['error']} | | | | |")
             else:
-                lines.append(f"| {name} | {q} | {lv} | {g['observed_order']:.2f} | {g['extrapolated']:.3f} | {100 * g['gci_fine']:.1f}% | {g['oscillatory']} |")
+                lines.append(
+                    f"| {name} | {q} | {lv} | {g['observed_order']:.2f} | {g['extrapolated']:.3f} | {100 * g['gci_fine']:.1f}% | {'yes' if g['asymptotic'] else 'no'} | "
+                    f"{100 * g['gci_reported']:.1f}% (+-{g['band_abs']:.3f}) |"
+                )
     return "\n".join(lines) + "\n"
 
 
