@@ -662,6 +662,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("triangle 1 has ModelFaceID 0"), "{err}");
+        // Remeshing with interior surfaces is refused, naming the way that works.
+        closed.face_ids[1] = 2;
+        let plane = TriMesh::new(vec![Vec3::x(), Vec3::y(), Vec3::z()], vec![[0, 1, 2]], vec![20]);
+        let opts = MeshOptions { remesh_surface: true, interior_surfaces: vec![plane], ..Default::default() };
+        let err = mesh_surface(&closed, &opts).unwrap_err().to_string();
+        assert!(err.contains("baffle extend --remesh-domain-edge-mm"), "{err}");
     }
 
     #[test]
