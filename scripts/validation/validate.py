@@ -5,6 +5,8 @@ Each row runs the chain of paper 2.5 with the `baffle` command:
              (its faces are the remeshed designed domain) -> `baffle extend`
   designed:  `baffle prepare` (segmentations) -> `baffle design` (the paper's suture
              points, its BSA) -> `baffle extend`
+  (mesh study: `baffle extend --remesh-domain-edge-mm H` on either domain instead, so the
+  whole boundary is at H)
 then `baffle mesh --interior-labels 11,16` -> `baffle simulate` (paper settings, from
 rest to the first peak of flow, t = 0.164 s) -> `baffle centerline --results`.
 Every stage's output is kept under OUT/work and reused by later rows (a stage's wall time
@@ -17,7 +19,6 @@ import csv
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -50,7 +51,7 @@ class Runner:
         self.baffle, self.data, self.work, self.nice = baffle, data, work, nice
         self.tables_only = tables_only
 
-    def stage(self, out_marker: Path, argv, cwd=None):
+    def stage(self, out_marker: Path, argv):
         """Run `baffle argv` unless out_marker's stage already finished; its wall time (s)."""
         stamp = out_marker.with_name(out_marker.name + ".stage.json")
         if out_marker.exists() and stamp.exists():
@@ -61,7 +62,7 @@ class Runner:
         cmd = (["nice", "-n", str(self.nice)] if self.nice else []) + [str(self.baffle)] + [str(a) for a in argv]
         log("  $ " + " ".join(cmd))
         t0 = time.monotonic()
-        proc = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         wall = time.monotonic() - t0
         (out_marker.parent / (out_marker.name + ".log")).write_text(proc.stdout)
         if proc.returncode != 0:
@@ -69,10 +70,6 @@ class Runner:
             raise RuntimeError(f"baffle {argv[0]} failed ({proc.returncode}) for {out_marker}:\n{tail}")
         stamp.write_text(json.dumps({"wall_time_s": wall, "argv": cmd}))
         return wall
-
-    def designed_domain(self, patient, info, boundary_mm):
-        """(domain.vtp in mm, outward; stage times) for `published` or `designed`."""
-        raise NotImplementedError
 
 
 def published_domain(r: Runner, patient, boundary_mm):
@@ -246,7 +243,7 @@ def fmt(x, nd=2):
 
 def markdown(rows):
     head = "| patient | domain | mesh | flow | inflow | tets | dp (mmHg) | paper | dp total, flow-weighted | v_max centerline (m/s) | paper | v_max domain | centerline (mm) | wall time (s) |"
-    out = [head, "|" + "---|" * head.count("|")[:-1] if False else "|" + "---|" * (head.count("|") - 1)]
+    out = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         if "error" in r:
             out.append(f"| {r['patient']} | {r['domain']} | {r.get('mesh', '')} | | | | failed: {r['error'].splitlines()[0]} | | | | | | | |")
