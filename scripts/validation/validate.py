@@ -232,6 +232,9 @@ def row_specs(mode, patients_wanted):
         rows += [spec(p, "published", boundary=h, interior=h, study="gci") for h in MESH_LEVELS_MM]
     if "p1" in ps:
         rows += variants("p1")
+    # The same study on our design of p2 (the smallest domain).
+    if "p2" in ps:
+        rows += [spec("p2", "designed", boundary=h, interior=h, study="gci") for h in MESH_LEVELS_MM]
     return rows
 
 
