@@ -44,4 +44,13 @@ step "pip install ./python + pytest"
 step "3D Slicer module tests (slicer-core, own venv)"
 bash scripts/test_slicer.sh
 
+step "validation helpers (pytest scripts/validation) and the smoke row (scripts/validate.sh --smoke: p2 published, 20 steps)"
+(cd scripts/validation && "$python" -m pytest -q -p no:cacheprovider .)
+data_dir="${BAFFLE_DATA_DIR:-$repo/../shared/data}"
+if [[ -f "$data_dir/patients.json" || "${CI:-}" == "true" ]]; then
+  bash scripts/validate.sh --smoke --out "$build_dir/validation-smoke"
+else
+  echo "skipping the validation smoke row: no patient data at $data_dir"
+fi
+
 step "all tests passed"

@@ -6,7 +6,8 @@
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
-use baffle_core::FaceLabels;
+use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::{FaceLabels, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
 use crate::progress::{Progress, Style};
@@ -52,6 +53,13 @@ pub struct ExtendArgs {
     /// Target edge of the extension's triangles (mm); default: the designed caps' rim edge.
     #[arg(long)]
     pub remesh_edge_mm: Option<f64>,
+    /// Remesh the designed domain at this edge (mm; labels and rims kept, as `baffle mesh
+    /// --remesh-surface`) before extending, and the extension at the same edge unless
+    /// --remesh-edge-mm says otherwise: the whole boundary at one size with the measurement
+    /// planes conforming, for a mesh study that refines the boundary too (the interior caps
+    /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
+    #[arg(long)]
+    pub remesh_domain_edge_mm: Option<f64>,
 }
 
 pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
@@ -69,22 +77,33 @@ pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// The designed domain remeshed isotropically at `edge_mm` (caps stay planar: the
+/// remesher keeps label boundaries and projects every point back onto its label's faces).
+fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
+    let options = RemeshOptions { target_edge_mm: edge_mm, ..RemeshOptions::default() };
+    remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))
+}
+
 /// Build the extended domain and write it and its report (each whole or not at all).
 pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), String> {
     let labeled = read_surface_labeled(&args.domain).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the designed domain's caps need their labels", args.domain.display()));
     }
+    let domain = match args.remesh_domain_edge_mm {
+        Some(edge_mm) => remeshed_domain(&labeled.mesh, edge_mm).map_err(|e| format!("{}: {e}", args.domain.display()))?,
+        None => labeled.mesh,
+    };
     let pools = read_pools(&args.source)?;
     let options = ExtendOptions {
         union: PrepareOptions { voxel_mm: args.voxel_mm, ..PrepareOptions::default() },
         labels: FaceLabels { wall: args.wall_label, baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label },
         inflow_label: args.inflow_label,
         outflow_label: args.outflow_label,
-        remesh_edge_mm: args.remesh_edge_mm,
+        remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),
         ..ExtendOptions::default()
     };
-    let extended = extend(&labeled.mesh, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
+    let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
     if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
     }

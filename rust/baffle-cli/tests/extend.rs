@@ -63,6 +63,57 @@ fn p2_extended_domain_meshes_with_conforming_interior_caps() {
     std::fs::remove_dir_all(out).ok();
 }
 
+/// Area of the triangles labelled `label`.
+fn label_area_mm2(mesh: &baffle_core::TriMesh, label: i32) -> f64 {
+    (0..mesh.triangles.len()).filter(|&t| mesh.face_ids[t] == label).map(|t| mesh.triangle_area_mm2(t)).sum()
+}
+
+#[test]
+fn a_remeshed_designed_domain_refines_the_whole_boundary_with_conforming_planes() {
+    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let out = temp_dir("p2-remesh");
+    let segmentations = data.join("p2/segmentations");
+    let capped = out.join("capped.vtp");
+    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
+    let points = data.join("p2/design_input/suture_points.mrk.json");
+    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.37", "--out", s(&out.join("design"))]));
+    let domain_path = out.join("design/domain.vtp");
+    let domain = read_surface_labeled(&domain_path).unwrap().mesh;
+    let extended = out.join("extended.vtp");
+    let edge = 0.6;
+    let edge_arg = edge.to_string();
+    ok(baffle(&["extend", "--domain", s(&domain_path), "--segmentations", s(&segmentations), "--remesh-domain-edge-mm", &edge_arg, "--out", s(&extended)]));
+    let surface = read_surface_labeled(&extended).unwrap().mesh;
+    // The designed part at 0.6 mm instead of the design's 0.85: about (0.85 / 0.6)^2 = 2x the triangles.
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("extended-report.json")).unwrap()).unwrap();
+    let designed = report["designed_triangles"].as_u64().unwrap() as f64;
+    assert!(designed > 1.6 * domain.triangles.len() as f64, "designed part {designed} triangles, the design {}", domain.triangles.len());
+    // The extension's walls and caps at the same size, not the design's rim edge.
+    let extension = surface.with_labels(|l| l == 20 || l == 21);
+    assert!((extension.mean_edge_length_mm() - edge).abs() < 0.2 * edge, "extension's mean edge {:.3} mm", extension.mean_edge_length_mm());
+    // Remeshing keeps the caps (planes) and the baffle: same areas within 1%.
+    for label in [10, 11, 16] {
+        let (before, after) = (label_area_mm2(&domain, label), label_area_mm2(&surface, label));
+        assert!((after / before - 1.0).abs() < 0.01, "label {label}: {before:.2} -> {after:.2} mm2");
+    }
+    // A bad edge is refused by name before any work.
+    let run = baffle(&["extend", "--domain", s(&domain_path), "--segmentations", s(&segmentations), "--remesh-domain-edge-mm", "0", "--out", s(&out.join("x.vtp"))]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && stderr.contains("remeshing the designed domain at 0 mm"), "{stderr}");
+    if std::env::var("BAFFLE_SKIP_GMSH").is_ok_and(|v| v == "1") {
+        return;
+    }
+    let (boundary, interior) = split_interior_labels(&surface, &[11, 16]).unwrap();
+    let cap_triangles: Vec<usize> = interior.iter().map(|c| c.triangles.len()).collect();
+    let options = MeshOptions { edge_length_mm: edge, interior_surfaces: interior, ..MeshOptions::default() };
+    let (mesh, _) = mesh_surface(&boundary, &options).unwrap_or_else(|e| panic!("gmsh on p2's remeshed extended domain: {e}"));
+    for (label, count) in [11, 16].into_iter().zip(cap_triangles) {
+        let set = mesh.faces.iter().find(|f| f.id == label).unwrap_or_else(|| panic!("no face set {label}"));
+        assert!(set.interior && set.triangles.len() == count, "face {label}: {} interior triangles, the cap has {count}", set.triangles.len());
+    }
+    std::fs::remove_dir_all(out).ok();
+}
+
 #[test]
 fn a_missing_lv_and_a_domain_without_caps_are_named() {
     let out = temp_dir("errors");

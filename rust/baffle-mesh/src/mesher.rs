@@ -149,7 +149,7 @@ pub fn gmsh_time_limit(opts: &MeshOptions, expected_tets: f64) -> Duration {
 fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {
     if opts.remesh_surface && !opts.interior_surfaces.is_empty() {
         return Err(MeshError::InvalidInput(
-            "remeshing the boundary would move it off the interior surfaces' rims; mesh a surface with interior surfaces as given".into(),
+            "remeshing the boundary would move it off the interior surfaces' rims; mesh a surface with interior surfaces as given (to refine an extended domain's boundary, remesh its designed domain: `baffle extend --remesh-domain-edge-mm`)".into(),
         ));
     }
     if !(opts.edge_length_mm.is_finite() && opts.edge_length_mm > 0.0) {
@@ -686,6 +686,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("triangle 1 has ModelFaceID 0"), "{err}");
+        // Remeshing with interior surfaces is refused, naming the way that works.
+        closed.face_ids[1] = 2;
+        let plane = TriMesh::new(vec![Vec3::x(), Vec3::y(), Vec3::z()], vec![[0, 1, 2]], vec![20]);
+        let opts = MeshOptions { remesh_surface: true, interior_surfaces: vec![plane], ..Default::default() };
+        let err = mesh_surface(&closed, &opts).unwrap_err().to_string();
+        assert!(err.contains("baffle extend --remesh-domain-edge-mm"), "{err}");
     }
 
     #[test]

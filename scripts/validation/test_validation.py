@@ -1,0 +1,198 @@
+"""Unit tests of the validation helpers (no CFD run): GCI, plane pressures, conversion."""
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import gci  # noqa: E402
+import planes  # noqa: E402
+import published  # noqa: E402
+
+
+def test_observed_order_recovers_a_known_order_with_unequal_ratios():
+    # f = 2 + 0.3 h^1.7 on h = 0.6, 0.95, 1.25 (ratios 1.58 and 1.32).
+    h = (0.6, 0.95, 1.25)
+    f = tuple(2.0 + 0.3 * x ** 1.7 for x in h)
+    r = gci.gci(h, f)
+    assert r["observed_order"] == pytest.approx(1.7, rel=1e-6)
+    assert r["extrapolated"] == pytest.approx(2.0, rel=1e-9)
+    assert not r["oscillatory"]
+    # GCI = 1.25 |e21| / (r^p - 1) equals 1.25 x the true relative error of f1 here.
+    assert r["gci_fine"] == pytest.approx(1.25 * (f[0] - 2.0) / f[0], rel=1e-6)
+
+
+def test_celik_example_one():
+    # Celik et al. 2008, Table 1, phi_1: r21 = 1.5, r32 = 1.333, order 1.53,
+    # extrapolated 6.1685, fine-grid GCI 2.2%.
+    r = gci.gci((1.0, 1.5, 2.0), (6.063, 5.972, 5.863))
+    assert r["observed_order"] == pytest.approx(1.53, abs=0.01)
+    assert r["extrapolated"] == pytest.approx(6.1685, abs=2e-3)
+    assert r["gci_fine"] == pytest.approx(0.022, abs=1e-3)
+
+
+def test_an_incredible_order_falls_back_to_the_conservative_band():
+    # Differences shrinking 10x per level at ratio 1.25: observed order ~10, not credible.
+    h = (0.4, 0.5, 0.625)
+    f = (1.0, 1.001, 1.011)
+    r = gci.gci(h, f)
+    assert r["observed_order"] > 5 and not r["asymptotic"]
+    assert r["gci_reported"] == pytest.approx(3.0 * 0.001 / (1.25 ** 2 - 1.0), rel=1e-6)
+    assert r["band_abs"] == pytest.approx(r["gci_reported"] * 1.0)
+    # A credible order keeps Roache's 1.25 GCI.
+    f = tuple(2.0 + 0.3 * x ** 1.7 for x in h)
+    r = gci.gci(h, f)
+    assert r["asymptotic"] and r["gci_reported"] == r["gci_fine"]
+
+
+def test_equal_levels_are_an_error_not_a_number():
+    with pytest.raises(ValueError):
+        gci.gci((0.5, 0.7, 1.0), (1.0, 1.0, 1.2))
+    with pytest.raises(ValueError):
+        gci.gci((1.0, 0.7, 0.5), (1.0, 1.1, 1.2))
+
+
+def test_representative_h():
+    assert gci.representative_h(1000.0, 1000) == pytest.approx(1.0)
+
+
+def square(nx):
+    """Unit square in the z = 0 plane (mm), split into 2 nx^2 triangles."""
+    xs = np.linspace(0.0, 1.0, nx + 1)
+    pts = np.array([[x, y, 0.0] for y in xs for x in xs])
+    tris = []
+    for j in range(nx):
+        for i in range(nx):
+            a = j * (nx + 1) + i
+            tris += [[a, a + 1, a + nx + 2], [a, a + nx + 2, a + nx + 1]]
+    return pts, np.array(tris)
+
+
+def test_plane_means_of_linear_fields_are_exact():
+    pts, tris = square(4)
+    pressure = 10.0 + 2.0 * pts[:, 0]  # mean 11 over the square
+    velocity = np.zeros_like(pts)
+    velocity[:, 2] = 1.0  # 1 m/s through 1 mm2: 1 mL/s
+    r = planes.plane_means(pts, tris, pressure, velocity)
+    assert r["static_area"] == pytest.approx(11.0)
+    assert r["area_mm2"] == pytest.approx(1.0)
+    assert r["flow_ml_s"] == pytest.approx(1.0)
+    dyn = planes.dynamic_mmhg(1.0)
+    assert dyn == pytest.approx(0.5 * 1060 / 133.322387415)
+    assert r["total_area"] == pytest.approx(11.0 + dyn)
+    assert r["total_flux"] == pytest.approx(11.0 + dyn)
+
+
+def test_flux_weighted_total_pressure_weights_by_flow():
+    # u_z = x, p = 0: flux-weighted mean of rho u^2 / 2 is int x^3 / int x = (1/4) / (1/2).
+    pts, tris = square(32)
+    velocity = np.zeros_like(pts)
+    velocity[:, 2] = pts[:, 0]
+    r = planes.plane_means(pts, tris, np.zeros(len(pts)), velocity)
+    assert r["total_flux"] == pytest.approx(planes.dynamic_mmhg(1.0) * 0.5, rel=2e-3)
+    assert r["total_area"] == pytest.approx(planes.dynamic_mmhg(1.0) / 3.0, rel=2e-3)
+
+
+def test_node_average_differs_from_area_average_on_uneven_triangles():
+    # Four small triangles near x = 1 and one large one: nodes crowd where p is high.
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0.9, 0.5, 0], [1, 0.5, 0], [0.95, 0.25, 0]], float)
+    tris = np.array([[0, 1, 2], [1, 4, 5], [5, 4, 3], [4, 2, 3], [1, 5, 3]])
+    p = pts[:, 0].copy()
+    r = planes.plane_means(pts, tris, p, np.zeros_like(pts))
+    assert r["static_nodes"] == pytest.approx(p.mean())
+    assert r["static_nodes"] > r["static_area"] + 0.1
+
+
+def test_outward_mm_flips_an_inward_tetrahedron_and_scales():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    outward = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    inward = outward[:, [0, 2, 1]]
+    p, t = published.outward_mm(pts, inward)
+    assert published.signed_volume(p, t) == pytest.approx(1000.0 / 6.0)
+    assert np.array_equal(t, outward)
+    p, t = published.outward_mm(pts, outward)
+    assert np.array_equal(t, outward)
+
+
+def test_centerline_lengths_on_a_bent_path_between_tilted_discs():
+    import centerline_defs as cd
+
+    # Path along x from 0 to 10, then up along y to 10 (an L).
+    path = np.array([[x, 0.0, 0.0] for x in np.linspace(0, 10, 21)] + [[10.0, y, 0.0] for y in np.linspace(0.5, 10, 20)])
+    # VSD disc: x = 2 plane, a square of half-width 1 around the path.
+    vsd_pts = np.array([[2, -1, -1], [2, 1, -1], [2, 1, 1], [2, -1, 1]], float)
+    # Aortic disc: y = 6, square around (10, 6, 0); its infinite plane is also crossed nowhere earlier.
+    ao_pts = np.array([[9, 6, -1], [11, 6, -1], [11, 6, 1], [9, 6, 1]], float)
+    sq = np.array([[0, 1, 2], [0, 2, 3]])
+    r = cd.lengths(path, (vsd_pts, sq), (ao_pts, sq))
+    assert r["discs"] == pytest.approx(8.0 + 6.0)
+    assert r["infinite_planes"] == pytest.approx(14.0)
+    assert r["centroids"] == pytest.approx(math.hypot(8.0, 6.0))
+    assert r["closest_nodes"] == pytest.approx(math.sqrt(7 ** 2 + 5 ** 2))
+    # Move the aortic disc off the path: the infinite plane is still crossed, the disc is not.
+    r = cd.lengths(path, (vsd_pts, sq), (ao_pts + [5.0, 0, 0], sq))
+    assert "discs" not in r and r["infinite_planes"] == pytest.approx(14.0)
+
+
+def box_grid():
+    """A 2 mm tetrahedralized cube with p = 3 + 2 x (mmHg) and u = (1, 0, 0) m/s."""
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+    box = vtk.vtkImageData()
+    box.SetDimensions(5, 5, 5)
+    box.SetSpacing(0.5, 0.5, 0.5)
+    tets = vtk.vtkDataSetTriangleFilter()
+    tets.SetInputData(box)
+    tets.Update()
+    grid = tets.GetOutput()
+    pts = vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
+    p = numpy_to_vtk(3.0 + 2.0 * pts[:, 0], deep=True)
+    p.SetName("pressure_mmhg")
+    v = np.zeros_like(pts)
+    v[:, 0] = 1.0
+    vel = numpy_to_vtk(v, deep=True)
+    vel.SetName("velocity_m_s")
+    grid.GetPointData().AddArray(p)
+    grid.GetPointData().AddArray(vel)
+    return grid
+
+
+def test_a_shifted_plane_cuts_the_volume_and_averages_linear_fields_exactly():
+    grid = box_grid()
+    # Plane x = 0.5 shifted by +0.75 along x: x = 1.25, a 2 x 2 mm section.
+    m = planes.shifted_plane(grid, [0.5, 1.0, 1.0], [1.0, 0.0, 0.0], 0.75, 10.0)
+    assert m["static_area"] == pytest.approx(3.0 + 2.5)
+    assert m["area_mm2"] == pytest.approx(4.0)
+    assert abs(m["flow_ml_s"]) == pytest.approx(4.0)
+    with pytest.raises(ValueError, match="does not cut the mesh"):
+        planes.shifted_plane(grid, [0.5, 1.0, 1.0], [1.0, 0.0, 0.0], 5.0, 10.0)
+
+
+def test_the_mesh_study_table_takes_three_levels_finest_first():
+    import validate
+
+    rows = []
+    for h, tets in ((1.25, 1000), (0.95, 2300), (0.75, 4700)):
+        rows.append({"patient": "p2", "domain": "published", "study": "gci", "boundary_mm": h, "tets": tets, "h_mm": validate.gci.representative_h(1000.0, tets),
+                     "dp_mmhg": 1.0 + 0.5 * h ** 2, "vmax_centerline_m_s": 1.5 - 0.1 * h, "dp_total_flux_mmhg": 2.0 + 0.2 * h})
+    study = validate.study_tables(rows)["p2 published"]
+    assert [lv["tets"] for lv in study["levels"]] == [4700, 2300, 1000]
+    assert study["dp_mmhg"]["extrapolated"] == pytest.approx(1.0, abs=0.05)
+    table = validate.gci_markdown({"p2 published": study})
+    assert "| p2 published | dp_mmhg |" in table and "| p2 published | vmax_centerline_m_s |" in table
+
+
+def test_either_plane_moves_downstream():
+    grid = box_grid()
+    a = planes.shifted_plane(grid, [0.0, 1.0, 1.0], [1.0, 0.0, 0.0], 0.5, 10.0)  # x = 0.5
+    b = planes.shifted_plane(grid, [0.0, 1.0, 1.0], [1.0, 0.0, 0.0], 1.5, 10.0)  # x = 1.5
+    assert a["static_area"] - b["static_area"] == pytest.approx(-2.0)
+    moved_b = planes.shifted_dp(grid, a, b, [0.0, 0.25], move_first=False)
+    assert moved_b["+0.0"]["dp_static_area"] == pytest.approx(-2.0)
+    assert moved_b["+0.2"]["dp_static_area"] == pytest.approx(-2.5)  # b at x = 1.75
+    moved_a = planes.shifted_dp(grid, a, b, [-0.25], move_first=True)
+    assert moved_a["-0.2"]["dp_static_area"] == pytest.approx(-2.5)  # a at x = 0.25
+    assert moved_a["-0.2"]["dp_total_flux"] == pytest.approx(-2.5)  # uniform speed
