@@ -23,6 +23,13 @@ pub enum CfdError {
         "time step {step} (t = {time_s:.4} s) failed on every retry ({tried}). Try a smaller time step (dt), a larger GMRES budget (max_linear_iterations), or a coarser or better-shaped mesh (check its smallest scaled Jacobian); on meshes of several hundred thousand tetrahedra the external svMultiPhysics engine may be needed"
     )]
     StepFailed { step: usize, time_s: f64, tried: String },
+    /// The run would need more memory than the machine has free (see `memory`).
+    #[error(
+        "the run needs about {:.1} GB for {tets} tetrahedra, but only {:.1} GB of memory is free; use a coarser mesh (a larger edge length) or the external svMultiPhysics engine",
+        needed_bytes / 1e9,
+        available_bytes / 1e9
+    )]
+    Memory { tets: usize, needed_bytes: f64, available_bytes: f64 },
     #[error("cancelled at t = {time_s:.4} s")]
     Cancelled { time_s: f64 },
 }

@@ -10,6 +10,7 @@ pub mod coarse;
 mod error;
 pub mod hemodynamics;
 pub mod linear;
+pub mod memory;
 pub mod mesh;
 pub mod periodicity;
 pub mod settings;

@@ -1014,6 +1014,7 @@ pub fn simulate(mesh: &FlowMesh, settings: &CaseSettings, progress: &mut dyn FnM
 pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&SolverState>, observer: &mut Observer) -> Result<Run, CfdError> {
     let start_time = Instant::now();
     settings.validate()?;
+    crate::memory::check_fits(mesh.tets.len(), crate::memory::available_bytes())?;
     let problem = Problem::new(mesh, settings)?;
     let n_blocks = problem.pattern.cols.len();
     let n_dofs = problem.order.len() * B;
