@@ -1,0 +1,104 @@
+//! `baffle`: area-constrained DORV baffle design from the command line. This crate only
+//! parses the arguments; the commands' work is the library `baffle-plan`'s.
+
+use baffle_plan::{
+    centerline_cmd, design_cmd, export_cmd, extend_cmd, mesh_cmd, plan_cmd, plan_stages, prepare_cmd, simulate_cmd, sweep_cmd, template_cmd,
+};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Design the area-constrained baffle and the watertight VSD-to-aorta domain.
+    ///
+    /// Writes into --out: domain.vtp (closed, outward, ModelFaceID 2 wall / 10 baffle /
+    /// 11 VSD cap / 16 aortic cap), baffle.vtp, centerline.vtp (point arrays s_mm,
+    /// tangent), sections.vtp (raw and regularized baffle arcs), seam.vtp and
+    /// report.json (target, per-section areas and amplitudes, step timings).
+    #[command(after_help = "Examples:\n  \
+        baffle design --surface ../shared/data/p2/design_input/capped_ventricle.vtp \\\n      \
+        --points ../shared/data/p2/design_input/suture_points.mrk.json --bsa 0.37 --out out/p2\n  \
+        baffle design --surface capped.stl --vsd-cap-point 1,2,3 --aortic-cap-point 4,5,6 --points P.fcsv --annulus-diameter-mm 12 --out out/x\n  \
+        baffle design --phantom --out out/phantom")]
+    Design(design_cmd::DesignArgs),
+    /// The capped ventricle (design input) from segmented LV, RV and aorta surfaces.
+    Prepare(prepare_cmd::PrepareArgs),
+    /// The extended CFD domain (paper 2.5): the designed domain plus the LV back to a
+    /// mid-LV plane (inflow cap, 20) and the aorta up to the sinotubular junction
+    /// (outflow cap, 21); the VSD and aortic caps stay inside as measurement planes.
+    Extend(extend_cmd::ExtendArgs),
+    /// Tetrahedral volume mesh of a closed labelled surface (gmsh, run as a separate process).
+    Mesh(mesh_cmd::MeshArgs),
+    /// CFD on a volume mesh from a JSON case (embedded solver; results in mm, m/s, mmHg; SIGTERM stops with results).
+    Simulate(simulate_cmd::SimulateArgs),
+    /// Flow-domain centerline of a closed lumen between two measurement planes (paper
+    /// 2.5): length, inscribed radii and, with --results, v_max and pressure along it.
+    Centerline(centerline_cmd::CenterlineArgs),
+    /// Write the same case for svMultiPhysics (the paper's MPI solver), to run on a cluster.
+    ExportSvmp(export_cmd::ExportArgs),
+    /// Prepare (from --segmentations or --labelmap), design, mesh and simulate in one run,
+    /// and write report.json and report.html.
+    Plan(plan_stages::PlanArgs),
+    /// True-scale patch template (A4 PDF or SVG): the designed baffle flattened, suture
+    /// points numbered, VSD and aortic rims, 10 mm scale bar and check square.
+    Template(template_cmd::TemplateArgs),
+    /// Designs at several targets on one input (--z-scores or --areas-mm2): a table
+    /// (CSV, markdown, JSON) and a plot (SVG) of baffle area, RV volume and the largest
+    /// feasible target, so the team sees what a larger tunnel costs the ventricle.
+    Sweep(sweep_cmd::SweepArgs),
+    /// Write the built-in synthetic phantom (capped ventricle + suture points).
+    Phantom {
+        /// Output directory (gets capped_ventricle.vtp and suture_points.mrk.json).
+        #[arg(long)]
+        out: PathBuf,
+        /// Write the synthetic heart as segment surfaces instead (LV.vtp, RV.vtp, aorta.vtp
+        /// and suture_points.mrk.json, BSA 0.2 m2): the input of `baffle plan --segmentations`.
+        #[arg(long)]
+        heart: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    restore_default_sigpipe();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Design(args) => design_cmd::run_design(&args),
+        Command::Prepare(args) => prepare_cmd::run_prepare(&args),
+        Command::Extend(args) => extend_cmd::run_extend(&args),
+        Command::Mesh(args) => mesh_cmd::run_mesh(&args),
+        Command::Simulate(args) => simulate_cmd::run_simulate(&args),
+        Command::Centerline(args) => centerline_cmd::run_centerline(&args),
+        Command::ExportSvmp(args) => export_cmd::run_export(&args),
+        Command::Plan(args) => plan_cmd::run_plan(&args),
+        Command::Template(args) => template_cmd::run_template(&args),
+        Command::Sweep(args) => sweep_cmd::run_sweep(&args),
+        Command::Phantom { out, heart: false } => design_cmd::write_phantom(&out),
+        Command::Phantom { out, heart: true } => prepare_cmd::write_synthetic_heart(&out),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("baffle: error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Rust starts with SIGPIPE ignored, so printing to a closed pipe (`baffle mesh | head`)
+/// panics; the default action ends the command quietly, as other command-line tools.
+fn restore_default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first in main, before any thread exists; sets a standard disposition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
