@@ -9,6 +9,7 @@ use baffle_core::{design, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
 use crate::{feasibility, files};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
+
 // Required-ness of --surface/--points is checked at run time (read_inputs), so that
 // `baffle plan` can offer other sources of the surface.
 #[derive(Args, Clone)]
@@ -121,6 +122,7 @@ impl From<Frame> for CoordinateSystem {
     }
 }
 
+/// The target area the arguments give (`default_bsa_m2`, the phantom's, when none does).
 pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
     let z_score = args.z_score;
     if let Some(a) = args.target_area_mm2 {
@@ -138,6 +140,7 @@ pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<Tar
     }
 }
 
+/// `baffle design`: Slicer's progress tags on stdout with --progress-tags.
 pub fn run_design(args: &DesignArgs) -> Result<(), String> {
     let tags = args.progress_tags;
     design_reporting(args, &mut |fraction, stage| {
@@ -275,6 +278,7 @@ fn parse_point(text: &str) -> Result<Vec3, String> {
     }
 }
 
+/// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
 pub fn write_phantom(out: &Path) -> Result<(), String> {
     let p = phantom_default();
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
