@@ -2,13 +2,10 @@
 //! svMultiPhysics (the paper's solver), for a cluster run.
 
 use crate::case;
-use baffle_cfd::{CaseSettings, FlowMesh, RunMode};
-use baffle_core::Vec3;
-use baffle_mesh::{FaceSet, TetMesh};
-use baffle_svmp::{export_case, ExportOptions, ExportedCase};
+use crate::svmp_case::export_to;
+use baffle_cfd::RunMode;
 use clap::Args;
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ExportArgs {
@@ -35,56 +32,4 @@ pub fn run_export(args: &ExportArgs) -> Result<(), String> {
     export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
     println!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display());
     Ok(())
-}
-
-/// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
-/// first step); says how the inflow was fitted.
-pub(crate) fn export_to(
-    dir: &Path,
-    case: &case::Case,
-    mesh: &FlowMesh,
-    settings: &CaseSettings,
-    mpi_processes: usize,
-) -> Result<ExportedCase, String> {
-    let planes = case.faces.planes.clone();
-    let tet_mesh = tet_mesh_mm(mesh, &planes);
-    let options = ExportOptions { mpi_processes, ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
-    let exported = export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())?;
-    match (exported.fourier_modes, exported.fourier_max_deviation_ml_s) {
-        (Some(modes), Some(dev)) => println!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
-        _ => println!("inflow: constant (steady)"),
-    }
-    Ok(exported)
-}
-
-/// File-name-safe names by role: inflow, outlet_<id>, plane_<id>, wall_<id>.
-fn face_names(roles: &case::FaceRoles, mesh: &FlowMesh) -> BTreeMap<i32, String> {
-    mesh.faces
-        .iter()
-        .map(|f| {
-            let name = if f.id == roles.inlet {
-                "inflow".to_string()
-            } else if roles.outlets.contains(&f.id) {
-                format!("outlet_{}", f.id)
-            } else if roles.planes.contains(&f.id) {
-                format!("plane_{}", f.id)
-            } else {
-                format!("wall_{}", f.id)
-            };
-            (f.id, name)
-        })
-        .collect()
-}
-
-/// The solver's mesh (cm) as the exporter's tetrahedral mesh (mm; it writes cm).
-fn tet_mesh_mm(mesh: &FlowMesh, planes: &[i32]) -> TetMesh {
-    TetMesh {
-        points_mm: mesh.points_cm.iter().map(|p| Vec3::new(p[0], p[1], p[2]) * 10.0).collect(),
-        tets: mesh.tets.clone(),
-        faces: mesh
-            .faces
-            .iter()
-            .map(|f| FaceSet { id: f.id, triangles: f.triangles.clone(), interior: planes.contains(&f.id) })
-            .collect(),
-    }
 }

@@ -8,11 +8,12 @@
 //!
 //! 1. `files`, `progress`, `sampling`, `case`: atomic writes, the progress model, fields
 //!    sampled along a centerline, the simulate case (JSON) and its settings.
-//! 2. `feasibility`, `verdict` (case), `export_cmd` (case), `prepare_cmd`, `mesh_cmd`,
+//! 2. `feasibility`, `verdict` (case), `svmp_case` (case: the svMultiPhysics export),
+//!    `export_cmd` (svmp_case), `prepare_cmd`, `mesh_cmd`,
 //!    `centerline_cmd` (files, progress, sampling).
 //! 3. `design_cmd` (feasibility), `extend_cmd` (prepare_cmd), `simulate_report` (case,
 //!    verdict: the summary both engines write), `template_cmd` (design_cmd).
-//! 4. `simulate_svmp` (export_cmd, simulate_report), `plan_stages` (design_cmd,
+//! 4. `simulate_svmp` (svmp_case, simulate_report), `plan_stages` (design_cmd,
 //!    prepare_cmd: the plan's arguments, stages and paths).
 //! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict,
 //!    sampling, centerline_cmd, prepare_cmd, design_cmd).
@@ -25,6 +26,7 @@ pub mod case;
 
 pub mod feasibility;
 pub mod verdict;
+pub mod svmp_case;
 pub mod export_cmd;
 pub mod prepare_cmd;
 pub mod mesh_cmd;

@@ -3,7 +3,7 @@
 //! its outputs (`B_NS_*.txt`, the peak `result_*.vtu`) read back into the same rows, and
 //! so the same timeseries.csv and summary.json, as the embedded engine's.
 
-use crate::export_cmd::export_to;
+use crate::svmp_case::export_to;
 use crate::progress::Progress;
 use crate::simulate_report::{stop_on_signals, Ending, Output, Report, Row};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
