@@ -3,18 +3,18 @@
 //! and a checkpoint, all atomically. SIGTERM/SIGINT stop it at the end of the current
 //! time step with the results so far; `--resume` continues from the checkpoint.
 //! `--engine svmultiphysics` hands the same case to svMultiPhysics instead
-//! ([`crate::simulate_svmp`]); both engines' results go through [`Report`].
+//! ([`crate::simulate_svmp`]); both engines' results go through [`crate::simulate_report::Report`].
 
-use crate::case::{self, FlowInputs};
-use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
-use baffle_cfd::{simulate_from, CaseSettings, FlowMesh, RunMode, SolverState, SteadyProgress, StepResult};
-use clap::{Args, ValueEnum};
+use crate::case;
+use baffle_cfd::{simulate_from, CaseSettings, RunMode, SolverState, SteadyProgress};
+use clap::Args;
 use serde::{Deserialize, Serialize};
 use crate::files::write_atomic;
 use crate::progress::{steady_fraction, Progress, Style};
+use crate::simulate_report::{cycle_end_step, stop_on_signals, Engine, Ending, Output, Report, Row};
+use crate::simulate_svmp::{self, SvmpRun};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 #[derive(Args)]
@@ -71,52 +71,6 @@ pub struct SimulateArgs {
     /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).
     #[arg(long)]
     pub(crate) progress_tags: bool,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Engine {
-    Embedded,
-    Svmultiphysics,
-}
-
-/// One row of the time series (pressures in mmHg). NaN where an engine does not report
-/// a figure at that step (svMultiPhysics: residual, and velocity away from the peak).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub(crate) struct Row {
-    pub step: usize,
-    pub time_s: f64,
-    pub prescribed_inflow_ml_s: f64,
-    pub inflow_ml_s: f64,
-    pub outflow_ml_s: f64,
-    pub max_velocity_m_s: f64,
-    pub residual: f64,
-    /// Rungs of the solver's retry ladder this step needed (0: none).
-    #[serde(default)]
-    pub retries: usize,
-    pub face_ids: Vec<i32>,
-    pub face_names: Vec<String>,
-    pub face_pressure_mmhg: Vec<f64>,
-}
-
-impl Row {
-    fn of(r: &StepResult) -> Row {
-        Row {
-            step: r.step,
-            time_s: r.time_s,
-            prescribed_inflow_ml_s: r.prescribed_inflow_ml_s,
-            inflow_ml_s: r.inflow_ml_s,
-            outflow_ml_s: r.outflow_ml_s,
-            max_velocity_m_s: r.max_velocity_cm_s / 100.0,
-            residual: r.residual,
-            retries: r.retries,
-            face_ids: r.faces.iter().map(|f| f.id).collect(),
-            face_names: r.faces.iter().map(|f| f.name.clone()).collect(),
-            face_pressure_mmhg: r.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),
-        }
-    }
-    fn pressure(&self, id: i32) -> f64 {
-        self.face_ids.iter().position(|&f| f == id).map_or(f64::NAN, |k| self.face_pressure_mmhg[k])
-    }
 }
 
 #[derive(Serialize, Deserialize)]
@@ -245,206 +199,12 @@ impl Checkpoint {
     }
 }
 
-pub(crate) struct Output<'a> {
-    pub dir: &'a Path,
-    pub mesh: &'a FlowMesh,
-}
-
+// The checkpoint is the embedded engine's own file.
 impl Output<'_> {
-    pub(crate) fn vtu(&self, name: &str, velocity: &[[f64; 3]], pressure: &[f64]) -> Result<(), String> {
-        baffle_cfd::vtu::write_solution_vtu(&self.dir.join(name), &self.mesh.points_cm, &self.mesh.tets, velocity, pressure)
-            .map_err(|e| e.to_string())
-    }
-
     fn checkpoint(&self, cp: &Checkpoint) -> Result<(), String> {
         let text = serde_json::to_string(cp).map_err(|e| e.to_string())?;
         write_atomic(&self.dir.join("checkpoint.json"), text.as_bytes())
     }
-}
-
-/// How a run ended, as summary.json says it.
-pub(crate) struct Ending {
-    pub status: &'static str,
-    pub message: Option<String>,
-    pub converged: bool,
-}
-
-/// The one writer of timeseries.csv and summary.json, for both engines: what the case
-/// asked for, and which engine answered.
-pub(crate) struct Report<'a> {
-    pub dir: &'a Path,
-    pub case: &'a case::Case,
-    pub settings: &'a CaseSettings,
-    pub flow: &'a FlowInputs,
-    pub engine: Engine,
-}
-
-impl Report<'_> {
-    fn csv(&self, rows: &[Row]) -> Result<(), String> {
-        let mut text = String::from("step,time_s,prescribed_inflow_ml_s,inflow_ml_s,outflow_ml_s,max_velocity_m_s,residual");
-        if let Some(r) = rows.first() {
-            for name in &r.face_names {
-                text.push_str(&format!(",p_{name}_mmhg"));
-            }
-        }
-        text.push('\n');
-        for r in rows {
-            text.push_str(&format!(
-                "{},{},{},{},{},{},{}",
-                r.step, r.time_s, r.prescribed_inflow_ml_s, r.inflow_ml_s, r.outflow_ml_s, r.max_velocity_m_s, r.residual
-            ));
-            for p in &r.face_pressure_mmhg {
-                text.push_str(&format!(",{p}"));
-            }
-            text.push('\n');
-        }
-        write_atomic(&self.dir.join("timeseries.csv"), text.as_bytes())
-    }
-
-    /// Write timeseries.csv and summary.json; returns the summary.
-    /// `steady_residuals`: a steady solve's relative residual per iteration (empty otherwise).
-    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<serde_json::Value, String> {
-        let mut json = summary_json(self, rows, ending, wall_time_s);
-        if !steady_residuals.is_empty() {
-            json["steady_relative_residuals"] = serde_json::json!(steady_residuals);
-        }
-        self.csv(rows)?;
-        let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
-        write_atomic(&self.dir.join("summary.json"), text.as_bytes())?;
-        Ok(json)
-    }
-
-    /// The one-line account of a run on stdout.
-    pub(crate) fn print(&self, summary: &serde_json::Value, rows: usize, rows_this_run: usize, wall_time_s: f64) {
-        let (a, b) = dp_faces(self.case);
-        let number = |key: &str| summary[key].as_f64().unwrap_or(f64::NAN);
-        // An unconverged solve's numbers are not presented as a plain result.
-        let converged = if summary["converged"] == true { "" } else { " (NOT CONVERGED)" };
-        println!(
-            "{}{converged} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
-            summary["status"].as_str().unwrap_or_default(),
-            number("dp_peak_mmhg"),
-            number("max_velocity_m_s"),
-            number("q_peak_ml_s"),
-            wall_time_s,
-            self.dir.display()
-        );
-    }
-}
-
-/// dp = p(plane 1) - p(plane 2), or p(inlet) - p(first outlet).
-fn dp_faces(case: &case::Case) -> (i32, i32) {
-    match case.faces.planes[..] {
-        [a, b] => (a, b),
-        _ => (case.faces.inlet, case.faces.outlets[0]),
-    }
-}
-
-/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can).
-fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
-    let mut summary = summary_figures(report, rows, ending, wall_time_s);
-    summary["doubts"] = serde_json::json!(crate::verdict::run_doubts(&summary));
-    summary
-}
-
-fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
-    let (case, settings, flow) = (report.case, report.settings, report.flow);
-    let (a, b) = dp_faces(case);
-    let outlet = case.faces.outlets[0];
-    let steady = settings.mode == RunMode::Steady;
-    let quick = case::is_quick(case);
-    let period_steps = if steady { 0 } else { (flow.period_s / settings.dt_s).round() as usize };
-    // The last complete cycle run (or all steps when less than one cycle was run).
-    let last_step = rows.last().map_or(0, |r| r.step);
-    let cycle: Vec<&Row> = if steady || period_steps == 0 || last_step < period_steps {
-        rows.iter().collect()
-    } else {
-        // Cycle k ends at the step nearest k periods (a period need not be a whole number
-        // of steps: p3's 0.4918 s is 491.8 steps, and the solver's 4 cycles are 1967).
-        let cycles_done = ((last_step as f64 + 0.5) * settings.dt_s / flow.period_s).floor() as usize;
-        let (start, end) = (cycle_end_step(cycles_done - 1, flow.period_s, settings.dt_s), cycle_end_step(cycles_done, flow.period_s, settings.dt_s));
-        rows.iter().filter(|r| r.step > start && r.step <= end).collect()
-    };
-    let peak = cycle.iter().copied().max_by(|x, y| x.prescribed_inflow_ml_s.total_cmp(&y.prescribed_inflow_ml_s));
-    let mean = |f: &dyn Fn(&Row) -> f64| if cycle.is_empty() { f64::NAN } else { cycle.iter().map(|r| f(r)).sum::<f64>() / cycle.len() as f64 };
-    let inflow_sum: f64 = cycle.iter().map(|r| r.inflow_ml_s).sum();
-    let outflow_sum: f64 = cycle.iter().map(|r| r.outflow_ml_s).sum();
-    let periodicity = if steady || quick { None } else { periodicity_nrmsd(rows, period_steps, case.faces.inlet, outlet) };
-    let f = |v: f64| if v.is_finite() { serde_json::json!(v) } else { serde_json::Value::Null };
-    let engine = match report.engine {
-        Engine::Embedded => "embedded",
-        Engine::Svmultiphysics => "svmultiphysics",
-    };
-    serde_json::json!({
-        "engine": engine,
-        "status": ending.status,
-        "message": ending.message,
-        "mode": if steady { "steady" } else if quick { case::QUICK_MODE } else { "transient" },
-        "converged": ending.converged,
-        "steps_done": rows.len(),
-        // Transient: the steps of all the case's cycles (a run stopped short of them has no
-        // final cycle); quick: the steps to the first flow peak.
-        "steps_planned": (!steady).then(|| if quick { case::first_peak_step(settings) } else { cycle_end_step(settings.cycles, flow.period_s, settings.dt_s) }),
-        "retried_steps": rows.iter().filter(|r| r.retries > 0).count(),
-        "last_step": last_step,
-        "last_time_s": rows.last().map(|r| r.time_s),
-        "peak_time_s": peak.map(|r| r.time_s),
-        "dp_faces": [a, b],
-        "dp_peak_mmhg": peak.map(|r| f(r.pressure(a) - r.pressure(b))),
-        "max_velocity_m_s": peak.map(|r| f(r.max_velocity_m_s)),
-        "max_velocity_run_m_s": f(rows.iter().map(|r| r.max_velocity_m_s).fold(f64::NAN, f64::max)),
-        // Steady: the flow is held at Q_peak; that measured flow is q_held_ml_s, and
-        // q_mean_ml_s stays the case's mean flow (over a cycle it would be Q_peak).
-        "q_mean_ml_s": f(if steady { flow.q_mean_ml_s } else { mean(&|r| r.inflow_ml_s) }),
-        "q_held_ml_s": steady.then(|| f(mean(&|r| r.inflow_ml_s))),
-        "q_peak_ml_s": peak.map(|r| f(r.inflow_ml_s)),
-        "outlet_mean_pressure_mmhg": f(mean(&|r| r.pressure(outlet))),
-        "mass_imbalance": f((inflow_sum - outflow_sum).abs() / inflow_sum.abs()),
-        "periodicity_nrmsd": periodicity.map(f),
-        "wall_time_s": wall_time_s,
-        "inputs": {
-            "q_mean_ml_s": flow.q_mean_ml_s,
-            "q_peak_ml_s": flow.q_peak_ml_s,
-            "peak_time_in_cycle_s": flow.peak_time_in_cycle_s,
-            "period_s": f(flow.period_s),
-            "resistance_dyn_s_cm5": flow.resistance_dyn_s_cm5,
-            "map_mmhg": flow.map_mmhg,
-            "dt_s": settings.dt_s,
-            "cycles": settings.cycles,
-            "density_g_cm3": settings.density_g_cm3,
-            "viscosity_g_cm_s": settings.viscosity_g_cm_s,
-            "steady_tolerance": steady.then_some(settings.steady_tolerance),
-            "steady_max_iterations": steady.then_some(settings.steady_max_iterations),
-        },
-    })
-}
-
-/// The time step at which cycle k ends: the one nearest k periods, as the solver counts
-/// a run's steps (round(cycles x period / dt)).
-fn cycle_end_step(k: usize, period_s: f64, dt_s: f64) -> usize {
-    (k as f64 * period_s / dt_s).round() as usize
-}
-
-/// Cycle N-1 vs N of the inlet-outlet pressure difference ([`baffle_cfd::periodicity_nrmsd`]).
-/// Rows are placed by step number (step k at index k-1), so the cycles are those of the
-/// run's time axis whatever rows a resume carried over; None when a step of the last two
-/// complete cycles is missing.
-fn periodicity_nrmsd(rows: &[Row], period_steps: usize, inlet: i32, outlet: i32) -> Option<f64> {
-    let mut dp = vec![f64::NAN; rows.iter().map(|r| r.step).max().unwrap_or(0)];
-    for r in rows.iter().filter(|r| r.step >= 1) {
-        dp[r.step - 1] = r.pressure(inlet) - r.pressure(outlet);
-    }
-    baffle_cfd::periodicity_nrmsd(&dp, period_steps).filter(|v| v.is_finite())
-}
-
-/// A flag raised by SIGTERM or SIGINT (instead of dying), so a run stops between steps
-/// with its results so far.
-pub(crate) fn stop_on_signals() -> Result<Arc<AtomicBool>, String> {
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        signal_hook::flag::register(signal, Arc::clone(&stop)).map_err(|e| format!("cannot install signal handler: {e}"))?;
-    }
-    Ok(stop)
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
@@ -488,7 +248,8 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
         if quick {
             return Err("the quick estimate (time.mode \"quick\", --quick) runs on the embedded engine; give svMultiPhysics a transient or steady case".into());
         }
-        return crate::simulate_svmp::run(args, &report, &output, start, progress);
+        let svmp = SvmpRun { out: &args.out, mpi_processes: args.mpi_processes, resume: args.resume, steps: args.steps, vtu_every: args.vtu_every };
+        return simulate_svmp::run(&svmp, &report, &output, start, progress);
     }
 
     let (mut rows, start_state, mut residuals, previous_wall) = if args.resume {

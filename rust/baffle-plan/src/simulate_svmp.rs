@@ -3,9 +3,9 @@
 //! its outputs (`B_NS_*.txt`, the peak `result_*.vtu`) read back into the same rows, and
 //! so the same timeseries.csv and summary.json, as the embedded engine's.
 
-use crate::export_cmd::export_to;
+use crate::svmp_case::export_to;
 use crate::progress::Progress;
-use crate::simulate_cmd::{stop_on_signals, Ending, Output, Report, Row, SimulateArgs};
+use crate::simulate_report::{stop_on_signals, Ending, Output, Report, Row};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{FlowMesh, RunMode};
 use baffle_svmp::{find_engine, read_results, run_case, PeakFields, SvmpError, SvmpSummary};
@@ -16,7 +16,17 @@ use std::time::Instant;
 /// Where the svMultiPhysics case goes, under the output directory.
 pub const CASE_DIR: &str = "svmultiphysics";
 
-pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: Instant, progress: &Progress) -> Result<(), String> {
+/// What an svMultiPhysics run takes from `baffle simulate`'s options: where it writes, its
+/// MPI processes, and the embedded engine's own options (refused when given).
+pub struct SvmpRun<'a> {
+    pub out: &'a Path,
+    pub mpi_processes: Option<usize>,
+    pub resume: bool,
+    pub steps: Option<usize>,
+    pub vtu_every: Option<usize>,
+}
+
+pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Instant, progress: &Progress) -> Result<(), String> {
     refuse_embedded_only_options(args)?;
     let case_dir = args.out.join(CASE_DIR);
     let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -53,7 +63,7 @@ pub(crate) fn run(args: &SimulateArgs, report: &Report, output: &Output, start: 
 
 /// Options that steer the embedded solver's own loop; svMultiPhysics takes its run from
 /// solver.xml and always starts over.
-fn refuse_embedded_only_options(args: &SimulateArgs) -> Result<(), String> {
+fn refuse_embedded_only_options(args: &SvmpRun) -> Result<(), String> {
     let given = [("--resume", args.resume), ("--steps", args.steps.is_some()), ("--vtu-every", args.vtu_every.is_some())];
     match given.iter().find(|(_, set)| *set) {
         Some((option, _)) => Err(format!(

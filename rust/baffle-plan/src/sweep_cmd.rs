@@ -8,7 +8,7 @@
 
 use crate::files::write_atomic;
 use crate::report::svg_plot::{line_chart, Series};
-use crate::{design_inputs, design_options, rv_cost_line, target_from, DesignArgs};
+use crate::design_cmd::{design_inputs, design_options, rv_cost_line, target_from, DesignArgs, TargetArgs};
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::{design, DesignError, DesignReport, TargetArea};
 use clap::Args;
@@ -145,7 +145,7 @@ fn sweep_targets(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(Opti
     args.z_scores
         .iter()
         .map(|&z| {
-            let target = target_from(&crate::TargetArgs { z_score: z, ..base.clone() }, default_bsa)?;
+            let target = target_from(&TargetArgs { z_score: z, ..base.clone() }, default_bsa)?;
             Ok((Some(z), target))
         })
         .collect()

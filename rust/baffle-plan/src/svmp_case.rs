@@ -1,41 +1,14 @@
-//! `baffle export-svmp`: hand the same JSON case as `baffle simulate` to
-//! svMultiPhysics (the paper's solver), for a cluster run.
+//! The JSON case, loaded, written as an svMultiPhysics case (mesh-complete/, solver.xml,
+//! the inflow file, run.sh): the one export of `baffle export-svmp` and of `baffle
+//! simulate --engine svmultiphysics`.
 
 use crate::case;
-use baffle_cfd::{CaseSettings, FlowMesh, RunMode};
+use baffle_cfd::{CaseSettings, FlowMesh};
 use baffle_core::Vec3;
 use baffle_mesh::{FaceSet, TetMesh};
 use baffle_svmp::{export_case, ExportOptions, ExportedCase};
-use clap::Args;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-
-#[derive(Args)]
-pub struct ExportArgs {
-    /// Case file (JSON), as for `baffle simulate`.
-    case: PathBuf,
-    /// Output directory: mesh-complete/, solver.xml, the inflow file, run.sh, README.md.
-    #[arg(long)]
-    out: PathBuf,
-    /// MPI processes in run.sh.
-    #[arg(long, default_value_t = 4)]
-    mpi_processes: usize,
-    /// Export the steady estimate (constant inflow at Q_peak) instead of the pulsatile run.
-    #[arg(long)]
-    steady: bool,
-}
-
-pub fn run_export(args: &ExportArgs) -> Result<(), String> {
-    let case = case::read_case(&args.case)?;
-    let mesh = case::load_mesh(&case)?;
-    let (mut settings, _) = case::settings(&case)?;
-    if args.steady {
-        settings.mode = RunMode::Steady;
-    }
-    export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
-    println!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display());
-    Ok(())
-}
+use std::path::Path;
 
 /// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
 /// first step); says how the inflow was fitted.

@@ -4,7 +4,7 @@
 //! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %.
 
 use crate::files::write_atomic;
-use crate::Frame;
+use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::template::drawing::{today_utc, TemplateText};
 use baffle_core::template::{pdf, svg, template_from_domain, FlattenMethod};

@@ -1,27 +1,13 @@
-//! `baffle plan`: [prepare ->] design -> centerline -> mesh -> simulate in one run, each stage in
-//! its own subfolder of --out, then report.json and report.html (see `report`). The
-//! prepare stage runs when the ventricle is given as --segmentations or --labelmap
-//! instead of --surface; it is then followed, after the design, by an `extend` stage
-//! (paper 2.5: the LV back to a mid-LV plane and the aorta up to the sinotubular
-//! junction), and the CFD runs on that extended domain: inflow at the mid-LV cap, outflow
-//! at the STJ cap, dp between the VSD and aortic caps as interior planes. From --surface
-//! (no LV or aorta known) the domain stays the designed one, inflow at the VSD cap.
-//!
-//! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
-//! `run_mesh`, `run_simulate_tagged`) with the arguments a user would type for them, so the plan
-//! keeps each command's defaults and checks. A stage reads its inputs from the files
-//! of the stages before it, so what the report shows is what those files hold.
+//! `baffle plan`'s arguments and its stages: which run, in what order, and where each
+//! writes (the paths `plan_cmd` writes to and `report` reads from). Checked before any
+//! stage runs.
 
-use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
-use crate::prepare_cmd::{self, PrepareSource};
-use crate::progress::{Progress, Style};
-use crate::{centerline_cmd, design_reporting, extend_cmd, mesh_cmd, report, simulate_cmd, DesignArgs};
-use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
+use crate::design_cmd::{target_from, DesignArgs};
+use crate::prepare_cmd::PrepareSource;
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use clap::{Args, FromArgMatches};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(Args)]
 #[command(
@@ -139,7 +125,7 @@ pub struct Stage {
     pub name: String,
     pub step: Step,
     /// Share of the progress range (rough relative run time).
-    weight: f64,
+    pub weight: f64,
 }
 
 /// Outcome of one stage, for report.json.
@@ -207,7 +193,7 @@ fn check_arguments(args: &PlanArgs) -> Result<(), String> {
     // The flow is BSA x cardiac index, and the design needs its target.
     flow_bsa_m2(args)?;
     let default_bsa = args.design.phantom.then(|| baffle_core::phantom::phantom_default().bsa_m2);
-    crate::target_from(&args.design.target, default_bsa)?;
+    target_from(&args.design.target, default_bsa)?;
     if !(args.cardiac_index.is_finite() && args.cardiac_index > 0.0) {
         return Err(format!("--cardiac-index must be a positive number of L/min/m2, got {}", args.cardiac_index));
     }
@@ -253,7 +239,7 @@ pub fn flow_bsa_m2(args: &PlanArgs) -> Result<f64, String> {
 }
 
 /// Parse `argv` as the arguments of the command whose `Args` are `A`.
-fn command_args<A: Args + FromArgMatches>(name: &'static str, argv: &[OsString]) -> Result<A, String> {
+pub fn command_args<A: Args + FromArgMatches>(name: &'static str, argv: &[OsString]) -> Result<A, String> {
     let command = A::augment_args(clap::Command::new(name).no_binary_name(true));
     let matches = command.try_get_matches_from(argv).map_err(|e| format!("{name} arguments: {e}"))?;
     A::from_arg_matches(&matches).map_err(|e| format!("{name} arguments: {e}"))
@@ -266,176 +252,6 @@ pub fn flow_centerline_path(out: &Path) -> PathBuf {
 
 pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
     out.join(format!("mesh-{level}")).join("mesh.vtu")
-}
-
-/// The `baffle simulate` case of one run, its mesh given relative to the case file.
-fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, String> {
-    let mesh_dir = PathBuf::from("..").join(format!("mesh-{level}"));
-    Ok(Case {
-        mesh: MeshSpec {
-            volume: mesh_dir.join("mesh.vtu"),
-            faces: Some(mesh_dir.join("mesh-faces.vtp")),
-            format: "baffle".into(),
-            units: Some("mm".into()),
-        },
-        faces: face_roles(args),
-        fluid: Default::default(),
-        inflow: Inflow {
-            bsa_m2: Some(flow_bsa_m2(args)?),
-            cardiac_index_l_min_m2: Some(flow.cardiac_index_l_min_m2(args)),
-            heart_rate_bpm: args.hr,
-            profile: Some("plug".into()),
-            ..Inflow::default()
-        },
-        outlet: OutletSpec { sbp_mmhg: Some(args.bp.0), dbp_mmhg: Some(args.bp.1), ..OutletSpec::default() },
-        time: TimeSpec { mode: run_mode(args).into(), cycles: args.cycles, ..TimeSpec::default() },
-        output: Default::default(),
-    })
-}
-
-/// The case's time.mode: steady, quick (rest to the first flow peak) or transient.
-fn run_mode(args: &PlanArgs) -> &'static str {
-    match (args.steady, args.quick) {
-        (true, _) => "steady",
-        (_, true) => crate::case::QUICK_MODE,
-        _ => "transient",
-    }
-}
-
-/// Extended: inflow cap in, STJ cap out, dp between the VSD and aortic caps (interior);
-/// otherwise in at the VSD cap, out at the aortic cap.
-fn face_roles(args: &PlanArgs) -> FaceRoles {
-    let d = &args.design;
-    let walls = vec![d.wall_label, d.baffle_label];
-    if is_extended(args) {
-        FaceRoles { inlet: INFLOW_CAP_LABEL, outlets: vec![OUTFLOW_CAP_LABEL], walls, planes: vec![d.vsd_label, d.aortic_label] }
-    } else {
-        FaceRoles { inlet: d.vsd_label, outlets: vec![d.aortic_label], walls, planes: vec![] }
-    }
-}
-
-fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
-    let path = dir.join("case.json");
-    let text = serde_json::to_string_pretty(case).map_err(|e| e.to_string())?;
-    crate::files::write_atomic(&path, text.as_bytes())?;
-    Ok(path)
-}
-
-/// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
-fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
-    let out = &args.design.out;
-    match &stage.step {
-        Step::Prepare => {
-            let mut argv: Vec<OsString> = vec!["--out".into(), prepared_surface_path(out).into()];
-            if let Some(edge) = args.prepare_remesh_edge_mm {
-                argv.extend(["--remesh-edge-mm".into(), edge.to_string().into()]);
-            }
-            let mut prepare = command_args::<prepare_cmd::PrepareArgs>("prepare", &argv)?;
-            prepare.source = args.prepare.clone();
-            progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare)).map(|_| ())
-        }
-        Step::Design => {
-            let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
-            let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), ..args.design.clone() };
-            design_reporting(&design, &mut |f, s| {
-                progress.report(f, "design", s);
-                true
-            })
-        }
-        Step::Centerline => {
-            let d = &args.design;
-            let planes = format!("{},{}", d.vsd_label, d.aortic_label);
-            let mut argv: Vec<OsString> = vec!["--planes".into(), planes.into(), "--out".into(), flow_centerline_path(out).into()];
-            if is_extended(args) {
-                // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to
-                // the STJ cap, trimmed at the VSD and aortic caps (interior planes).
-                let ends = format!("{INFLOW_CAP_LABEL},{OUTFLOW_CAP_LABEL}");
-                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--ends".into(), ends.into()]);
-            } else {
-                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into()]);
-            }
-            let centerline = command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?;
-            centerline_cmd::run_centerline_with(&centerline, progress)
-        }
-        Step::Extend => {
-            let domain = out.join("design").join("domain.vtp");
-            let d = &args.design;
-            let mut argv: Vec<OsString> = vec!["--domain".into(), domain.into(), "--out".into(), extended_surface_path(out).into()];
-            for (flag, label) in [("--wall-label", d.wall_label), ("--baffle-label", d.baffle_label), ("--vsd-label", d.vsd_label), ("--aortic-label", d.aortic_label)] {
-                argv.extend([flag.into(), label.to_string().into()]);
-            }
-            let mut extend = command_args::<extend_cmd::ExtendArgs>("extend", &argv)?;
-            extend.source = args.prepare.clone();
-            progress.while_running("extend", || extend_cmd::extend_to_file(&extend)).map(|_| ())
-        }
-        Step::Mesh { level, edge_length_mm } => {
-            let mut argv: Vec<OsString> = vec!["--edge-length-mm".into(), edge_length_mm.to_string().into(), "--out".into(), mesh_path(out, level).into()];
-            if is_extended(args) {
-                // The interior caps share the boundary's rim points: the boundary is meshed as built.
-                let interior = format!("{},{}", args.design.vsd_label, args.design.aortic_label);
-                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--interior-labels".into(), interior.into()]);
-            } else {
-                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into(), "--remesh-surface".into()]);
-            }
-            mesh_cmd::run_mesh_with(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?, progress)
-        }
-        Step::Simulate { level, flow } => {
-            let case_path = write_case(dir, &simulate_case(args, level, *flow)?)?;
-            let argv: Vec<OsString> = vec![case_path.into(), "--out".into(), dir.into()];
-            let simulate = command_args::<simulate_cmd::SimulateArgs>("simulate", &argv)?;
-            simulate_cmd::run_simulate_with(&simulate, progress)
-        }
-    }
-}
-
-pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
-    let stages = plan_stages(args)?;
-    let out = &args.design.out;
-    let progress = Progress::new(Style::detect(args.design.progress_tags), Instant::now(), (0.0, 1.0));
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let total: f64 = stages.iter().map(|s| s.weight).sum();
-    let mut records: Vec<StageRecord> =
-        stages.iter().map(|s| StageRecord { name: s.name.clone(), status: "not run", wall_time_s: None, error: None }).collect();
-    let mut done = 0.0;
-    for (k, stage) in stages.iter().enumerate() {
-        let range = (done / total, (done + stage.weight) / total);
-        println!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name);
-        let part = progress.part(range);
-        part.report(0.0, &stage.name, "starting");
-        let dir = out.join(&stage.name);
-        let start = Instant::now();
-        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| run_stage(args, stage, &dir, &part));
-        part.finish(None);
-        let record = &mut records[k];
-        record.wall_time_s = Some(start.elapsed().as_secs_f64());
-        if let Err(e) = result {
-            // A failed stage's folder goes if it holds nothing (remove_dir only removes empty ones).
-            let _ = std::fs::remove_dir(&dir);
-            record.status = "failed";
-            record.error = Some(e.clone());
-            report::write_failure_json(out, &stage.name, &e, &records)?;
-            let kept: Vec<String> = stages[..k].iter().map(|s| out.join(&s.name).display().to_string()).collect();
-            let kept = if kept.is_empty() { "none".to_string() } else { kept.join(", ") };
-            return Err(format!("stage {} failed: {e}\n(finished stages' files kept: {kept})", stage.name));
-        }
-        record.status = "completed";
-        println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
-        done += stage.weight;
-    }
-    progress.report(1.0, "report", "writing the report and rendering its pictures (VTK)");
-    let outcome = report::write_reports(args, &stages, &records)?;
-    progress.report(1.0, "report", "written");
-    progress.finish(None);
-    println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
-    for warning in &outcome.warnings {
-        println!("warning: {warning}");
-    }
-    if let Some(reason) = &outcome.pictures_missing {
-        println!("note: the report has no 3D pictures: {reason}");
-    }
-    // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
-    println!("{}", outcome.verdict_line);
-    Ok(())
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ mod paper;
 mod pictures;
 pub(crate) mod svg_plot;
 
-use crate::plan_cmd::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
+use crate::plan_stages::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use baffle_cfd::Waveform;
@@ -379,7 +379,7 @@ fn format_value(v: f64, decimals: usize) -> String {
 /// The prepare stage's report (cap areas and centroids) and wall time, if it ran.
 fn prepare_summary(out: &Path, records: &[StageRecord]) -> Result<Option<Value>, String> {
     let Some(record) = records.iter().find(|r| r.name == "prepare") else { return Ok(None) };
-    let path = crate::prepare_cmd::report_path(&crate::plan_cmd::prepared_surface_path(out));
+    let path = crate::prepare_cmd::report_path(&crate::plan_stages::prepared_surface_path(out));
     let doc = read_json(&path)?;
     let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
     Ok(Some(json!({
@@ -399,13 +399,13 @@ fn prepare_rows(prepare: &Value) -> Vec<Vec<String>> {
 
 /// The CFD domain: the extend stage's figures, or why the designed domain was kept.
 fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Result<Value, String> {
-    let Some(record) = records.iter().find(|r| r.name == "extend").filter(|_| crate::plan_cmd::is_extended(args)) else {
+    let Some(record) = records.iter().find(|r| r.name == "extend").filter(|_| crate::plan_stages::is_extended(args)) else {
         return Ok(json!({
             "extended": false,
             "note": "the designed domain (VSD cap to aortic-annulus cap) as CFD domain, plug inflow at the VSD cap: with --surface no LV or aorta is known to extend it (give --segmentations or --labelmap)",
         }));
     };
-    let path = crate::prepare_cmd::report_path(&crate::plan_cmd::extended_surface_path(out));
+    let path = crate::prepare_cmd::report_path(&crate::plan_stages::extended_surface_path(out));
     let doc = read_json(&path)?;
     let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
     Ok(json!({
@@ -592,7 +592,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     write_json(&out.join("report.json"), &report)?;
     // The renderer reads report.json and the stages' files (centerline.vtp with its fields).
     let d = &args.design;
-    let ras = matches!(d.surface_frame, crate::Frame::Ras);
+    let ras = matches!(d.surface_frame, crate::design_cmd::Frame::Ras);
     let labels = [
         ("wall", d.wall_label),
         ("baffle", d.baffle_label),

@@ -1,0 +1,290 @@
+//! `baffle design`: its arguments, the target from them, the design run with its
+//! progress and summary lines (also the plan's design stage and the sweep's rows).
+
+use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
+use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
+use baffle_core::outputs::write_design_outputs;
+use baffle_core::phantom::phantom_default;
+use baffle_core::{design, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
+use crate::{feasibility, files};
+use clap::{Args, ValueEnum};
+use std::path::{Path, PathBuf};
+
+// Required-ness of --surface/--points is checked at run time (read_inputs), so that
+// `baffle plan` can offer other sources of the surface.
+#[derive(Args, Clone)]
+pub struct DesignArgs {
+    /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm (required unless --phantom).
+    #[arg(long)]
+    pub surface: Option<PathBuf>,
+    /// Suture points: Slicer markups (.mrk.json), .fcsv, CSV (x,y,z per line) or JSON (required unless --phantom).
+    #[arg(long)]
+    pub points: Option<PathBuf>,
+    /// Use the built-in synthetic phantom as surface and points (BSA 0.37 m2 unless given).
+    #[arg(long, conflicts_with_all = ["surface", "points"])]
+    pub phantom: bool,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub target: TargetArgs,
+    /// Frame of the surface file; suture points are converted into it. Slicer writes
+    /// models in LPS.
+    #[arg(long, value_enum, default_value_t = Frame::Lps)]
+    pub surface_frame: Frame,
+    /// Target edge length of the isotropic remeshing of the kept wall (mm).
+    #[arg(long, default_value_t = 0.85)]
+    pub remesh_edge_mm: f64,
+    /// Keep the input's wall triangles (no isotropic remeshing).
+    #[arg(long)]
+    pub no_remesh: bool,
+    /// Target edge length of the baffle (mm).
+    #[arg(long, default_value_t = 0.85)]
+    pub baffle_edge_mm: f64,
+    /// Points the seam spline is resampled at.
+    #[arg(long, default_value_t = 600)]
+    pub seam_samples: usize,
+    /// Centerline section spacing (mm).
+    #[arg(long, default_value_t = 0.5)]
+    pub centerline_spacing_mm: f64,
+    /// Interior TPS control points of the initial patch.
+    #[arg(long, default_value_t = 9)]
+    pub control_points: usize,
+    /// Largest distance of a suture point from the surface (mm).
+    #[arg(long, default_value_t = 2.0)]
+    pub max_point_distance_mm: f64,
+    /// ModelFaceID of the RV wall.
+    #[arg(long, default_value_t = 2)]
+    pub wall_label: i32,
+    /// ModelFaceID given to the baffle.
+    #[arg(long, default_value_t = 10)]
+    pub baffle_label: i32,
+    /// ModelFaceID of the VSD cap.
+    #[arg(long, default_value_t = 11)]
+    pub vsd_label: i32,
+    /// ModelFaceID of the aortic-annulus cap.
+    #[arg(long, default_value_t = 16)]
+    pub aortic_label: i32,
+    /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
+    /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
+    #[arg(long, value_parser = parse_point, requires = "aortic_cap_point", allow_hyphen_values = true)]
+    pub vsd_cap_point: Option<Vec3>,
+    /// A point on the aortic-annulus cap (see --vsd-cap-point).
+    #[arg(long, value_parser = parse_point, requires = "vsd_cap_point", allow_hyphen_values = true)]
+    pub aortic_cap_point: Option<Vec3>,
+    /// A reference baffle to compare with (area ratio, symmetric surface distance),
+    /// written to reference_comparison.json; e.g. the paper's published_baffle.vtp.
+    #[arg(long)]
+    pub reference_baffle: Option<PathBuf>,
+    /// Scale of the reference's coordinates to mm (10 for the published files, in cm).
+    #[arg(long, default_value_t = 1.0)]
+    pub reference_scale: f64,
+    /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
+    #[arg(long)]
+    pub progress_tags: bool,
+}
+
+#[derive(Args, Clone)]
+pub struct TargetArgs {
+    /// Target cross-section area (mm2).
+    #[arg(long, group = "target_kind")]
+    pub target_area_mm2: Option<f64>,
+    /// Target aortic annulus diameter (mm): A = pi (D/2)^2.
+    #[arg(long, group = "target_kind")]
+    pub annulus_diameter_mm: Option<f64>,
+    /// Body surface area (m2): Boston (Colan 2006) aortic annulus at --z-score.
+    #[arg(long, group = "target_kind")]
+    pub bsa: Option<f64>,
+    /// Height (cm), with --weight-kg: Haycock BSA, then the Boston annulus.
+    #[arg(long, requires = "weight_kg", group = "target_kind")]
+    pub height_cm: Option<f64>,
+    /// Weight (kg), with --height-cm.
+    #[arg(long, requires = "height_cm")]
+    pub weight_kg: Option<f64>,
+    /// Annulus z-score for --bsa or --height-cm/--weight-kg.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub z_score: f64,
+}
+
+/// The frame a surface's coordinates are in (the points are converted into it).
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Frame {
+    Lps,
+    Ras,
+}
+
+impl From<Frame> for CoordinateSystem {
+    fn from(f: Frame) -> Self {
+        match f {
+            Frame::Lps => CoordinateSystem::Lps,
+            Frame::Ras => CoordinateSystem::Ras,
+        }
+    }
+}
+
+/// The target area the arguments give (`default_bsa_m2`, the phantom's, when none does).
+pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
+    let z_score = args.z_score;
+    if let Some(a) = args.target_area_mm2 {
+        return Ok(TargetArea::AreaMm2(a));
+    }
+    if let Some(d) = args.annulus_diameter_mm {
+        return Ok(TargetArea::AnnulusDiameterMm(d));
+    }
+    if let (Some(height_cm), Some(weight_kg)) = (args.height_cm, args.weight_kg) {
+        return Ok(TargetArea::HeightWeight { height_cm, weight_kg, z_score });
+    }
+    match args.bsa.or(default_bsa_m2) {
+        Some(bsa_m2) => Ok(TargetArea::Bsa { bsa_m2, z_score }),
+        None => Err("give the target: --bsa, --height-cm and --weight-kg, --target-area-mm2 or --annulus-diameter-mm".into()),
+    }
+}
+
+/// `baffle design`: Slicer's progress tags on stdout with --progress-tags.
+pub fn run_design(args: &DesignArgs) -> Result<(), String> {
+    let tags = args.progress_tags;
+    design_reporting(args, &mut |fraction, stage| {
+        if tags {
+            print_progress_tag(fraction, stage);
+        }
+        true
+    })
+}
+
+/// A Slicer CLI progress tag and the stage it is in, on stdout.
+fn print_progress_tag(fraction: f64, stage: &str) {
+    println!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>");
+}
+
+/// `baffle design` with the progress sent to `progress`.
+pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
+    // Options first: a bad number is refused before any file is read.
+    let options = design_options(args)?;
+    let (surface, points, default_bsa) = design_inputs(args)?;
+    let target = target_from(&args.target, default_bsa)?;
+    let result = design(&surface, &points, &target, &options, progress).map_err(|e| feasibility::design_failure(&args.out, e))?;
+    write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
+    let r = &result.report;
+    println!(
+        "target {:.1} mm2 ({}); centerline {:.2} mm; baffle {:.1} mm2, {} triangles; {} constrained sections, smallest {:.1} mm2; {:.0} ms",
+        r.target_area_mm2,
+        r.target,
+        r.centerline_length_mm,
+        r.baffle_area_mm2,
+        r.baffle_triangles,
+        r.constrained_sections,
+        r.min_constrained_final_area_mm2,
+        r.timings.total_ms
+    );
+    println!("{}", rv_cost_line(&r.rv_cost));
+    if let Some(path) = &args.reference_baffle {
+        compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?;
+    }
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Surface, suture points (in the surface's frame) and the BSA that comes with the
+/// phantom (None for files).
+pub fn design_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>, Option<f64>), String> {
+    if args.phantom {
+        let p = phantom_default();
+        return Ok((p.surface, p.suture_points_mm, Some(p.bsa_m2)));
+    }
+    let (surface, points) = read_inputs(args)?;
+    Ok((surface, points, None))
+}
+
+/// The RV cost in one line, saying when the baffle leaves the capped ventricle (then the
+/// volumes are net figures, e.g. on an input that encloses only the pathway).
+pub fn rv_cost_line(c: &baffle_core::rv_cost::RvCost) -> String {
+    let line = format!(
+        "RV (capped ventricle) {:.2} mL before, {:.2} mL after the baffle (the pathway takes {:.2} mL)",
+        c.rv_volume_before_ml, c.rv_volume_after_ml, c.rv_volume_taken_ml
+    );
+    match c.baffle_area_outside_ventricle_mm2 {
+        a if a > 0.0 => format!("{line}; {a:.1} mm2 of the baffle lies outside the capped ventricle, so these are net volumes, not the RV cavity"),
+        _ => line,
+    }
+}
+
+/// The design options of the command line, range-checked in the one place the C ABI also uses.
+pub fn design_options(args: &DesignArgs) -> Result<DesignOptions, String> {
+    let options = DesignOptions {
+        labels: FaceLabels {
+            wall: args.wall_label,
+            baffle: args.baffle_label,
+            vsd_cap: args.vsd_label,
+            aortic_cap: args.aortic_label,
+        },
+        seam_samples: args.seam_samples,
+        max_point_distance_mm: args.max_point_distance_mm,
+        remesh_edge_mm: (!args.no_remesh).then_some(args.remesh_edge_mm),
+        baffle_edge_mm: args.baffle_edge_mm,
+        interior_control_points: args.control_points,
+        centerline_spacing_mm: args.centerline_spacing_mm,
+        ..DesignOptions::default()
+    };
+    options.validate().map_err(|e| e.to_string())?;
+    Ok(options)
+}
+
+fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<(), String> {
+    let mut reference = baffle_core::io::read_surface(path).map_err(|e| e.to_string())?;
+    reference.points.iter_mut().for_each(|p| *p *= scale);
+    let c = baffle_core::compare::compare_surfaces(baffle, &reference).map_err(|e| format!("{}: {e}", path.display()))?;
+    println!(
+        "reference {}: area {:.1} vs {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
+        path.display(),
+        c.area_mm2,
+        c.reference_area_mm2,
+        c.area_ratio,
+        c.mean_distance_mm,
+        c.max_distance_mm
+    );
+    let file = out.join("reference_comparison.json");
+    let text = serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?;
+    files::write_atomic(&file, text.as_bytes())
+}
+
+fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
+    let (Some(surface_path), Some(points_path)) = (&args.surface, &args.points) else {
+        return Err("--surface and --points are required (or --phantom)".into());
+    };
+    let labeled = read_surface_labeled(surface_path).map_err(|e| e.to_string())?;
+    let mut mesh = labeled.mesh;
+    if let (Some(vsd), Some(aortic)) = (args.vsd_cap_point, args.aortic_cap_point) {
+        let seeds = [CapSeed { point_mm: vsd, label: args.vsd_label }, CapSeed { point_mm: aortic, label: args.aortic_label }];
+        mesh.face_ids = label_planar_caps(&mesh, &seeds, args.wall_label, &CapTolerances::default())
+            .map_err(|e| format!("{}: {e}", surface_path.display()))?;
+    } else if !labeled.has_model_face_id {
+        return Err(format!(
+            "{}: no ModelFaceID cell array; give --vsd-cap-point and --aortic-cap-point to label the caps",
+            surface_path.display()
+        ));
+    }
+    let points = read_points(points_path).map_err(|e| e.to_string())?;
+    Ok((mesh, points.to_frame(args.surface_frame.into())))
+}
+
+fn parse_point(text: &str) -> Result<Vec3, String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{v}' is not a number")))
+        .collect::<Result<_, _>>()?;
+    match values[..] {
+        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok(Vec3::new(x, y, z)),
+        _ => Err(format!("expected x,y,z (three finite numbers), got '{text}'")),
+    }
+}
+
+/// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
+pub fn write_phantom(out: &Path) -> Result<(), String> {
+    let p = phantom_default();
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    write_trimesh_vtp(&out.join("capped_ventricle.vtp"), &p.surface).map_err(|e| e.to_string())?;
+    write_markups_closed_curve(&out.join("suture_points.mrk.json"), "BC", &p.suture_points_mm, CoordinateSystem::Lps)
+        .map_err(|e| e.to_string())?;
+    println!("wrote {} (BSA {} m2)", out.display(), p.bsa_m2);
+    Ok(())
+}

@@ -1,0 +1,108 @@
+//! The work behind the `baffle` command line, as a library: the plan pipeline (its
+//! stages, the CFD case it writes, the embedded and svMultiPhysics runs, the sampling
+//! along the centerline, the verdict and the report) and each command's own run, so the
+//! command line only parses arguments and other front ends can call the same pipeline.
+//!
+//! Module dependency order: a module uses only modules above it, so there are no circles
+//! (the test `each_module_uses_only_modules_declared_before_it` holds lib.rs to it).
+//!
+//! 1. `files`, `progress`, `sampling`, `case`: atomic writes, the progress model, fields
+//!    sampled along a centerline, the simulate case (JSON) and its settings.
+//! 2. `feasibility`, `verdict` (case), `svmp_case` (case: the svMultiPhysics export),
+//!    `export_cmd` (svmp_case), `prepare_cmd`, `mesh_cmd`,
+//!    `centerline_cmd` (files, progress, sampling).
+//! 3. `design_cmd` (feasibility), `extend_cmd` (prepare_cmd), `simulate_report` (case,
+//!    verdict: the summary both engines write), `template_cmd` (design_cmd).
+//! 4. `simulate_svmp` (svmp_case, simulate_report), `plan_stages` (design_cmd,
+//!    prepare_cmd: the plan's arguments, stages and paths).
+//! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict,
+//!    sampling, centerline_cmd, prepare_cmd, design_cmd).
+//! 6. `sweep_cmd` (design_cmd, report's plots), `plan_cmd` (every stage, report).
+
+pub mod files;
+pub mod progress;
+pub mod sampling;
+pub mod case;
+
+pub mod feasibility;
+pub mod verdict;
+pub mod svmp_case;
+pub mod export_cmd;
+pub mod prepare_cmd;
+pub mod mesh_cmd;
+pub mod centerline_cmd;
+
+pub mod design_cmd;
+pub mod extend_cmd;
+pub mod simulate_report;
+pub mod template_cmd;
+
+pub mod simulate_svmp;
+pub mod plan_stages;
+
+pub mod simulate_cmd;
+pub mod report;
+
+pub mod sweep_cmd;
+pub mod plan_cmd;
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    /// The modules in the order lib.rs declares them.
+    fn declared_modules(lib: &str) -> Vec<&str> {
+        lib.lines().filter_map(|l| l.strip_prefix("pub mod ")?.strip_suffix(';')).collect()
+    }
+
+    /// The crate modules a source file names (`crate::x` and `use crate::{x, y::z}`),
+    /// comments left out.
+    fn used_modules(source: &str) -> Vec<String> {
+        let code: String = source.lines().filter(|l| !l.trim_start().starts_with("//")).collect::<Vec<_>>().join("\n");
+        let mut used = Vec::new();
+        for (k, _) in code.match_indices("crate::") {
+            let rest = &code[k + "crate::".len()..];
+            if let Some(group) = rest.strip_prefix('{') {
+                // Top-level items of the group up to its closing brace.
+                let (mut depth, mut item) = (0, String::new());
+                for c in group.chars() {
+                    match c {
+                        '{' => depth += 1,
+                        '}' if depth == 0 => break,
+                        '}' => depth -= 1,
+                        ',' if depth == 0 => used.push(std::mem::take(&mut item)),
+                        _ => item.push(c),
+                    }
+                }
+                used.push(item);
+            } else {
+                used.push(rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect());
+            }
+        }
+        used.iter().map(|u| u.trim().split("::").next().unwrap_or_default().to_string()).filter(|u| !u.is_empty()).collect()
+    }
+
+    #[test]
+    fn each_module_uses_only_modules_declared_before_it() {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        let lib = std::fs::read_to_string(src.join("lib.rs")).unwrap();
+        let order = declared_modules(&lib);
+        assert!(order.len() > 10, "lib.rs declares only {order:?}");
+        for (k, module) in order.iter().enumerate() {
+            let file = [src.join(format!("{module}.rs")), src.join(module).join("mod.rs")].into_iter().find(|f| f.exists());
+            let file = file.unwrap_or_else(|| panic!("no source file for module {module}"));
+            let source = std::fs::read_to_string(&file).unwrap();
+            for used in used_modules(&source) {
+                let position = order.iter().position(|m| *m == used);
+                let position = position.unwrap_or_else(|| panic!("{}: uses crate::{used}, not a module of lib.rs", file.display()));
+                assert!(position < k, "{}: uses crate::{used}, declared after {module} in lib.rs (a circle or a wrong order)", file.display());
+            }
+        }
+    }
+
+    #[test]
+    fn used_modules_reads_paths_and_groups() {
+        let source = "//! [`crate::late`]\nuse crate::a::{B, C};\nuse crate::{d, e::{F, G}};\nlet x = crate::h::f();";
+        assert_eq!(used_modules(source), ["a", "d", "e", "h"]);
+    }
+}
