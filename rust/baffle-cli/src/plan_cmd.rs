@@ -89,7 +89,7 @@ pub struct PlanArgs {
     pub patient_label: Option<String>,
 }
 
-fn parse_bp(text: &str) -> Result<(f64, f64), String> {
+pub(crate) fn parse_bp(text: &str) -> Result<(f64, f64), String> {
     let parts: Vec<&str> = text.split('/').collect();
     let numbers: Vec<f64> = parts.iter().filter_map(|p| p.trim().parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
     match numbers[..] {
@@ -139,7 +139,7 @@ pub struct Stage {
     pub name: String,
     pub step: Step,
     /// Share of the progress range (rough relative run time).
-    weight: f64,
+    pub weight: f64,
 }
 
 /// Outcome of one stage, for report.json.
@@ -322,7 +322,7 @@ fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
 }
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
-fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
+pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
     let out = &args.design.out;
     match &stage.step {
         Step::Prepare => {
