@@ -14,16 +14,16 @@ use crate::files::write_atomic;
 use crate::plan_cmd::{self, PlanArgs, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
 use crate::progress::{Progress, Style};
-use crate::verdict::{self, Verdict};
-use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
-use std::path::{Path, PathBuf};
 use crate::report::svg_plot::{line_chart, Series};
+use crate::verdict::{self, Verdict};
 use crate::{design_inputs, design_options, rv_cost_line, target_from, DesignArgs};
+use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::{design, DesignError, DesignReport, TargetArea};
 use clap::Args;
 use serde_json::json;
 use std::fmt::Write;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args)]
@@ -56,16 +56,16 @@ struct CfdArgs {
     #[arg(long, requires = "bp")]
     cfd: bool,
     /// Blood pressure SBP/DBP (mmHg) for --cfd: the outlet resistance R = MAP / Q_mean.
-    #[arg(long, value_parser = plan_cmd::parse_bp)]
+    #[arg(long, value_parser = plan_cmd::parse_bp, requires = "cfd")]
     bp: Option<(f64, f64)>,
     /// Heart rate (beats/min) for --cfd; default: the built-in period of 0.682 s.
-    #[arg(long)]
+    #[arg(long, requires = "cfd")]
     hr: Option<f64>,
     /// Largest tetrahedron edge of --cfd's meshes (mm); the paper's coarse level, for speed.
-    #[arg(long, default_value_t = 1.25)]
+    #[arg(long, default_value_t = 1.25, requires = "cfd")]
     edge_length_mm: f64,
     /// Cardiac index of --cfd's runs (L/min/m2): the mean flow is BSA x cardiac index.
-    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2)]
+    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2, requires = "cfd")]
     cardiac_index: f64,
 }
 

@@ -252,7 +252,9 @@ fn a_sweep_lists_every_target_and_the_infeasible_end() {
     assert!(!rows[1]["reason"].as_str().unwrap().is_empty() && rows[1]["baffle_area_mm2"].is_null());
     let csv = std::fs::read_to_string(out_dir.join("sweep.csv")).unwrap();
     assert_eq!(csv.lines().count(), 3, "{csv}");
-    assert!(std::fs::read_to_string(out_dir.join("sweep.md")).unwrap().contains("| infeasible |"));
+    let md = std::fs::read_to_string(out_dir.join("sweep.md")).unwrap();
+    assert!(md.contains("| infeasible |") && md.contains(&format!("| {dp:.2} |")) && md.contains(&format!("| {expected} |")), "{md}");
+    assert!(csv.lines().nth(1).unwrap().contains(&format!(",{dp:.3},")), "{csv}");
     let svg = std::fs::read_to_string(out_dir.join("sweep.svg")).unwrap();
     assert!(svg.contains("largest feasible") && svg.contains("Quick dp estimate"));
     // --cfd needs the blood pressure (the outlet resistance).
