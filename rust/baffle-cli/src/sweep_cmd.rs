@@ -30,7 +30,10 @@ use std::time::Instant;
 #[command(after_help = "Examples:\n  \
     baffle sweep --surface ../shared/data/p2/design_input/capped_ventricle.vtp \\\n      \
     --points ../shared/data/p2/design_input/suture_points.mrk.json --bsa 0.37 --z-scores=-2,-1,0,1,2 --out out/p2-sweep\n  \
-    baffle sweep --phantom --areas-mm2 40,60,80,120 --out out/phantom-sweep")]
+    baffle sweep --phantom --areas-mm2 40,60,80,120 --out out/phantom-sweep\n  \
+    # with the quick dp estimate per target, on the extended domains (p2: about 2 minutes)\n  \
+    baffle sweep --segmentations ../shared/data/p2/segmentations --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
+    --bsa 0.37 --z-scores=-2,-1,0,1,2 --cfd --bp 107/78 --hr 133 --out out/p2-sweep-cfd")]
 pub struct SweepArgs {
     #[command(flatten)]
     design: DesignArgs,

@@ -271,3 +271,31 @@ fn a_sweep_lists_every_target_and_the_infeasible_end() {
     std::fs::remove_dir_all(&out_dir).unwrap();
     std::fs::remove_dir_all(&again).unwrap();
 }
+
+/// `baffle sweep --segmentations --cfd`: the capped ventricle is prepared once, and each
+/// target's quick estimate runs on its extended domain (inflow at the mid-LV cap, as the plan).
+#[test]
+fn a_sweep_from_segmentations_runs_the_quick_estimate_on_the_extended_domain() {
+    let heart = temp_dir("sweep-heart");
+    let out = baffle(&["phantom", "--heart", "--out", heart.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let points = heart.join("suture_points.mrk.json");
+    let out_dir = temp_dir("sweep-extended");
+    let (seg, pts, dir) = (heart.to_str().unwrap(), points.to_str().unwrap(), out_dir.to_str().unwrap());
+    let out = baffle(&["sweep", "--segmentations", seg, "--points", pts, "--bsa", "0.2", "--areas-mm2", "60", "--cfd", "--bp", "107/78", "--out", dir]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out_dir.join("prepare").join("capped_ventricle.vtp").is_file());
+    let row_dir = out_dir.join("area-60");
+    assert!(row_dir.join("extend").join("extended.vtp").is_file());
+    let case: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(row_dir.join("simulate-nominal").join("case.json")).unwrap()).unwrap();
+    assert_eq!(case["faces"]["inlet"], 20, "{case}");
+    assert_eq!(case["faces"]["planes"], serde_json::json!([11, 16]), "{case}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("sweep.json")).unwrap()).unwrap();
+    let row = &doc["rows"][0];
+    assert!(row["dp_mmhg"].as_f64().unwrap().is_finite() && row["verdict"]["verdict"].is_string(), "{row}");
+    // One source of the ventricle.
+    let out = baffle(&["sweep", "--segmentations", seg, "--surface", pts, "--points", pts, "--bsa", "0.2", "--areas-mm2", "60", "--out", dir]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("one source of the ventricle"), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(&out_dir).unwrap();
+    std::fs::remove_dir_all(&heart).unwrap();
+}
