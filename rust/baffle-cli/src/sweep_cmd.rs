@@ -6,8 +6,8 @@
 //! Writes into --out: sweep.csv, sweep.md, sweep.json, sweep.svg and, per designed
 //! target, a subfolder named after it (z-1, z+0.5, area-80) holding the design's files in
 //! `design/`. With --cfd each designed target also gets the quick dp estimate of
-//! `baffle plan --quick` (the plan's own mesh and simulate stages, in `mesh-nominal/` and
-//! `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
+//! `baffle plan --quick` (the plan's own [extend,] mesh and simulate stages, in `extend/`,
+//! `mesh-nominal/` and `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
 //! the pressure difference and to the right ventricle side by side.
 
 use crate::files::write_atomic;
@@ -55,7 +55,8 @@ pub struct SweepArgs {
 #[derive(Args)]
 struct CfdArgs {
     /// Also mesh each designed domain and run the quick estimate (`baffle plan --quick`:
-    /// from rest to the first flow peak, inflow on the VSD cap): dp, v_max and the verdict per row.
+    /// from rest to the first flow peak; inflow on the VSD cap, or with --segmentations on
+    /// the mid-LV cap of the extended domain): dp, v_max and the verdict per row.
     #[arg(long, requires = "bp")]
     cfd: bool,
     /// Blood pressure SBP/DBP (mmHg) for --cfd: the outlet resistance R = MAP / Q_mean.
@@ -406,7 +407,8 @@ fn markdown(rows: &[Row]) -> String {
 }
 
 /// Three charts over the sweep's x (z-score, else target area): the areas, the baffle,
-/// and the RV volumes; infeasible targets are gaps, the largest feasible target a line.
+/// and the RV volumes (and, with --cfd, the quick dp against 10 mmHg); infeasible targets
+/// are gaps, the largest feasible target a line.
 fn plot(rows: &[Row]) -> String {
     let by_z = rows.iter().all(|r| r.z_score.is_some());
     let x = |r: &Row| if by_z { r.z_score.unwrap_or(f64::NAN) } else { r.target_area_mm2 };
@@ -428,7 +430,7 @@ fn plot(rows: &[Row]) -> String {
         let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
         areas.push(Series { label: "largest feasible".into(), points: vec![(lo, largest), (hi, largest)], color: "#2ca02c", dashed: true, markers: false });
     }
-    let charts = [
+    let mut charts = vec![
         line_chart("Target and section areas", x_label, "area (mm2)", &areas, true),
         line_chart("Baffle area", x_label, "area (mm2)", &[series("baffle", "#9467bd", &|r| r.designed(|d| d.baffle_area_mm2))], true),
         line_chart(
@@ -442,7 +444,6 @@ fn plot(rows: &[Row]) -> String {
             true,
         ),
     ];
-    let mut charts = charts.to_vec();
     if rows.iter().any(|r| r.quick.is_some()) {
         let threshold = Series { label: "10 mmHg".into(), dashed: true, markers: false, ..series("", "#d62728", &|_| verdict::DP_THRESHOLD_MMHG) };
         let dp = series("dp at the first flow peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg));
