@@ -446,7 +446,7 @@ fn plot(rows: &[Row]) -> String {
     ];
     if rows.iter().any(|r| r.quick.is_some()) {
         let threshold = Series { label: "10 mmHg".into(), dashed: true, markers: false, ..series("", "#d62728", &|_| verdict::DP_THRESHOLD_MMHG) };
-        let dp = series("dp at the first flow peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg));
+        let dp = series("dp, first peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg));
         charts.push(line_chart("Quick dp estimate", x_label, "dp (mmHg)", &[dp, threshold], true));
     }
     stack(&charts)
