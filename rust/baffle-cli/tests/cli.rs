@@ -221,28 +221,45 @@ fn centerline_of_an_extended_domain_is_trimmed_at_its_interior_planes() {
 }
 
 /// `baffle sweep`: every target is a row, an infeasible one with the largest target the
-/// seam admits (which then designs), and each designed target's files are kept.
+/// seam admits (which then designs), and each designed target's files are kept; with
+/// --cfd a designed row carries its quick estimate's dp, v_max and verdict.
 #[test]
 fn a_sweep_lists_every_target_and_the_infeasible_end() {
     let out_dir = temp_dir("sweep");
-    let out = baffle(&["sweep", "--phantom", "--areas-mm2", "60,1500", "--out", out_dir.to_str().unwrap()]);
+    let out = baffle(&["sweep", "--phantom", "--areas-mm2", "60,1500", "--cfd", "--bp", "107/78", "--out", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("sweep.json")).unwrap()).unwrap();
     let rows = doc["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
     assert_eq!(rows[0]["status"], "designed");
-    let designed = report(&out_dir.join("area-60"));
+    let designed = report(&out_dir.join("area-60").join("design"));
     assert_eq!(rows[0]["baffle_area_mm2"], designed["baffle_area_mm2"]);
     assert_eq!(rows[0]["rv_volume_after_ml"], designed["rv_volume_after_ml"]);
     assert!(rows[0]["max_feasible_area_mm2"].is_null());
+    // The row's dp is the quick run's, judged as the plan judges it.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("area-60").join("simulate-nominal").join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["mode"], "quick", "{summary}");
+    let dp = rows[0]["dp_mmhg"].as_f64().unwrap();
+    assert_eq!(dp, summary["dp_peak_mmhg"].as_f64().unwrap());
+    assert!(dp > 0.0 && rows[0]["vmax_m_s"].as_f64().unwrap() > 0.1, "{}", rows[0]);
+    let expected = if dp < 10.0 { "passes" } else { "fails" };
+    assert_eq!(rows[0]["verdict"]["verdict"], expected, "{}", rows[0]);
     assert_eq!(rows[1]["status"], "infeasible");
+    assert!(rows[1]["dp_mmhg"].is_null() && rows[1]["verdict"].is_null(), "{}", rows[1]);
     let largest = rows[1]["max_feasible_area_mm2"].as_f64().unwrap();
     assert!(60.0 < largest && largest < 1500.0, "{}", rows[1]);
     assert!(!rows[1]["reason"].as_str().unwrap().is_empty() && rows[1]["baffle_area_mm2"].is_null());
     let csv = std::fs::read_to_string(out_dir.join("sweep.csv")).unwrap();
     assert_eq!(csv.lines().count(), 3, "{csv}");
-    assert!(std::fs::read_to_string(out_dir.join("sweep.md")).unwrap().contains("| infeasible |"));
-    assert!(std::fs::read_to_string(out_dir.join("sweep.svg")).unwrap().contains("largest feasible"));
+    let md = std::fs::read_to_string(out_dir.join("sweep.md")).unwrap();
+    assert!(md.contains("| infeasible |") && md.contains(&format!("| {dp:.2} |")) && md.contains(&format!("| {expected} |")), "{md}");
+    assert!(csv.lines().nth(1).unwrap().contains(&format!(",{dp:.3},")), "{csv}");
+    let svg = std::fs::read_to_string(out_dir.join("sweep.svg")).unwrap();
+    assert!(svg.contains("largest feasible") && svg.contains("Quick dp estimate"));
+    // --cfd needs the blood pressure (the outlet resistance).
+    let out = baffle(&["sweep", "--phantom", "--areas-mm2", "60", "--cfd", "--out", out_dir.to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--bp"), "{}", String::from_utf8_lossy(&out.stderr));
     // The largest feasible target designs.
     let again = temp_dir("sweep-largest");
     let out = baffle(&["sweep", "--phantom", "--areas-mm2", &format!("{largest}"), "--out", again.to_str().unwrap()]);
@@ -253,4 +270,32 @@ fn a_sweep_lists_every_target_and_the_infeasible_end() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--z-scores needs the body size"));
     std::fs::remove_dir_all(&out_dir).unwrap();
     std::fs::remove_dir_all(&again).unwrap();
+}
+
+/// `baffle sweep --segmentations --cfd`: the capped ventricle is prepared once, and each
+/// target's quick estimate runs on its extended domain (inflow at the mid-LV cap, as the plan).
+#[test]
+fn a_sweep_from_segmentations_runs_the_quick_estimate_on_the_extended_domain() {
+    let heart = temp_dir("sweep-heart");
+    let out = baffle(&["phantom", "--heart", "--out", heart.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let points = heart.join("suture_points.mrk.json");
+    let out_dir = temp_dir("sweep-extended");
+    let (seg, pts, dir) = (heart.to_str().unwrap(), points.to_str().unwrap(), out_dir.to_str().unwrap());
+    let out = baffle(&["sweep", "--segmentations", seg, "--points", pts, "--bsa", "0.2", "--areas-mm2", "60", "--cfd", "--bp", "107/78", "--out", dir]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out_dir.join("prepare").join("capped_ventricle.vtp").is_file());
+    let row_dir = out_dir.join("area-60");
+    assert!(row_dir.join("extend").join("extended.vtp").is_file());
+    let case: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(row_dir.join("simulate-nominal").join("case.json")).unwrap()).unwrap();
+    assert_eq!(case["faces"]["inlet"], 20, "{case}");
+    assert_eq!(case["faces"]["planes"], serde_json::json!([11, 16]), "{case}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("sweep.json")).unwrap()).unwrap();
+    let row = &doc["rows"][0];
+    assert!(row["dp_mmhg"].as_f64().unwrap().is_finite() && row["verdict"]["verdict"].is_string(), "{row}");
+    // One source of the ventricle.
+    let out = baffle(&["sweep", "--segmentations", seg, "--surface", pts, "--points", pts, "--bsa", "0.2", "--areas-mm2", "60", "--out", dir]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("one source of the ventricle"), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(&out_dir).unwrap();
+    std::fs::remove_dir_all(&heart).unwrap();
 }

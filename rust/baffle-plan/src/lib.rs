@@ -17,7 +17,8 @@
 //!    prepare_cmd: the plan's arguments, stages and paths).
 //! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict,
 //!    sampling, centerline_cmd, prepare_cmd, design_cmd).
-//! 6. `sweep_cmd` (design_cmd, report's plots), `plan_cmd` (every stage, report).
+//! 6. `plan_cmd` (every stage, report).
+//! 7. `sweep_cmd` (design_cmd, report's plots, plan_cmd's stages for `--cfd`).
 
 pub mod files;
 pub mod progress;
@@ -43,8 +44,8 @@ pub mod plan_stages;
 pub mod simulate_cmd;
 pub mod report;
 
-pub mod sweep_cmd;
 pub mod plan_cmd;
+pub mod sweep_cmd;
 
 #[cfg(test)]
 mod tests {

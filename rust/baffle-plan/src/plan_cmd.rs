@@ -80,7 +80,7 @@ fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
 }
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
-fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
+pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
     let out = &args.design.out;
     match &stage.step {
         Step::Prepare => {

@@ -75,7 +75,7 @@ pub struct PlanArgs {
     pub patient_label: Option<String>,
 }
 
-fn parse_bp(text: &str) -> Result<(f64, f64), String> {
+pub(crate) fn parse_bp(text: &str) -> Result<(f64, f64), String> {
     let parts: Vec<&str> = text.split('/').collect();
     let numbers: Vec<f64> = parts.iter().filter_map(|p| p.trim().parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
     match numbers[..] {

@@ -4,23 +4,37 @@
 //! its reason and the largest target the seam admits, not the end of the sweep.
 //!
 //! Writes into --out: sweep.csv, sweep.md, sweep.json, sweep.svg and, per designed
-//! target, the design's files in a subfolder named after it (z-1, z+0.5, area-80).
+//! target, a subfolder named after it (z-1, z+0.5, area-80) holding the design's files in
+//! `design/`. With --cfd each designed target also gets the quick dp estimate of
+//! `baffle plan --quick` (the plan's own [extend,] mesh and simulate stages, in `extend/`,
+//! `mesh-nominal/` and `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
+//! the pressure difference and to the right ventricle side by side.
 
 use crate::files::write_atomic;
+use crate::plan_cmd;
+use crate::plan_stages::{self, PlanArgs, Stage, Step};
+use crate::prepare_cmd::PrepareSource;
+use crate::progress::{Progress, Style};
 use crate::report::svg_plot::{line_chart, Series};
 use crate::design_cmd::{design_inputs, design_options, rv_cost_line, target_from, DesignArgs, TargetArgs};
+use crate::verdict::{self, Verdict};
+use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::{design, DesignError, DesignReport, TargetArea};
 use clap::Args;
 use serde_json::json;
 use std::fmt::Write;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args)]
 #[command(after_help = "Examples:\n  \
     baffle sweep --surface ../shared/data/p2/design_input/capped_ventricle.vtp \\\n      \
     --points ../shared/data/p2/design_input/suture_points.mrk.json --bsa 0.37 --z-scores=-2,-1,0,1,2 --out out/p2-sweep\n  \
-    baffle sweep --phantom --areas-mm2 40,60,80,120 --out out/phantom-sweep")]
+    baffle sweep --phantom --areas-mm2 40,60,80,120 --out out/phantom-sweep\n  \
+    # with the quick dp estimate per target, on the extended domains (p2: about 2 minutes)\n  \
+    baffle sweep --segmentations ../shared/data/p2/segmentations --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
+    --bsa 0.37 --z-scores=-2,-1,0,1,2 --cfd --bp 107/78 --hr 133 --out out/p2-sweep-cfd")]
 pub struct SweepArgs {
     #[command(flatten)]
     design: DesignArgs,
@@ -30,6 +44,42 @@ pub struct SweepArgs {
     /// Target areas to design at (mm2, comma-separated), instead of --z-scores.
     #[arg(long, value_delimiter = ',')]
     areas_mm2: Vec<f64>,
+    /// Instead of --surface: prepare the capped ventricle from these blood pools once (as
+    /// `baffle plan`, into --out/prepare); --cfd then runs on each design's extended domain.
+    #[command(flatten)]
+    prepare: PrepareSource,
+    #[command(flatten)]
+    cfd: CfdArgs,
+}
+
+/// The quick dp estimate per designed target (opt-in: it is minutes, the design seconds).
+#[derive(Args)]
+struct CfdArgs {
+    /// Also mesh each designed domain and run the quick estimate (`baffle plan --quick`:
+    /// from rest to the first flow peak; inflow on the VSD cap, or with --segmentations on
+    /// the mid-LV cap of the extended domain): dp, v_max and the verdict per row.
+    #[arg(long, requires = "bp")]
+    cfd: bool,
+    /// Blood pressure SBP/DBP (mmHg) for --cfd: the outlet resistance R = MAP / Q_mean.
+    #[arg(long, value_parser = plan_stages::parse_bp, requires = "cfd")]
+    bp: Option<(f64, f64)>,
+    /// Heart rate (beats/min) for --cfd; default: the built-in period of 0.682 s.
+    #[arg(long, requires = "cfd")]
+    hr: Option<f64>,
+    /// Largest tetrahedron edge of --cfd's meshes (mm); the paper's coarse level, for speed.
+    #[arg(long, default_value_t = 1.25, requires = "cfd")]
+    edge_length_mm: f64,
+    /// Cardiac index of --cfd's runs (L/min/m2): the mean flow is BSA x cardiac index.
+    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2, requires = "cfd")]
+    cardiac_index: f64,
+}
+
+/// A designed target's quick estimate: dp at the first flow peak and its verdict.
+struct Quick {
+    dp_mmhg: f64,
+    vmax_m_s: f64,
+    verdict: Verdict,
+    cfd_s: f64,
 }
 
 /// One target of the sweep and what became of it.
@@ -38,6 +88,8 @@ struct Row {
     target_area_mm2: f64,
     outcome: Outcome,
     design_ms: f64,
+    /// With --cfd, on a designed row.
+    quick: Option<Quick>,
 }
 
 enum Outcome {
@@ -84,6 +136,21 @@ impl Row {
     fn folder(&self) -> String {
         folder_name(self.z_score, self.target_area_mm2)
     }
+
+    /// A figure of the quick estimate, NaN without one.
+    fn quick(&self, f: impl Fn(&Quick) -> f64) -> f64 {
+        self.quick.as_ref().map_or(f64::NAN, f)
+    }
+
+    fn verdict_key(&self) -> &'static str {
+        self.quick.as_ref().map_or("", |q| q.verdict.key())
+    }
+
+    /// Why the row is not a plain design: the design's failure, or an inconclusive estimate.
+    fn note(&self) -> String {
+        let inconclusive = self.quick.as_ref().and_then(|q| q.verdict.reason()).map(|r| format!("quick estimate inconclusive: {r}"));
+        inconclusive.unwrap_or_else(|| self.reason().to_string())
+    }
 }
 
 /// Subfolder of a target's design files: z-1, z+0.5, area-80.
@@ -100,8 +167,13 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
         return Err("baffle sweep takes neither --reference-baffle nor --progress-tags (run baffle design on one target)".into());
     }
     let options = design_options(&args.design)?;
-    let (surface, points, default_bsa) = design_inputs(&args.design)?;
+    let prepared = prepare_once(args)?;
+    let (surface, points, default_bsa) = design_inputs(&DesignArgs { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
+    if args.cfd.cfd {
+        // Every stage's arguments are checked before the first design, as the plan does.
+        plan_stages::plan_stages(&plan_args(args, &args.design.out, f64::NAN))?;
+    }
     std::fs::create_dir_all(&args.design.out).map_err(|e| format!("{}: {e}", args.design.out.display()))?;
     let started = Instant::now();
     let mut rows = Vec::new();
@@ -109,9 +181,10 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
         // The area first: a target that cannot even be computed is a row, not a stop.
         let target_area_mm2 = target.area_mm2().unwrap_or(f64::NAN);
         let clock = Instant::now();
+        let row_dir = args.design.out.join(folder_name(z_score, target_area_mm2));
         let outcome = match design(&surface, &points, &target, &options, &mut |_, _| true) {
             Ok(result) => {
-                write_design_outputs(&args.design.out.join(folder_name(z_score, target_area_mm2)), &result).map_err(|e| e.to_string())?;
+                write_design_outputs(&row_dir.join("design"), &result).map_err(|e| e.to_string())?;
                 Outcome::Designed(Box::new(result.report))
             }
             Err(DesignError::Infeasible { max_feasible_area_mm2, max_feasible_z_score, reason, .. }) => {
@@ -119,7 +192,12 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
             }
             Err(e) => Outcome::Failed(e.to_string()),
         };
-        let row = Row { z_score, target_area_mm2, outcome, design_ms: clock.elapsed().as_secs_f64() * 1e3 };
+        let design_ms = clock.elapsed().as_secs_f64() * 1e3;
+        let quick = match &outcome {
+            Outcome::Designed(report) if args.cfd.cfd => Some(quick_estimate(&plan_args(args, &row_dir, target_area_mm2), report)),
+            _ => None,
+        };
+        let row = Row { z_score, target_area_mm2, outcome, design_ms, quick };
         println!("{}", summary_line(&row));
         rows.push(row);
     }
@@ -131,6 +209,95 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
     write_atomic(&out.join("sweep.json"), json_doc(&rows, total_s).to_string().as_bytes())?;
     println!("{} targets in {total_s:.1} s; wrote {}", rows.len(), out.display());
     Ok(())
+}
+
+/// The plan of one target's quick estimate: its design in `row_dir/design`, the
+/// target as the area the design was made for (the flow needs the BSA, kept).
+fn plan_args(args: &SweepArgs, row_dir: &Path, target_area_mm2: f64) -> PlanArgs {
+    let mut design = args.design.clone();
+    design.out = row_dir.to_path_buf();
+    if target_area_mm2.is_finite() {
+        design.target.target_area_mm2 = Some(target_area_mm2);
+    }
+    let c = &args.cfd;
+    PlanArgs {
+        design,
+        prepare: args.prepare.clone(),
+        bp: c.bp.unwrap_or((f64::NAN, f64::NAN)),
+        hr: c.hr,
+        steady: false,
+        quick: true,
+        pulsatile: false,
+        cycles: 4,
+        edge_length_mm: c.edge_length_mm,
+        mesh_study: false,
+        elevated_flow: false,
+        cardiac_index: c.cardiac_index,
+        prepare_remesh_edge_mm: None,
+        patient_label: None,
+    }
+}
+
+/// With --segmentations or --labelmap: the plan's prepare stage into --out/prepare, once
+/// for every target; the capped ventricle it wrote.
+fn prepare_once(args: &SweepArgs) -> Result<Option<PathBuf>, String> {
+    if !args.prepare.is_given() {
+        return Ok(None);
+    }
+    if args.design.surface.is_some() || args.design.phantom {
+        return Err("baffle sweep takes one source of the ventricle: --surface, --phantom, --segmentations or --labelmap".into());
+    }
+    let out = &args.design.out;
+    let stage = Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 };
+    let dir = out.join(&stage.name);
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    plan_cmd::run_stage(&plan_args(args, out, f64::NAN), &stage, &dir, &progress).map_err(|e| format!("stage prepare failed: {e}"))?;
+    progress.finish(None);
+    Ok(Some(plan_stages::prepared_surface_path(out)))
+}
+
+/// Mesh the designed domain and run the quick estimate with the plan's own stages
+/// (everything after its design), then judge dp as the plan does. A stage that fails
+/// makes the row inconclusive with the stage and its reason, not the sweep's end.
+fn quick_estimate(plan: &PlanArgs, report: &DesignReport) -> Quick {
+    let clock = Instant::now();
+    let result = run_after_design(plan);
+    let cfd_s = clock.elapsed().as_secs_f64();
+    let design_doubt = verdict::design_doubt(&json!({
+        "min_constrained_final_area_mm2": report.min_constrained_final_area_mm2,
+        "target_area_mm2": report.target_area_mm2,
+    }));
+    match result {
+        Ok(summary) => {
+            let dp_mmhg = summary["dp_peak_mmhg"].as_f64().unwrap_or(f64::NAN);
+            let vmax_m_s = summary["max_velocity_m_s"].as_f64().unwrap_or(f64::NAN);
+            let mut doubts = verdict::run_doubts(&summary);
+            doubts.extend(design_doubt);
+            Quick { dp_mmhg, vmax_m_s, verdict: Verdict::of(dp_mmhg, doubts), cfd_s }
+        }
+        Err(e) => Quick { dp_mmhg: f64::NAN, vmax_m_s: f64::NAN, verdict: Verdict::Inconclusive { reasons: vec![e] }, cfd_s },
+    }
+}
+
+/// The plan's stages a designed domain needs for its dp (no centerline, no report).
+const AFTER_DESIGN: [&str; 3] = ["extend", "mesh-", "simulate-"];
+
+/// The plan's extend (when prepared), mesh and simulate stages into the row's folder; the run's summary.json.
+fn run_after_design(plan: &PlanArgs) -> Result<serde_json::Value, String> {
+    let out = &plan.design.out;
+    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let mut summary = None;
+    for stage in plan_stages::plan_stages(plan)?.iter().filter(|s| AFTER_DESIGN.iter().any(|p| s.name.starts_with(p))) {
+        let dir: PathBuf = out.join(&stage.name);
+        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        plan_cmd::run_stage(plan, stage, &dir, &progress).map_err(|e| format!("stage {} failed: {e}", stage.name))?;
+        summary = Some(dir.join("summary.json"));
+    }
+    progress.finish(None);
+    let path = summary.ok_or("the plan has no simulate stage")?;
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// The sweep's targets, each with its z-score when the list was of z-scores.
@@ -173,7 +340,7 @@ fn optional(v: Option<f64>, decimals: usize) -> String {
     cell(v.unwrap_or(f64::NAN), decimals)
 }
 
-const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,max_feasible_area_mm2,max_feasible_z_score,design_ms,reason";
+const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,max_feasible_area_mm2,max_feasible_z_score,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
 
 fn csv(rows: &[Row]) -> String {
     let mut s = format!("{CSV_HEADER}\n");
@@ -191,9 +358,13 @@ fn csv(rows: &[Row]) -> String {
             cell(r.designed(|d| d.rv_cost.baffle_area_outside_ventricle_mm2), 2),
             cell(max_area, 3),
             optional(max_z, 3),
+            cell(r.quick(|q| q.dp_mmhg), 3),
+            cell(r.quick(|q| q.vmax_m_s), 3),
+            r.verdict_key().to_string(),
             cell(r.design_ms, 0),
+            cell(r.quick(|q| q.cfd_s), 1),
             // Quoted, inner quotes doubled (RFC 4180): reasons hold commas.
-            format!("\"{}\"", r.reason().replace('"', "\"\"")),
+            format!("\"{}\"", r.note().replace('"', "\"\"")),
         ];
         let _ = writeln!(s, "{}", fields.join(","));
     }
@@ -202,8 +373,8 @@ fn csv(rows: &[Row]) -> String {
 
 fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | largest feasible target (mm2) | time (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | largest feasible target (mm2) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let (max_area, max_z) = r.max_feasible();
@@ -213,7 +384,7 @@ fn markdown(rows: &[Row]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             optional(r.z_score, 2),
             cell(r.target_area_mm2, 1),
             r.status(),
@@ -223,10 +394,13 @@ fn markdown(rows: &[Row]) -> String {
             cell(r.designed(|d| d.rv_cost.rv_volume_after_ml), 2),
             cell(r.designed(|d| d.rv_cost.rv_volume_taken_ml), 2),
             largest,
-            cell(r.design_ms / 1e3, 1),
+            cell(r.quick(|q| q.dp_mmhg), 2),
+            cell(r.quick(|q| q.vmax_m_s), 2),
+            r.verdict_key(),
+            cell((r.design_ms / 1e3) + r.quick(|q| q.cfd_s).max(0.0), 1),
         );
     }
-    let notes: Vec<String> = rows.iter().filter(|r| !r.reason().is_empty()).map(|r| format!("- {}: {}", r.folder(), r.reason())).collect();
+    let notes: Vec<String> = rows.iter().filter(|r| !r.note().is_empty()).map(|r| format!("- {}: {}", r.folder(), r.note())).collect();
     if !notes.is_empty() {
         let _ = write!(s, "\n{}\n", notes.join("\n"));
     }
@@ -234,7 +408,8 @@ fn markdown(rows: &[Row]) -> String {
 }
 
 /// Three charts over the sweep's x (z-score, else target area): the areas, the baffle,
-/// and the RV volumes; infeasible targets are gaps, the largest feasible target a line.
+/// and the RV volumes (and, with --cfd, the quick dp against 10 mmHg); infeasible targets
+/// are gaps, the largest feasible target a line.
 fn plot(rows: &[Row]) -> String {
     let by_z = rows.iter().all(|r| r.z_score.is_some());
     let x = |r: &Row| if by_z { r.z_score.unwrap_or(f64::NAN) } else { r.target_area_mm2 };
@@ -256,7 +431,7 @@ fn plot(rows: &[Row]) -> String {
         let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
         areas.push(Series { label: "largest feasible".into(), points: vec![(lo, largest), (hi, largest)], color: "#2ca02c", dashed: true, markers: false });
     }
-    let charts = [
+    let mut charts = vec![
         line_chart("Target and section areas", x_label, "area (mm2)", &areas, true),
         line_chart("Baffle area", x_label, "area (mm2)", &[series("baffle", "#9467bd", &|r| r.designed(|d| d.baffle_area_mm2))], true),
         line_chart(
@@ -270,6 +445,11 @@ fn plot(rows: &[Row]) -> String {
             true,
         ),
     ];
+    if rows.iter().any(|r| r.quick.is_some()) {
+        let threshold = Series { label: "10 mmHg".into(), dashed: true, markers: false, ..series("", "#d62728", &|_| verdict::DP_THRESHOLD_MMHG) };
+        let dp = series("dp, first peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg));
+        charts.push(line_chart("Quick dp estimate", x_label, "dp (mmHg)", &[dp, threshold], true));
+    }
     stack(&charts)
 }
 
@@ -308,7 +488,11 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
                 "baffle_area_outside_ventricle_mm2": number(r.designed(|d| d.rv_cost.baffle_area_outside_ventricle_mm2)),
                 "max_feasible_area_mm2": number(max_area),
                 "max_feasible_z_score": max_z,
+                "dp_mmhg": number(r.quick(|q| q.dp_mmhg)),
+                "vmax_m_s": number(r.quick(|q| q.vmax_m_s)),
+                "verdict": r.quick.as_ref().map(|q| json!({"verdict": q.verdict.key(), "reason": q.verdict.reason(), "passes": q.verdict == Verdict::Passes})),
                 "design_ms": r.design_ms,
+                "cfd_s": number(r.quick(|q| q.cfd_s)),
                 "reason": r.reason(),
             })
         }).collect::<Vec<_>>(),
@@ -321,12 +505,13 @@ mod tests {
 
     fn rows() -> Vec<Row> {
         vec![
-            Row { z_score: Some(-1.0), target_area_mm2: 50.0, outcome: Outcome::Failed("seam, \"crossing\" the cap".into()), design_ms: 12.0 },
+            Row { z_score: Some(-1.0), target_area_mm2: 50.0, outcome: Outcome::Failed("seam, \"crossing\" the cap".into()), design_ms: 12.0, quick: None },
             Row {
                 z_score: Some(2.0),
                 target_area_mm2: 120.0,
                 outcome: Outcome::Infeasible { max_feasible_area_mm2: 95.5, max_feasible_z_score: Some(1.1), reason: "no amplitude".into() },
                 design_ms: 80.0,
+                quick: None,
             },
         ]
     }
