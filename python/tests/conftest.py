@@ -36,3 +36,14 @@ def patient_input():
         return folder, bsa_m2
 
     return load
+
+
+def read_vtp(path):
+    """A .vtp file through VTK's own reader (needs the vtk wheel); fails on an empty read."""
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    assert reader.GetOutput().GetNumberOfCells() > 0, f"cannot read {path}"
+    return reader.GetOutput()

@@ -11,21 +11,14 @@ vtk = pytest.importorskip("vtkmodules.vtkCommonCore")
 from vtkmodules.vtkCommonCore import vtkIdList  # noqa: E402
 from vtkmodules.vtkCommonDataModel import vtkPlane  # noqa: E402
 from vtkmodules.vtkFiltersCore import vtkCutter, vtkFeatureEdges, vtkMassProperties, vtkStripper  # noqa: E402
-from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter  # noqa: E402
+from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter  # noqa: E402
 
+from conftest import read_vtp  # noqa: E402
 from baffle.vtk_adapters import centerline_polydata, design_polydata, mesh_to_polydata, polydata_to_mesh  # noqa: E402
 
 WALL, BAFFLE, VSD_CAP, AORTIC_CAP = 2, 10, 11, 16
 # VTK re-cuts the same triangles with the same plane; only summation order differs.
 RELATIVE_TOLERANCE = 1e-9
-
-
-def read_vtp(path):
-    reader = vtkXMLPolyDataReader()
-    reader.SetFileName(str(path))
-    reader.Update()
-    assert reader.GetOutput().GetNumberOfCells() > 0, f"cannot read {path}"
-    return reader.GetOutput()
 
 
 def write_vtp(polydata, path):

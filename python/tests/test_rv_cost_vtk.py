@@ -16,14 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, data_dir, missing_data
+from conftest import REPO, data_dir, missing_data, read_vtp
 
 vtk_core = pytest.importorskip("vtkmodules.vtkCommonCore")
 from vtkmodules.vtkCommonCore import vtkPoints  # noqa: E402
 from vtkmodules.vtkCommonDataModel import vtkPolyData  # noqa: E402
 from vtkmodules.vtkFiltersCore import vtkMassProperties  # noqa: E402
 from vtkmodules.vtkFiltersModeling import vtkSelectEnclosedPoints  # noqa: E402
-from vtkmodules.vtkIOXML import vtkXMLPolyDataReader  # noqa: E402
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy  # noqa: E402
 
 GRID_MM = 0.3
@@ -43,14 +42,6 @@ def run(*args):
     done = subprocess.run([str(cli()), *map(str, args)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     return done.stdout
-
-
-def read_vtp(path):
-    reader = vtkXMLPolyDataReader()
-    reader.SetFileName(str(path))
-    reader.Update()
-    assert reader.GetOutput().GetNumberOfCells() > 0, f"cannot read {path}"
-    return reader.GetOutput()
 
 
 def volume_mm3(polydata) -> float:
