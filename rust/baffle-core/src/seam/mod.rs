@@ -20,6 +20,7 @@ use crate::numerics::pca::best_fit_plane;
 use crate::numerics::spline::ClosedSpline;
 use crate::spatial::{ClosestHit, TriangleBvh};
 use detour::WallGraph;
+use std::cell::OnceCell;
 
 /// Where a point of the seam's path lies on the input surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,19 +86,18 @@ pub fn project_seam(
             points.len()
         )));
     }
-    check_points_on_wall(surface, bvh, labels, points, max_point_distance_mm)?;
+    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
+    check_points_on_wall(&projector, points, max_point_distance_mm)?;
     check_points_enclose(points)?;
     let ordered = order_by_pca_angle(points);
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
-    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
     let samples = spline
         .resample_uniform_arclength(sample_count.max(16))
         .iter()
         .enumerate()
         .map(|(i, q)| projector.project(*q, i))
         .collect::<Result<Vec<_>, _>>()?;
-    let tracer =
-        PathTracer { projector, neighbors: surface.triangle_neighbors(), wall: WallGraph::new(surface, labels.wall) };
+    let tracer = PathTracer { projector, neighbors: surface.triangle_neighbors(), wall: OnceCell::new() };
     let (path, samples_mm) = tracer.trace_closed(&samples)?;
     Ok(ProjectedSeam { ordered_points_mm: ordered, samples_mm, path })
 }
@@ -145,9 +145,16 @@ impl WallProjector<'_> {
     /// The cap `q` lies over (nearer to it than to the wall, `wall` being q's wall
     /// projection), and how much nearer.
     fn over_cap(&self, q: Vec3, wall: &ClosestHit) -> Option<(i32, f64)> {
-        let any = self.bvh.closest_point(self.surface, q)?;
-        let label = self.surface.face_ids[any.triangle as usize];
-        let inside_cap_mm = wall.distance_mm - any.distance_mm;
+        let nearest = self.bvh.closest_point(self.surface, q)?;
+        self.cap_nearer_than_wall(&nearest, wall.distance_mm)
+    }
+
+    /// The cap of `nearest` (a point's closest surface point) when the point is nearer
+    /// that cap than the wall (`wall_distance_mm` away) by more than the margin, and by
+    /// how much: a point on a cap's rim is as near the wall as the cap.
+    fn cap_nearer_than_wall(&self, nearest: &ClosestHit, wall_distance_mm: f64) -> Option<(i32, f64)> {
+        let label = self.surface.face_ids[nearest.triangle as usize];
+        let inside_cap_mm = wall_distance_mm - nearest.distance_mm;
         (label != self.labels.wall && inside_cap_mm > CAP_MARGIN_MM).then_some((label, inside_cap_mm))
     }
 }
@@ -156,7 +163,8 @@ impl WallProjector<'_> {
 struct PathTracer<'a> {
     projector: WallProjector<'a>,
     neighbors: Vec<[u32; 3]>,
-    wall: WallGraph,
+    /// Built on the first detour only: most seams never need one.
+    wall: OnceCell<WallGraph>,
 }
 
 impl PathTracer<'_> {
@@ -205,7 +213,8 @@ impl PathTracer<'_> {
         }
         // Bisected to micrometres and still not adjacent: the projection jumps (see
         // `detour`); the seam follows the wall's edges across the gap.
-        match self.wall.detour(surface, a, b) {
+        let wall = self.wall.get_or_init(|| WallGraph::new(surface, self.projector.labels.wall));
+        match wall.detour(surface, a, b) {
             Ok(chain) => {
                 chain.into_iter().for_each(|v| push_vertex(path, v, surface.points[v as usize]));
                 Ok(())
@@ -342,18 +351,14 @@ fn check_points_enclose(points: &[Vec3]) -> Result<(), DesignError> {
 }
 
 /// Every suture point must lie on the RV wall (not a cap) within the tolerance.
-fn check_points_on_wall(
-    surface: &TriMesh,
-    bvh: &TriangleBvh,
-    labels: &FaceLabels,
-    points: &[Vec3],
-    max_point_distance_mm: f64,
-) -> Result<(), DesignError> {
+fn check_points_on_wall(projector: &WallProjector, points: &[Vec3], max_point_distance_mm: f64) -> Result<(), DesignError> {
+    let (surface, labels) = (projector.surface, projector.labels);
     for (i, p) in points.iter().enumerate() {
         if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
             return Err(DesignError::SuturePoints(format!("point {} has a non-finite coordinate", i + 1)));
         }
-        let hit = bvh
+        let hit = projector
+            .bvh
             .closest_point(surface, *p)
             .ok_or_else(|| DesignError::Surface("the surface has no triangles".into()))?;
         if hit.distance_mm > max_point_distance_mm {
@@ -368,13 +373,11 @@ fn check_points_on_wall(
                 max_point_distance_mm
             )));
         }
-        // A point on a cap's rim is as near the wall as the cap: only a point nearer a
-        // cap than the wall by the margin is on the cap.
-        let label = surface.face_ids[hit.triangle as usize];
-        let wall_distance_mm = bvh
-            .closest_point_filtered(surface, *p, |t| surface.face_ids[t as usize] == labels.wall)
-            .map_or(f64::INFINITY, |w| w.distance_mm);
-        if label != labels.wall && wall_distance_mm > hit.distance_mm + CAP_MARGIN_MM {
+        // The wall is looked up only when the nearest triangle is not wall.
+        let on_cap = (surface.face_ids[hit.triangle as usize] != labels.wall)
+            .then(|| projector.wall_hit(*p).map_or(f64::INFINITY, |w| w.distance_mm))
+            .and_then(|wall_distance_mm| projector.cap_nearer_than_wall(&hit, wall_distance_mm));
+        if let Some((label, _)) = on_cap {
             return Err(DesignError::SuturePoints(format!(
                 "point {} lies on the {} (label {label}), not on the RV wall",
                 i + 1,

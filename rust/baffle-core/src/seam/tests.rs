@@ -110,8 +110,7 @@ fn a_seam_that_crosses_itself_is_rejected() {
             projector.project(Vec3::new(2.0 + 1.5 * a.sin(), 2.0 + 1.2 * a.sin() * a.cos(), 4.0), k).unwrap()
         })
         .collect();
-    let tracer =
-        PathTracer { projector, neighbors: mesh.triangle_neighbors(), wall: WallGraph::new(&mesh, labels.wall) };
+    let tracer = PathTracer { projector, neighbors: mesh.triangle_neighbors(), wall: OnceCell::new() };
     let (path, samples_mm) = tracer.trace_closed(&samples).unwrap();
     let seam = ProjectedSeam { ordered_points_mm: Vec::new(), samples_mm, path };
     let err = imprint_seam(&mesh, &seam).unwrap_err();
