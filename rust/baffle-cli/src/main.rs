@@ -4,7 +4,7 @@
 use baffle_plan::{
     centerline_cmd, design_cmd, export_cmd, extend_cmd, mesh_cmd, plan_cmd, plan_stages, prepare_cmd, simulate_cmd, sweep_cmd, template_cmd,
 };
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -68,7 +68,7 @@ enum Command {
 
 fn main() -> ExitCode {
     restore_default_sigpipe();
-    let cli = Cli::parse();
+    let cli = parse_arguments();
     let result = match cli.command {
         Command::Design(args) => design_cmd::run_design(&args),
         Command::Prepare(args) => prepare_cmd::run_prepare(&args),
@@ -90,6 +90,15 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The arguments, where a value may be a negative number after a space (`--z-score -2`,
+/// `--bsa -1`): such a value then reaches the option's own range check, which names it,
+/// instead of being taken for an unknown flag.
+fn parse_arguments() -> Cli {
+    let negative_values = |arg: clap::Arg| if arg.get_action().takes_values() { arg.allow_negative_numbers(true) } else { arg };
+    let command = Cli::command().mut_subcommands(|sub| sub.mut_args(negative_values));
+    Cli::from_arg_matches(&command.get_matches()).unwrap_or_else(|e| e.exit())
 }
 
 /// Rust starts with SIGPIPE ignored, so printing to a closed pipe (`baffle mesh | head`)

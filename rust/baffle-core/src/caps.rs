@@ -5,7 +5,56 @@
 //! their corners within `max_offset_mm` of the seed's plane. Everything else is wall.
 
 use crate::mesh::{TriMesh, Vec3};
+use crate::numerics::pca::{best_fit_plane, Plane};
 use crate::spatial::TriangleBvh;
+
+/// A cap is planar when no point is farther from its best-fit plane than this fraction
+/// of its equivalent diameter (0.1 mm on a 10 mm cap, below a tenth of a mesh edge).
+/// The published caps are planar to 4-16 micrometres (float32 files), not to rounding:
+/// an absolute tolerance refused them; a crumpled cap is off by millimetres.
+pub const PLANAR_TOLERANCE_OF_DIAMETER: f64 = 0.01;
+
+/// How far the cap labelled `label` is from flat.
+#[derive(Clone, Copy, Debug)]
+pub struct CapFlatness {
+    /// Least-squares plane of the cap's points, normal outward (as the surface is wound).
+    pub plane: Plane,
+    pub area_mm2: f64,
+    /// Largest distance of a cap point from `plane`.
+    pub off_plane_mm: f64,
+    /// [`PLANAR_TOLERANCE_OF_DIAMETER`] of the cap's equivalent diameter.
+    pub tolerance_mm: f64,
+}
+
+impl CapFlatness {
+    pub fn is_planar(&self) -> bool {
+        self.off_plane_mm <= self.tolerance_mm
+    }
+
+    /// "the VSD cap is not planar: ..." for an error message.
+    pub fn describe(&self, name: &str) -> String {
+        format!(
+            "the {name} cap is not planar: a point lies {:.3} mm off its plane (tolerance {:.3} mm, 1% of its diameter)",
+            self.off_plane_mm, self.tolerance_mm
+        )
+    }
+}
+
+/// The flatness of the cap labelled `label` of `mesh` (None if it has no area).
+pub fn cap_flatness(mesh: &TriMesh, label: i32) -> Option<CapFlatness> {
+    let (_, outward, area_mm2) = mesh.label_centroid_normal(label)?;
+    let mut on_cap = vec![false; mesh.points.len()];
+    for (tri, _) in mesh.triangles.iter().zip(&mesh.face_ids).filter(|(_, &f)| f == label) {
+        tri.iter().for_each(|&v| on_cap[v as usize] = true);
+    }
+    let points: Vec<Vec3> = mesh.points.iter().zip(&on_cap).filter(|(_, &c)| c).map(|(p, _)| *p).collect();
+    let fitted = best_fit_plane(&points);
+    // Turned outward, still right-handed.
+    let plane = if fitted.normal.dot(&outward) < 0.0 { Plane { normal: -fitted.normal, axis_v: -fitted.axis_v, ..fitted } } else { fitted };
+    let off_plane_mm = points.iter().map(|p| plane.signed_distance_mm(p).abs()).fold(0.0, f64::max);
+    let tolerance_mm = PLANAR_TOLERANCE_OF_DIAMETER * 2.0 * (area_mm2 / std::f64::consts::PI).sqrt();
+    Some(CapFlatness { plane, area_mm2, off_plane_mm, tolerance_mm })
+}
 
 /// A point on a cap and the label the cap should get.
 #[derive(Clone, Copy, Debug)]
@@ -87,6 +136,31 @@ fn grow_planar_region(mesh: &TriMesh, neighbors: &[[u32; 3]], seed: usize, tol: 
 mod tests {
     use super::*;
     use crate::phantom::phantom_default;
+
+    #[test]
+    fn phantom_caps_are_flat_and_a_bent_one_is_not() {
+        let p = phantom_default();
+        for label in [11, 16] {
+            let flat = cap_flatness(&p.surface, label).unwrap();
+            assert!(flat.is_planar() && flat.off_plane_mm < 1e-9, "{flat:?}");
+            assert!(flat.plane.normal.dot(&p.surface.label_centroid_normal(label).unwrap().1) > 0.99, "outward");
+            let reversed = TriMesh { triangles: p.surface.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect(), ..p.surface.clone() };
+            for plane in [flat.plane, cap_flatness(&reversed, label).unwrap().plane] {
+                assert!((plane.axis_u.cross(&plane.axis_v) - plane.normal).norm() < 1e-12, "right-handed either way round");
+            }
+        }
+        let mut bent = p.surface.clone();
+        let flat = cap_flatness(&bent, 11).unwrap();
+        // Every cap point moved by its squared distance from the centroid: a bowl.
+        let on_cap: Vec<u32> = bent.triangles.iter().zip(&bent.face_ids).filter(|(_, &f)| f == 11).flat_map(|(t, _)| *t).collect();
+        for v in on_cap.iter().collect::<std::collections::BTreeSet<_>>() {
+            let p = bent.points[*v as usize];
+            bent.points[*v as usize] += flat.plane.normal * 0.05 * (p - flat.plane.centroid).norm_squared();
+        }
+        let bowl = cap_flatness(&bent, 11).unwrap();
+        assert!(!bowl.is_planar() && bowl.describe("VSD").contains("the VSD cap is not planar"), "{bowl:?}");
+        assert!(cap_flatness(&bent, 99).is_none());
+    }
 
     #[test]
     fn phantom_caps_are_recovered_from_one_point_each() {

@@ -2,6 +2,7 @@
 //! progress/cancel callback and the time each step took.
 
 use crate::amplitudes::{arc_displacement, ArcDisplacement};
+use crate::caps::cap_flatness;
 use crate::centerline::{build_centerline, CapFrame, Centerline};
 use crate::envelope::regularize_amplitudes;
 use crate::error::DesignError;
@@ -295,6 +296,11 @@ impl<'a> Clock<'a> {
     }
 }
 
+/// No coordinate of a heart lies this far (mm) from the origin of any scanner frame;
+/// one that does is a broken number (1e30, a unit error of 10^6) that a design would
+/// otherwise carry silently.
+const MAX_COORDINATE_MM: f64 = 1.0e5;
+
 /// The input must be a closed manifold with the three labels; an inward-wound
 /// surface (as SimVascular writes them) is reversed.
 fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh, bool), DesignError> {
@@ -312,14 +318,14 @@ fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh,
     if let Some(t) = surface.triangles.iter().position(|tri| tri.iter().any(|&v| v >= n)) {
         return Err(DesignError::Surface(format!("triangle {t} refers to a point beyond the {n} points")));
     }
-    let mut present: Vec<i32> = surface.face_ids.clone();
-    present.sort_unstable();
-    present.dedup();
-    for (label, what) in [(labels.wall, "RV wall"), (labels.vsd_cap, "VSD cap"), (labels.aortic_cap, "aortic-annulus cap")] {
-        if !present.contains(&label) {
-            return Err(DesignError::MissingLabel { label, what, present: present.clone() });
-        }
+    if let Some(i) = surface.points.iter().position(|p| p.amax() > MAX_COORDINATE_MM) {
+        let p = surface.points[i];
+        return Err(DesignError::Surface(format!(
+            "point {i} lies at ({:.3e}, {:.3e}, {:.3e}) mm, beyond {MAX_COORDINATE_MM} mm of the origin: a broken coordinate, not anatomy",
+            p.x, p.y, p.z
+        )));
     }
+    check_labels(surface, labels)?;
     let rep = manifold_report(surface);
     if !rep.is_closed_manifold() {
         let at = rep.example_edge.map(|(a, b)| {
@@ -340,12 +346,39 @@ fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh,
             rep.inconsistently_wound_edges
         )));
     }
+    for (label, name) in [(labels.vsd_cap, "VSD"), (labels.aortic_cap, "aortic-annulus")] {
+        match cap_flatness(surface, label) {
+            Some(flat) if !flat.is_planar() => return Err(DesignError::Surface(flat.describe(name))),
+            _ => {}
+        }
+    }
     if surface.signed_volume_mm3() < 0.0 {
         let mut flipped = surface.clone();
         flipped.triangles.iter_mut().for_each(|t| t.swap(1, 2));
         return Ok((flipped, true));
     }
     Ok((surface.clone(), false))
+}
+
+/// The three labels must be present, and no other: a stray label is a face the design
+/// would silently take as wall (a mislabelled cap, a leftover of an editor).
+fn check_labels(surface: &TriMesh, labels: &FaceLabels) -> Result<(), DesignError> {
+    let mut present: Vec<i32> = surface.face_ids.clone();
+    present.sort_unstable();
+    present.dedup();
+    let expected = [(labels.wall, "RV wall"), (labels.vsd_cap, "VSD cap"), (labels.aortic_cap, "aortic-annulus cap")];
+    for (label, what) in expected {
+        if !present.contains(&label) {
+            return Err(DesignError::MissingLabel { label, what, present: present.clone() });
+        }
+    }
+    let Some(&stray) = present.iter().find(|l| !expected.iter().any(|(e, _)| e == *l)) else { return Ok(()) };
+    let triangles: Vec<usize> = (0..surface.triangles.len()).filter(|&t| surface.face_ids[t] == stray).collect();
+    let at = surface.triangle_points(triangles[0]).iter().fold(Vec3::zeros(), |s, p| s + p) / 3.0;
+    Err(DesignError::Surface(format!(
+        "{} triangle(s) are labelled {stray} (e.g. at ({:.2}, {:.2}, {:.2})), which is none of wall {}, VSD cap {} and aortic cap {}: relabel them, or give the labels (--wall-label, --vsd-label, --aortic-label)",
+        triangles.len(), at.x, at.y, at.z, labels.wall, labels.vsd_cap, labels.aortic_cap
+    )))
 }
 
 fn build_initial_patch(kept: &KeptRegion, seam_mm: &[Vec3], options: &DesignOptions) -> Result<InitialPatch, DesignError> {

@@ -177,7 +177,25 @@ impl<'a> WallDistance<'a> {
     }
 }
 
+impl CenterlineOptions {
+    /// Each option in its range, named as the command's flag: a zero spacing would
+    /// resample forever, a re-centring beyond the inscribed radius would leave the lumen.
+    pub fn validate(&self) -> Result<(), String> {
+        let checks = [
+            ("voxel-mm", self.voxel_mm, 0.01, 5.0),
+            ("spacing-mm", self.spacing_mm, 0.01, 20.0),
+            ("smoothing-mm", self.smoothing_mm, 0.0, 50.0),
+            ("recenter-fraction", self.recenter_fraction, 0.0, 1.0),
+        ];
+        match checks.iter().find(|(_, v, lo, hi)| !(v.is_finite() && (*lo..=*hi).contains(v))) {
+            Some((name, v, lo, hi)) => Err(format!("--{name} = {v} is outside [{lo}, {hi}]")),
+            None => Ok(()),
+        }
+    }
+}
+
 pub fn flow_centerline(lumen: &Lumen, opts: &CenterlineOptions) -> Result<FlowCenterline, String> {
+    opts.validate()?;
     let mut clock = Clock { last: std::time::Instant::now(), laps: Vec::new() };
     let wall = WallDistance::new(lumen)?;
     let grid = lumen_grid(lumen.surface, opts.voxel_mm)?;

@@ -16,7 +16,7 @@ pub const TPS_REGULARIZATION: (f64, f64) = (0.0, 1e6);
 /// Allowed range of each count option (inclusive). The seam needs enough samples to
 /// be a loop at all; beyond 100,000 it only costs time.
 pub const SEAM_SAMPLES: (usize, usize) = (16, 100_000);
-pub const INTERIOR_CONTROL_POINTS: (usize, usize) = (0, 1_000);
+pub const INTERIOR_CONTROL_POINTS: (usize, usize) = (1, 1_000);
 pub const MAX_CORRECTION_ROUNDS: (usize, usize) = (0, 100);
 
 impl DesignOptions {

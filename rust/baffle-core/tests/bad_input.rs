@@ -144,3 +144,40 @@ fn cancelling_from_the_progress_callback_stops_the_design() {
     assert!(matches!(err, DesignError::Cancelled(ref s) if s == "centerline"), "{err}");
     assert_eq!(stages.last().map(String::as_str), Some("centerline"));
 }
+
+#[test]
+fn a_stray_label_is_named_not_taken_as_wall() {
+    let p = phantom_default();
+    let mut surface = p.surface.clone();
+    surface.face_ids[40] = 77;
+    expect_error(&surface, &p.suture_points_mm, &target(), &["1 triangle(s) are labelled 77", "--vsd-label"]);
+}
+
+#[test]
+fn a_coordinate_beyond_any_scanner_is_named() {
+    let p = phantom_default();
+    let mut surface = p.surface.clone();
+    surface.points[5].x = 1e30;
+    expect_error(&surface, &p.suture_points_mm, &target(), &["point 5", "broken coordinate"]);
+}
+
+#[test]
+fn a_crumpled_cap_is_named_before_the_remesher_sees_it() {
+    let p = phantom_default();
+    let mut surface = p.surface.clone();
+    let (_, normal, _) = surface.label_centroid_normal(11).unwrap();
+    // One interior vertex of the VSD cap pushed 1 mm off its plane.
+    let on_other: std::collections::HashSet<u32> =
+        surface.triangles.iter().zip(&surface.face_ids).filter(|(_, &f)| f != 11).flat_map(|(t, _)| *t).collect();
+    let v = surface.triangles.iter().zip(&surface.face_ids).filter(|(_, &f)| f == 11).flat_map(|(t, _)| *t).find(|v| !on_other.contains(v)).unwrap();
+    surface.points[v as usize] += normal * 1.0;
+    expect_error(&surface, &p.suture_points_mm, &target(), &["VSD cap is not planar", "mm off its plane"]);
+}
+
+#[test]
+fn a_point_given_twice_is_named_in_the_surgeons_numbering() {
+    let p = phantom_default();
+    let mut points = p.suture_points_mm.clone();
+    points[6] = points[2];
+    expect_error(&p.surface, &points, &target(), &["points 3 and 7", "given twice"]);
+}

@@ -119,6 +119,8 @@ pub fn split_interior_labels(
 /// Most tetrahedra a mesh may have: the CFD needs about 1.5 kB a tetrahedron (p2's
 /// 147k-tet mesh: 224 MB), so 5 million is about 8 GB, and gmsh would take hours.
 pub const MAX_TETRAHEDRA: f64 = 5e6;
+/// Fewer tetrahedra than this resolve no flow (see [`check_resolves_flow`]).
+pub const MIN_TETRAHEDRA: f64 = 100.0;
 
 /// Tetrahedra gmsh makes at `edge_length_mm` in `volume_mm3`: a regular tetrahedron of
 /// edge L holds L^3 / (6 sqrt 2); gmsh's are smaller near the boundary, hence twice that.
@@ -138,6 +140,22 @@ fn check_expected_size(surface: &TriMesh, edge_length_mm: f64) -> Result<f64, Me
         )));
     }
     Ok(expected)
+}
+
+/// Refuse an edge so long that the mesh resolves no flow (an edge the size of the
+/// domain is a typo for a user; small test shapes are meshed coarsely on purpose, so
+/// `mesh_surface` itself does not refuse it).
+pub fn check_resolves_flow(surface: &TriMesh, edge_length_mm: f64) -> Result<(), MeshError> {
+    let volume_mm3 = surface.signed_volume_mm3().abs();
+    let expected = expected_tetrahedra(volume_mm3, edge_length_mm);
+    if expected < MIN_TETRAHEDRA {
+        let longest_mm = (2.0 * volume_mm3 * 6.0 * std::f64::consts::SQRT_2 / MIN_TETRAHEDRA).cbrt();
+        return Err(MeshError::InvalidInput(format!(
+            "an edge length of {edge_length_mm} mm leaves about {expected:.0} tetrahedra for the {volume_mm3:.1} mm3 enclosed \
+             (at least {MIN_TETRAHEDRA:.0}): use an edge of at most {longest_mm:.1} mm"
+        )));
+    }
+    Ok(())
 }
 
 /// gmsh's time limit: the caller's, or 2 minutes plus 1 ms per expected tetrahedron
@@ -666,6 +684,17 @@ mod tests {
         };
         let err = mesh_surface(&open_box(), &opts).unwrap_err().to_string();
         assert!(err.contains("3 boundary edges"), "{err}");
+    }
+
+    #[test]
+    fn an_edge_as_long_as_the_domain_is_refused_with_the_longest_that_works() {
+        let mut closed = open_box();
+        closed.triangles.push([1, 2, 3]);
+        closed.face_ids.push(2);
+        // 1/6 mm3: about 100 tetrahedra at an edge of 0.3 mm.
+        assert!(check_resolves_flow(&closed, 0.1).is_ok());
+        let err = check_resolves_flow(&closed, 1.0).unwrap_err().to_string();
+        assert!(err.contains("leaves about 3 tetrahedra for the 0.2 mm3") && err.contains("at most 0.3 mm"), "{err}");
     }
 
     #[test]

@@ -7,6 +7,32 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// A transient run resolves each cardiac cycle by at least this many steps: fewer cannot
+/// place the flow peak, where dp is reported (the paper's runs take 500-700 a cycle; the
+/// tests run cycles of 20).
+pub const MIN_STEPS_PER_CYCLE: f64 = 10.0;
+
+fn check_steps_per_cycle(s: &CaseSettings) -> Result<(), String> {
+    let period_s = s.inflow.period_s();
+    match matches!(s.mode, RunMode::Transient) && s.dt_s * MIN_STEPS_PER_CYCLE > period_s {
+        true => Err(format!(
+            "time.dt_s = {} s gives {:.1} steps in the {period_s} s cardiac cycle; at least {MIN_STEPS_PER_CYCLE} are needed (the paper used 1 ms)",
+            s.dt_s,
+            period_s / s.dt_s
+        )),
+        false => Ok(()),
+    }
+}
+
+/// A count option that must be at least 1 (a parser for clap).
+pub fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        Ok(_) => Err("must be at least 1".into()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 pub const EXAMPLE: &str = r#"{
   "mesh": { "volume": "mesh.vtu", "faces": "mesh-faces.vtp", "format": "baffle", "units": "mm" },
   "faces": { "inlet": 11, "outlets": [16], "walls": [2, 10], "planes": [] },
@@ -288,6 +314,18 @@ fn read_baffle_mesh(vtu: &Path, vtp: &Path) -> Result<FlowMesh, String> {
     })
 }
 
+/// Heart rates a child can have (beats/min): a newborn's runs to about 190, an exercising
+/// teenager's to about 220; outside this range the number is a typo.
+pub const HEART_RATE_RANGE_BPM: (f64, f64) = (30.0, 250.0);
+
+pub fn heart_rate_bpm(name: &str, v: f64) -> Result<f64, String> {
+    let (lo, hi) = HEART_RATE_RANGE_BPM;
+    match v.is_finite() && (lo..=hi).contains(&v) {
+        true => Ok(v),
+        false => Err(format!("{name} = {v} beats/min is outside the plausible heart rates [{lo}, {hi}]")),
+    }
+}
+
 fn positive(name: &str, v: f64) -> Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
@@ -323,7 +361,7 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
     };
     let period = match (inflow.period_s, inflow.heart_rate_bpm) {
         (Some(p), _) => positive("inflow.period_s", p)?,
-        (None, Some(hr)) => 60.0 / positive("inflow.heart_rate_bpm", hr)?,
+        (None, Some(hr)) => 60.0 / heart_rate_bpm("inflow.heart_rate_bpm", hr)?,
         (None, None) => baffle_cfd::waveform::DEFAULT_PERIOD_S,
     };
     let waveform = match (&inflow.waveform_file, q_mean) {
@@ -400,6 +438,7 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
         s.steady_max_iterations = v;
     }
     s.validate().map_err(|e| e.to_string())?;
+    check_steps_per_cycle(&s)?;
     let flow = FlowInputs {
         q_mean_ml_s: q_mean,
         q_peak_ml_s: q_peak,
@@ -409,4 +448,44 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
         map_mmhg,
     };
     Ok((s, flow))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example_with(from: &str, to: &str) -> Result<(CaseSettings, FlowInputs), String> {
+        assert!(EXAMPLE.contains(from), "{from}");
+        let case: Case = serde_json::from_str(&EXAMPLE.replacen(from, to, 1)).unwrap();
+        settings(&case)
+    }
+
+    #[test]
+    fn the_example_case_is_valid() {
+        example_with("\"dt_s\": 0.001", "\"dt_s\": 0.001").unwrap();
+    }
+
+    #[test]
+    fn a_step_too_long_for_the_cycle_is_named_with_the_steps_it_gives() {
+        let e = example_with("\"dt_s\": 0.001", "\"dt_s\": 0.1").unwrap_err();
+        assert!(e.contains("time.dt_s = 0.1") && e.contains("6.8 steps"), "{e}");
+        // A steady run has no cycle to resolve.
+        example_with("\"mode\": \"transient\", \"dt_s\": 0.001", "\"mode\": \"steady\", \"dt_s\": 0.1").unwrap();
+    }
+
+    #[test]
+    fn heart_rates_outside_a_childs_are_named() {
+        assert_eq!(heart_rate_bpm("--hr", 133.0), Ok(133.0));
+        for bad in [0.0, f64::NAN, 900.0, -60.0] {
+            let e = heart_rate_bpm("--hr", bad).unwrap_err();
+            assert!(e.contains("--hr") && e.contains("beats/min"), "{e}");
+        }
+    }
+
+    #[test]
+    fn counts_below_one_are_refused() {
+        assert_eq!(at_least_one("3"), Ok(3));
+        assert!(at_least_one("0").unwrap_err().contains("at least 1"));
+        assert!(at_least_one("-2").is_err() && at_least_one("two").is_err());
+    }
 }

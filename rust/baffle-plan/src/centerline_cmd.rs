@@ -76,6 +76,8 @@ pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));
     }
+    let options = CenterlineOptions { voxel_mm: args.voxel_mm, spacing_mm: args.spacing_mm, smoothing_mm: args.smoothing_mm, recenter_fraction: args.recenter_fraction };
+    options.validate()?;
     let surface = read_mm(&args.surface, args.scale)?;
     let planes = two(&args.planes, "--planes")?;
     let ends = two(args.ends.as_deref().unwrap_or(&planes), "--ends")?;
@@ -91,7 +93,6 @@ pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>
     let interior: Vec<i32> = planes.iter().filter(|l| !ends.contains(l)).copied().collect();
     let boundary = surface.with_labels(|l| !interior.contains(&l));
     let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
-    let options = CenterlineOptions { voxel_mm: args.voxel_mm, spacing_mm: args.spacing_mm, smoothing_mm: args.smoothing_mm, recenter_fraction: args.recenter_fraction };
     let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let profile = match &args.results {
         Some(path) => Some(PeakFields::read(path)?.profile(&line.points)),
@@ -154,9 +155,7 @@ pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result
     let (line, profile) = progress.while_running("centerline", || compute(args))?;
     let wall_time_s = start.elapsed().as_secs_f64();
     let (vtp, json_path) = output_paths(&args.out);
-    if let Some(dir) = vtp.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
+    crate::files::create_parent_dir(&vtp)?;
     write_vtp(&vtp, &polydata(&line, profile.as_ref())).map_err(|e| e.to_string())?;
     let doc = summary(args, &line, profile.as_ref(), wall_time_s);
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;

@@ -5,7 +5,7 @@ use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_cu
 use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::phantom::phantom_default;
-use baffle_core::{design, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
+use baffle_core::{design, DesignError, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
 use crate::{feasibility, files};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -101,8 +101,9 @@ pub struct TargetArgs {
     /// Weight (kg), with --height-cm.
     #[arg(long, requires = "height_cm")]
     pub weight_kg: Option<f64>,
-    /// Annulus z-score for --bsa or --height-cm/--weight-kg.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// Annulus z-score for --bsa or --height-cm/--weight-kg (not with a given area or diameter,
+    /// which it would not change).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, conflicts_with_all = ["target_area_mm2", "annulus_diameter_mm"])]
     pub z_score: f64,
 }
 
@@ -162,7 +163,14 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     let options = design_options(args)?;
     let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
-    let result = design(&surface, &points, &target, &options, progress).map_err(|e| feasibility::design_failure(&args.out, e))?;
+    let result = design(&surface, &points, &target, &options, progress).map_err(|e| match e {
+        // A fault of the surface file: say which file.
+        DesignError::Surface(_) | DesignError::MissingLabel { .. } => match &args.surface {
+            Some(path) => format!("{}: {e}", path.display()),
+            None => e.to_string(),
+        },
+        e => feasibility::design_failure(&args.out, e),
+    })?;
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
     println!(

@@ -15,7 +15,7 @@ pub struct ExportArgs {
     #[arg(long)]
     out: PathBuf,
     /// MPI processes in run.sh.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = crate::case::at_least_one)]
     mpi_processes: usize,
     /// Export the steady estimate (constant inflow at Q_peak) instead of the pulsatile run.
     #[arg(long)]

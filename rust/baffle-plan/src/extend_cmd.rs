@@ -104,9 +104,7 @@ pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), Stri
         ..ExtendOptions::default()
     };
     let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
-    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
-    }
+    crate::files::create_parent_dir(&args.out)?;
     write_trimesh_vtp(&args.out, &extended.surface).map_err(|e| e.to_string())?;
     let report = report_path(&args.out);
     let text = serde_json::to_string_pretty(&extended.report).map_err(|e| e.to_string())?;

@@ -2,7 +2,7 @@
 //! separate process, with the paper's quality figures.
 
 use baffle_core::io::read_surface_labeled;
-use baffle_mesh::{mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshOptions};
+use baffle_mesh::{check_resolves_flow, mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshError, MeshOptions};
 use crate::progress::{Progress, Style};
 use clap::Args;
 use std::path::PathBuf;
@@ -57,7 +57,13 @@ pub fn run_mesh_with(args: &MeshArgs, progress: &Progress) -> Result<(), String>
         remesh_surface: args.remesh_surface,
         ..MeshOptions::default()
     };
-    let (mesh, quality) = progress.while_running("mesh (gmsh)", || mesh_surface(&boundary, &options)).map_err(|e| e.to_string())?;
+    check_resolves_flow(&boundary, args.edge_length_mm).map_err(|e| format!("{}: {e}", args.surface.display()))?;
+    let (mesh, quality) = progress.while_running("mesh (gmsh)", || mesh_surface(&boundary, &options)).map_err(|e| match e {
+        // The surface's own fault: say which file.
+        MeshError::InvalidInput(_) => format!("{}: {e}", args.surface.display()),
+        e => e.to_string(),
+    })?;
+    crate::files::create_parent_dir(&args.out)?;
     write_vtu(&args.out, &mesh, &[], &[]).map_err(|e| e.to_string())?;
     let stem = args.out.with_extension("");
     let faces_path = PathBuf::from(format!("{}-faces.vtp", stem.display()));

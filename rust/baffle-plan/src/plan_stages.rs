@@ -50,7 +50,7 @@ pub struct PlanArgs {
     #[arg(long)]
     pub pulsatile: bool,
     /// Cardiac cycles of a pulsatile run (the last one is reported).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = crate::case::at_least_one)]
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
     #[arg(long, default_value_t = 0.95)]
@@ -194,6 +194,9 @@ fn check_arguments(args: &PlanArgs) -> Result<(), String> {
     flow_bsa_m2(args)?;
     let default_bsa = args.design.phantom.then(|| baffle_core::phantom::phantom_default().bsa_m2);
     target_from(&args.design.target, default_bsa)?;
+    if let Some(hr) = args.hr {
+        crate::case::heart_rate_bpm("--hr (heart rate)", hr)?;
+    }
     if !(args.cardiac_index.is_finite() && args.cardiac_index > 0.0) {
         return Err(format!("--cardiac-index must be a positive number of L/min/m2, got {}", args.cardiac_index));
     }

@@ -107,9 +107,7 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
     };
     options.smoothing.iterations = args.smoothing_iterations;
     let (mesh, report) = prepare(&pools, &options).map_err(|e| e.to_string())?;
-    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
-    }
+    crate::files::create_parent_dir(&args.out)?;
     // write_trimesh_vtp writes through a temporary name and renames: atomic already.
     write_trimesh_vtp(&args.out, &mesh).map_err(|e| e.to_string())?;
     let report_path = report_path(&args.out);

@@ -52,7 +52,7 @@ pub struct SimulateArgs {
     #[arg(long, value_parser = ["ilu", "two-level"])]
     preconditioner: Option<String>,
     /// Cardiac cycles (overrides time.cycles).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::case::at_least_one)]
     cycles: Option<usize>,
     /// Write fields_<step>.vtu every N steps (overrides output.vtu_every_steps).
     #[arg(long)]
@@ -65,7 +65,7 @@ pub struct SimulateArgs {
     #[arg(long, value_enum, default_value_t = Engine::Embedded)]
     pub(crate) engine: Engine,
     /// MPI processes of an svMultiPhysics run (default: the available cores).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::case::at_least_one)]
     pub(crate) mpi_processes: Option<usize>,
     /// Print Slicer CLI progress tags (<filter-progress>) on stdout (also with
     /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).

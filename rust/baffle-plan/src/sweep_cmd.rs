@@ -301,7 +301,18 @@ fn run_after_design(plan: &PlanArgs) -> Result<serde_json::Value, String> {
 }
 
 /// The sweep's targets, each with its z-score when the list was of z-scores.
+/// The targets, each checked before the first design: a NaN or negative one is a typo,
+/// not a row of the table.
 fn sweep_targets(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(Option<f64>, TargetArea)>, String> {
+    let targets = sweep_target_list(args, default_bsa)?;
+    for (z, target) in &targets {
+        let which = z.map_or_else(|| "--areas-mm2".to_string(), |z| format!("--z-scores (z = {z})"));
+        target.area_mm2().map_err(|e| format!("{which}: {e}"))?;
+    }
+    Ok(targets)
+}
+
+fn sweep_target_list(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(Option<f64>, TargetArea)>, String> {
     if !args.areas_mm2.is_empty() {
         return Ok(args.areas_mm2.iter().map(|&a| (None, TargetArea::AreaMm2(a))).collect());
     }

@@ -66,8 +66,8 @@ fn format_of(path: &std::path::Path) -> Result<Format, String> {
 
 pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
     let format = format_of(&args.out)?;
-    let domain = read_surface(&args.domain).map_err(|e| format!("{}: {e}", args.domain.display()))?;
-    let points = read_points(&args.points).map_err(|e| format!("{}: {e}", args.points.display()))?;
+    let domain = read_surface(&args.domain).map_err(|e| e.to_string())?;
+    let points = read_points(&args.points).map_err(|e| e.to_string())?;
     let frame = CoordinateSystem::from(args.surface_frame);
     let labels = FaceLabels { baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label, ..FaceLabels::default() };
     let text = TemplateText { patient_label: args.label.clone(), date: args.date.clone().unwrap_or_else(today_utc) };
@@ -81,6 +81,7 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
         Format::Pdf => pdf::to_pdf(&template.shapes),
         Format::Svg => svg::to_svg(&template.shapes).into_bytes(),
     };
+    crate::files::create_parent_dir(&args.out)?;
     write_atomic(&args.out, &bytes)?;
     let report = serde_json::json!({
         "flattening": template.flat.report,

@@ -32,8 +32,9 @@ use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
 use crate::prepare::{cap_report, lap_timer, union_within, validate, CapReport, PrepareOptions};
+use baffle_core::caps::{cap_flatness, CapFlatness};
 use baffle_core::mesh::{edge_key, manifold_report};
-use baffle_core::numerics::pca::{best_fit_plane, Plane};
+use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
 use baffle_core::spatial::{Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
@@ -49,11 +50,6 @@ const MIN_LV_DEPTH_MM: f64 = 1.0;
 /// the LV surface (a curved or pinched LV), the mid-LV plane is moved along the VSD
 /// normal by these distances (mm), in order: deeper into the LV first, then back.
 const MID_LV_MOVES_MM: [f64; 7] = [0.0, 2.0, 4.0, 6.0, -2.0, -4.0, 8.0];
-/// A designed cap is planar when no point is farther from its best-fit plane than
-/// this fraction of the cap's equivalent diameter (0.1 mm on a 10 mm cap, below a
-/// tenth of the mesh edge). Published caps are planar to 4-16 micrometres, not to
-/// rounding: an absolute tolerance refused them.
-const PLANAR_TOLERANCE_OF_DIAMETER: f64 = 0.01;
 
 #[derive(Clone, Debug)]
 pub struct StjOptions {
@@ -295,25 +291,12 @@ fn designed_cap(domain: &TriMesh, label: i32, name: &str) -> Result<DesignedCap,
     let [rim] = &loops[..] else {
         return Err(PrepareError::geometry("designed domain", format!("the {name} cap has {} rims, expected 1", loops.len())));
     };
-    let (_, outward, area_mm2) = cap.label_centroid_normal(label).unwrap_or((Vec3::zeros(), Vec3::z(), 0.0));
-    let plane = oriented(best_fit_plane(&cap.points), outward);
-    let off = cap.points.iter().map(|p| plane.signed_distance_mm(p).abs()).fold(0.0, f64::max);
-    let tolerance_mm = PLANAR_TOLERANCE_OF_DIAMETER * 2.0 * (area_mm2 / std::f64::consts::PI).sqrt();
-    if !(off <= tolerance_mm) {
-        return Err(PrepareError::geometry(
-            "designed domain",
-            format!("the {name} cap is not planar: a point lies {off:.3} mm off its plane (tolerance {tolerance_mm:.3} mm, 1% of its diameter)"),
-        ));
+    let flat = cap_flatness(&cap, label).ok_or_else(|| PrepareError::geometry("designed domain", format!("the {name} cap has no area")))?;
+    if !flat.is_planar() {
+        return Err(PrepareError::geometry("designed domain", flat.describe(name)));
     }
-    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2, off_plane_mm: off })
-}
-
-/// `plane` with its normal turned toward `direction` (still right-handed).
-fn oriented(plane: Plane, direction: Vec3) -> Plane {
-    if plane.normal.dot(&direction) >= 0.0 {
-        return plane;
-    }
-    Plane { normal: -plane.normal, axis_v: -plane.axis_v, ..plane }
+    let CapFlatness { plane, area_mm2, off_plane_mm, .. } = flat;
+    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2, off_plane_mm })
 }
 
 /// A plane with `normal` through `point`, axes from `like`.
@@ -640,15 +623,5 @@ mod tests {
         let sphere = crate::shapes::uv_sphere(Vec3::new(3.0, -2.0, 5.0), 4.0, 24, 48);
         let c = volume_centroid(&sphere).unwrap();
         assert!((c - Vec3::new(3.0, -2.0, 5.0)).norm() < 1e-9, "{c:?}");
-    }
-
-    #[test]
-    fn oriented_planes_stay_right_handed() {
-        let p = best_fit_plane(&[Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::new(1.0, 1.0, 0.0)]);
-        for dir in [Vec3::z(), -Vec3::z()] {
-            let q = oriented(p, dir);
-            assert!(q.normal.dot(&dir) > 0.99);
-            assert!((q.axis_u.cross(&q.axis_v) - q.normal).norm() < 1e-12);
-        }
     }
 }

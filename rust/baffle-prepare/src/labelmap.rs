@@ -34,6 +34,19 @@ pub struct PoolLabels {
     pub aorta: i32,
 }
 
+impl PoolLabels {
+    /// One label per structure: two structures on one label would be one blood pool.
+    pub fn check_distinct(&self) -> Result<(), PrepareError> {
+        let named = [("LV", self.lv), ("RV", self.rv), ("aorta", self.aorta)];
+        for (i, (a, la)) in named.iter().enumerate() {
+            if let Some((b, _)) = named[i + 1..].iter().find(|(_, lb)| lb == la) {
+                return Err(PrepareError::geometry("label map", format!("the {a} and the {b} have the same label {la}; each structure needs its own")));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Default for PoolLabels {
     fn default() -> Self {
         PoolLabels { lv: 1, rv: 2, aorta: 6 }
@@ -318,6 +331,7 @@ pub fn pools_from_labelmap(map: &LabelMap, labels: &PoolLabels, options: &LabelS
     if !(map.axes_mm.determinant().abs() > 0.0 && map.axes_mm.iter().chain(map.origin_mm.iter()).all(|v| v.is_finite())) {
         return Err(PrepareError::geometry("label map", "the voxel axes are degenerate or not finite"));
     }
+    labels.check_distinct()?;
     let surface = |name: &'static str, value: i32| label_surface(map, name, value, options);
     Ok(BloodPools { lv: surface("LV", labels.lv)?, rv: surface("RV", labels.rv)?, aorta: surface("aorta", labels.aorta)? })
 }
@@ -384,6 +398,15 @@ mod tests {
     use crate::shapes::{capped_tube, uv_sphere};
     use crate::voxelize::voxelize;
     use std::io::Write;
+
+    #[test]
+    fn one_label_for_two_structures_is_named() {
+        assert!(PoolLabels::default().check_distinct().is_ok());
+        let e = PoolLabels { lv: 1, rv: 1, aorta: 2 }.check_distinct().unwrap_err().to_string();
+        assert!(e.contains("the LV and the RV have the same label 1"), "{e}");
+        let e = PoolLabels { lv: 1, rv: 2, aorta: 2 }.check_distinct().unwrap_err().to_string();
+        assert!(e.contains("the RV and the aorta"), "{e}");
+    }
 
     fn gzip(data: &[u8]) -> Vec<u8> {
         let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());

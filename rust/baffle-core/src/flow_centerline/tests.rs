@@ -161,3 +161,18 @@ fn published_surfaces_of_p2_and_p3() {
         assert!(line.length_mm.is_finite() && line.length_mm > 0.8 * gap && line.length_mm < 2.0 * gap, "{patient}: {}", line.length_mm);
     }
 }
+
+#[test]
+fn options_out_of_range_are_named_by_their_flag() {
+    assert!(CenterlineOptions::default().validate().is_ok());
+    let bad = [
+        (CenterlineOptions { spacing_mm: 0.0, ..Default::default() }, "--spacing-mm = 0"),
+        (CenterlineOptions { voxel_mm: f64::NAN, ..Default::default() }, "--voxel-mm = NaN"),
+        (CenterlineOptions { smoothing_mm: -1.0, ..Default::default() }, "--smoothing-mm = -1"),
+        (CenterlineOptions { recenter_fraction: 7.0, ..Default::default() }, "--recenter-fraction = 7"),
+    ];
+    for (options, needle) in bad {
+        let e = options.validate().unwrap_err();
+        assert!(e.contains(needle), "{e}");
+    }
+}

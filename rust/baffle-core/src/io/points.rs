@@ -78,6 +78,11 @@ pub fn read_points(path: &Path) -> Result<SuturePoints, IoError> {
             Err(IoErrorKind::Unsupported("point files must end in .mrk.json, .json, .fcsv, .csv or .txt".into()))
         }
     });
+    // A file with a header and no rows parses; it still holds no seam.
+    let parsed = parsed.and_then(|p| match p.points_mm.is_empty() {
+        true => Err(IoErrorKind::Malformed("the file holds no points".into())),
+        false => Ok(p),
+    });
     parsed.map_err(|kind| IoError::new(path, kind))
 }
 

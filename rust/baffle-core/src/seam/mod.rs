@@ -88,6 +88,7 @@ pub fn project_seam(
     }
     let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
     check_points_on_wall(&projector, points, max_point_distance_mm)?;
+    check_points_distinct(points)?;
     check_points_enclose(points)?;
     let ordered = order_by_pca_angle(points);
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
@@ -338,6 +339,28 @@ fn edge_crossing(surface: &TriMesh, a: &ClosestHit, b: &ClosestHit, edge: [u32; 
 const MIN_SPREAD_RATIO: f64 = 0.2;
 
 /// The suture points must spread in two directions, around the VSD and the annulus.
+/// Two suture points closer than this (mm) are one point clicked twice.
+const MIN_POINT_SEPARATION_MM: f64 = 0.05;
+
+/// No two points coincide, named in the surgeon's numbering (the spline sees them
+/// reordered around the loop).
+fn check_points_distinct(points: &[Vec3]) -> Result<(), DesignError> {
+    for (i, p) in points.iter().enumerate() {
+        if let Some(j) = (i + 1..points.len()).find(|&j| (points[j] - p).norm() < MIN_POINT_SEPARATION_MM) {
+            return Err(DesignError::SuturePoints(format!(
+                "points {} and {} are {:.3} mm apart at ({:.2}, {:.2}, {:.2}): one point given twice; remove the duplicate",
+                i + 1,
+                j + 1,
+                (points[j] - p).norm(),
+                p.x,
+                p.y,
+                p.z
+            )));
+        }
+    }
+    Ok(())
+}
+
 fn check_points_enclose(points: &[Vec3]) -> Result<(), DesignError> {
     let [along, across, _] = best_fit_plane(points).singular_values.map(|s| s / (points.len() as f64).sqrt());
     if across < MIN_SPREAD_RATIO * along {
