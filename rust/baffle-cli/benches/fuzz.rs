@@ -13,7 +13,7 @@
 //! mutants. Each exec starts from a seed of the corpus (valid files built in memory
 //! from the phantom; p2's files too when the patient data is present).
 
-use baffle_core::io::{read_points, read_surface_labeled, CoordinateSystem};
+use baffle_core::io::{read_points, read_surface_labeled, write_trimesh_vtp, CoordinateSystem};
 use baffle_core::perturb::{bump_wall, flip_triangle, jitter, SplitMix64};
 use baffle_core::phantom::phantom_default;
 use baffle_core::reference_data::reference_data_dir;
