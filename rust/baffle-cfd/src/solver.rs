@@ -123,6 +123,7 @@ use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
+use crate::time_integration::TimeIntegration;
 use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
 
@@ -506,7 +507,7 @@ impl<'a> Solver<'a> {
             density_g_cm3: self.settings.density_g_cm3,
             viscosity_g_cm_s: self.settings.viscosity_g_cm_s,
             inv_dt_per_s: 1.0 / dt_s,
-            inv_dt_tau_per_s: if steady { 0.0 } else { 1.0 / dt_s },
+            inv_dt_tau_per_s: if steady || !self.settings.tau_includes_dt { 0.0 } else { 1.0 / dt_s },
         }
     }
 
@@ -670,6 +671,28 @@ impl<'a> Solver<'a> {
         Ok(stats)
     }
 
+    /// The acceleration a run's state keeps: generalized-alpha's only.
+    fn acceleration_kept<'v>(&self, accel: &'v [f64]) -> Option<&'v [f64]> {
+        match self.settings.time_integration {
+            TimeIntegration::GeneralizedAlpha { .. } => Some(accel),
+            TimeIntegration::BackwardEuler => None,
+        }
+    }
+
+    /// The acceleration to continue a generalized-alpha run from `state` (zero for
+    /// backward Euler, which does not use it).
+    fn start_acceleration(&self, state: &SolverState) -> Result<Vec<f64>, CfdError> {
+        let n = self.problem.order.len();
+        match self.settings.time_integration {
+            TimeIntegration::BackwardEuler => Ok(vec![0.0; n * B]),
+            TimeIntegration::GeneralizedAlpha { .. } if state.acceleration_cm_s2.is_empty() => Err(CfdError::Settings(format!(
+                "the start state (step {}) has no acceleration field: it is not of a generalized-alpha run; continue it with backward Euler or start over",
+                state.step
+            ))),
+            TimeIntegration::GeneralizedAlpha { .. } => state_vector(&self.problem.order, &state.acceleration_cm_s2, &state.pressure_rate_dyn_cm2_s, "acceleration/pressure rate"),
+        }
+    }
+
     fn face_results(&self, x: &[f64]) -> Vec<FaceResult> {
         self.problem
             .faces
@@ -720,39 +743,53 @@ impl<'a> Solver<'a> {
     /// Time step `step` from x (x_prev: the state one step before), retried down
     /// [`RETRY_LADDER`] when a linear solve stalls or ILU(0) meets a singular pivot.
     /// Returns the accepted attempt's statistics and its rung (0: no retry).
-    fn advance(&mut self, x: &mut [f64], x_prev: &[f64], step: usize, time_s: f64) -> Result<(StepStats, usize), CfdError> {
-        let x_start = x.to_vec();
+    fn advance(&mut self, x: &mut [f64], x_prev: &[f64], accel: &mut [f64], step: usize, time_s: f64) -> Result<(StepStats, usize), CfdError> {
+        let (x_start, accel_start) = (x.to_vec(), accel.to_vec());
         let mut failures = Vec::new();
         for (rung, attempt) in RETRY_LADDER.iter().enumerate() {
             x.copy_from_slice(&x_start);
-            match self.attempt_step(attempt, x, x_prev, step, time_s) {
+            accel.copy_from_slice(&accel_start);
+            match self.attempt_step(attempt, x, x_prev, accel, step, time_s) {
                 Ok(stats) => return Ok((stats, rung)),
                 Err(e @ (CfdError::LinearSolver { .. } | CfdError::Diverged { .. })) => failures.push((attempt.describe(), e)),
                 Err(e) => return Err(e),
             }
         }
         x.copy_from_slice(&x_start);
+        accel.copy_from_slice(&accel_start);
         let tried = failures.iter().map(|(how, e)| format!("{how}: {e}")).collect::<Vec<_>>().join("; ");
         Err(CfdError::StepFailed { step, time_s, tried })
     }
 
-    /// One attempt at the step ending at `time_s`: `attempt.substeps` backward-Euler
-    /// sub-steps, each started from the linear extrapolation of the states before it.
-    fn attempt_step(&mut self, attempt: &Attempt, x: &mut [f64], x_prev: &[f64], step: usize, time_s: f64) -> Result<StepStats, CfdError> {
+    /// One attempt at the step ending at `time_s`: `attempt.substeps` sub-steps of the
+    /// time integration scheme ([`crate::time_integration`]: each solves for the stage
+    /// velocity u_{n+af}, which backward Euler's u_{n+1} is), each started from the
+    /// linear extrapolation of the states before it. `accel` is the velocity's time
+    /// derivative (generalized-alpha's a_n; backward Euler carries it along unused).
+    fn attempt_step(&mut self, attempt: &Attempt, x: &mut [f64], x_prev: &[f64], accel: &mut [f64], step: usize, time_s: f64) -> Result<StepStats, CfdError> {
         let s = self.settings;
         let sub_dt = s.dt_s / attempt.substeps as f64;
-        let phys = self.physics(false, sub_dt);
+        let alpha = s.time_integration.coefficients();
+        // Time terms with the stage coefficient c; tau keeps the physical step.
+        let phys = Physics { inv_dt_per_s: alpha.stage_inv_dt(sub_dt), ..self.physics(false, sub_dt) };
         let semi_implicit = s.max_nonlinear_iterations == 1;
         let mut total = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 0.0 };
         let (mut prev, mut gap) = (x_prev.to_vec(), s.dt_s);
         for k in 1..=attempt.substeps {
             let t = time_s - s.dt_s + k as f64 * sub_dt;
             let x_old = x.to_vec();
+            let u_star = crate::time_integration::stage_base(&alpha, &x_old, accel, sub_dt);
             // Initial guess (and, semi-implicit, the convection velocity): linear
-            // extrapolation, second-order accurate in dt.
-            extrapolate(x, &prev, sub_dt / gap);
+            // extrapolation to the stage time t_n + af dt, second-order accurate in dt.
+            extrapolate(x, &prev, alpha.alpha_f * sub_dt / gap);
             self.set_inflow(x, s.inflow.flow_ml_s(t));
-            let stats = self.step(&phys, x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;
+            for (i, _) in self.problem.dirichlet.iter().enumerate().filter(|(_, &d)| d) {
+                for k in i * B..i * B + 3 {
+                    x[k] = alpha.stage(x_old[k], x[k]);
+                }
+            }
+            let stats = self.step(&phys, x, &u_star, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;
+            crate::time_integration::finish(&alpha, &x_old, x, accel, sub_dt);
             total.nonlinear_iterations += stats.nonlinear_iterations;
             total.linear_iterations += stats.linear_iterations;
             total.residual = stats.residual;
@@ -764,16 +801,18 @@ impl<'a> Solver<'a> {
     fn transient(&mut self, start: Option<&SolverState>, observer: &mut Observer) -> Result<Outcome, CfdError> {
         let s = self.settings;
         let n_steps = (s.cycles as f64 * s.inflow.period_s() / s.dt_s).round() as usize;
-        let (first, mut x, mut x_prev) = match start {
+        let (first, mut x, mut x_prev, mut accel) = match start {
             Some(state) if state.steady.is_some() => {
                 return Err(CfdError::Settings("the start state is of a steady solve, not of a transient run".into()));
             }
             Some(state) => {
                 let x = state_vector(&self.problem.order, &state.velocity_cm_s, &state.pressure_dyn_cm2, "velocity/pressure")?;
                 let x_prev = state_vector(&self.problem.order, &state.previous_velocity_cm_s, &state.previous_pressure_dyn_cm2, "previous velocity/pressure")?;
-                (state.step + 1, x, x_prev)
+                let accel = self.start_acceleration(state)?;
+                (state.step + 1, x, x_prev, accel)
             }
-            None => (1, vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B]),
+            // From rest: zero velocity, pressure and acceleration.
+            None => (1, vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B]),
         };
         let mut results = Vec::with_capacity(n_steps);
         let mut cancelled_at = None;
@@ -781,7 +820,7 @@ impl<'a> Solver<'a> {
             let time_s = step as f64 * s.dt_s;
             let q_in = s.inflow.flow_ml_s(time_s);
             let x_old = x.clone();
-            let (stats, retries) = self.advance(&mut x, &x_prev, step, time_s)?;
+            let (stats, retries) = self.advance(&mut x, &x_prev, &mut accel, step, time_s)?;
             x_prev.copy_from_slice(&x_old);
             let result = self.step_result(&x, step, time_s, q_in, &stats, retries)?;
             let retried = if retries > 0 { format!(" (retried: {})", RETRY_LADDER[retries].describe()) } else { String::new() };
@@ -799,6 +838,7 @@ impl<'a> Solver<'a> {
                 order: &self.problem.order,
                 x: &x,
                 x_prev: Some(&x_prev),
+                accel: self.acceleration_kept(&accel),
                 steady: None,
             };
             if !observer(&view) {
@@ -806,7 +846,8 @@ impl<'a> Solver<'a> {
                 break;
             }
         }
-        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), steady: None, last_iteration: 0, converged: true, cancelled_at })
+        let accel = self.acceleration_kept(&accel).map(<[f64]>::to_vec);
+        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), accel, steady: None, last_iteration: 0, converged: true, cancelled_at })
     }
 
     /// Steady solve by pseudo-transient continuation: one Picard or Newton iteration
@@ -873,6 +914,7 @@ impl<'a> Solver<'a> {
                 order: &self.problem.order,
                 x: &x,
                 x_prev: None,
+                accel: None,
                 steady: progress,
             };
             if !observer(&view) {
@@ -881,7 +923,7 @@ impl<'a> Solver<'a> {
             }
         }
         let result = self.step_result(&x, 0, t_peak, q_peak, &stats, 0)?;
-        Ok(Outcome { steps: vec![result], x, x_prev: None, steady: progress, last_iteration, converged, cancelled_at })
+        Ok(Outcome { steps: vec![result], x, x_prev: None, accel: None, steady: progress, last_iteration, converged, cancelled_at })
     }
 }
 
@@ -897,6 +939,7 @@ pub struct StepView<'a> {
     order: &'a [u32],
     x: &'a [f64],
     x_prev: Option<&'a [f64]>,
+    accel: Option<&'a [f64]>,
     steady: Option<SteadyProgress>,
 }
 
@@ -913,15 +956,26 @@ impl StepView<'_> {
 
     /// The state to continue this run from with [`simulate_from`].
     pub fn state(&self) -> Option<SolverState> {
-        Some(solver_state(self.order, self.step, self.time_s, self.x, self.x_prev, self.steady))
+        Some(solver_state(self.order, self.step, self.time_s, self.x, self.x_prev, self.accel, self.steady))
     }
 }
 
 /// A run's state in input numbering; a steady iterate is its own previous state.
-fn solver_state(order: &[u32], step: usize, time_s: f64, x: &[f64], x_prev: Option<&[f64]>, steady: Option<SteadyProgress>) -> SolverState {
+fn solver_state(order: &[u32], step: usize, time_s: f64, x: &[f64], x_prev: Option<&[f64]>, accel: Option<&[f64]>, steady: Option<SteadyProgress>) -> SolverState {
     let (velocity_cm_s, pressure_dyn_cm2) = fields(order, x);
     let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(order, x_prev.unwrap_or(x));
-    SolverState { step, time_s, velocity_cm_s, pressure_dyn_cm2, previous_velocity_cm_s, previous_pressure_dyn_cm2, steady }
+    let (acceleration_cm_s2, pressure_rate_dyn_cm2_s) = accel.map(|a| fields(order, a)).unwrap_or_default();
+    SolverState {
+        step,
+        time_s,
+        velocity_cm_s,
+        pressure_dyn_cm2,
+        previous_velocity_cm_s,
+        previous_pressure_dyn_cm2,
+        acceleration_cm_s2,
+        pressure_rate_dyn_cm2_s,
+        steady,
+    }
 }
 
 /// Where a steady solve stands: the absolute residual of its first iteration (the
@@ -943,6 +997,12 @@ pub struct SolverState {
     pub pressure_dyn_cm2: Vec<f64>,
     pub previous_velocity_cm_s: Vec<[f64; 3]>,
     pub previous_pressure_dyn_cm2: Vec<f64>,
+    /// Generalized-alpha runs: the velocity's time derivative (cm/s^2) after `step`;
+    /// empty for backward Euler and steady solves, which do not need it.
+    pub acceleration_cm_s2: Vec<[f64; 3]>,
+    /// Generalized-alpha runs: the stage pressure's rate of change (dyn/cm^2/s) that
+    /// extrapolates it to the step's time ([`crate::time_integration`]); else empty.
+    pub pressure_rate_dyn_cm2_s: Vec<f64>,
     /// Steady solves only (then step counts iterations and previous = current).
     pub steady: Option<SteadyProgress>,
 }
@@ -963,6 +1023,7 @@ struct Outcome {
     steps: Vec<StepResult>,
     x: Vec<f64>,
     x_prev: Option<Vec<f64>>,
+    accel: Option<Vec<f64>>,
     steady: Option<SteadyProgress>,
     /// Steady solves: the number of the last iteration done.
     last_iteration: usize,
@@ -1038,8 +1099,8 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
     let order = &solver.problem.order;
     let (velocity_cm_s, pressure_dyn_cm2) = fields(order, &outcome.x);
     let state = match (&outcome.x_prev, outcome.steady, outcome.steps.last()) {
-        (Some(prev), _, Some(last)) => Some(solver_state(order, last.step, last.time_s, &outcome.x, Some(prev), None)),
-        (None, Some(progress), Some(last)) => Some(solver_state(order, outcome.last_iteration, last.time_s, &outcome.x, None, Some(progress))),
+        (Some(prev), _, Some(last)) => Some(solver_state(order, last.step, last.time_s, &outcome.x, Some(prev), outcome.accel.as_deref(), None)),
+        (None, Some(progress), Some(last)) => Some(solver_state(order, outcome.last_iteration, last.time_s, &outcome.x, None, None, Some(progress))),
         _ => start.cloned(),
     };
     let mut timings = solver.timings;

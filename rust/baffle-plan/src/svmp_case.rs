@@ -21,7 +21,11 @@ pub(crate) fn export_to(
 ) -> Result<ExportedCase, String> {
     let planes = case.faces.planes.clone();
     let tet_mesh = tet_mesh_mm(mesh, &planes);
-    let options = ExportOptions { mpi_processes, ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
+    let mut options = ExportOptions { mpi_processes, ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
+    // svMultiPhysics always integrates by generalized-alpha: a case that chose it keeps its rho_inf.
+    if let baffle_cfd::TimeIntegration::GeneralizedAlpha { rho_inf } = settings.time_integration {
+        options.spectral_radius = rho_inf;
+    }
     let exported = export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())?;
     match (exported.fourier_modes, exported.fourier_max_deviation_ml_s) {
         (Some(modes), Some(dev)) => println!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
