@@ -253,6 +253,10 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     }
     if let Some(v) = &args.time_integration {
         case.time.time_integration = Some(v.clone());
+        // Switching to backward Euler drops the case's generalized-alpha rho_inf.
+        if v == "backward-euler" && args.rho_inf.is_none() {
+            case.time.rho_inf = None;
+        }
     }
     if let Some(v) = args.rho_inf {
         case.time.rho_inf = Some(v);
