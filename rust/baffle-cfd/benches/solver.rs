@@ -45,13 +45,17 @@ struct Options {
     coarse: usize,
     /// `--scaling` also on a 622k-tet tube.
     big: bool,
+    /// `--scaling` from this size on (0: 9.7k, 1: 45k, 2: 150k, 3: 622k tets).
+    from_size: usize,
+    /// GMRES restart length (default: the case's, 60).
+    restart: Option<usize>,
     compare_schemes: bool,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, compare_schemes: false, t0_s: 0.1, picard: None };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -71,6 +75,8 @@ fn options() -> Result<Options, String> {
             "--smoke" => o.smoke = true,
             "--scaling" => o.scaling = true,
             "--big" => o.big = true,
+            "--restart" => o.restart = Some(value("--restart")?.parse().map_err(|e| format!("--restart: {e}"))?),
+            "--from-size" => o.from_size = value("--from-size")?.parse().map_err(|e| format!("--from-size: {e}"))?,
             "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
             "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
@@ -315,10 +321,11 @@ fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     // Q_mean 20 mL/s: Q_peak 65 mL/s, mean speed 1.3 m/s in the 8 mm tube, Re ~2,700.
     let settings = CaseSettings::new(INLET, Waveform::default_for_mean(20.0)?, outlets);
     let sizes = [(6, 15), (10, 25), (15, 37), (24, 60)];
-    for &(rings, layers) in &sizes[..if o.big { 4 } else { 3 }] {
+    for &(rings, layers) in sizes[..if o.big { 4 } else { 3 }].iter().skip(o.from_size) {
         let mesh = tube(0.4, 4.0, rings, layers, &[]);
         let mut case = window(&settings, o.t0_s, o.steps);
         case.coarse_aggregate_nodes = o.coarse;
+        case.gmres_restart = o.restart.unwrap_or(case.gmres_restart);
         let (mut step_s, mut iterations) = (Vec::new(), Vec::new());
         for _ in 0..o.runs {
             let (summary, _) = run_window(&mesh, &case, o.steps)?;
@@ -326,12 +333,24 @@ fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
             let n = summary.steps.len() as f64;
             step_s.push((t.total_s - t.setup_s) / n);
             iterations.push(summary.steps.iter().map(|r| r.linear_iterations).sum::<usize>() as f64 / n);
+            println!(
+                "  {} tets: {:.3} s/step: assembly {:.3}, preconditioner setup {:.3} (coarse {:.3}), GMRES {:.3}; setup {:.2} s; load {}",
+                mesh.tets.len(),
+                step_s.last().unwrap(),
+                t.assembly_s / n,
+                t.preconditioner_s / n,
+                t.coarse_setup_s / n,
+                t.gmres_s / n,
+                t.setup_s,
+                load_average()
+            );
         }
         println!(
-            "tube {} tets ({} nodes), coarse aggregates of {} nodes: median {:.3} s/step (min {:.3}), {:.1} GMRES it/step, over {} runs of {} steps from t = {} s; load {}",
+            "tube {} tets ({} nodes), coarse aggregates of {} nodes, GMRES({}): median {:.3} s/step (min {:.3}), {:.1} GMRES it/step, over {} runs of {} steps from t = {} s; load {}",
             mesh.tets.len(),
             mesh.points_cm.len(),
             o.coarse,
+            case.gmres_restart,
             median(step_s.clone()),
             step_s.iter().cloned().fold(f64::INFINITY, f64::min),
             median(iterations),

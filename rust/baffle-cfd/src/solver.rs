@@ -59,8 +59,9 @@
 //! 1.346-1.433 s (26-27 ms) with f64; this machine runs that old code 1.8x slower
 //! than the previous session's (0.91 s per step there). GMRES orthogonalization was then classical
 //! Gram-Schmidt in two fused passes with one conditional re-orthogonalization (DGKS,
-//! 0.7; now unconditional, see below). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner,
-//! generalized-alpha time stepping (backward Euler here). Peak resident memory 171-236 MB.
+//! 0.7; now unconditional, see below). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner.
+//! (Generalized-alpha time stepping has since been added beside backward Euler:
+//! [`crate::time_integration`].) Peak resident memory 171-236 MB.
 //! Steady estimate with mixed precision (bench `--steady --runs 3`, load ~4): median
 //! 90.5 s, 24 iterations, 1481 GMRES iterations, dp(11-16) 7.381 mmHg as in f64.
 //!
@@ -169,7 +170,9 @@ impl StepResult {
 pub struct Timings {
     pub setup_s: f64,
     pub assembly_s: f64,
+    /// ILU(0) factorization and coarse-level setup; the latter also apart.
     pub preconditioner_s: f64,
+    pub coarse_setup_s: f64,
     pub gmres_s: f64,
     pub total_s: f64,
 }
@@ -431,7 +434,7 @@ enum Effort {
 const STRONG_BUDGET_FACTOR: usize = 4;
 
 /// One way to attempt a time step: the linear solves' effort and the number of equal
-/// sub-steps the step is split into (backward Euler each; a smaller step makes the
+/// sub-steps the step is split into (each a step of the case's scheme; a smaller step makes the
 /// system more diagonally dominant through its mass term).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Attempt {
@@ -624,10 +627,16 @@ impl<'a> Solver<'a> {
             let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
             let (tol, restart, max_iterations) = (s.linear_tolerance, s.gmres_restart, s.max_linear_iterations);
             let (pattern, parts) = (&problem.pattern, &problem.parts);
+            // The Strong effort adds the coarse correction even when the case asked for ILU(0) alone.
+            let nodes = match effort {
+                Effort::Strong if s.coarse_aggregate_nodes == 0 => crate::settings::TWO_LEVEL_AGGREGATE_NODES,
+                _ => s.coarse_aggregate_nodes,
+            };
+            let coarse = coarse_correction(&mut self.aggregates, problem, vals, nodes);
+            self.timings.coarse_setup_s += t1.elapsed().as_secs_f64();
             let t2;
             let out = match effort {
                 Effort::Normal if s.mixed_precision => {
-                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
                     let ilu = refactored(&mut self.ilu_low, pattern, parts, vals).map_err(singular)?;
                     convert_into(vals, &mut self.vals_low);
                     t2 = Instant::now();
@@ -638,15 +647,11 @@ impl<'a> Solver<'a> {
                     solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Normal => {
-                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
                     let ilu = refactored(&mut self.ilu, pattern, parts, vals).map_err(singular)?;
                     t2 = Instant::now();
                     gmres(&apply_a, &|v, z| two_level(ilu, coarse.as_ref(), &apply_a, v, z), &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Strong => {
-                    // The coarse correction too, even when the case asked for ILU(0) alone.
-                    let nodes = if s.coarse_aggregate_nodes > 0 { s.coarse_aggregate_nodes } else { crate::settings::TWO_LEVEL_AGGREGATE_NODES };
-                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, nodes);
                     let whole = [0..pattern.n_rows()];
                     let ilu = refactored(&mut self.ilu_whole, pattern, &whole, vals).map_err(singular)?;
                     t2 = Instant::now();
