@@ -13,6 +13,9 @@
 //! figure to compare between builds on this shared machine: other jobs only add time.
 //! Data: $BAFFLE_DATA_DIR or ../shared/data.
 
+mod support;
+use support::process_cpu_s;
+
 use std::time::Instant;
 
 use baffle_cfd::assembly::{element_system, Assembler, Physics};
@@ -66,16 +69,6 @@ fn values(pattern: &BlockPattern) -> Vec<f64> {
         }
     }
     vals
-}
-
-/// User + system CPU time of this process (s), from /proc/self/stat (Linux).
-fn process_cpu_s() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    // Fields after the command name (which ends with ')'): utime and stime are the 12th and 13th.
-    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |k: usize| fields.get(k).and_then(|f| f.parse::<f64>().ok()).unwrap_or(f64::NAN);
-    (tick(11) + tick(12)) / 100.0
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
