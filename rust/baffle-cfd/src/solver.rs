@@ -1,7 +1,7 @@
 //! Time stepping, boundary conditions and per-step results.
 //!
 //! Linear solver choice: the coupled Picard (Oseen) system of all (u, v, w, p) is
-//! solved at once by GMRES(60), preconditioned on the right with node-block (4x4)
+//! solved at once by GMRES(30) (60 before 2026-12-02), preconditioned on the right with node-block (4x4)
 //! ILU(0) on a reverse Cuthill-McKee ordering, split into one row partition per
 //! thread (block Jacobi of ILU(0)) so factorization and triangular solves run in
 //! parallel. Measured on p2's published mesh (25,680 nodes, 147,013 tets, 102,720
