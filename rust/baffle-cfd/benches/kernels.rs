@@ -13,6 +13,9 @@
 //! figure to compare between builds on this shared machine: other jobs only add time.
 //! Data: $BAFFLE_DATA_DIR or ../shared/data.
 
+mod support;
+use support::process_cpu_s;
+
 use std::time::Instant;
 
 use baffle_cfd::assembly::{element_system, Assembler, Physics};
@@ -70,11 +73,15 @@ fn values(pattern: &BlockPattern) -> Vec<f64> {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut reps = 15;
+    // --assembly-only: the assembly alone (e.g. under `perf stat`, whose CPU counts
+    // are what a loaded machine still measures reliably).
+    let mut assembly_only = false;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--reps" => reps = args.next().ok_or("--reps needs a value")?.parse()?,
             "--bench" => {}
+            "--assembly-only" => assembly_only = true,
             other => return Err(format!("unknown argument {other}").into()),
         }
     }
@@ -86,12 +93,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
     let x_low: Vec<f32> = convert(&x);
     let (mut y, mut y_low) = (vec![0.0; n], vec![0.0f32; n]);
-    let assembler = Assembler::new(&points, tets.clone(), &pattern, parts.clone());
+    let mut assembler = Assembler::new(&points, tets.clone(), &pattern, parts.clone());
     let physics = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0 };
     let velocity: Vec<f64> = (0..n).map(|i| if i % B == 3 { 0.0 } else { 100.0 * (i as f64 * 0.01).sin() }).collect();
     let (mut asm_vals, mut asm_rhs) = (vec![0.0; pattern.cols.len() * BB], vec![0.0; n]);
     println!("p2 pattern: {} block rows, {} blocks, {} threads, {reps} repetitions", pattern.n_rows(), pattern.cols.len(), rayon::current_num_threads());
+    let cpu_before = process_cpu_s();
     report("assembly (element systems + scatter)", time_ms(reps, || assembler.assemble(&pattern, &physics, &velocity, &velocity, &mut asm_vals, &mut asm_rhs)));
+    if assembly_only {
+        println!("  assembly CPU time (all threads) {:.1} ms per assembly", 1e3 * (process_cpu_s() - cpu_before) / reps as f64);
+        return Ok(());
+    }
     let element_systems_only = || {
         assembler.tets.par_iter().zip(&assembler.geometry).for_each(|(t, geometry)| {
             let nodal = t.map(|k| [0, 1, 2].map(|c| velocity[k as usize * B + c]));

@@ -22,6 +22,9 @@
 //!
 //! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
 
+mod support;
+use support::process_cpu_s;
+
 use std::time::Instant;
 
 use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
@@ -45,13 +48,17 @@ struct Options {
     coarse: usize,
     /// `--scaling` also on a 622k-tet tube.
     big: bool,
+    /// `--scaling` from this size on (0: 9.7k, 1: 45k, 2: 150k, 3: 622k tets).
+    from_size: usize,
+    /// GMRES restart length (default: the case's, 60).
+    restart: Option<usize>,
     compare_schemes: bool,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, compare_schemes: false, t0_s: 0.1, picard: None };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -71,6 +78,8 @@ fn options() -> Result<Options, String> {
             "--smoke" => o.smoke = true,
             "--scaling" => o.scaling = true,
             "--big" => o.big = true,
+            "--restart" => o.restart = Some(value("--restart")?.parse().map_err(|e| format!("--restart: {e}"))?),
+            "--from-size" => o.from_size = value("--from-size")?.parse().map_err(|e| format!("--from-size: {e}"))?,
             "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
             "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
@@ -159,6 +168,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
         let mut s = window(settings, o.t0_s, o.steps);
         s.mixed_precision = mixed;
         s.coarse_aggregate_nodes = o.coarse;
+        s.gmres_restart = o.restart.unwrap_or(s.gmres_restart);
         if let Some(k) = o.picard {
             s.max_nonlinear_iterations = k;
         }
@@ -166,15 +176,18 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
     }
     for k in 0..o.runs {
         for (case, times) in cases.iter().zip(&mut per_step_s) {
+            let cpu_before = process_cpu_s();
             let (summary, _) = run_window(mesh, case, o.steps)?;
+            let cpu_step_s = (process_cpu_s() - cpu_before) / summary.steps.len() as f64;
             let t = &summary.timings;
             let n = summary.steps.len() as f64;
             let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
             let step_s = (t.total_s - t.setup_s) / n;
             println!(
-                "  run {k} ({}, coarse aggregates of {} nodes): {step_s:.3} s/step (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
+                "  run {k} ({}, coarse aggregates of {} nodes, GMRES({})): {step_s:.3} s/step, CPU {cpu_step_s:.3} s/step incl. setup (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
                 if case.mixed_precision { "mixed" } else { "f64" },
                 case.coarse_aggregate_nodes,
+                case.gmres_restart,
                 t.assembly_s / n,
                 t.preconditioner_s / n,
                 t.gmres_s / n,
@@ -205,12 +218,16 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
 fn steady(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     let mut s = settings.clone();
     s.mode = RunMode::Steady;
+    s.gmres_restart = o.restart.unwrap_or(s.gmres_restart);
     let mut walls = Vec::new();
     for k in 0..o.runs {
+        let cpu_before = process_cpu_s();
         let (summary, wall) = run(mesh, &s)?;
+        let cpu = process_cpu_s() - cpu_before;
         let r = &summary.steps[0];
         println!(
-            "  run {k}: {wall:.1} s, converged {}, {} iterations, {} GMRES, dp(11-16) {:.3} mmHg, vmax {:.1} cm/s, load {}",
+            "  run {k} (GMRES({})): {wall:.1} s (CPU {cpu:.1} s), converged {}, {} iterations, {} GMRES, dp(11-16) {:.3} mmHg, vmax {:.1} cm/s, load {}",
+            s.gmres_restart,
             summary.converged,
             r.nonlinear_iterations,
             r.linear_iterations,
@@ -315,25 +332,45 @@ fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     // Q_mean 20 mL/s: Q_peak 65 mL/s, mean speed 1.3 m/s in the 8 mm tube, Re ~2,700.
     let settings = CaseSettings::new(INLET, Waveform::default_for_mean(20.0)?, outlets);
     let sizes = [(6, 15), (10, 25), (15, 37), (24, 60)];
-    for &(rings, layers) in &sizes[..if o.big { 4 } else { 3 }] {
+    for &(rings, layers) in sizes[..if o.big { 4 } else { 3 }].iter().skip(o.from_size) {
         let mesh = tube(0.4, 4.0, rings, layers, &[]);
         let mut case = window(&settings, o.t0_s, o.steps);
         case.coarse_aggregate_nodes = o.coarse;
-        let (mut step_s, mut iterations) = (Vec::new(), Vec::new());
+        case.gmres_restart = o.restart.unwrap_or(case.gmres_restart);
+        let (mut step_s, mut cpu_step_s, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
         for _ in 0..o.runs {
+            let cpu_before = process_cpu_s();
             let (summary, _) = run_window(&mesh, &case, o.steps)?;
+            let cpu_s = process_cpu_s() - cpu_before;
             let t = &summary.timings;
             let n = summary.steps.len() as f64;
             step_s.push((t.total_s - t.setup_s) / n);
+            // CPU time of the whole run (setup included) per step: what a loaded machine
+            // still measures (wall time then depends on the other jobs).
+            cpu_step_s.push(cpu_s / n);
             iterations.push(summary.steps.iter().map(|r| r.linear_iterations).sum::<usize>() as f64 / n);
+            println!(
+                "  {} tets: {:.3} s/step (CPU {:.3} s/step incl. setup): assembly {:.3}, preconditioner setup {:.3} (coarse {:.3}), GMRES {:.3}; setup {:.2} s; load {}",
+                mesh.tets.len(),
+                step_s.last().unwrap(),
+                cpu_step_s.last().unwrap(),
+                t.assembly_s / n,
+                t.preconditioner_s / n,
+                t.coarse_setup_s / n,
+                t.gmres_s / n,
+                t.setup_s,
+                load_average()
+            );
         }
         println!(
-            "tube {} tets ({} nodes), coarse aggregates of {} nodes: median {:.3} s/step (min {:.3}), {:.1} GMRES it/step, over {} runs of {} steps from t = {} s; load {}",
+            "tube {} tets ({} nodes), coarse aggregates of {} nodes, GMRES({}): median {:.3} s/step (min {:.3}; CPU {:.3} s/step), {:.1} GMRES it/step, over {} runs of {} steps from t = {} s; load {}",
             mesh.tets.len(),
             mesh.points_cm.len(),
             o.coarse,
+            case.gmres_restart,
             median(step_s.clone()),
             step_s.iter().cloned().fold(f64::INFINITY, f64::min),
+            median(cpu_step_s),
             median(iterations),
             o.runs,
             o.steps,

@@ -1,7 +1,9 @@
 //! Element matrices of the stabilized P1-P1 formulation and their parallel assembly.
 //!
 //! Formulation (Tezduyar 1992; Bazilevs et al. 2007 VMS as in svMultiPhysics, reduced
-//! to SUPG/PSPG/LSIC for linear elements), backward Euler in time, Picard (Oseen)
+//! to SUPG/PSPG/LSIC for linear elements), backward Euler in time (generalized-alpha
+//! uses the same matrices with another time coefficient and old velocity, see
+//! [`crate::time_integration`]), Picard (Oseen)
 //! linearization with the advecting velocity a = the latest iterate:
 //!
 //!   momentum:  (rho (u - u_n)/dt + rho a.grad u, w) + (mu grad u, grad w) - (p, div w)
@@ -94,7 +96,7 @@ pub fn stabilization(geo: &ElementGeometry, a_bar: [f64; 3], phys: &Physics) -> 
 
 /// What the four rows of one element's system share: the centroid velocity of the
 /// previous step, the stabilization parameters and s_a = a_bar . grad N_a.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct ElementState {
     u_old_bar: [f64; 3],
     tau: f64,
@@ -161,10 +163,12 @@ pub fn element_system(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3
 /// The matrix is assembled row by row: each block row gathers the rows of its
 /// elements' systems, so it is written once, in order, while it sits in L1, and rows
 /// in different partitions are written by different threads without conflicts. Each
-/// element's shared quantities ([`ElementState`]) are then computed once per node,
-/// four times in all. Scattering whole element matrices instead (elements in the order
-/// of their lowest node) spent about 100 of the 134 ms of an assembly on p2 adding
-/// blocks into rows that were no longer in cache.
+/// element's shared quantities ([`ElementState`]) are computed once per assembly in a
+/// pass over the elements before the rows gather them (computed per row, four times
+/// an element, they were about a quarter of the assembly's CPU time on p2). Scattering
+/// whole element matrices instead (elements in the order of their lowest node) spent
+/// about 100 of the 134 ms of an assembly on p2 adding blocks into rows that were no
+/// longer in cache.
 pub struct Assembler {
     /// The elements, in the order of their lowest node (see [`Assembler::new`]).
     pub tets: Vec<[u32; 4]>,
@@ -175,6 +179,8 @@ pub struct Assembler {
     /// each as (element, local index of node i in it).
     node_element_ptr: Vec<usize>,
     node_elements: Vec<(u32, u32)>,
+    /// Each element's [`ElementState`] of the assembly in progress (storage kept across steps).
+    states: Vec<ElementState>,
 }
 
 impl Assembler {
@@ -212,7 +218,8 @@ impl Assembler {
                 fill[n as usize] += 1;
             }
         }
-        Assembler { tets, geometry, positions, parts, node_element_ptr, node_elements }
+        let states = vec![ElementState::default(); tets.len()];
+        Assembler { tets, geometry, positions, parts, node_element_ptr, node_elements, states }
     }
 
     /// Calls `visit(i, row_vals, first, rhs_i)` for every block row i, the partitions
@@ -279,18 +286,20 @@ impl Assembler {
 
     /// Assemble K and F into `vals` / `rhs` (overwritten). `a` and `u_old` are nodal
     /// velocities, 4 values per node (u, v, w, p).
-    pub fn assemble(&self, pattern: &BlockPattern, phys: &Physics, a: &[f64], u_old: &[f64], vals: &mut [f64], rhs: &mut [f64]) {
-        self.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
+    pub fn assemble(&mut self, pattern: &BlockPattern, phys: &Physics, a: &[f64], u_old: &[f64], vals: &mut [f64], rhs: &mut [f64]) {
+        let nodal = |t: &[u32; 4], field: &[f64]| t.map(|n| [0, 1, 2].map(|c| field[n as usize * B + c]));
+        let (tets, geometry) = (&self.tets, &self.geometry);
+        self.states.par_iter_mut().zip(tets.par_iter().zip(geometry)).with_min_len(1024).for_each(|(st, (t, geo))| {
+            *st = element_state(geo, &nodal(t, a), &nodal(t, u_old), phys);
+        });
+        let this = &*self;
+        this.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
             row_vals.fill(0.0);
             rhs_i.fill(0.0);
-            for &(e, ai) in self.elements_of(i) {
+            for &(e, ai) in this.elements_of(i) {
                 let (e, ai) = (e as usize, ai as usize);
-                let t = &self.tets[e];
-                let nodal = |field: &[f64]| t.map(|n| [0, 1, 2].map(|c| field[n as usize * B + c]));
-                let (a_e, u_old_e) = (nodal(a), nodal(u_old));
-                let geo = &self.geometry[e];
-                let (k, f) = element_row(geo, &element_state(geo, &a_e, &u_old_e, phys), &u_old_e, phys, ai);
-                (0..4).for_each(|bi| self.add_block(row_vals, first, e, ai, bi, &k[bi]));
+                let (k, f) = element_row(&this.geometry[e], &this.states[e], &nodal(&this.tets[e], u_old), phys, ai);
+                (0..4).for_each(|bi| this.add_block(row_vals, first, e, ai, bi, &k[bi]));
                 rhs_i.iter_mut().zip(f).for_each(|(d, s)| *d += s);
             }
         });
@@ -353,7 +362,7 @@ mod tests {
         let n = mesh.points_cm.len();
         let pattern = BlockPattern::from_tets(n, &mesh.tets);
         let parts = crate::linear::partitions(&pattern, 3);
-        let asm = Assembler::new(&mesh.points_cm, mesh.tets.clone(), &pattern, parts);
+        let mut asm = Assembler::new(&mesh.points_cm, mesh.tets.clone(), &pattern, parts);
         let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0 };
         let field = |s: f64| (0..n * B).map(|k| ((k as f64 + s) * 0.37).sin() * 30.0).collect::<Vec<f64>>();
         let (a, u_old) = (field(0.0), field(2.0));
@@ -387,7 +396,7 @@ mod tests {
         let p = [[0.0, 0.0, 0.0], [1.0, 0.1, 0.0], [0.2, 1.0, 0.1], [0.1, 0.3, 1.2], [1.0, 1.0, 1.0]];
         let tets = vec![[0, 1, 2, 3], [1, 2, 3, 4]];
         let pattern = BlockPattern::from_tets(5, &tets);
-        let asm = Assembler::new(&p, tets, &pattern, vec![0..5]);
+        let mut asm = Assembler::new(&p, tets, &pattern, vec![0..5]);
         let phys = Physics { density_g_cm3: 1.0, viscosity_g_cm_s: 1e6, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0 };
         let field = |s: f64| (0..5 * B).map(|k| if k % B == 3 { 0.0 } else { ((k as f64 + s) * 0.7).sin() }).collect::<Vec<f64>>();
         let (u, v) = (field(0.0), field(1.3));

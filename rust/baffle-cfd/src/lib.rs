@@ -16,6 +16,7 @@ pub mod periodicity;
 pub mod settings;
 pub mod solver;
 pub mod sparse;
+pub mod time_integration;
 /// Structured tube meshes for verification tests and benchmarks.
 pub mod test_meshes;
 pub mod vtu;
@@ -29,6 +30,7 @@ pub use mesh::{Face, FlowMesh, ValidationReport};
 pub use settings::{CaseSettings, InflowProfile, Outlet, RunMode, TWO_LEVEL_AGGREGATE_NODES};
 pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, SteadyProgress, StepResult, StepView, Summary, Timings};
 pub use periodicity::periodicity_nrmsd;
+pub use time_integration::{TimeIntegration, DEFAULT_RHO_INF};
 pub use waveform::Waveform;
 #[cfg(test)]
 mod verification;

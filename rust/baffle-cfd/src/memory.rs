@@ -6,7 +6,8 @@ use crate::CfdError;
 
 /// Peak resident memory of the embedded solver per tetrahedron. Measured (two-level
 /// preconditioner, default GMRES restart): p2's published mesh, 147k tets, 213-226 MB;
-/// a 622k-tet tube, 942 MB: 1.5 kB a tetrahedron. 2 kB leaves room for the retry
+/// a 622k-tet tube, 942 MB (937 MB with GMRES(30) and the assembly's per-element states,
+/// 987 MB with those states and GMRES(60)): 1.5-1.6 kB a tetrahedron. 2 kB leaves room for the retry
 /// ladder's whole-matrix f64 ILU and the output buffers.
 pub const BYTES_PER_TET: f64 = 2000.0;
 /// The program itself and the fixed buffers.

@@ -1,7 +1,7 @@
 //! Time stepping, boundary conditions and per-step results.
 //!
 //! Linear solver choice: the coupled Picard (Oseen) system of all (u, v, w, p) is
-//! solved at once by GMRES(60), preconditioned on the right with node-block (4x4)
+//! solved at once by GMRES(30) (60 before 2026-12-02), preconditioned on the right with node-block (4x4)
 //! ILU(0) on a reverse Cuthill-McKee ordering, split into one row partition per
 //! thread (block Jacobi of ILU(0)) so factorization and triangular solves run in
 //! parallel. Measured on p2's published mesh (25,680 nodes, 147,013 tets, 102,720
@@ -59,8 +59,9 @@
 //! 1.346-1.433 s (26-27 ms) with f64; this machine runs that old code 1.8x slower
 //! than the previous session's (0.91 s per step there). GMRES orthogonalization was then classical
 //! Gram-Schmidt in two fused passes with one conditional re-orthogonalization (DGKS,
-//! 0.7; now unconditional, see below). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner,
-//! generalized-alpha time stepping (backward Euler here). Peak resident memory 171-236 MB.
+//! 0.7; now unconditional, see below). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner.
+//! (Generalized-alpha time stepping has since been added beside backward Euler:
+//! [`crate::time_integration`].) Peak resident memory 171-236 MB.
 //! Steady estimate with mixed precision (bench `--steady --runs 3`, load ~4): median
 //! 90.5 s, 24 iterations, 1481 GMRES iterations, dp(11-16) 7.381 mmHg as in f64.
 //!
@@ -123,6 +124,7 @@ use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, RunMode};
+use crate::time_integration::TimeIntegration;
 use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
 
@@ -168,7 +170,9 @@ impl StepResult {
 pub struct Timings {
     pub setup_s: f64,
     pub assembly_s: f64,
+    /// ILU(0) factorization and coarse-level setup; the latter also apart.
     pub preconditioner_s: f64,
+    pub coarse_setup_s: f64,
     pub gmres_s: f64,
     pub total_s: f64,
 }
@@ -430,7 +434,7 @@ enum Effort {
 const STRONG_BUDGET_FACTOR: usize = 4;
 
 /// One way to attempt a time step: the linear solves' effort and the number of equal
-/// sub-steps the step is split into (backward Euler each; a smaller step makes the
+/// sub-steps the step is split into (each a step of the case's scheme; a smaller step makes the
 /// system more diagonally dominant through its mass term).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Attempt {
@@ -506,7 +510,7 @@ impl<'a> Solver<'a> {
             density_g_cm3: self.settings.density_g_cm3,
             viscosity_g_cm_s: self.settings.viscosity_g_cm_s,
             inv_dt_per_s: 1.0 / dt_s,
-            inv_dt_tau_per_s: if steady { 0.0 } else { 1.0 / dt_s },
+            inv_dt_tau_per_s: if steady || !self.settings.tau_includes_dt { 0.0 } else { 1.0 / dt_s },
         }
     }
 
@@ -623,10 +627,16 @@ impl<'a> Solver<'a> {
             let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
             let (tol, restart, max_iterations) = (s.linear_tolerance, s.gmres_restart, s.max_linear_iterations);
             let (pattern, parts) = (&problem.pattern, &problem.parts);
+            // The Strong effort adds the coarse correction even when the case asked for ILU(0) alone.
+            let nodes = match effort {
+                Effort::Strong if s.coarse_aggregate_nodes == 0 => crate::settings::TWO_LEVEL_AGGREGATE_NODES,
+                _ => s.coarse_aggregate_nodes,
+            };
+            let coarse = coarse_correction(&mut self.aggregates, problem, vals, nodes);
+            self.timings.coarse_setup_s += t1.elapsed().as_secs_f64();
             let t2;
             let out = match effort {
                 Effort::Normal if s.mixed_precision => {
-                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
                     let ilu = refactored(&mut self.ilu_low, pattern, parts, vals).map_err(singular)?;
                     convert_into(vals, &mut self.vals_low);
                     t2 = Instant::now();
@@ -637,15 +647,11 @@ impl<'a> Solver<'a> {
                     solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Normal => {
-                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, s.coarse_aggregate_nodes);
                     let ilu = refactored(&mut self.ilu, pattern, parts, vals).map_err(singular)?;
                     t2 = Instant::now();
                     gmres(&apply_a, &|v, z| two_level(ilu, coarse.as_ref(), &apply_a, v, z), &r, &mut dx, tol, restart, max_iterations)
                 }
                 Effort::Strong => {
-                    // The coarse correction too, even when the case asked for ILU(0) alone.
-                    let nodes = if s.coarse_aggregate_nodes > 0 { s.coarse_aggregate_nodes } else { crate::settings::TWO_LEVEL_AGGREGATE_NODES };
-                    let coarse = coarse_correction(&mut self.aggregates, problem, vals, nodes);
                     let whole = [0..pattern.n_rows()];
                     let ilu = refactored(&mut self.ilu_whole, pattern, &whole, vals).map_err(singular)?;
                     t2 = Instant::now();
@@ -668,6 +674,28 @@ impl<'a> Solver<'a> {
             }
         }
         Ok(stats)
+    }
+
+    /// The acceleration a run's state keeps: generalized-alpha's only.
+    fn acceleration_kept<'v>(&self, accel: &'v [f64]) -> Option<&'v [f64]> {
+        match self.settings.time_integration {
+            TimeIntegration::GeneralizedAlpha { .. } => Some(accel),
+            TimeIntegration::BackwardEuler => None,
+        }
+    }
+
+    /// The acceleration to continue a generalized-alpha run from `state` (zero for
+    /// backward Euler, which does not use it).
+    fn start_acceleration(&self, state: &SolverState) -> Result<Vec<f64>, CfdError> {
+        let n = self.problem.order.len();
+        match self.settings.time_integration {
+            TimeIntegration::BackwardEuler => Ok(vec![0.0; n * B]),
+            TimeIntegration::GeneralizedAlpha { .. } if state.acceleration_cm_s2.is_empty() => Err(CfdError::Settings(format!(
+                "the start state (step {}) has no acceleration field: it is not of a generalized-alpha run; continue it with backward Euler or start over",
+                state.step
+            ))),
+            TimeIntegration::GeneralizedAlpha { .. } => state_vector(&self.problem.order, &state.acceleration_cm_s2, &state.pressure_rate_dyn_cm2_s, "acceleration/pressure rate"),
+        }
     }
 
     fn face_results(&self, x: &[f64]) -> Vec<FaceResult> {
@@ -720,39 +748,53 @@ impl<'a> Solver<'a> {
     /// Time step `step` from x (x_prev: the state one step before), retried down
     /// [`RETRY_LADDER`] when a linear solve stalls or ILU(0) meets a singular pivot.
     /// Returns the accepted attempt's statistics and its rung (0: no retry).
-    fn advance(&mut self, x: &mut [f64], x_prev: &[f64], step: usize, time_s: f64) -> Result<(StepStats, usize), CfdError> {
-        let x_start = x.to_vec();
+    fn advance(&mut self, x: &mut [f64], x_prev: &[f64], accel: &mut [f64], step: usize, time_s: f64) -> Result<(StepStats, usize), CfdError> {
+        let (x_start, accel_start) = (x.to_vec(), accel.to_vec());
         let mut failures = Vec::new();
         for (rung, attempt) in RETRY_LADDER.iter().enumerate() {
             x.copy_from_slice(&x_start);
-            match self.attempt_step(attempt, x, x_prev, step, time_s) {
+            accel.copy_from_slice(&accel_start);
+            match self.attempt_step(attempt, x, x_prev, accel, step, time_s) {
                 Ok(stats) => return Ok((stats, rung)),
                 Err(e @ (CfdError::LinearSolver { .. } | CfdError::Diverged { .. })) => failures.push((attempt.describe(), e)),
                 Err(e) => return Err(e),
             }
         }
         x.copy_from_slice(&x_start);
+        accel.copy_from_slice(&accel_start);
         let tried = failures.iter().map(|(how, e)| format!("{how}: {e}")).collect::<Vec<_>>().join("; ");
         Err(CfdError::StepFailed { step, time_s, tried })
     }
 
-    /// One attempt at the step ending at `time_s`: `attempt.substeps` backward-Euler
-    /// sub-steps, each started from the linear extrapolation of the states before it.
-    fn attempt_step(&mut self, attempt: &Attempt, x: &mut [f64], x_prev: &[f64], step: usize, time_s: f64) -> Result<StepStats, CfdError> {
+    /// One attempt at the step ending at `time_s`: `attempt.substeps` sub-steps of the
+    /// time integration scheme ([`crate::time_integration`]: each solves for the stage
+    /// velocity u_{n+af}, which backward Euler's u_{n+1} is), each started from the
+    /// linear extrapolation of the states before it. `accel` is the velocity's time
+    /// derivative (generalized-alpha's a_n; backward Euler carries it along unused).
+    fn attempt_step(&mut self, attempt: &Attempt, x: &mut [f64], x_prev: &[f64], accel: &mut [f64], step: usize, time_s: f64) -> Result<StepStats, CfdError> {
         let s = self.settings;
         let sub_dt = s.dt_s / attempt.substeps as f64;
-        let phys = self.physics(false, sub_dt);
+        let alpha = s.time_integration.coefficients();
+        // Time terms with the stage coefficient c; tau keeps the physical step.
+        let phys = Physics { inv_dt_per_s: alpha.stage_inv_dt(sub_dt), ..self.physics(false, sub_dt) };
         let semi_implicit = s.max_nonlinear_iterations == 1;
         let mut total = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 0.0 };
         let (mut prev, mut gap) = (x_prev.to_vec(), s.dt_s);
         for k in 1..=attempt.substeps {
             let t = time_s - s.dt_s + k as f64 * sub_dt;
             let x_old = x.to_vec();
+            let u_star = crate::time_integration::stage_base(&alpha, &x_old, accel, sub_dt);
             // Initial guess (and, semi-implicit, the convection velocity): linear
-            // extrapolation, second-order accurate in dt.
-            extrapolate(x, &prev, sub_dt / gap);
+            // extrapolation to the stage time t_n + af dt, second-order accurate in dt.
+            extrapolate(x, &prev, alpha.alpha_f * sub_dt / gap);
             self.set_inflow(x, s.inflow.flow_ml_s(t));
-            let stats = self.step(&phys, x, &x_old, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;
+            for (i, _) in self.problem.dirichlet.iter().enumerate().filter(|(_, &d)| d) {
+                for k in i * B..i * B + 3 {
+                    x[k] = alpha.stage(x_old[k], x[k]);
+                }
+            }
+            let stats = self.step(&phys, x, &u_star, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;
+            crate::time_integration::finish(&alpha, &x_old, x, accel, sub_dt);
             total.nonlinear_iterations += stats.nonlinear_iterations;
             total.linear_iterations += stats.linear_iterations;
             total.residual = stats.residual;
@@ -764,16 +806,18 @@ impl<'a> Solver<'a> {
     fn transient(&mut self, start: Option<&SolverState>, observer: &mut Observer) -> Result<Outcome, CfdError> {
         let s = self.settings;
         let n_steps = (s.cycles as f64 * s.inflow.period_s() / s.dt_s).round() as usize;
-        let (first, mut x, mut x_prev) = match start {
+        let (first, mut x, mut x_prev, mut accel) = match start {
             Some(state) if state.steady.is_some() => {
                 return Err(CfdError::Settings("the start state is of a steady solve, not of a transient run".into()));
             }
             Some(state) => {
                 let x = state_vector(&self.problem.order, &state.velocity_cm_s, &state.pressure_dyn_cm2, "velocity/pressure")?;
                 let x_prev = state_vector(&self.problem.order, &state.previous_velocity_cm_s, &state.previous_pressure_dyn_cm2, "previous velocity/pressure")?;
-                (state.step + 1, x, x_prev)
+                let accel = self.start_acceleration(state)?;
+                (state.step + 1, x, x_prev, accel)
             }
-            None => (1, vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B]),
+            // From rest: zero velocity, pressure and acceleration.
+            None => (1, vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B], vec![0.0; self.problem.order.len() * B]),
         };
         let mut results = Vec::with_capacity(n_steps);
         let mut cancelled_at = None;
@@ -781,7 +825,7 @@ impl<'a> Solver<'a> {
             let time_s = step as f64 * s.dt_s;
             let q_in = s.inflow.flow_ml_s(time_s);
             let x_old = x.clone();
-            let (stats, retries) = self.advance(&mut x, &x_prev, step, time_s)?;
+            let (stats, retries) = self.advance(&mut x, &x_prev, &mut accel, step, time_s)?;
             x_prev.copy_from_slice(&x_old);
             let result = self.step_result(&x, step, time_s, q_in, &stats, retries)?;
             let retried = if retries > 0 { format!(" (retried: {})", RETRY_LADDER[retries].describe()) } else { String::new() };
@@ -799,6 +843,7 @@ impl<'a> Solver<'a> {
                 order: &self.problem.order,
                 x: &x,
                 x_prev: Some(&x_prev),
+                accel: self.acceleration_kept(&accel),
                 steady: None,
             };
             if !observer(&view) {
@@ -806,7 +851,8 @@ impl<'a> Solver<'a> {
                 break;
             }
         }
-        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), steady: None, last_iteration: 0, converged: true, cancelled_at })
+        let accel = self.acceleration_kept(&accel).map(<[f64]>::to_vec);
+        Ok(Outcome { steps: results, x, x_prev: Some(x_prev), accel, steady: None, last_iteration: 0, converged: true, cancelled_at })
     }
 
     /// Steady solve by pseudo-transient continuation: one Picard or Newton iteration
@@ -873,6 +919,7 @@ impl<'a> Solver<'a> {
                 order: &self.problem.order,
                 x: &x,
                 x_prev: None,
+                accel: None,
                 steady: progress,
             };
             if !observer(&view) {
@@ -881,7 +928,7 @@ impl<'a> Solver<'a> {
             }
         }
         let result = self.step_result(&x, 0, t_peak, q_peak, &stats, 0)?;
-        Ok(Outcome { steps: vec![result], x, x_prev: None, steady: progress, last_iteration, converged, cancelled_at })
+        Ok(Outcome { steps: vec![result], x, x_prev: None, accel: None, steady: progress, last_iteration, converged, cancelled_at })
     }
 }
 
@@ -897,6 +944,7 @@ pub struct StepView<'a> {
     order: &'a [u32],
     x: &'a [f64],
     x_prev: Option<&'a [f64]>,
+    accel: Option<&'a [f64]>,
     steady: Option<SteadyProgress>,
 }
 
@@ -913,15 +961,26 @@ impl StepView<'_> {
 
     /// The state to continue this run from with [`simulate_from`].
     pub fn state(&self) -> Option<SolverState> {
-        Some(solver_state(self.order, self.step, self.time_s, self.x, self.x_prev, self.steady))
+        Some(solver_state(self.order, self.step, self.time_s, self.x, self.x_prev, self.accel, self.steady))
     }
 }
 
 /// A run's state in input numbering; a steady iterate is its own previous state.
-fn solver_state(order: &[u32], step: usize, time_s: f64, x: &[f64], x_prev: Option<&[f64]>, steady: Option<SteadyProgress>) -> SolverState {
+fn solver_state(order: &[u32], step: usize, time_s: f64, x: &[f64], x_prev: Option<&[f64]>, accel: Option<&[f64]>, steady: Option<SteadyProgress>) -> SolverState {
     let (velocity_cm_s, pressure_dyn_cm2) = fields(order, x);
     let (previous_velocity_cm_s, previous_pressure_dyn_cm2) = fields(order, x_prev.unwrap_or(x));
-    SolverState { step, time_s, velocity_cm_s, pressure_dyn_cm2, previous_velocity_cm_s, previous_pressure_dyn_cm2, steady }
+    let (acceleration_cm_s2, pressure_rate_dyn_cm2_s) = accel.map(|a| fields(order, a)).unwrap_or_default();
+    SolverState {
+        step,
+        time_s,
+        velocity_cm_s,
+        pressure_dyn_cm2,
+        previous_velocity_cm_s,
+        previous_pressure_dyn_cm2,
+        acceleration_cm_s2,
+        pressure_rate_dyn_cm2_s,
+        steady,
+    }
 }
 
 /// Where a steady solve stands: the absolute residual of its first iteration (the
@@ -943,6 +1002,12 @@ pub struct SolverState {
     pub pressure_dyn_cm2: Vec<f64>,
     pub previous_velocity_cm_s: Vec<[f64; 3]>,
     pub previous_pressure_dyn_cm2: Vec<f64>,
+    /// Generalized-alpha runs: the velocity's time derivative (cm/s^2) after `step`;
+    /// empty for backward Euler and steady solves, which do not need it.
+    pub acceleration_cm_s2: Vec<[f64; 3]>,
+    /// Generalized-alpha runs: the stage pressure's rate of change (dyn/cm^2/s) that
+    /// extrapolates it to the step's time ([`crate::time_integration`]); else empty.
+    pub pressure_rate_dyn_cm2_s: Vec<f64>,
     /// Steady solves only (then step counts iterations and previous = current).
     pub steady: Option<SteadyProgress>,
 }
@@ -963,6 +1028,7 @@ struct Outcome {
     steps: Vec<StepResult>,
     x: Vec<f64>,
     x_prev: Option<Vec<f64>>,
+    accel: Option<Vec<f64>>,
     steady: Option<SteadyProgress>,
     /// Steady solves: the number of the last iteration done.
     last_iteration: usize,
@@ -1038,8 +1104,8 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
     let order = &solver.problem.order;
     let (velocity_cm_s, pressure_dyn_cm2) = fields(order, &outcome.x);
     let state = match (&outcome.x_prev, outcome.steady, outcome.steps.last()) {
-        (Some(prev), _, Some(last)) => Some(solver_state(order, last.step, last.time_s, &outcome.x, Some(prev), None)),
-        (None, Some(progress), Some(last)) => Some(solver_state(order, outcome.last_iteration, last.time_s, &outcome.x, None, Some(progress))),
+        (Some(prev), _, Some(last)) => Some(solver_state(order, last.step, last.time_s, &outcome.x, Some(prev), outcome.accel.as_deref(), None)),
+        (None, Some(progress), Some(last)) => Some(solver_state(order, outcome.last_iteration, last.time_s, &outcome.x, None, None, Some(progress))),
         _ => start.cloned(),
     };
     let mut timings = solver.timings;

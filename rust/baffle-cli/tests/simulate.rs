@@ -413,6 +413,46 @@ fn a_quick_run_stops_at_the_first_flow_peak() {
 }
 
 #[test]
+fn generalized_alpha_runs_stops_and_resumes_on_the_same_path() {
+    // Generalized-alpha from the case file; stopped at step 6 and resumed to step 12
+    // (the checkpoint keeps the acceleration), it matches the straight 12-step run.
+    let inflow = r#"{ "q_mean_ml_s": 0.5, "period_s": 0.05 }"#;
+    let case = tube_case("alpha", 3, 8, &[], inflow, r#"{ "dt_s": 0.001, "time_integration": "generalized-alpha", "rho_inf": 0.3 }"#);
+    let dir = case.parent().unwrap();
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["simulate", case.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let out = baffle(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let (straight, split) = (dir.join("straight"), dir.join("split"));
+    run(&straight, &["--steps", "12"]);
+    run(&split, &["--steps", "6"]);
+    run(&split, &["--steps", "12", "--resume"]);
+    let s = summary(&straight);
+    assert_eq!((s["inputs"]["time_integration"].as_str(), s["inputs"]["rho_inf"].as_f64()), (Some("generalized-alpha"), Some(0.3)), "{s}");
+    let ((_, a), (_, b)) = (csv(&straight), csv(&split));
+    assert_eq!((a.len(), b.len()), (12, 12));
+    for (ra, rb) in a.iter().zip(&b) {
+        assert!(ra.iter().zip(rb).all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(1e-6)), "{ra:?} vs {rb:?}");
+    }
+    // A backward-Euler checkpoint does not continue as generalized-alpha; rho_inf needs
+    // generalized-alpha and lies in [0, 1].
+    let be = dir.join("be");
+    run(&be, &["--steps", "3", "--time-integration", "backward-euler"]);
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", be.to_str().unwrap(), "--resume", "--steps", "6"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no acceleration"), "{}", String::from_utf8_lossy(&out.stderr));
+    for (extra, expected) in [(&["--time-integration", "backward-euler", "--rho-inf", "0.5"][..], "backward Euler has none"), (&["--rho-inf", "1.5"][..], "must be in [0, 1]")] {
+        let mut args = vec!["simulate", case.to_str().unwrap(), "--out", be.to_str().unwrap(), "--steps", "2"];
+        args.extend_from_slice(extra);
+        let out = baffle(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(expected), "{extra:?}: {stderr}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
 fn a_step_that_fails_every_retry_says_what_to_try() {
     // One GMRES iteration towards 1e-12 cannot succeed on any rung of the retry ladder.
     let inflow = r#"{ "q_mean_ml_s": 0.5, "period_s": 0.05 }"#;

@@ -2,7 +2,7 @@
 //! time stepping and output. Relative paths are relative to the case file.
 
 use baffle_cfd::hemodynamics::{hemodynamics, mean_arterial_pressure_mmhg, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, DYN_CM2_PER_MMHG};
-use baffle_cfd::{CaseSettings, Face, FlowMesh, InflowProfile, Outlet, RunMode, Waveform};
+use baffle_cfd::{CaseSettings, Face, FlowMesh, InflowProfile, Outlet, RunMode, TimeIntegration, Waveform, DEFAULT_RHO_INF};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -149,6 +149,12 @@ pub struct TimeSpec {
     /// Preconditioner of the linear solves: "ilu" (block ILU(0)) or "two-level" (ILU(0)
     /// and a coarse correction on node aggregates, `baffle_cfd::coarse`).
     pub preconditioner: Option<String>,
+    /// Time integration of transient runs: "backward-euler" (default) or
+    /// "generalized-alpha" (second order, as svMultiPhysics; `baffle_cfd::time_integration`).
+    pub time_integration: Option<String>,
+    /// Generalized-alpha's spectral radius at infinite time step, in [0, 1] (default 0.5,
+    /// svMultiPhysics' `Spectral_radius_of_infinite_time_step`).
+    pub rho_inf: Option<f64>,
     pub steady_tolerance: Option<f64>,
     pub steady_max_iterations: Option<usize>,
 }
@@ -164,6 +170,8 @@ impl Default for TimeSpec {
             linear_tolerance: None,
             max_linear_iterations: None,
             preconditioner: None,
+            time_integration: None,
+            rho_inf: None,
             steady_tolerance: None,
             steady_max_iterations: None,
         }
@@ -339,6 +347,18 @@ fn positive(name: &str, v: f64) -> Result<f64, String> {
 /// 0.6 % of the fourth cycle's (README, Measured), at about a twentieth of the steps.
 pub const QUICK_MODE: &str = "quick";
 
+/// The time integration scheme a case asks for; rho_inf only goes with generalized-alpha.
+fn time_integration(t: &TimeSpec) -> Result<TimeIntegration, String> {
+    match (t.time_integration.as_deref(), t.rho_inf) {
+        (None | Some("backward-euler"), None) => Ok(TimeIntegration::BackwardEuler),
+        (None | Some("backward-euler"), Some(rho)) => {
+            Err(format!("time.rho_inf {rho} is generalized-alpha's spectral radius; backward Euler has none (set time.time_integration to generalized-alpha)"))
+        }
+        (Some("generalized-alpha"), rho) => Ok(TimeIntegration::GeneralizedAlpha { rho_inf: rho.unwrap_or(DEFAULT_RHO_INF) }),
+        (Some(other), _) => Err(format!("time.time_integration '{other}': expected backward-euler or generalized-alpha")),
+    }
+}
+
 pub fn is_quick(case: &Case) -> bool {
     case.time.mode == QUICK_MODE
 }
@@ -431,6 +451,7 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
         Some("two-level") => s.coarse_aggregate_nodes = baffle_cfd::TWO_LEVEL_AGGREGATE_NODES,
         Some(other) => return Err(format!("time.preconditioner '{other}': expected ilu or two-level")),
     }
+    s.time_integration = time_integration(t)?;
     if let Some(v) = t.steady_tolerance {
         s.steady_tolerance = v;
     }

@@ -51,6 +51,14 @@ pub struct SimulateArgs {
     /// Preconditioner of the linear solves: ilu or two-level (overrides time.preconditioner).
     #[arg(long, value_parser = ["ilu", "two-level"])]
     preconditioner: Option<String>,
+    /// Time integration of a transient run: backward-euler or generalized-alpha (second
+    /// order, as svMultiPhysics; overrides time.time_integration).
+    #[arg(long, value_parser = ["backward-euler", "generalized-alpha"])]
+    time_integration: Option<String>,
+    /// Generalized-alpha's spectral radius at infinite time step, 0-1 (default 0.5;
+    /// overrides time.rho_inf).
+    #[arg(long)]
+    rho_inf: Option<f64>,
     /// Cardiac cycles (overrides time.cycles).
     #[arg(long, value_parser = crate::case::at_least_one)]
     cycles: Option<usize>,
@@ -87,6 +95,11 @@ struct Checkpoint {
     previous_velocity_cm_s: Vec<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     previous_pressure_dyn_cm2: Vec<f64>,
+    /// Generalized-alpha runs only: the velocity's time derivative (cm/s^2).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    acceleration_cm_s2: Vec<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pressure_rate_dyn_cm2_s: Vec<f64>,
     rows: Vec<Row>,
     wall_time_s: f64,
     /// Steady solves only; absent from transient checkpoints (and from those written
@@ -136,6 +149,8 @@ impl Checkpoint {
             pressure_dyn_cm2: state.pressure_dyn_cm2,
             previous_velocity_cm_s,
             previous_pressure_dyn_cm2,
+            acceleration_cm_s2: state.acceleration_cm_s2,
+            pressure_rate_dyn_cm2_s: state.pressure_rate_dyn_cm2_s,
             rows: rows.to_vec(),
             wall_time_s,
             steady,
@@ -193,6 +208,8 @@ impl Checkpoint {
             pressure_dyn_cm2: self.pressure_dyn_cm2,
             previous_velocity_cm_s,
             previous_pressure_dyn_cm2,
+            acceleration_cm_s2: self.acceleration_cm_s2,
+            pressure_rate_dyn_cm2_s: self.pressure_rate_dyn_cm2_s,
             steady: self.steady.map(SteadyProgress::from),
         };
         (state, self.rows, self.steady_residuals, self.wall_time_s)
@@ -233,6 +250,16 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     }
     if let Some(p) = &args.preconditioner {
         case.time.preconditioner = Some(p.clone());
+    }
+    if let Some(v) = &args.time_integration {
+        case.time.time_integration = Some(v.clone());
+        // Switching to backward Euler drops the case's generalized-alpha rho_inf.
+        if v == "backward-euler" && args.rho_inf.is_none() {
+            case.time.rho_inf = None;
+        }
+    }
+    if let Some(v) = args.rho_inf {
+        case.time.rho_inf = Some(v);
     }
     if let Some(v) = args.vtu_every {
         case.output.vtu_every_steps = v;

@@ -219,6 +219,11 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
             "map_mmhg": flow.map_mmhg,
             "dt_s": settings.dt_s,
             "cycles": settings.cycles,
+            "time_integration": (!steady).then(|| settings.time_integration.name()),
+            "rho_inf": match settings.time_integration {
+                baffle_cfd::TimeIntegration::GeneralizedAlpha { rho_inf } if !steady => Some(rho_inf),
+                _ => None,
+            },
             "density_g_cm3": settings.density_g_cm3,
             "viscosity_g_cm_s": settings.viscosity_g_cm_s,
             "steady_tolerance": steady.then_some(settings.steady_tolerance),

@@ -12,6 +12,15 @@ use std::path::Path;
 
 /// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
 /// first step); says how the inflow was fitted.
+/// svMultiPhysics always integrates by generalized-alpha: a case that chose it keeps its
+/// rho_inf, a backward-Euler case gets svMultiPhysics' default.
+fn spectral_radius(settings: &CaseSettings) -> f64 {
+    match settings.time_integration {
+        baffle_cfd::TimeIntegration::GeneralizedAlpha { rho_inf } => rho_inf,
+        baffle_cfd::TimeIntegration::BackwardEuler => baffle_svmp::DEFAULT_SPECTRAL_RADIUS,
+    }
+}
+
 pub(crate) fn export_to(
     dir: &Path,
     case: &case::Case,
@@ -21,7 +30,7 @@ pub(crate) fn export_to(
 ) -> Result<ExportedCase, String> {
     let planes = case.faces.planes.clone();
     let tet_mesh = tet_mesh_mm(mesh, &planes);
-    let options = ExportOptions { mpi_processes, ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
+    let options = ExportOptions { mpi_processes, spectral_radius: spectral_radius(settings), ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
     let exported = export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())?;
     match (exported.fourier_modes, exported.fourier_max_deviation_ml_s) {
         (Some(modes), Some(dev)) => println!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
@@ -59,5 +68,18 @@ fn tet_mesh_mm(mesh: &FlowMesh, planes: &[i32]) -> TetMesh {
             .iter()
             .map(|f| FaceSet { id: f.id, triangles: f.triangles.clone(), interior: planes.contains(&f.id) })
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_export_keeps_a_generalized_alpha_case_rho_inf() {
+        let mut s = CaseSettings::new(1, baffle_cfd::Waveform::Constant { q_ml_s: 1.0 }, vec![baffle_cfd::Outlet { face_id: 2, resistance_dyn_s_cm5: 0.0 }]);
+        assert_eq!(spectral_radius(&s), baffle_svmp::DEFAULT_SPECTRAL_RADIUS);
+        s.time_integration = baffle_cfd::TimeIntegration::GeneralizedAlpha { rho_inf: 0.3 };
+        assert_eq!(spectral_radius(&s), 0.3);
     }
 }

@@ -17,7 +17,7 @@ pub mod results;
 pub mod run;
 
 pub use error::SvmpError;
-pub use export::{export_case, CaseManifest, ExportOptions, ExportedCase, FaceRole, ManifestFace, MANIFEST_FILE};
+pub use export::{export_case, CaseManifest, ExportOptions, ExportedCase, FaceRole, ManifestFace, DEFAULT_SPECTRAL_RADIUS, MANIFEST_FILE};
 pub use fourier::FourierSeries;
 pub use mesh_export::MeshFiles;
 pub use results::{read_results, FaceSample, PeakFields, StepSample, SvmpSummary};
