@@ -538,6 +538,18 @@ enum BaffleStatus baffle_template_document(const struct BaffleTemplate *template
                                            uint8_t **out_bytes,
                                            size_t *out_len);
 
+/*
+ The page as a PNG at `dpi` (10 to 1200; stored in the file's pHYs chunk), as a new
+ byte array (uint8_t[*out_len], free with baffle_free).
+
+ # Safety
+ `template` must be NULL or a live handle; the outputs NULL or writable.
+ */
+enum BaffleStatus baffle_template_png(const struct BaffleTemplate *template_,
+                                      double dpi,
+                                      uint8_t **out_bytes,
+                                      size_t *out_len);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus
