@@ -23,6 +23,20 @@
 #define BAFFLE_ABI_VERSION 1
 
 /*
+ How the baffle is flattened.
+ */
+typedef enum BaffleFlattenMethod {
+  /*
+   Least-squares conformal map, scaled to the seam length (the default).
+   */
+  BAFFLE_FLATTEN_METHOD_LSCM = 0,
+  /*
+   LSCM, then as-rigid-as-possible iterations (smaller largest area change).
+   */
+  BAFFLE_FLATTEN_METHOD_LSCM_ARAP = 1,
+} BaffleFlattenMethod;
+
+/*
  Patient frame to express points in (files say which frame they are in).
  */
 typedef enum BaffleFrame {
@@ -97,6 +111,25 @@ typedef enum BaffleTargetKind {
    */
   BAFFLE_TARGET_KIND_HEIGHT_WEIGHT = 3,
 } BaffleTargetKind;
+
+/*
+ The page's file format.
+ */
+typedef enum BaffleTemplateFormat {
+  /*
+   A4 portrait, drawn in mm: prints 1:1 at 100 %.
+   */
+  BAFFLE_TEMPLATE_FORMAT_PDF = 0,
+  /*
+   A4 portrait, width/height and viewBox in mm.
+   */
+  BAFFLE_TEMPLATE_FORMAT_SVG = 1,
+  /*
+   A4 portrait raster at 300 dpi, stored in its pHYs chunk (other resolutions:
+   baffle_template_png).
+   */
+  BAFFLE_TEMPLATE_FORMAT_PNG = 2,
+} BaffleTemplateFormat;
 
 /*
  Opaque, immutable triangle surface (mm) with one int32 label per triangle.
