@@ -20,13 +20,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, data_dir, missing_data, read_vtp
+from conftest import REPO, data_dir, missing_data, plane_cut, read_vtp
 
 vtk_core = pytest.importorskip("vtkmodules.vtkCommonCore")
 from vtkmodules.vtkCommonCore import vtkPoints  # noqa: E402
 from vtkmodules.vtkCommonDataModel import vtkPolyData  # noqa: E402
-from vtkmodules.vtkCommonDataModel import vtkPlane  # noqa: E402
-from vtkmodules.vtkFiltersCore import vtkCutter, vtkMassProperties, vtkStripper  # noqa: E402
+from vtkmodules.vtkFiltersCore import vtkMassProperties  # noqa: E402
 from vtkmodules.vtkFiltersModeling import vtkSelectEnclosedPoints  # noqa: E402
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy  # noqa: E402
 
@@ -106,17 +105,7 @@ def check_rv_volumes(ventricle_path, domain_path, report):
 
 def section_loops(surface, point, normal):
     """The plane's cut through a closed surface as closed loops, each (k, 2) in-plane mm."""
-    plane = vtkPlane()
-    plane.SetOrigin(*point)
-    plane.SetNormal(*normal)
-    cutter = vtkCutter()
-    cutter.SetInputData(surface)
-    cutter.SetCutFunction(plane)
-    stripper = vtkStripper()
-    stripper.SetInputConnection(cutter.GetOutputPort())
-    stripper.JoinContiguousSegmentsOn()
-    stripper.Update()
-    lines = stripper.GetOutput()
+    lines = plane_cut(surface, point, normal)
     xyz = vtk_to_numpy(lines.GetPoints().GetData()) - np.asarray(point)
     n = np.asarray(normal) / np.linalg.norm(normal)
     u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
