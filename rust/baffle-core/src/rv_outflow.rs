@@ -115,28 +115,27 @@ fn interface_area_mm2(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<f64, S
         .max(0.0))
 }
 
+/// The paths before and after the baffle and their smallest sections; what is missing
+/// after the baffle is said (the figure before stays).
 fn outflow_paths(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<RvOutflow, String> {
     let field = VoxelField::new(ventricle, domain, pulmonary)?;
+    let sections = Sections { ventricle, domain };
     let before = match field.path(false) {
-        Ok(path) => path,
+        Ok(path) => sections.smallest(&path, false).ok_or("no section of the RV along the path before the baffle")?,
         Err(PathFailure::NoInterface) => return Ok(RvOutflow::unavailable(no_interface_reason(ventricle, pulmonary)?)),
         Err(PathFailure::Other(reason)) => return Ok(RvOutflow::unavailable(reason)),
     };
-    let sections = Sections { ventricle, domain };
-    let before = sections.smallest(&before, false).ok_or("no section of the RV along the path before the baffle")?;
     let after = match field.path(true) {
-        Ok(path) => sections.smallest(&path, true),
-        Err(PathFailure::NoInterface) => {
-            return Ok(RvOutflow { rv_outflow_min_section_before_mm2: Some(before.min_section_mm2), rv_outflow_before: Some(before), ..RvOutflow::unavailable("the designed domain covers the RV's interface with the pulmonary artery") })
-        }
-        Err(PathFailure::Other(reason)) => return Ok(RvOutflow { rv_outflow_min_section_before_mm2: Some(before.min_section_mm2), rv_outflow_before: Some(before), ..RvOutflow::unavailable(reason) }),
+        Ok(path) => sections.smallest(&path, true).ok_or_else(|| "no section of the RV along the path after the baffle".to_string()),
+        Err(PathFailure::NoInterface) => Err("the designed domain covers the RV's interface with the pulmonary artery".to_string()),
+        Err(PathFailure::Other(reason)) => Err(reason),
     };
     Ok(RvOutflow {
-        rv_outflow_min_section_mm2: after.as_ref().map(|a| a.min_section_mm2),
+        rv_outflow_min_section_mm2: after.as_ref().ok().map(|a| a.min_section_mm2),
         rv_outflow_min_section_before_mm2: Some(before.min_section_mm2),
         rv_outflow_before: Some(before),
-        rv_outflow_unavailable: after.is_none().then(|| "no section of the RV along the path after the baffle".to_string()),
-        rv_outflow_after: after,
+        rv_outflow_unavailable: after.as_ref().err().cloned(),
+        rv_outflow_after: after.ok(),
         rv_pulmonary_interface_mm2: None,
     })
 }
