@@ -1,6 +1,6 @@
 // C++/VTK integration tests of the C ABI: designs on the patient inputs (p2, p3)
 // and the phantom, checked with VTK's own filters; error paths; cancellation;
-// concurrent calls. Usage: baffle_vtk_tests <case> (one ctest test per case).
+// concurrent calls; the patch template's outline against the seam. Usage: baffle_vtk_tests <case> (one ctest test per case).
 #include "vtk_adapter.hpp"
 
 #include <vtkCellArray.h>
@@ -10,6 +10,7 @@
 #include <vtkFeatureEdges.h>
 #include <vtkIdList.h>
 #include <vtkMassProperties.h>
+#include <vtkMath.h>
 #include <vtkNew.h>
 #include <vtkPlane.h>
 #include <vtkPoints.h>
@@ -17,6 +18,7 @@
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -353,12 +355,83 @@ void threads() {
   std::cout << "threads: " << reports.size() << " concurrent designs agree\n";
 }
 
+// Total length of a surface's boundary edges (VTK's feature edges), in mm.
+double boundary_length_mm(vtkPolyData* surface) {
+  vtkNew<vtkFeatureEdges> edges;
+  edges->SetInputData(surface);
+  edges->BoundaryEdgesOn();
+  edges->NonManifoldEdgesOff();
+  edges->FeatureEdgesOff();
+  edges->ManifoldEdgesOff();
+  edges->Update();
+  vtkPolyData* lines = edges->GetOutput();
+  double length = 0.0;
+  vtkNew<vtkIdList> ids;
+  for (vtkIdType c = 0; c < lines->GetNumberOfCells(); ++c) {
+    lines->GetCellPoints(c, ids);
+    for (vtkIdType k = 0; k + 1 < ids->GetNumberOfIds(); ++k) {
+      double a[3], b[3];
+      lines->GetPoint(ids->GetId(k), a);
+      lines->GetPoint(ids->GetId(k + 1), b);
+      length += std::sqrt(vtkMath::Distance2BetweenPoints(a, b));
+    }
+  }
+  return length;
+}
+
+bool starts_with(const std::vector<std::uint8_t>& bytes, const std::string& magic) {
+  return bytes.size() >= magic.size() &&
+         std::equal(magic.begin(), magic.end(), bytes.begin(), [](char m, std::uint8_t b) { return static_cast<std::uint8_t>(m) == b; });
+}
+
+// The C++ Template of a designed domain: the flat outline's length, measured by VTK,
+// is the 3D seam's (the baffle's boundary, measured by VTK) within 1 %; the pages come
+// out; a domain without a baffle is named. Run under valgrind, nothing leaks.
+void check_template(const baffle::Result& result, const std::vector<double>& points, const std::string& name) {
+  baffle::Template moved = baffle::Template::flatten(result.domain(), points, {}, name, "2026-12-02");
+  const baffle::Template t = std::move(moved);
+  require(moved.get() == nullptr && t.get() != nullptr, "a moved Template owns nothing");
+  const double seam_vtk = boundary_length_mm(baffle_vtk::to_polydata(result.baffle()));
+  const double perimeter_vtk = boundary_length_mm(baffle_vtk::to_polydata(t.flat_mesh()));
+  const std::string report = t.report_json();
+  std::ostringstream what;
+  what << name << ": flat outline " << perimeter_vtk << " mm (VTK), 3D seam " << seam_vtk << " mm (VTK), library seam "
+       << json_number(report, "seam_length_3d_mm") << " mm, perimeter " << json_number(report, "perimeter_mm") << " mm";
+  std::cout << what.str() << ", error " << std::fabs(perimeter_vtk - seam_vtk) / seam_vtk << "\n";
+  require(std::fabs(perimeter_vtk - seam_vtk) <= 0.01 * seam_vtk, what.str());
+  require(std::fabs(json_number(report, "seam_length_3d_mm") - seam_vtk) <= 1e-9 * seam_vtk, what.str());
+  require(starts_with(t.document(BAFFLE_TEMPLATE_FORMAT_PDF), "%PDF-1.4"), "PDF page");
+  require(starts_with(t.png(72.0), "\x89PNG\r\n"), "PNG page");
+  expect_error([&] { t.png(0.0); }, BAFFLE_STATUS_INVALID_ARGUMENT, "dpi = 0");
+  const baffle::Mesh domain = result.domain();
+  const std::vector<std::int32_t> labels = domain.labels();
+  std::vector<std::int32_t> no_baffle(labels.size());
+  std::transform(labels.begin(), labels.end(), no_baffle.begin(), [](std::int32_t l) { return l == kBaffle ? kWall : l; });
+  const baffle::Mesh wall_only = baffle::Mesh::from_arrays(domain.points_mm(), domain.triangles(), no_baffle);
+  expect_error([&] { baffle::Template::flatten(wall_only, points); }, BAFFLE_STATUS_INVALID_INPUT, "no baffle triangles");
+}
+
+void template_phantom() {
+  baffle::Phantom phantom = baffle::phantom();
+  check_template(baffle::design(phantom.surface, phantom.suture_points_mm, baffle::Options().bsa_m2(phantom.bsa_m2)),
+                 phantom.suture_points_mm, "phantom");
+}
+
+void template_p2() {
+  const fs::path input = data_dir() / "p2" / "design_input";
+  if (!fs::exists(input / "capped_ventricle.vtp")) throw Skip{"patient data not found at " + input.string()};
+  const baffle::Mesh surface = baffle_vtk::to_mesh(read_vtp(input / "capped_ventricle.vtp"));
+  const std::vector<double> points = baffle::read_suture_points((input / "suture_points.mrk.json").string(), BAFFLE_FRAME_LPS);
+  check_template(baffle::design(surface, points, baffle::Options().bsa_m2(kPatientBsaM2.at("p2"))), points, "p2");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const std::map<std::string, std::function<void()>> cases = {
       {"p2", [] { patient("p2"); }}, {"p3", [] { patient("p3"); }}, {"phantom_round_trip", phantom_round_trip},
       {"errors", errors},            {"cancel", cancel},             {"threads", threads},
+      {"template_phantom", template_phantom}, {"template_p2", template_p2},
   };
   if (argc != 2 || cases.count(argv[1]) == 0) {
     std::cerr << "usage: baffle_vtk_tests <case>; cases:";

@@ -16,7 +16,7 @@ STATUS_OK = 0
 STATUS_CANCELLED = 7
 FRAMES = {"LPS": 0, "RAS": 1}
 FLATTEN_METHODS = {"lscm": 0, "arap": 1}
-TEMPLATE_FORMATS = {"pdf": 0, "svg": 1}
+TEMPLATE_FORMATS = {"pdf": 0, "svg": 1, "png": 2}
 TARGET_KINDS = {"area_mm2": 0, "annulus_diameter_mm": 1, "bsa": 2, "height_weight": 3}
 
 
@@ -123,6 +123,7 @@ _SIGNATURES = {
     "baffle_template_flat_mesh": ([c_void_p, POINTER(c_void_p)], c_int),
     "baffle_template_report_json": ([c_void_p, POINTER(c_void_p)], c_int),
     "baffle_template_document": ([c_void_p, c_int32, POINTER(c_void_p), _SZ], c_int),
+    "baffle_template_png": ([c_void_p, c_double, POINTER(c_void_p), _SZ], c_int),
 }
 
 

@@ -2,7 +2,7 @@
 
     result = baffle.design(...)
     t = baffle.template(result.domain, points, patient_label="p2")
-    t.save("template.pdf")            # A4, prints 1:1 at 100 % (or .svg)
+    t.save("template.pdf")            # A4, prints 1:1 at 100 % (or .svg, or .png at `dpi`)
     t.flat.points                     # the flattened baffle (u, v, 0) in mm
     t.report["flattening"]["perimeter_error"], t.area_ratio
 """
@@ -27,12 +27,14 @@ from .design import Mesh, _array, _mesh_from_handle, _new_mesh, _ptr
 class Template:
     """The flattened baffle (`flat`: points (u, v, 0) mm, triangles, labels), the
     template's report (`report["flattening"]`: seam length, perimeter and its error,
-    area and angle distortion median / max) and the page in both formats."""
+    area and angle distortion median / max) and the page as PDF, SVG and PNG (at the
+    dpi asked for, stored in the file)."""
 
     flat: Mesh
     report: dict = field(repr=False)
     pdf: bytes = field(repr=False)
     svg: bytes = field(repr=False)
+    png: bytes = field(repr=False)
 
     @property
     def area_ratio(self) -> np.ndarray:
@@ -40,12 +42,12 @@ class Template:
         return np.asarray(self.report["area_ratio"])
 
     def save(self, path) -> Path:
-        """Write the page to `path` (.pdf or .svg), atomically."""
+        """Write the page to `path` (.pdf, .svg or .png), atomically."""
         path = Path(path)
-        suffix = path.suffix.lower()
-        if suffix not in (".pdf", ".svg"):
-            raise ValueError(f"{path}: the template is saved as .pdf or .svg")
-        data = self.pdf if suffix == ".pdf" else self.svg
+        pages = {".pdf": self.pdf, ".svg": self.svg, ".png": self.png}
+        data = pages.get(path.suffix.lower())
+        if data is None:
+            raise ValueError(f"{path}: the template is saved as .pdf, .svg or .png")
         handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         try:
             with os.fdopen(handle, "wb") as f:
@@ -68,9 +70,12 @@ def _labels_text(point_labels: Optional[Sequence[str]], count: int) -> Optional[
     return "\n".join(labels).encode("utf-8")
 
 
-def _document(handle, fmt: str) -> bytes:
+def _document(handle, fmt: str, dpi: float) -> bytes:
     data, size = c_void_p(), c_size_t()
-    check(lib.baffle_template_document(handle, _lib.TEMPLATE_FORMATS[fmt], byref(data), byref(size)))
+    if fmt == "png":
+        check(lib.baffle_template_png(handle, c_double(dpi), byref(data), byref(size)))
+    else:
+        check(lib.baffle_template_document(handle, _lib.TEMPLATE_FORMATS[fmt], byref(data), byref(size)))
     try:
         return ctypes.string_at(data, size.value)
     finally:
@@ -87,13 +92,15 @@ def template(
     baffle_label: int = 10,
     vsd_cap_label: int = 11,
     aortic_cap_label: int = 16,
+    dpi: float = 300.0,
 ) -> Template:
     """Flatten the baffle of a designed `domain` (a Mesh as baffle.design returns, or any
     object with points, triangles and labels) into a true-scale patch template.
 
     suture_points (k, 3) mm are in the domain's frame and are drawn at their nearest seam
     vertex, named by `point_labels` (k strings; default 1, 2, ...). `date` defaults to
-    today (UTC). `method` is "lscm" (conformal, the default) or "arap". Errors raise
+    today (UTC). `method` is "lscm" (conformal, the default) or "arap". `dpi` is the PNG
+    page's resolution (10 to 1200, stored in its pHYs chunk). Errors raise
     BaffleError with the library's message (e.g. a domain without baffle triangles).
     """
     if method not in _lib.FLATTEN_METHODS:
@@ -122,6 +129,7 @@ def template(
             report = json.loads(ctypes.string_at(text).decode("utf-8"))
         finally:
             lib.baffle_free(text)
-        return Template(flat=_mesh_from_handle(flat), report=report, pdf=_document(handle, "pdf"), svg=_document(handle, "svg"))
+        pages = {fmt: _document(handle, fmt, dpi) for fmt in ("pdf", "svg", "png")}
+        return Template(flat=_mesh_from_handle(flat), report=report, **pages)
     finally:
         lib.baffle_template_free(handle)

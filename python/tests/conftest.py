@@ -47,3 +47,21 @@ def read_vtp(path):
     reader.Update()
     assert reader.GetOutput().GetNumberOfCells() > 0, f"cannot read {path}"
     return reader.GetOutput()
+
+
+def plane_cut(polydata, origin, normal):
+    """The plane's cut through a surface as polylines: vtkCutter, joined by vtkStripper."""
+    from vtkmodules.vtkCommonDataModel import vtkPlane
+    from vtkmodules.vtkFiltersCore import vtkCutter, vtkStripper
+
+    plane = vtkPlane()
+    plane.SetOrigin(*origin)
+    plane.SetNormal(*normal)
+    cutter = vtkCutter()
+    cutter.SetInputData(polydata)
+    cutter.SetCutFunction(plane)
+    stripper = vtkStripper()
+    stripper.SetInputConnection(cutter.GetOutputPort())
+    stripper.JoinContiguousSegmentsOn()
+    stripper.Update()
+    return stripper.GetOutput()

@@ -9,11 +9,10 @@ import baffle
 
 vtk = pytest.importorskip("vtkmodules.vtkCommonCore")
 from vtkmodules.vtkCommonCore import vtkIdList  # noqa: E402
-from vtkmodules.vtkCommonDataModel import vtkPlane  # noqa: E402
-from vtkmodules.vtkFiltersCore import vtkCutter, vtkFeatureEdges, vtkMassProperties, vtkStripper  # noqa: E402
+from vtkmodules.vtkFiltersCore import vtkFeatureEdges, vtkMassProperties  # noqa: E402
 from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter  # noqa: E402
 
-from conftest import read_vtp  # noqa: E402
+from conftest import plane_cut, read_vtp  # noqa: E402
 from baffle.vtk_adapters import centerline_polydata, design_polydata, mesh_to_polydata, polydata_to_mesh  # noqa: E402
 
 WALL, BAFFLE, VSD_CAP, AORTIC_CAP = 2, 10, 11, 16
@@ -41,17 +40,7 @@ def open_or_nonmanifold_edges(polydata) -> int:
 
 def section_loops(polydata, origin, normal):
     """(centroid, area mm2) of each closed loop of the plane section."""
-    plane = vtkPlane()
-    plane.SetOrigin(*origin)
-    plane.SetNormal(*normal)
-    cutter = vtkCutter()
-    cutter.SetInputData(polydata)
-    cutter.SetCutFunction(plane)
-    stripper = vtkStripper()
-    stripper.SetInputConnection(cutter.GetOutputPort())
-    stripper.JoinContiguousSegmentsOn()
-    stripper.Update()
-    lines = stripper.GetOutput()
+    lines = plane_cut(polydata, origin, normal)
     loops, ids = [], vtkIdList()
     lines.GetLines().InitTraversal()
     while lines.GetLines().GetNextCell(ids):

@@ -6,7 +6,11 @@ designed domain (the RV cavity after the baffle) and the domain outside the vent
 On p2's capped ventricle made from the segmentations (`baffle prepare`, the whole RV
 between the VSD and aortic planes) the baffle runs inside the ventricle; on p2's
 published design input, which encloses only the published pathway, it does not, and
-the library says so (baffle_area_outside_ventricle_mm2 > 0)."""
+the library says so (baffle_area_outside_ventricle_mm2 > 0).
+
+The smallest RV-to-pulmonary section (rv_outflow_*) is re-cut with vtkCutter at the
+reported point and normal, the cut joined into loops by vtkStripper, and the area of the
+loop holding the point (less the loops inside it) taken as a polygon."""
 
 import json
 import os
@@ -16,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, data_dir, missing_data, read_vtp
+from conftest import REPO, data_dir, missing_data, plane_cut, read_vtp
 
 vtk_core = pytest.importorskip("vtkmodules.vtkCommonCore")
 from vtkmodules.vtkCommonCore import vtkPoints  # noqa: E402
@@ -99,6 +103,64 @@ def check_rv_volumes(ventricle_path, domain_path, report):
     return cavity_after_mm3
 
 
+def section_loops(surface, point, normal):
+    """The plane's cut through a closed surface as closed loops, each (k, 2) in-plane mm."""
+    lines = plane_cut(surface, point, normal)
+    xyz = vtk_to_numpy(lines.GetPoints().GetData()) - np.asarray(point)
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    uv = np.stack([xyz @ u, xyz @ v], axis=1)
+    offsets = vtk_to_numpy(lines.GetLines().GetOffsetsArray())
+    ids = vtk_to_numpy(lines.GetLines().GetConnectivityArray())
+    loops = [uv[ids[a:b]] for a, b in zip(offsets[:-1], offsets[1:])]
+    return [loop for loop in loops if len(loop) > 2 and np.linalg.norm(loop[0] - loop[-1]) < 1e-6]
+
+
+def polygon_area(loop) -> float:
+    x, y = loop[:, 0], loop[:, 1]
+    return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def contains(loop, q) -> bool:
+    """Even-odd ray test of the 2D point q against a closed loop."""
+    a, b = loop[:-1], loop[1:]
+    crosses = (a[:, 1] > q[1]) != (b[:, 1] > q[1])
+    x = a[:, 0] + (q[1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / np.where(crosses, b[:, 1] - a[:, 1], 1.0)
+    return bool(np.count_nonzero(crosses & (x > q[0])) % 2)
+
+
+def vtk_section_mm2(surface, point, normal) -> float:
+    """The section of a closed surface holding `point`: the innermost loop around it,
+    less the loops inside that loop."""
+    loops = section_loops(surface, point, normal)
+    around = [loop for loop in loops if contains(loop, (0.0, 0.0))]
+    assert around, "the point is not inside the cut"
+    outer = min(around, key=polygon_area)
+    holes = [loop for loop in loops if loop is not outer and not contains(loop, (0.0, 0.0)) and contains(outer, loop[0])]
+    return polygon_area(outer) - sum(polygon_area(h) for h in holes)
+
+
+def check_rv_outflow(ventricle_path, domain_path, report):
+    """The smallest outflow section, before and after the baffle, re-cut by VTK."""
+    ventricle, domain = read_vtp(ventricle_path), read_vtp(domain_path)
+    before, after = report["rv_outflow_before"], report["rv_outflow_after"]
+    vtk_before = vtk_section_mm2(ventricle, before["min_section_point_mm"], before["min_section_normal"])
+    # Our raster is 0.1 mm: the area is counted to about a pixel row along the outline.
+    assert before["min_section_mm2"] == pytest.approx(vtk_before, rel=0.03)
+    # After: the domain's cut does not reach into the section there, or is taken out.
+    point, normal = after["min_section_point_mm"], after["min_section_normal"]
+    vtk_after = vtk_section_mm2(ventricle, point, normal)
+    domain_loops = section_loops(domain, point, normal)
+    outer = min([loop for loop in section_loops(ventricle, point, normal) if contains(loop, (0.0, 0.0))], key=polygon_area)
+    inside_it = [loop for loop in domain_loops if contains(outer, loop[len(loop) // 2])]
+    vtk_after -= sum(polygon_area(loop) for loop in inside_it)
+    assert after["min_section_mm2"] == pytest.approx(vtk_after, rel=0.03)
+    assert report["rv_outflow_min_section_mm2"] == after["min_section_mm2"]
+    return vtk_before, vtk_after
+
+
 def patient(name):
     root = data_dir() / name
     if not (root / "segmentations" / "RV.vtp").exists():
@@ -111,10 +173,14 @@ def test_rv_volumes_on_the_segmented_ventricle_by_vtk(tmp_path):
     root, bsa_m2 = patient("p2")
     capped = tmp_path / "capped_ventricle.vtp"
     run("prepare", "--segmentations", root / "segmentations", "--out", capped)
-    run("design", "--surface", capped, "--points", root / "design_input" / "suture_points.mrk.json", "--bsa", bsa_m2, "--out", tmp_path / "design")
+    run(
+        "design", "--surface", capped, "--points", root / "design_input" / "suture_points.mrk.json", "--bsa", bsa_m2,
+        "--pulmonary", root / "segmentations" / "pulmonary.vtp", "--out", tmp_path / "design",
+    )
     report = json.loads((tmp_path / "design" / "report.json").read_text())
     assert report["baffle_area_outside_ventricle_mm2"] == 0.0, "the baffle runs inside the whole RV"
     check_rv_volumes(capped, tmp_path / "design" / "domain.vtp", report)
+    print("RV outflow smallest section before / after (VTK):", check_rv_outflow(capped, tmp_path / "design" / "domain.vtp", report))
     # The prepared ventricle is the segmented RV blood pool, less what lies beyond the
     # VSD and aortic planes and the smoothing: within a few percent of RV.vtp.
     assert report["rv_volume_before_ml"] == pytest.approx(volume_mm3(read_vtp(root / "segmentations" / "RV.vtp")) / 1e3, rel=0.1)
@@ -126,3 +192,5 @@ def test_rv_volumes_on_the_published_input_are_net_and_said_so(tmp_path):
     run("design", "--surface", folder / "capped_ventricle.vtp", "--points", folder / "suture_points.mrk.json", "--bsa", bsa_m2, "--out", tmp_path)
     report = json.loads((tmp_path / "report.json").read_text())
     check_rv_volumes(folder / "capped_ventricle.vtp", tmp_path / "domain.vtp", report)
+    # Without a pulmonary surface the outflow figure is null, with the reason.
+    assert report["rv_outflow_min_section_mm2"] is None and "no pulmonary artery surface" in report["rv_outflow_unavailable"]

@@ -3,6 +3,7 @@ is a 1:1 A4 PDF/SVG with the patient label, and bad input raises with the librar
 message."""
 
 import re
+import struct
 
 import numpy as np
 import pytest
@@ -49,6 +50,12 @@ def check_template(t: baffle.Template, result: baffle.DesignResult, points, tmp_
     assert box and float(box[1]) == pytest.approx(210 * 72 / 25.4, abs=0.01) and float(box[2]) == pytest.approx(297 * 72 / 25.4, abs=0.01)
     svg = t.save(tmp_path / "template.svg").read_text()
     assert 'width="210mm"' in svg and 'height="297mm"' in svg and 'viewBox="0 0 210 297"' in svg
+    png = t.save(tmp_path / "template.png").read_bytes()
+    # IHDR: A4 at 300 dpi is 2480 x 3508 px; pHYs: 11811 px per metre, unit metre.
+    assert png.startswith(b"\x89PNG\r\n\x1a\n")
+    assert struct.unpack(">II", png[16:24]) == (2480, 3508)
+    phys = png.index(b"pHYs")
+    assert struct.unpack(">IIB", png[phys + 4 : phys + 13]) == (11811, 11811, 1)
 
 
 def test_phantom_template(phantom_design, tmp_path):
@@ -89,8 +96,10 @@ def test_bad_template_input_is_named(phantom_design):
         baffle.template(result.domain, points, method="tutte")
     with pytest.raises(ValueError, match="2 point labels for"):
         baffle.template(result.domain, points, point_labels=["a", "b"])
-    with pytest.raises(ValueError, match=r"\.pdf or \.svg"):
-        baffle.template(result.domain, points).save("template.png")
+    with pytest.raises(ValueError, match=r"\.pdf, \.svg or \.png"):
+        baffle.template(result.domain, points).save("template.jpg")
+    with pytest.raises(baffle.BaffleError, match="dpi = 5"):
+        baffle.template(result.domain, points, dpi=5)
 
 
 def test_other_face_labels(phantom_design):

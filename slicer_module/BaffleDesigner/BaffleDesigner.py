@@ -478,7 +478,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def askTemplatePath(self, default):
         """The file to save the template to ('' when cancelled)."""
         chosen = qt.QFileDialog.getSaveFileName(
-            slicer.util.mainWindow(), "Save patch template", default, "PDF, A4 1:1 (*.pdf);;SVG, A4 1:1 (*.svg)"
+            slicer.util.mainWindow(), "Save patch template", default, "PDF, A4 1:1 (*.pdf);;SVG, A4 1:1 (*.svg);;PNG, A4 300 dpi (*.png)"
         )
         # PythonQt returns the path; PySide returns (path, filter).
         return chosen[0] if isinstance(chosen, tuple) else chosen

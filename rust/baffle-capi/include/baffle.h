@@ -23,6 +23,20 @@
 #define BAFFLE_ABI_VERSION 1
 
 /*
+ How the baffle is flattened.
+ */
+typedef enum BaffleFlattenMethod {
+  /*
+   Least-squares conformal map, scaled to the seam length (the default).
+   */
+  BAFFLE_FLATTEN_METHOD_LSCM = 0,
+  /*
+   LSCM, then as-rigid-as-possible iterations (smaller largest area change).
+   */
+  BAFFLE_FLATTEN_METHOD_LSCM_ARAP = 1,
+} BaffleFlattenMethod;
+
+/*
  Patient frame to express points in (files say which frame they are in).
  */
 typedef enum BaffleFrame {
@@ -97,6 +111,25 @@ typedef enum BaffleTargetKind {
    */
   BAFFLE_TARGET_KIND_HEIGHT_WEIGHT = 3,
 } BaffleTargetKind;
+
+/*
+ The page's file format.
+ */
+typedef enum BaffleTemplateFormat {
+  /*
+   A4 portrait, drawn in mm: prints 1:1 at 100 %.
+   */
+  BAFFLE_TEMPLATE_FORMAT_PDF = 0,
+  /*
+   A4 portrait, width/height and viewBox in mm.
+   */
+  BAFFLE_TEMPLATE_FORMAT_SVG = 1,
+  /*
+   A4 portrait raster at 300 dpi, stored in its pHYs chunk (other resolutions:
+   baffle_template_png).
+   */
+  BAFFLE_TEMPLATE_FORMAT_PNG = 2,
+} BaffleTemplateFormat;
 
 /*
  Opaque, immutable triangle surface (mm) with one int32 label per triangle.
@@ -537,6 +570,18 @@ enum BaffleStatus baffle_template_document(const struct BaffleTemplate *template
                                            int32_t format,
                                            uint8_t **out_bytes,
                                            size_t *out_len);
+
+/*
+ The page as a PNG at `dpi` (10 to 1200; stored in the file's pHYs chunk), as a new
+ byte array (uint8_t[*out_len], free with baffle_free).
+
+ # Safety
+ `template` must be NULL or a live handle; the outputs NULL or writable.
+ */
+enum BaffleStatus baffle_template_png(const struct BaffleTemplate *template_,
+                                      double dpi,
+                                      uint8_t **out_bytes,
+                                      size_t *out_len);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -51,6 +51,21 @@ struct ResultDeleter {
 struct FreeDeleter {
   void operator()(void* p) const noexcept { baffle_free(p); }
 };
+struct TemplateDeleter {
+  void operator()(BaffleTemplate* t) const noexcept { baffle_template_free(t); }
+};
+
+// A NUL-terminated string the library allocated, copied and freed.
+inline std::string take_string(char* raw) {
+  std::unique_ptr<char, FreeDeleter> owned(raw);
+  return std::string(owned.get());
+}
+
+// A byte array the library allocated, copied and freed.
+inline std::vector<std::uint8_t> take_bytes(std::uint8_t* raw, std::size_t len) {
+  std::unique_ptr<std::uint8_t, FreeDeleter> owned(raw);
+  return std::vector<std::uint8_t>(raw, raw + len);
+}
 
 // Query a count, then copy that many elements (times `per_item`) into a vector.
 template <typename T, typename Handle, typename CountFn, typename CopyFn>
@@ -167,8 +182,7 @@ class Result {
   std::string report_json() const {
     char* raw = nullptr;
     detail::check(baffle_result_report_json(get(), &raw));
-    std::unique_ptr<char, detail::FreeDeleter> owned(raw);
-    return std::string(owned.get());
+    return detail::take_string(raw);
   }
   std::vector<double> seam_mm() const {
     return detail::copy_out<double>(get(), baffle_result_seam_count, baffle_result_copy_seam, 3);
@@ -270,6 +284,66 @@ inline Phantom phantom() {
   std::unique_ptr<double, detail::FreeDeleter> owned(points);
   return Phantom{Mesh(surface), std::vector<double>(points, points + len), bsa_m2};
 }
+
+// The ModelFaceIDs a template reads from a designed domain (baffle_design's defaults).
+struct TemplateLabels {
+  std::int32_t baffle = 10, vsd_cap = 11, aortic_cap = 16;
+};
+
+// The true-scale patch template of a designed domain: the baffle flattened (scaled to
+// the seam length), its report and the printable A4 page; immutable, cheap to move.
+class Template {
+ public:
+  // Suture points x y z per point in the domain's frame, named by `point_labels` (empty:
+  // 1, 2, ...); an empty `date` prints today (UTC).
+  static Template flatten(const Mesh& domain, const std::vector<double>& suture_points_mm,
+                          const std::vector<std::string>& point_labels = {}, const std::string& patient_label = "",
+                          const std::string& date = "", BaffleFlattenMethod method = BAFFLE_FLATTEN_METHOD_LSCM,
+                          const TemplateLabels& labels = {}) {
+    std::string names;
+    for (std::size_t k = 0; k < point_labels.size(); ++k) names += (k ? "\n" : "") + point_labels[k];
+    const std::int32_t ids[3] = {labels.baffle, labels.vsd_cap, labels.aortic_cap};
+    BaffleTemplate* t = nullptr;
+    detail::check(baffle_template(domain.get(), suture_points_mm.data(), suture_points_mm.size(),
+                                  point_labels.empty() ? nullptr : names.c_str(), patient_label.c_str(),
+                                  date.empty() ? nullptr : date.c_str(), ids, method, &t));
+    return Template(t);
+  }
+
+  // Takes ownership of a handle from the C ABI.
+  explicit Template(BaffleTemplate* handle) : handle_(handle) {}
+
+  // The flattened baffle: points (u, v, 0) mm, the baffle's triangles.
+  Mesh flat_mesh() const {
+    BaffleMesh* m = nullptr;
+    detail::check(baffle_template_flat_mesh(get(), &m));
+    return Mesh(m);
+  }
+  // "flattening" (seam length, perimeter and its error, distortion), per point and per triangle.
+  std::string report_json() const {
+    char* raw = nullptr;
+    detail::check(baffle_template_report_json(get(), &raw));
+    return detail::take_string(raw);
+  }
+  // The page's bytes as the file holds them (PDF, SVG, or PNG at 300 dpi).
+  std::vector<std::uint8_t> document(BaffleTemplateFormat format) const {
+    std::uint8_t* raw = nullptr;
+    std::size_t len = 0;
+    detail::check(baffle_template_document(get(), format, &raw, &len));
+    return detail::take_bytes(raw, len);
+  }
+  // The page as a PNG at `dpi` (stored in its pHYs chunk).
+  std::vector<std::uint8_t> png(double dpi) const {
+    std::uint8_t* raw = nullptr;
+    std::size_t len = 0;
+    detail::check(baffle_template_png(get(), dpi, &raw, &len));
+    return detail::take_bytes(raw, len);
+  }
+  const BaffleTemplate* get() const noexcept { return handle_.get(); }
+
+ private:
+  std::unique_ptr<BaffleTemplate, detail::TemplateDeleter> handle_;
+};
 
 }  // namespace baffle
 

@@ -31,7 +31,7 @@ pub use result::{
     baffle_result_section_count, baffle_result_seam_count, baffle_result_target_area_mm2, BaffleResult,
 };
 pub use template::{
-    baffle_template, baffle_template_document, baffle_template_flat_mesh, baffle_template_free, baffle_template_report_json, BaffleFlattenMethod,
+    baffle_template, baffle_template_document, baffle_template_flat_mesh, baffle_template_free, baffle_template_png, baffle_template_report_json, BaffleFlattenMethod,
     BaffleTemplate, BaffleTemplateFormat,
 };
 pub use status::{baffle_last_error, baffle_last_max_feasible_area_mm2, BaffleStatus};

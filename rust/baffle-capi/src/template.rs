@@ -1,12 +1,13 @@
 //! baffle_template(): the true-scale patch template of a designed domain (the baffle
 //! flattened, suture points, rims) as a handle; its flat mesh, its report and the
-//! printable A4 page (PDF or SVG) are copied out of it.
+//! printable A4 page (PDF, SVG or PNG) are copied out of it.
 
 use crate::alloc::{malloc_copy, malloc_string};
 use crate::mesh::BaffleMesh;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, xyz_count, BaffleStatus, CallError};
 use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::{pdf, svg, template_from_domain, FlattenMethod, Template};
+use baffle_core::template::raster::DEFAULT_DPI;
+use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat, Template};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use std::ffi::{c_char, CStr};
 
@@ -28,6 +29,9 @@ pub enum BaffleTemplateFormat {
     Pdf = 0,
     /// A4 portrait, width/height and viewBox in mm.
     Svg = 1,
+    /// A4 portrait raster at 300 dpi, stored in its pHYs chunk (other resolutions:
+    /// baffle_template_png).
+    Png = 2,
 }
 
 /// Opaque, immutable patch template from baffle_template().
@@ -187,17 +191,33 @@ pub unsafe extern "C" fn baffle_template_document(
     out_len: *mut usize,
 ) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_bytes, "out_bytes")?;
-        let len = out_ref(out_len, "out_len")?;
-        (*out, *len) = (std::ptr::null_mut(), 0);
-        let shapes = &arg_ref(template, "template")?.template.shapes;
-        let bytes = match format {
-            0 => pdf::to_pdf(shapes),
-            1 => svg::to_svg(shapes).into_bytes(),
-            other => return Err(CallError::invalid(format!("format = {other} is not a BaffleTemplateFormat (0 PDF, 1 SVG)"))),
+        let format = match format {
+            0 => PageFormat::Pdf,
+            1 => PageFormat::Svg,
+            2 => PageFormat::Png { dpi: DEFAULT_DPI },
+            other => return Err(CallError::invalid(format!("format = {other} is not a BaffleTemplateFormat (0 PDF, 1 SVG, 2 PNG)"))),
         };
-        *out = malloc_copy(&bytes)?;
-        *len = bytes.len();
-        Ok(())
+        copy_page(template, format, out_bytes, out_len)
     })
+}
+
+/// The page as a PNG at `dpi` (10 to 1200; stored in the file's pHYs chunk), as a new
+/// byte array (uint8_t[*out_len], free with baffle_free).
+///
+/// # Safety
+/// `template` must be NULL or a live handle; the outputs NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn baffle_template_png(template: *const BaffleTemplate, dpi: f64, out_bytes: *mut *mut u8, out_len: *mut usize) -> BaffleStatus {
+    guarded(|| copy_page(template, PageFormat::Png { dpi }, out_bytes, out_len))
+}
+
+/// Render the page and hand the bytes to the caller (the outputs NULL until it succeeds).
+unsafe fn copy_page(template: *const BaffleTemplate, format: PageFormat, out_bytes: *mut *mut u8, out_len: *mut usize) -> Result<(), CallError> {
+    let out = out_ref(out_bytes, "out_bytes")?;
+    let len = out_ref(out_len, "out_len")?;
+    (*out, *len) = (std::ptr::null_mut(), 0);
+    let bytes = format.render(&arg_ref(template, "template")?.template.shapes).map_err(CallError::invalid)?;
+    *out = malloc_copy(&bytes)?;
+    *len = bytes.len();
+    Ok(())
 }

@@ -366,14 +366,30 @@ fn the_template_of_a_phantom_design_is_flat_true_scale_and_printable() {
         .sum();
     assert!((flat_area - flattening["area_flat_mm2"].as_f64().unwrap()).abs() < 1e-9 * flat_area);
 
-    for (format, magic) in [(BaffleTemplateFormat::Pdf, b"%PDF".as_slice()), (BaffleTemplateFormat::Svg, b"<?xml".as_slice())] {
+    for (format, magic) in [(BaffleTemplateFormat::Pdf, b"%PDF".as_slice()), (BaffleTemplateFormat::Svg, b"<?xml".as_slice()), (BaffleTemplateFormat::Png, b"\x89PNG".as_slice())] {
         let (mut bytes, mut len) = (null_mut(), 0usize);
         assert_eq!(unsafe { baffle_template_document(template, format as i32, &mut bytes, &mut len) }, BaffleStatus::Ok);
         let page = unsafe { std::slice::from_raw_parts(bytes, len) }.to_vec();
         unsafe { baffle_free(bytes.cast()) };
         assert!(page.starts_with(magic) || (format == BaffleTemplateFormat::Svg && page.starts_with(b"<svg")), "{:?}", &page[..8]);
-        assert!(page.windows(7).any(|w| w == b"phantom"), "the patient label is on the page");
+        if format != BaffleTemplateFormat::Png {
+            assert!(page.windows(7).any(|w| w == b"phantom"), "the patient label is on the page");
+        }
     }
+    // The PNG at another resolution: a smaller file; an impossible one is named.
+    let png_bytes = |dpi: f64| {
+        let (mut bytes, mut len) = (null_mut(), 0usize);
+        let status = unsafe { baffle_template_png(template, dpi, &mut bytes, &mut len) };
+        let page = if bytes.is_null() { Vec::new() } else { unsafe { std::slice::from_raw_parts(bytes, len) }.to_vec() };
+        unsafe { baffle_free(bytes.cast()) };
+        (status, page)
+    };
+    let (status, small) = png_bytes(72.0);
+    assert!(status == BaffleStatus::Ok && small.starts_with(b"\x89PNG"), "{status:?}");
+    // pHYs: 72 dpi = 2835 px per metre.
+    assert!(small.windows(13).any(|w| w == [b'p', b'H', b'Y', b's', 0, 0, 0x0b, 0x13, 0, 0, 0x0b, 0x13, 1]), "no 72 dpi pHYs");
+    assert_eq!(png_bytes(f64::NAN).0, BaffleStatus::InvalidArgument);
+    assert!(last_error().contains("dpi = NaN"), "{}", last_error());
     let (mut bytes, mut len) = (null_mut(), 0usize);
     assert_eq!(unsafe { baffle_template_document(template, 7, &mut bytes, &mut len) }, BaffleStatus::InvalidArgument);
     assert!(last_error().contains("format = 7"), "{}", last_error());

@@ -1,6 +1,7 @@
 //! `baffle template` end to end: designed domains -> SVG and PDF templates, the SVG's
 //! scale bar and check square read back in mm, the PDF rendered by poppler's pdftoppm
-//! at 254 dpi (10 px per mm) and its scale bar and check square measured in pixels.
+//! at 254 dpi (10 px per mm) and its scale bar and check square measured in pixels, and
+//! the PNG decoded, its pHYs read and the same two measured at that resolution.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -161,30 +162,82 @@ fn dark_run(img: &(usize, usize, Vec<u8>), fixed: usize, from: usize, to: usize,
     best
 }
 
-/// Dark pixels' first and last positions along a row (or column) inside [from, to).
-fn dark_extent(img: &(usize, usize, Vec<u8>), fixed: usize, from: usize, to: usize, along_row: bool) -> (usize, usize) {
-    let (w, _, px) = img;
-    let dark: Vec<usize> = (from..to).filter(|&k| (if along_row { px[fixed * w + k] } else { px[k * w + fixed] }) < 128).collect();
-    (*dark.first().expect("nothing drawn there"), *dark.last().unwrap())
+/// The PDF's scale bar and check square, rendered at 254 dpi (10 px per mm).
+fn measure_pdf(pdf: &Path, name: &str) {
+    // pdftoppm rounds the page up by a pixel; a 2 px tolerance covers its edge rounding.
+    measure_page(&render(pdf), 254.0, name, 2.0);
 }
 
-/// The scale bar and the check square measured on the rendering: 10 mm = 100 px.
-fn measure_pdf(pdf: &Path, name: &str) {
-    use baffle_core::template::drawing::{CHECK_SQUARE_MM, CHECK_SQUARE_SIDE_MM, SCALE_BAR_LENGTH_MM, SCALE_BAR_MM};
-    let img = render(pdf);
-    // A4 at 254 dpi is 2100 x 2970 px (pdftoppm rounds the page up by a pixel).
-    assert!(img.0.abs_diff(2100) <= 1 && img.1.abs_diff(2970) <= 1, "{name}: page {} x {} px", img.0, img.1);
-    let px = |mm: f64| (mm * 10.0).round() as usize;
-    let bar = dark_run(&img, px(SCALE_BAR_MM.1), px(SCALE_BAR_MM.0) - 50, px(SCALE_BAR_MM.0 + SCALE_BAR_LENGTH_MM) + 50, true);
-    println!("{name}: scale bar {bar} px at 254 dpi");
-    assert!((bar as i64 - 100).abs() <= 2, "{name}: scale bar {bar} px, expected 100 +- 2");
-    // The square's outline: its edges' centres 100 px apart across and down.
-    let (sx, sy, side) = (px(CHECK_SQUARE_MM.0), px(CHECK_SQUARE_MM.1), px(CHECK_SQUARE_SIDE_MM));
-    let (l, r) = dark_extent(&img, sy + side / 2, sx - 30, sx + side + 30, true);
-    let (t, b) = dark_extent(&img, sx + side / 2, sy - 30, sy + side + 30, false);
-    let (across, down) = (r - l, b - t);
-    println!("{name}: check square {across} x {down} px (outer edges, 0.2 mm line)");
-    assert!((across as i64 - 102).abs() <= 2 && (down as i64 - 102).abs() <= 2, "{name}: check square {across} x {down} px, expected 102 (100 + line) +- 2");
+/// The scale bar and the check square measured on a page image at `dpi`: both 10 mm
+/// within `tol_px`.
+fn measure_page(img: &(usize, usize, Vec<u8>), dpi: f64, name: &str, tol_px: f64) {
+    use baffle_core::template::drawing::{CHECK_SQUARE_MM, CHECK_SQUARE_SIDE_MM, PAGE_HEIGHT_MM, PAGE_WIDTH_MM, SCALE_BAR_LENGTH_MM, SCALE_BAR_MM};
+    let k = dpi / 25.4;
+    let px = |mm: f64| (mm * k).round() as usize;
+    assert!(img.0.abs_diff(px(PAGE_WIDTH_MM)) <= 1 && img.1.abs_diff(px(PAGE_HEIGHT_MM)) <= 1, "{name}: page {} x {} px at {dpi} dpi", img.0, img.1);
+    let margin = px(5.0);
+    let bar = dark_run(img, px(SCALE_BAR_MM.1), px(SCALE_BAR_MM.0) - margin, px(SCALE_BAR_MM.0 + SCALE_BAR_LENGTH_MM) + margin, true);
+    let expected = SCALE_BAR_LENGTH_MM * k;
+    println!("{name}: scale bar {bar} px at {dpi} dpi (10 mm = {expected:.2} px)");
+    assert!((bar as f64 - expected).abs() <= tol_px, "{name}: scale bar {bar} px, expected {expected:.2} +- {tol_px}");
+    // The square's edges: their centre lines (ink-weighted) are 10 mm apart across and down.
+    let (sx, sy, side) = (CHECK_SQUARE_MM.0, CHECK_SQUARE_MM.1, CHECK_SQUARE_SIDE_MM);
+    let across = edge_centre(img, px(sy + side / 2.0), px(sx + side), margin / 2, true) - edge_centre(img, px(sy + side / 2.0), px(sx), margin / 2, true);
+    let down = edge_centre(img, px(sx + side / 2.0), px(sy + side), margin / 2, false) - edge_centre(img, px(sx + side / 2.0), px(sy), margin / 2, false);
+    let expected = side * k;
+    println!("{name}: check square {across:.2} x {down:.2} px between its edges' centre lines (expected {expected:.2})");
+    for got in [across, down] {
+        assert!((got - expected).abs() <= tol_px, "{name}: check square {across:.2} x {down:.2} px, expected {expected:.2} +- {tol_px}");
+    }
+}
+
+/// The ink-weighted centre of a line crossing a row (or column) within `half` px of `around`.
+fn edge_centre(img: &(usize, usize, Vec<u8>), fixed: usize, around: usize, half: usize, along_row: bool) -> f64 {
+    let (w, _, px) = img;
+    let ink = |k: usize| 255.0 - f64::from(if along_row { px[fixed * w + k] } else { px[k * w + fixed] });
+    let window = around - half..around + half + 1;
+    let total: f64 = window.clone().map(ink).sum();
+    assert!(total > 0.0, "no line near pixel {around}");
+    // Pixel k covers [k, k + 1): its centre is k + 0.5.
+    window.map(|k| (k as f64 + 0.5) * ink(k)).sum::<f64>() / total
+}
+
+/// A PNG's pixels in grey (w, h, luma) and its pHYs resolution in dpi.
+fn read_png(path: &Path) -> ((usize, usize, Vec<u8>), f64) {
+    let decoder = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let dims = reader.info().pixel_dims.unwrap_or_else(|| panic!("{}: no pHYs chunk", path.display()));
+    assert!(matches!(dims.unit, png::Unit::Meter) && dims.xppu == dims.yppu, "{}: pHYs {dims:?}", path.display());
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    let grey = buf[..info.buffer_size()].chunks_exact(3).map(|p| ((p[0] as u32 + p[1] as u32 + p[2] as u32) / 3) as u8).collect();
+    ((info.width as usize, info.height as usize, grey), dims.xppu as f64 * 0.0254)
+}
+
+#[test]
+fn png_templates_store_their_dpi_and_draw_the_scale_bar_at_10_mm() {
+    let dir = temp_dir("png");
+    let (domain, points) = phantom_design(&dir);
+    for dpi in [300.0, 150.0] {
+        let png_path = dir.join(format!("template-{dpi}.png"));
+        let mut args = vec!["template", "--domain", domain.to_str().unwrap(), "--points", points.to_str().unwrap(), "--out", png_path.to_str().unwrap()];
+        let dpi_text = dpi.to_string();
+        if dpi != 300.0 {
+            args.extend(["--dpi", &dpi_text]);
+        }
+        ok(baffle(&args), "template png");
+        let (img, stored_dpi) = read_png(&png_path);
+        // pHYs holds whole pixels per metre, 0.0254 dpi apart: 300 dpi is 11811 px/m.
+        assert!((stored_dpi - dpi).abs() <= 0.0127 + 1e-9, "pHYs {stored_dpi} dpi, asked {dpi}");
+        measure_page(&img, dpi, &format!("phantom png {dpi} dpi"), 1.0);
+        // The distortion map and outline are drawn: the patch box is not blank.
+        let inked = img.2.iter().filter(|&&v| v < 250).count();
+        assert!(inked > 1000, "{inked} non-white pixels");
+    }
+    let out = baffle(&["template", "--domain", domain.to_str().unwrap(), "--points", points.to_str().unwrap(), "--out", dir.join("t.png").to_str().unwrap(), "--dpi", "5"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("dpi = 5"), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
@@ -215,9 +268,9 @@ fn pdf_templates_print_the_scale_bar_at_10_mm() {
 fn a_wrong_extension_and_a_domain_without_a_baffle_are_named() {
     let dir = temp_dir("errors");
     let (domain, points) = phantom_design(&dir);
-    let out = baffle(&["template", "--domain", domain.to_str().unwrap(), "--points", points.to_str().unwrap(), "--out", dir.join("t.png").to_str().unwrap()]);
+    let out = baffle(&["template", "--domain", domain.to_str().unwrap(), "--points", points.to_str().unwrap(), "--out", dir.join("t.jpg").to_str().unwrap()]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("must end in .pdf or .svg"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("must end in .pdf, .svg or .png"));
     let out = baffle(&[
         "template",
         "--domain",

@@ -36,10 +36,8 @@
 
 use crate::mesh::{manifold_report, TriMesh, Vec3};
 use crate::spatial::{ray_triangle, TriangleBvh};
-use crate::voxel::{voxelize, Grid};
+use crate::voxel::{best_first_search, voxelize, Grid};
 use rayon::prelude::*;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 /// Centerline spacing of the paper (mm).
 pub const PAPER_SPACING_MM: f64 = 0.5;
@@ -261,74 +259,23 @@ fn lumen_grid(surface: &TriMesh, voxel_mm: f64) -> Result<Grid, String> {
 
 /// Distance to the wall at every inside voxel centre; 0 outside.
 fn voxel_radii(grid: &Grid, inside: &[bool], wall: &WallDistance) -> Vec<f32> {
-    let (nx, ny) = (grid.dims[0], grid.dims[1]);
     (0..inside.len())
         .into_par_iter()
-        .map(|v| if inside[v] { wall.at(grid.position(v % nx, (v / nx) % ny, v / (nx * ny))).max(1e-6) as f32 } else { 0.0 })
+        .map(|v| if inside[v] { wall.at(grid.centre(v)).max(1e-6) as f32 } else { 0.0 })
         .collect()
 }
 
-fn voxel_centre(grid: &Grid, v: usize) -> Vec3 {
-    let (nx, ny) = (grid.dims[0], grid.dims[1]);
-    grid.position(v % nx, (v / nx) % ny, v / (nx * ny))
-}
-
 fn nearest_inside_voxel(grid: &Grid, radius: &[f32], seed: Vec3) -> Option<usize> {
-    (0..radius.len()).filter(|&v| radius[v] > 0.0).min_by(|&a, &b| (voxel_centre(grid, a) - seed).norm_squared().total_cmp(&(voxel_centre(grid, b) - seed).norm_squared()))
+    (0..radius.len()).filter(|&v| radius[v] > 0.0).min_by(|&a, &b| (grid.centre(a) - seed).norm_squared().total_cmp(&(grid.centre(b) - seed).norm_squared()))
 }
 
 /// Dijkstra over the 26-connected inside voxels, cost `|step| mean(1/R^2)`; the voxel
 /// centres from `from` to `to`.
 fn minimal_path(grid: &Grid, radius: &[f32], from: usize, to: usize) -> Option<Vec<Vec3>> {
-    let d = grid.dims.map(|n| n as i64);
-    let mut offsets = Vec::new();
-    for (di, dj, dk) in (-1..=1).flat_map(|i| (-1..=1).flat_map(move |j| (-1..=1).map(move |k| (i, j, k)))) {
-        if (di, dj, dk) != (0, 0, 0) {
-            offsets.push(([di, dj, dk], grid.spacing_mm * ((di * di + dj * dj + dk * dk) as f64).sqrt()));
-        }
-    }
     let inv_r2 = |v: usize| 1.0 / (radius[v] as f64 * radius[v] as f64);
-    let mut cost = vec![f64::INFINITY; radius.len()];
-    let mut previous = vec![u32::MAX; radius.len()];
-    let mut heap = BinaryHeap::new();
-    cost[from] = 0.0;
-    heap.push(Reverse((0u64, from)));
-    while let Some(Reverse((bits, v))) = heap.pop() {
-        let c = f64::from_bits(bits);
-        if c > cost[v] {
-            continue;
-        }
-        if v == to {
-            break;
-        }
-        let ijk = [(v as i64) % d[0], (v as i64 / d[0]) % d[1], v as i64 / (d[0] * d[1])];
-        for (o, len) in &offsets {
-            let n = [ijk[0] + o[0], ijk[1] + o[1], ijk[2] + o[2]];
-            if (0..3).any(|a| n[a] < 0 || n[a] >= d[a]) {
-                continue;
-            }
-            let w = (n[0] + d[0] * (n[1] + d[1] * n[2])) as usize;
-            if radius[w] <= 0.0 {
-                continue;
-            }
-            let next = c + len * 0.5 * (inv_r2(v) + inv_r2(w));
-            if next < cost[w] {
-                cost[w] = next;
-                previous[w] = v as u32;
-                // Non-negative f64 order like their bit patterns.
-                heap.push(Reverse((next.to_bits(), w)));
-            }
-        }
-    }
-    if !cost[to].is_finite() {
-        return None;
-    }
-    let mut path = vec![to];
-    while *path.last()? != from {
-        path.push(previous[*path.last()?] as usize);
-    }
-    path.reverse();
-    Some(path.into_iter().map(|v| voxel_centre(grid, v)).collect())
+    let search = best_first_search(grid, &[from], |w| radius[w] > 0.0, |c, v, w, len| c + len * 0.5 * (inv_r2(v) + inv_r2(w)), |v| v == to);
+    search.reached?;
+    Some(search.path_to(to).into_iter().map(|v| grid.centre(v)).collect())
 }
 
 pub fn arc_lengths(points: &[Vec3]) -> Vec<f64> {
@@ -363,7 +310,7 @@ pub fn resample(points: &[Vec3], step: f64) -> Vec<Vec3> {
 
 /// Centred moving average over `2 half + 1` points, narrowed near the ends so that
 /// the ends stay where they are.
-fn moving_average(points: &[Vec3], half: usize) -> Vec<Vec3> {
+pub(crate) fn moving_average(points: &[Vec3], half: usize) -> Vec<Vec3> {
     let n = points.len();
     (0..n)
         .map(|i| {

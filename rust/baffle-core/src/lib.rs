@@ -36,6 +36,7 @@ pub mod flow_centerline;
 pub mod reference_data;
 pub mod template;
 pub mod rv_cost;
+pub mod rv_outflow;
 
 pub use design::{design, DesignOptions, DesignReport, DesignResult};
 pub use error::DesignError;

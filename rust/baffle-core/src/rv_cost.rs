@@ -15,6 +15,7 @@
 //! an edge times the wall area (~0.01 mL on p2), below the figures' last digit.
 
 use crate::mesh::{TriMesh, Vec3};
+use crate::rv_outflow::RvOutflow;
 use crate::spatial::{Aabb, TriangleBvh};
 use serde::Serialize;
 
@@ -34,6 +35,11 @@ pub struct RvCost {
     /// Baffle area outside the capped ventricle; where it is not 0 the volumes above
     /// are net figures, not a cavity.
     pub baffle_area_outside_ventricle_mm2: f64,
+    /// The smallest RV-to-pulmonary section before and after the baffle, or why it is
+    /// unavailable (`rv_outflow_min_section_mm2`, ... at the top level); measured only
+    /// where the pulmonary artery is known ([`crate::rv_outflow::rv_outflow`]).
+    #[serde(flatten)]
+    pub rv_outflow: RvOutflow,
 }
 
 /// RV cost of `domain` (with its `baffle`) designed in `ventricle` (closed, outward;
@@ -54,6 +60,7 @@ pub fn rv_cost(ventricle: &TriMesh, bvh: &TriangleBvh, domain: &TriMesh, baffle:
         rv_volume_after_ml: (before - taken) / MM3_PER_ML,
         rv_volume_taken_ml: taken / MM3_PER_ML,
         baffle_area_outside_ventricle_mm2: outside_mm2,
+        rv_outflow: RvOutflow::default(),
     }
 }
 
@@ -61,7 +68,7 @@ pub fn rv_cost(ventricle: &TriMesh, bvh: &TriangleBvh, domain: &TriMesh, baffle:
 /// at the nearest point (Baerentzen and Aanaes 2005), which decides correctly whether that
 /// point is inside a triangle, on an edge or at a corner (a single triangle's side does
 /// not, where the surface folds between neighbours).
-fn is_outside(surface: &TriMesh, bvh: &TriangleBvh, q: Vec3) -> bool {
+pub(crate) fn is_outside(surface: &TriMesh, bvh: &TriangleBvh, q: Vec3) -> bool {
     let Some(hit) = bvh.closest_point(surface, q) else {
         return false;
     };

@@ -5,7 +5,8 @@ use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_cu
 use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::phantom::phantom_default;
-use baffle_core::{design, DesignError, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
+use baffle_core::rv_outflow::{rv_outflow, RvOutflow};
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh, Vec3};
 use crate::{feasibility, files};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -79,6 +80,12 @@ pub struct DesignArgs {
     /// Scale of the reference's coordinates to mm (10 for the published files, in cm).
     #[arg(long, default_value_t = 1.0)]
     pub reference_scale: f64,
+    /// Closed surface of the pulmonary artery (mm, the surface's frame), e.g. a
+    /// segmentation's pulmonary.vtp: measures the smallest section of the RV-to-pulmonary
+    /// pathway before and after the baffle (report.json rv_outflow_*). Taken from
+    /// --segmentations by `baffle plan` and `baffle sweep`.
+    #[arg(long)]
+    pub pulmonary: Option<PathBuf>,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     #[arg(long)]
     pub progress_tags: bool,
@@ -163,7 +170,7 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     let options = design_options(args)?;
     let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
-    let result = design(&surface, &points, &target, &options, progress).map_err(|e| match e {
+    let mut result = design(&surface, &points, &target, &options, progress).map_err(|e| match e {
         // A fault of the surface file: say which file.
         DesignError::Surface(_) | DesignError::MissingLabel { .. } => match &args.surface {
             Some(path) => format!("{}: {e}", path.display()),
@@ -171,6 +178,7 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
         },
         e => feasibility::design_failure(&args.out, e),
     })?;
+    measure_rv_outflow(&surface, &mut result, args.pulmonary.as_deref())?;
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
     println!(
@@ -185,6 +193,7 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
         r.timings.total_ms
     );
     println!("{}", rv_cost_line(&r.rv_cost));
+    println!("{}", rv_outflow_line(&r.rv_cost.rv_outflow));
     if let Some(path) = &args.reference_baffle {
         compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?;
     }
@@ -213,6 +222,30 @@ pub fn rv_cost_line(c: &baffle_core::rv_cost::RvCost) -> String {
     match c.baffle_area_outside_ventricle_mm2 {
         a if a > 0.0 => format!("{line}; {a:.1} mm2 of the baffle lies outside the capped ventricle, so these are net volumes, not the RV cavity"),
         _ => line,
+    }
+}
+
+/// The smallest RV-to-pulmonary section of a design, where the pulmonary artery's
+/// surface is given; without it the report keeps the reason it is not measured.
+pub fn measure_rv_outflow(ventricle: &TriMesh, result: &mut DesignResult, pulmonary: Option<&Path>) -> Result<(), String> {
+    let Some(path) = pulmonary else {
+        return Ok(());
+    };
+    let pa = baffle_core::io::read_surface(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    result.report.rv_cost.rv_outflow = rv_outflow(ventricle, &result.domain, &pa).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// The RV outflow's smallest section before and after, or why it is not measured.
+pub fn rv_outflow_line(o: &RvOutflow) -> String {
+    let place = |p: &Option<baffle_core::rv_outflow::OutflowPath>| p.as_ref().map(|p| format!(" at {:.1} of {:.1} mm along the path", p.min_section_s_mm, p.path_length_mm)).unwrap_or_default();
+    match (o.rv_outflow_min_section_before_mm2, o.rv_outflow_min_section_mm2) {
+        (Some(before), Some(after)) => format!(
+            "RV outflow (apex region to the pulmonary interface): smallest section {before:.1} mm2{} before, {after:.1} mm2{} after the baffle",
+            place(&o.rv_outflow_before),
+            place(&o.rv_outflow_after)
+        ),
+        _ => format!("RV outflow smallest section not measured: {}", o.rv_outflow_unavailable.as_deref().unwrap_or("no reason given")),
     }
 }
 

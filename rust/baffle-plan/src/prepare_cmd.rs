@@ -40,6 +40,11 @@ impl PrepareSource {
     pub fn is_given(&self) -> bool {
         self.segmentations.is_some() || self.labelmap.is_some()
     }
+
+    /// The pulmonary artery's surface in --segmentations, where there is one.
+    pub fn pulmonary_surface(&self) -> Option<PathBuf> {
+        self.segmentations.as_deref().and_then(baffle_prepare::input::pulmonary_file)
+    }
 }
 
 #[derive(Args)]

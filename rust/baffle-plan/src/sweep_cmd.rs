@@ -16,7 +16,7 @@ use crate::plan_stages::{self, PlanArgs, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
 use crate::progress::{Progress, Style};
 use crate::report::svg_plot::{line_chart, Series};
-use crate::design_cmd::{design_inputs, design_options, rv_cost_line, target_from, DesignArgs, TargetArgs};
+use crate::design_cmd::{design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignArgs, TargetArgs};
 use crate::verdict::{self, Verdict};
 use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
 use baffle_core::outputs::write_design_outputs;
@@ -119,6 +119,11 @@ impl Row {
         self.report().map_or(f64::NAN, f)
     }
 
+    /// The RV outflow's smallest section after the baffle, NaN where not measured.
+    fn rv_outflow_mm2(&self) -> f64 {
+        self.report().and_then(|d| d.rv_cost.rv_outflow.rv_outflow_min_section_mm2).unwrap_or(f64::NAN)
+    }
+
     fn max_feasible(&self) -> (f64, Option<f64>) {
         match self.outcome {
             Outcome::Infeasible { max_feasible_area_mm2, max_feasible_z_score, .. } => (max_feasible_area_mm2, max_feasible_z_score),
@@ -170,6 +175,7 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
     let prepared = prepare_once(args)?;
     let (surface, points, default_bsa) = design_inputs(&DesignArgs { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface());
     if args.cfd.cfd {
         // Every stage's arguments are checked before the first design, as the plan does.
         plan_stages::plan_stages(&plan_args(args, &args.design.out, f64::NAN))?;
@@ -183,7 +189,8 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
         let clock = Instant::now();
         let row_dir = args.design.out.join(folder_name(z_score, target_area_mm2));
         let outcome = match design(&surface, &points, &target, &options, &mut |_, _| true) {
-            Ok(result) => {
+            Ok(mut result) => {
+                measure_rv_outflow(&surface, &mut result, pulmonary.as_deref())?;
                 write_design_outputs(&row_dir.join("design"), &result).map_err(|e| e.to_string())?;
                 Outcome::Designed(Box::new(result.report))
             }
@@ -351,7 +358,7 @@ fn optional(v: Option<f64>, decimals: usize) -> String {
     cell(v.unwrap_or(f64::NAN), decimals)
 }
 
-const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,max_feasible_area_mm2,max_feasible_z_score,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
+const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,rv_outflow_min_section_mm2,max_feasible_area_mm2,max_feasible_z_score,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
 
 fn csv(rows: &[Row]) -> String {
     let mut s = format!("{CSV_HEADER}\n");
@@ -367,6 +374,7 @@ fn csv(rows: &[Row]) -> String {
             cell(r.designed(|d| d.rv_cost.rv_volume_after_ml), 4),
             cell(r.designed(|d| d.rv_cost.rv_volume_taken_ml), 4),
             cell(r.designed(|d| d.rv_cost.baffle_area_outside_ventricle_mm2), 2),
+            cell(r.rv_outflow_mm2(), 2),
             cell(max_area, 3),
             optional(max_z, 3),
             cell(r.quick(|q| q.dp_mmhg), 3),
@@ -384,8 +392,8 @@ fn csv(rows: &[Row]) -> String {
 
 fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | largest feasible target (mm2) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | RV outflow smallest section (mm2) | largest feasible target (mm2) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let (max_area, max_z) = r.max_feasible();
@@ -395,7 +403,7 @@ fn markdown(rows: &[Row]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             optional(r.z_score, 2),
             cell(r.target_area_mm2, 1),
             r.status(),
@@ -404,6 +412,7 @@ fn markdown(rows: &[Row]) -> String {
             cell(r.designed(|d| d.rv_cost.rv_volume_before_ml), 2),
             cell(r.designed(|d| d.rv_cost.rv_volume_after_ml), 2),
             cell(r.designed(|d| d.rv_cost.rv_volume_taken_ml), 2),
+            cell(r.rv_outflow_mm2(), 1),
             largest,
             cell(r.quick(|q| q.dp_mmhg), 2),
             cell(r.quick(|q| q.vmax_m_s), 2),
@@ -411,7 +420,11 @@ fn markdown(rows: &[Row]) -> String {
             cell((r.design_ms / 1e3) + r.quick(|q| q.cfd_s).max(0.0), 1),
         );
     }
-    let notes: Vec<String> = rows.iter().filter(|r| !r.note().is_empty()).map(|r| format!("- {}: {}", r.folder(), r.note())).collect();
+    let mut notes: Vec<String> = rows.iter().filter(|r| !r.note().is_empty()).map(|r| format!("- {}: {}", r.folder(), r.note())).collect();
+    // Why the RV outflow is not measured, once per distinct reason.
+    let mut outflow_reasons: Vec<&str> = rows.iter().filter_map(|r| r.report()?.rv_cost.rv_outflow.rv_outflow_unavailable.as_deref()).collect();
+    outflow_reasons.dedup();
+    notes.extend(outflow_reasons.iter().map(|reason| format!("- RV outflow smallest section not measured: {reason}")));
     if !notes.is_empty() {
         let _ = write!(s, "\n{}\n", notes.join("\n"));
     }
@@ -497,6 +510,8 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
                 "rv_volume_after_ml": number(r.designed(|d| d.rv_cost.rv_volume_after_ml)),
                 "rv_volume_taken_ml": number(r.designed(|d| d.rv_cost.rv_volume_taken_ml)),
                 "baffle_area_outside_ventricle_mm2": number(r.designed(|d| d.rv_cost.baffle_area_outside_ventricle_mm2)),
+                "rv_outflow_min_section_mm2": number(r.rv_outflow_mm2()),
+                "rv_outflow_unavailable": r.report().and_then(|d| d.rv_cost.rv_outflow.rv_outflow_unavailable.clone()),
                 "max_feasible_area_mm2": number(max_area),
                 "max_feasible_z_score": max_z,
                 "dp_mmhg": number(r.quick(|q| q.dp_mmhg)),

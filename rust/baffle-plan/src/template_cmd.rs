@@ -1,13 +1,15 @@
 //! `baffle template`: the true-scale patch template the surgeon cuts the baffle from
 //! (issue 17): the designed baffle flattened (LSCM, scaled to the seam length), the
 //! suture points numbered, the VSD and aortic rims, a 10 mm scale bar and check square,
-//! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %.
+//! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %, or a
+//! PNG with its resolution in the file (pHYs).
 
 use crate::files::write_atomic;
 use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::{pdf, svg, template_from_domain, FlattenMethod};
+use baffle_core::template::raster::DEFAULT_DPI;
+use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat};
 use baffle_core::FaceLabels;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -20,10 +22,14 @@ pub struct TemplateArgs {
     /// The surgeon's suture points (.mrk.json, .fcsv, CSV or JSON), numbered on the template.
     #[arg(long)]
     pub points: PathBuf,
-    /// Output: .pdf (A4, vector) or .svg (A4, viewBox in mm). A JSON report with the
-    /// perimeter and distortion figures is written beside it (<stem>-report.json).
+    /// Output: .pdf (A4, vector), .svg (A4, viewBox in mm) or .png (A4 at --dpi, the DPI
+    /// stored in the file). A JSON report with the perimeter and distortion figures is
+    /// written beside it (<stem>-report.json).
     #[arg(long)]
     pub out: PathBuf,
+    /// Resolution of a .png template (dots per inch).
+    #[arg(long, default_value_t = DEFAULT_DPI)]
+    pub dpi: f64,
     /// Patient label printed on the template.
     #[arg(long, default_value = "")]
     pub label: String,
@@ -51,21 +57,8 @@ pub enum TemplateMethod {
     Arap,
 }
 
-enum Format {
-    Pdf,
-    Svg,
-}
-
-fn format_of(path: &std::path::Path) -> Result<Format, String> {
-    match path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).as_deref() {
-        Some("pdf") => Ok(Format::Pdf),
-        Some("svg") => Ok(Format::Svg),
-        _ => Err(format!("{}: --out must end in .pdf or .svg", path.display())),
-    }
-}
-
 pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
-    let format = format_of(&args.out)?;
+    let format = PageFormat::from_path(&args.out, args.dpi)?;
     let domain = read_surface(&args.domain).map_err(|e| e.to_string())?;
     let points = read_points(&args.points).map_err(|e| e.to_string())?;
     let frame = CoordinateSystem::from(args.surface_frame);
@@ -77,10 +70,7 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
     };
     let template = template_from_domain(&domain, &labels, &points.to_frame(frame), &points.labels, &text, method)
         .map_err(|e| format!("{}: {e}", args.domain.display()))?;
-    let bytes = match format {
-        Format::Pdf => pdf::to_pdf(&template.shapes),
-        Format::Svg => svg::to_svg(&template.shapes).into_bytes(),
-    };
+    let bytes = format.render(&template.shapes)?;
     crate::files::create_parent_dir(&args.out)?;
     write_atomic(&args.out, &bytes)?;
     let report = serde_json::json!({
@@ -90,7 +80,10 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
         "aortic_rim_seam_vertices": template.aortic_rim_vertices,
         "seam_to_vsd_cap_mm": template.seam_to_vsd_cap_mm,
         "seam_to_aortic_cap_mm": template.seam_to_aortic_cap_mm,
-        "page": "A4 portrait 210 x 297 mm, 1:1 at 100 %",
+        "page": match format {
+            PageFormat::Png { dpi } => format!("A4 portrait 210 x 297 mm at {dpi} dpi (in the PNG's pHYs), 1:1 when printed at that resolution"),
+            _ => "A4 portrait 210 x 297 mm, 1:1 at 100 %".to_string(),
+        },
     });
     let stem = args.out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let report_path = args.out.with_file_name(format!("{stem}-report.json"));

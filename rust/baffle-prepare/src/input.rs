@@ -27,6 +27,11 @@ pub fn read_segmentations(dir: &Path) -> Result<BloodPools, PrepareError> {
     Ok(BloodPools { lv: lv?, rv: rv?, aorta: aorta? })
 }
 
+/// `DIR/pulmonary.{vtp,vtk,stl}` (or PA), where the folder has one: the RV outflow's end.
+pub fn pulmonary_file(dir: &Path) -> Option<PathBuf> {
+    find_file(dir, &["pulmonary", "Pulmonary", "PA", "pa"])
+}
+
 fn find_file(dir: &Path, stems: &[&str]) -> Option<PathBuf> {
     stems.iter().flat_map(|s| EXTENSIONS.iter().map(move |e| dir.join(format!("{s}.{e}")))).find(|p| p.is_file())
 }

@@ -685,10 +685,11 @@ class BaffleDesignerLogic:
         return template
 
     def saveTemplate(self, curve, path, method: str = "lscm", patient_label: Optional[str] = None) -> str:
-        """Write the candidate's patch template to `path` (.pdf or .svg, A4, 1:1 at 100 %),
-        flattening first when there is no template of the current design."""
-        if not str(path).lower().endswith((".pdf", ".svg")):
-            raise BaffleDesignerError(f"{path}: save the template as .pdf or .svg")
+        """Write the candidate's patch template to `path` (.pdf or .svg, A4, 1:1 at 100 %;
+        .png, A4 at 300 dpi stored in the file), flattening first when there is no
+        template of the current design."""
+        if not str(path).lower().endswith((".pdf", ".svg", ".png")):
+            raise BaffleDesignerError(f"{path}: save the template as .pdf, .svg or .png")
         template = self._templates.get(curve.GetID()) if curve is not None else None
         flat = curve.GetNodeReference(REF_FLAT_TEMPLATE) if curve is not None else None
         domain = curve.GetNodeReference(REF_DOMAIN) if curve is not None else None

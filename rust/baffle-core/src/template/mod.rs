@@ -16,6 +16,7 @@
 
 pub mod drawing;
 pub mod pdf;
+pub mod raster;
 pub mod svg;
 
 use crate::mesh::{FaceLabels, TriMesh, Vec3};
@@ -133,6 +134,36 @@ pub fn flatten(mesh: &TriMesh, method: FlattenMethod) -> Result<FlatPatch, Strin
         return Err(format!("flattening folded triangle {t} (flat area ratio {:.3})", area_ratio[t]));
     }
     Ok(FlatPatch { uv_mm, triangles: mesh.triangles.clone(), boundary, report, area_ratio, angle_error_deg })
+}
+
+/// A file format of the printed page; all three draw the same [`drawing::layout`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PageFormat {
+    Pdf,
+    Svg,
+    /// A raster at this many dots per inch, stored in the file.
+    Png { dpi: f64 },
+}
+
+impl PageFormat {
+    /// The format a file name asks for (.pdf, .svg, .png; `dpi` is the PNG's).
+    pub fn from_path(path: &std::path::Path, dpi: f64) -> Result<Self, String> {
+        match path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).as_deref() {
+            Some("pdf") => Ok(PageFormat::Pdf),
+            Some("svg") => Ok(PageFormat::Svg),
+            Some("png") => Ok(PageFormat::Png { dpi }),
+            _ => Err(format!("{}: a template must end in .pdf, .svg or .png", path.display())),
+        }
+    }
+
+    /// The page's shapes as the file's bytes.
+    pub fn render(self, shapes: &[drawing::Shape]) -> Result<Vec<u8>, String> {
+        match self {
+            PageFormat::Pdf => Ok(pdf::to_pdf(shapes)),
+            PageFormat::Svg => Ok(svg::to_svg(shapes).into_bytes()),
+            PageFormat::Png { dpi } => raster::to_png(shapes, dpi),
+        }
+    }
 }
 
 /// A finished template: the flattened baffle and the page's shapes.

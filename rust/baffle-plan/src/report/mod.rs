@@ -25,6 +25,11 @@ fn number(doc: &Value, key: &str, file: &Path) -> Result<f64, String> {
     doc.pointer(key).and_then(Value::as_f64).filter(|v| v.is_finite()).ok_or_else(|| format!("{}: no finite {key}", file.display()))
 }
 
+/// A number that may be null (NaN then).
+fn optional_number(doc: &Value, key: &str) -> f64 {
+    doc.pointer(key).and_then(Value::as_f64).unwrap_or(f64::NAN)
+}
+
 /// A table value for report.json: counts as integers, non-finite as null.
 fn json_value(q: &Quantity) -> Value {
     match q.value {
@@ -118,6 +123,8 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
         row("baffle_triangles", "Baffle triangles", d("/baffle_triangles")?, "", 0),
         row("rv_volume_before_ml", "RV volume before the baffle (capped ventricle)", d("/rv_volume_before_ml")?, "mL", 2),
         row("rv_volume_after_ml", "RV volume after the baffle (outside the pathway)", d("/rv_volume_after_ml")?, "mL", 2),
+        // Null where the pulmonary artery is not known or does not touch the RV ("—").
+        row("rv_outflow_min_section_mm2", "RV outflow smallest section after the baffle (apex region to the pulmonary interface)", optional_number(design, "/rv_outflow_min_section_mm2"), "mm²", 1),
         row("tetrahedra", "Tetrahedra", q("/tetrahedra")?, "", 0),
         row("min_scaled_jacobian", "Scaled Jacobian, min", q("/min_scaled_jacobian")?, "", 3),
         row("p1_scaled_jacobian", "Scaled Jacobian, 1st percentile", q("/p1_scaled_jacobian")?, "", 3),

@@ -349,5 +349,6 @@ def test_flatten_and_save_template(p2_scene, tmp_path):
     logic.design(curve)
     logic.saveTemplate(curve, tmp_path / "again.pdf")
     assert logic._templates[curve.GetID()] is not template
-    with pytest.raises(bdlogic.BaffleDesignerError, match=r"\.pdf or \.svg"):
-        logic.saveTemplate(curve, tmp_path / "template.png")
+    assert logic.saveTemplate(curve, tmp_path / "t.png") and (tmp_path / "t.png").read_bytes().startswith(b"\x89PNG")
+    with pytest.raises(bdlogic.BaffleDesignerError, match=r"\.pdf, \.svg or \.png"):
+        logic.saveTemplate(curve, tmp_path / "template.jpg")

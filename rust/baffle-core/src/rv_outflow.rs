@@ -1,0 +1,428 @@
+//! The smallest section of the RV-to-pulmonary-artery pathway, before and after the
+//! baffle (issue 17: what the tunnel leaves the right ventricle's outflow).
+//!
+//! On a voxel grid ([`GRID_MM`]) over the capped ventricle:
+//! 1. the region: inside the capped ventricle, and (after) outside the designed domain;
+//! 2. the outflow end: region voxels next to the pulmonary artery, i.e. next to a voxel
+//!    outside the ventricle whose centre is inside the pulmonary segmentation or within
+//!    [`CONTACT_MM`] of it (the RV's interface with the pulmonary label). Without such
+//!    voxels there is no interface and the figure is unavailable, with the gap in mm;
+//! 3. the radius R of each region voxel: its distance to the nearest wall voxel (neither
+//!    region nor pulmonary: the interface is an opening, not a wall), exact Euclidean
+//!    distance transform;
+//! 4. the start: the apex region is the quarter of the region farthest from the outflow
+//!    end along the region ([`APEX_FRACTION`] of the largest such distance); the path
+//!    starts at its widest voxel (largest R), not at the tip, whose sections shrink to 0;
+//! 5. the path: the widest one (its narrowest R as large as any path's, a bottleneck
+//!    search), and among those the centred one (Dijkstra with cost |step| / R^2, as the
+//!    flow centerline), smoothed and resampled every [`SAMPLE_MM`];
+//! 6. at every sample the region is cut by the plane normal to the path: both closed
+//!    surfaces' cut segments are filled on a [`PIXEL_MM`] raster (even-odd) and the
+//!    4-connected piece holding the sample is the section. The smallest is reported
+//!    with its place along the path.
+
+use crate::flow_centerline::{arc_lengths, moving_average, resample};
+use crate::mesh::{TriMesh, Vec3};
+use crate::rv_cost::is_outside;
+use crate::spatial::TriangleBvh;
+use crate::voxel::{best_first_search, squared_distance_transform, voxelize, Grid};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Voxel edge of the path search (mm).
+pub const GRID_MM: f64 = 0.5;
+/// A voxel outside the RV this close to the pulmonary segmentation (mm) is pulmonary.
+pub const CONTACT_MM: f64 = 0.5;
+/// The apex region: region voxels at least this fraction of the largest distance from
+/// the outflow end (along the region).
+pub const APEX_FRACTION: f64 = 0.75;
+/// Path samples, and the half-width of its smoothing (mm).
+pub const SAMPLE_MM: f64 = 0.5;
+const SMOOTHING_MM: f64 = 2.0;
+/// Pixel of the section raster (mm).
+pub const PIXEL_MM: f64 = 0.1;
+
+/// The path through one region and its smallest section.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OutflowPath {
+    pub min_section_mm2: f64,
+    /// Arc length from the apex end of the path to the smallest section.
+    pub min_section_s_mm: f64,
+    pub min_section_point_mm: [f64; 3],
+    pub min_section_normal: [f64; 3],
+    pub path_length_mm: f64,
+    /// Sections measured (one every SAMPLE_MM).
+    pub sections: usize,
+    /// The path's narrowest inscribed radius on the grid (mm).
+    pub bottleneck_radius_mm: f64,
+}
+
+/// The RV-to-pulmonary figures of a design, or why there are none.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RvOutflow {
+    /// The smallest section after the baffle (null when unavailable).
+    pub rv_outflow_min_section_mm2: Option<f64>,
+    pub rv_outflow_min_section_before_mm2: Option<f64>,
+    pub rv_outflow_before: Option<OutflowPath>,
+    pub rv_outflow_after: Option<OutflowPath>,
+    /// Why the figures are missing (null when measured).
+    pub rv_outflow_unavailable: Option<String>,
+    /// Area of the capped ventricle's surface inside the pulmonary segmentation or within
+    /// CONTACT_MM of it: the interface the path ends at (null without a pulmonary surface).
+    pub rv_pulmonary_interface_mm2: Option<f64>,
+}
+
+impl RvOutflow {
+    pub fn unavailable(reason: impl Into<String>) -> Self {
+        RvOutflow {
+            rv_outflow_min_section_mm2: None,
+            rv_outflow_min_section_before_mm2: None,
+            rv_outflow_before: None,
+            rv_outflow_after: None,
+            rv_outflow_unavailable: Some(reason.into()),
+            rv_pulmonary_interface_mm2: None,
+        }
+    }
+}
+
+impl Default for RvOutflow {
+    fn default() -> Self {
+        RvOutflow::unavailable("no pulmonary artery surface given (baffle design --pulmonary, or --segmentations with pulmonary.vtp)")
+    }
+}
+
+/// The smallest RV-to-pulmonary section of the capped `ventricle` before and after the
+/// designed `domain` (closed surfaces, mm), the interface taken from `pulmonary`
+/// (closed). Errors only on unusable input; no interface is an unavailable figure.
+pub fn rv_outflow(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<RvOutflow, String> {
+    let interface_mm2 = interface_area_mm2(ventricle, pulmonary)?;
+    Ok(RvOutflow { rv_pulmonary_interface_mm2: Some(interface_mm2), ..outflow_paths(ventricle, domain, pulmonary)? })
+}
+
+/// The capped ventricle's surface area inside the pulmonary surface or within CONTACT_MM
+/// of it (by triangle centroids).
+fn interface_area_mm2(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<f64, String> {
+    let bvh = TriangleBvh::new(pulmonary)?;
+    Ok((0..ventricle.triangles.len())
+        .into_par_iter()
+        .filter(|&t| {
+            let [a, b, c] = ventricle.triangle_points(t);
+            let centroid = (a + b + c) / 3.0;
+            bvh.closest_point_within(pulmonary, centroid, CONTACT_MM).is_some() || !is_outside(pulmonary, &bvh, centroid)
+        })
+        .map(|t| ventricle.triangle_area_mm2(t))
+        .sum::<f64>()
+        .max(0.0))
+}
+
+/// The paths before and after the baffle and their smallest sections; what is missing
+/// after the baffle is said (the figure before stays).
+fn outflow_paths(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<RvOutflow, String> {
+    let field = VoxelField::new(ventricle, domain, pulmonary)?;
+    let sections = Sections { ventricle, domain };
+    let before = match field.path(false) {
+        Ok(path) => sections.smallest(&path, false).ok_or("no section of the RV along the path before the baffle")?,
+        Err(PathFailure::NoInterface) => return Ok(RvOutflow::unavailable(no_interface_reason(ventricle, pulmonary)?)),
+        Err(PathFailure::Other(reason)) => return Ok(RvOutflow::unavailable(reason)),
+    };
+    let after = match field.path(true) {
+        Ok(path) => sections.smallest(&path, true).ok_or_else(|| "no section of the RV along the path after the baffle".to_string()),
+        Err(PathFailure::NoInterface) => Err("the designed domain covers the RV's interface with the pulmonary artery".to_string()),
+        Err(PathFailure::Other(reason)) => Err(reason),
+    };
+    Ok(RvOutflow {
+        rv_outflow_min_section_mm2: after.as_ref().ok().map(|a| a.min_section_mm2),
+        rv_outflow_min_section_before_mm2: Some(before.min_section_mm2),
+        rv_outflow_before: Some(before),
+        rv_outflow_unavailable: after.as_ref().err().cloned(),
+        rv_outflow_after: after.ok(),
+        rv_pulmonary_interface_mm2: None,
+    })
+}
+
+/// "no interface" with the closest approach of the two surfaces (at their vertices).
+fn no_interface_reason(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<String, String> {
+    let bvh = TriangleBvh::new(pulmonary)?;
+    let gap = ventricle.points.par_iter().filter_map(|&p| bvh.closest_point(pulmonary, p)).map(|h| h.distance_mm).reduce(|| f64::INFINITY, f64::min);
+    Ok(format!(
+        "the pulmonary artery segmentation does not touch the RV: it is {gap:.1} mm from the capped ventricle (no voxel outside the RV within {CONTACT_MM} mm of it), so there is no RV-pulmonary interface to end the path at"
+    ))
+}
+
+enum PathFailure {
+    NoInterface,
+    Other(String),
+}
+
+/// The grid's masks: inside the ventricle, inside the domain, pulmonary (outside the RV).
+struct VoxelField {
+    grid: Grid,
+    ventricle: Vec<bool>,
+    domain: Vec<bool>,
+    pulmonary: Vec<bool>,
+}
+
+impl VoxelField {
+    fn new(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<Self, String> {
+        if pulmonary.triangles.is_empty() {
+            return Err("the pulmonary artery surface has no triangles".into());
+        }
+        let (lo, hi) = bounds(&ventricle.points);
+        let mut grid = Grid::covering(lo, hi, GRID_MM, 3);
+        // Voxel centres off round coordinates, as for the flow centerline (a plane of the
+        // surface through a row of centres is not counted exactly).
+        grid.origin -= GRID_MM * Vec3::new(0.137, 0.291, 0.419);
+        let inside_ventricle = voxelize(ventricle, &grid);
+        let inside_domain = voxelize(domain, &grid);
+        let pulmonary_mask = pulmonary_voxels(&grid, &inside_ventricle, pulmonary)?;
+        Ok(VoxelField { grid, ventricle: inside_ventricle, domain: inside_domain, pulmonary: pulmonary_mask })
+    }
+
+    /// The widest, centred voxel path from the apex region to the pulmonary interface,
+    /// smoothed and resampled, with its bottleneck radius.
+    fn path(&self, after: bool) -> Result<(Vec<Vec3>, f64), PathFailure> {
+        let grid = &self.grid;
+        let region: Vec<bool> = (0..grid.voxel_count()).map(|v| self.ventricle[v] && !(after && self.domain[v])).collect();
+        let outflow: Vec<usize> = (0..grid.voxel_count()).filter(|&v| region[v] && grid.neighbours26(v).any(|(w, _)| self.pulmonary[w])).collect();
+        if outflow.is_empty() {
+            return Err(PathFailure::NoInterface);
+        }
+        let wall: Vec<bool> = (0..grid.voxel_count()).map(|v| !region[v] && !self.pulmonary[v]).collect();
+        let radius: Vec<f64> = squared_distance_transform(grid, &wall).into_iter().map(f64::sqrt).collect();
+        let start = apex_start(grid, &region, &outflow, &radius).ok_or_else(|| PathFailure::Other("the RV region has no voxel away from the pulmonary interface".into()))?;
+        let is_outflow = membership(grid, &outflow);
+        // Widest: minimize the running maximum of (R at the start - R), so maximize the
+        // narrowest R (the costs stay >= 0 as the search needs).
+        let top = radius[start];
+        let widest = best_first_search(grid, &[start], |w| region[w], |c, _, w, _| c.max(top - radius[w]), |v| is_outflow[v]);
+        let end = widest.reached.ok_or_else(|| PathFailure::Other("the apex region is not connected to the pulmonary interface inside the RV".into()))?;
+        let bottleneck = top - widest.cost[end];
+        let inv_r2 = |v: usize| 1.0 / (radius[v] * radius[v]);
+        // The bottleneck came through a subtraction: compare with a round-off margin.
+        let centred = best_first_search(grid, &[start], |w| region[w] && radius[w] >= bottleneck - 1e-9, |c, v, w, len| c + len * 0.5 * (inv_r2(v) + inv_r2(w)), |v| is_outflow[v]);
+        let end = centred.reached.ok_or_else(|| PathFailure::Other("no centred path at the bottleneck radius".into()))?;
+        let voxels: Vec<Vec3> = centred.path_to(end).into_iter().map(|v| grid.centre(v)).collect();
+        let smooth = moving_average(&resample(&voxels, GRID_MM), (SMOOTHING_MM / GRID_MM).round() as usize);
+        Ok((resample(&smooth, SAMPLE_MM), bottleneck))
+    }
+}
+
+fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
+    points.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)))
+}
+
+fn membership(grid: &Grid, voxels: &[usize]) -> Vec<bool> {
+    let mut mask = vec![false; grid.voxel_count()];
+    voxels.iter().for_each(|&v| mask[v] = true);
+    mask
+}
+
+/// Voxels outside the ventricle whose centre is inside the pulmonary surface or within
+/// CONTACT_MM of it.
+fn pulmonary_voxels(grid: &Grid, inside_ventricle: &[bool], pulmonary: &TriMesh) -> Result<Vec<bool>, String> {
+    let inside = voxelize(pulmonary, grid);
+    let bvh = TriangleBvh::new(pulmonary)?;
+    let (lo, hi) = bounds(&pulmonary.points);
+    let near_box = |p: Vec3| (0..3).all(|a| p[a] >= lo[a] - CONTACT_MM && p[a] <= hi[a] + CONTACT_MM);
+    Ok((0..grid.voxel_count())
+        .into_par_iter()
+        .map(|v| {
+            let p = grid.centre(v);
+            !inside_ventricle[v] && (inside[v] || (near_box(p) && bvh.closest_point_within(pulmonary, p, CONTACT_MM).is_some()))
+        })
+        .collect())
+}
+
+/// The widest voxel of the apex region: region voxels at least APEX_FRACTION of the
+/// largest distance (along the region) from the outflow end.
+fn apex_start(grid: &Grid, region: &[bool], outflow: &[usize], radius: &[f64]) -> Option<usize> {
+    let along = best_first_search(grid, outflow, |w| region[w], |c, _, _, len| c + len, |_| false);
+    let farthest = along.cost.iter().copied().filter(|c| c.is_finite()).fold(0.0, f64::max);
+    if !(farthest > 0.0) {
+        return None;
+    }
+    (0..grid.voxel_count()).filter(|&v| along.cost[v].is_finite() && along.cost[v] >= APEX_FRACTION * farthest).max_by(|&a, &b| radius[a].total_cmp(&radius[b]))
+}
+
+/// Sections of the region (the ventricle, less the domain after the baffle).
+struct Sections<'a> {
+    ventricle: &'a TriMesh,
+    domain: &'a TriMesh,
+}
+
+impl Sections<'_> {
+    /// The smallest section along `path` (samples, bottleneck radius); None without any.
+    fn smallest(&self, (path, bottleneck): &(Vec<Vec3>, f64), after: bool) -> Option<OutflowPath> {
+        let s = arc_lengths(path);
+        let measured: Vec<(usize, Vec3, f64)> = (0..path.len())
+            .into_par_iter()
+            .filter_map(|k| {
+                let normal = tangent(path, k)?;
+                let area = section_area(self.ventricle, after.then_some(self.domain), path[k], normal)?;
+                Some((k, normal, area))
+            })
+            .collect();
+        let &(k, normal, area) = measured.iter().min_by(|a, b| a.2.total_cmp(&b.2))?;
+        Some(OutflowPath {
+            min_section_mm2: area,
+            min_section_s_mm: s[k],
+            min_section_point_mm: path[k].into(),
+            min_section_normal: normal.into(),
+            path_length_mm: *s.last().unwrap_or(&0.0),
+            sections: measured.len(),
+            bottleneck_radius_mm: *bottleneck,
+        })
+    }
+}
+
+/// Unit tangent of the path at sample k: the chord over SMOOTHING_MM each side (one-sided
+/// at the ends, where the smoothing leaves the last voxel steps and their grid directions).
+fn tangent(path: &[Vec3], k: usize) -> Option<Vec3> {
+    let w = (SMOOTHING_MM / SAMPLE_MM).round() as usize;
+    let (a, b) = (k.saturating_sub(w), (k + w).min(path.len().checked_sub(1)?));
+    let t = path[b] - path[a];
+    (t.norm() > 0.0).then(|| t.normalize())
+}
+
+/// Area (mm2) of the piece of {inside `solid`, outside `hole`} in the plane through
+/// `point` normal to `normal` that holds `point` (4-connected on a PIXEL_MM raster);
+/// None when the point is not inside.
+pub fn section_area(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, normal: Vec3) -> Option<f64> {
+    let plane = PlaneFrame::new(point, normal);
+    let solid_cut = plane.cut(solid);
+    let hole_cut = hole.map(|h| plane.cut(h)).unwrap_or_default();
+    let (lo, hi) = segment_bounds(&solid_cut)?;
+    let raster = Raster::new(lo, hi);
+    let inside: Vec<bool> = raster.fill(&solid_cut).iter().zip(raster.fill(&hole_cut)).map(|(&s, h)| s && !h).collect();
+    let seed = raster.nearest_inside(&inside, (0.0, 0.0))?;
+    Some(raster.flood_count(&inside, seed) as f64 * PIXEL_MM * PIXEL_MM)
+}
+
+type Segment = [(f64, f64); 2];
+
+/// In-plane coordinates: origin at the point, axes u and v across the normal.
+struct PlaneFrame {
+    origin: Vec3,
+    normal: Vec3,
+    u: Vec3,
+    v: Vec3,
+}
+
+impl PlaneFrame {
+    fn new(origin: Vec3, normal: Vec3) -> Self {
+        let normal = normal.normalize();
+        let helper = if normal.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+        let u = normal.cross(&helper).normalize();
+        PlaneFrame { origin, normal, u, v: normal.cross(&u) }
+    }
+
+    fn to_2d(&self, p: Vec3) -> (f64, f64) {
+        let d = p - self.origin;
+        (d.dot(&self.u), d.dot(&self.v))
+    }
+
+    /// The plane's cut through every triangle of a closed surface, as 2D segments.
+    fn cut(&self, mesh: &TriMesh) -> Vec<Segment> {
+        (0..mesh.triangles.len())
+            .filter_map(|t| {
+                let corners = mesh.triangle_points(t);
+                let d = corners.map(|p| (p - self.origin).dot(&self.normal));
+                let crossings: Vec<Vec3> = (0..3)
+                    .filter(|&e| (d[e] > 0.0) != (d[(e + 1) % 3] > 0.0))
+                    .map(|e| {
+                        let (a, b) = (corners[e], corners[(e + 1) % 3]);
+                        a + (b - a) * (d[e] / (d[e] - d[(e + 1) % 3]))
+                    })
+                    .collect();
+                (crossings.len() == 2).then(|| [self.to_2d(crossings[0]), self.to_2d(crossings[1])])
+            })
+            .collect()
+    }
+}
+
+fn segment_bounds(segments: &[Segment]) -> Option<((f64, f64), (f64, f64))> {
+    let points = segments.iter().flatten();
+    let lo = points.clone().fold((f64::INFINITY, f64::INFINITY), |a, p| (a.0.min(p.0), a.1.min(p.1)));
+    let hi = points.fold((f64::NEG_INFINITY, f64::NEG_INFINITY), |a, p| (a.0.max(p.0), a.1.max(p.1)));
+    lo.0.is_finite().then_some((lo, hi))
+}
+
+/// A pixel grid over the section's bounding box (pixel centres at lo + (i + 0.5) px).
+struct Raster {
+    lo: (f64, f64),
+    width: usize,
+    height: usize,
+}
+
+impl Raster {
+    fn new(lo: (f64, f64), hi: (f64, f64)) -> Self {
+        let size = |a: f64, b: f64| ((b - a) / PIXEL_MM).ceil() as usize + 1;
+        Raster { lo, width: size(lo.0, hi.0), height: size(lo.1, hi.1) }
+    }
+
+    /// Even-odd fill of closed loops given as segments, row by row.
+    fn fill(&self, segments: &[Segment]) -> Vec<bool> {
+        let mut inside = vec![false; self.width * self.height];
+        let mut xs = Vec::new();
+        for j in 0..self.height {
+            let y = self.lo.1 + (j as f64 + 0.5) * PIXEL_MM;
+            xs.clear();
+            // Half-open in y: a row through a shared end point counts it once.
+            for &[a, b] in segments.iter().filter(|[a, b]| (a.1 <= y) != (b.1 <= y)) {
+                xs.push(a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1));
+            }
+            xs.sort_by(f64::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                let first = ((pair[0] - self.lo.0) / PIXEL_MM - 0.5).ceil().max(0.0) as usize;
+                let last = (((pair[1] - self.lo.0) / PIXEL_MM - 0.5).floor().min(self.width as f64 - 1.0)) as i64;
+                for i in first as i64..=last {
+                    inside[j * self.width + i as usize] = true;
+                }
+            }
+        }
+        inside
+    }
+
+    /// The inside pixel nearest to `p` (within 3 pixels).
+    fn nearest_inside(&self, inside: &[bool], p: (f64, f64)) -> Option<usize> {
+        let i0 = ((p.0 - self.lo.0) / PIXEL_MM - 0.5).round() as i64;
+        let j0 = ((p.1 - self.lo.1) / PIXEL_MM - 0.5).round() as i64;
+        let mut best: Option<(i64, usize)> = None;
+        for dj in -3..=3i64 {
+            for di in -3..=3i64 {
+                let (i, j) = (i0 + di, j0 + dj);
+                if i < 0 || j < 0 || i >= self.width as i64 || j >= self.height as i64 {
+                    continue;
+                }
+                let index = j as usize * self.width + i as usize;
+                if inside[index] && best.is_none_or(|(d, _)| di * di + dj * dj < d) {
+                    best = Some((di * di + dj * dj, index));
+                }
+            }
+        }
+        best.map(|(_, index)| index)
+    }
+
+    /// Pixels 4-connected to `seed` inside.
+    fn flood_count(&self, inside: &[bool], seed: usize) -> usize {
+        let mut seen = vec![false; inside.len()];
+        let mut stack = vec![seed];
+        seen[seed] = true;
+        let mut count = 0;
+        while let Some(p) = stack.pop() {
+            count += 1;
+            let (i, j) = (p % self.width, p / self.width);
+            let neighbours = [(i > 0).then(|| p - 1), (i + 1 < self.width).then(|| p + 1), (j > 0).then(|| p - self.width), (j + 1 < self.height).then(|| p + self.width)];
+            for q in neighbours.into_iter().flatten() {
+                if inside[q] && !seen[q] {
+                    seen[q] = true;
+                    stack.push(q);
+                }
+            }
+        }
+        count
+    }
+}
+
+#[cfg(test)]
+mod tests;
