@@ -58,6 +58,10 @@ const PLANAR_TOLERANCE_OF_DIAMETER: f64 = 0.01;
 /// A mid-LV section loop counts (a second arm of a curved LV) when its area is
 /// above this fraction of the largest loop's.
 const MIN_SECOND_LOOP_FRACTION: f64 = 0.02;
+/// The union follows each pool within the closing and the smoothing (0.1-0.2 mm
+/// measured on the LV family); a far cut farther than this (mm) from its pool runs
+/// over another pool joined to it.
+const FAR_RIM_OFF_POOL_MM: f64 = 1.0;
 /// A second LV-RV contact is looked for this far (mm) beyond the VSD's equivalent radius.
 const SECOND_CONTACT_CLEARANCE_MM: f64 = 2.0;
 
@@ -224,7 +228,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let mut surface = domain.clone();
     let lv_part = LvPart { union: &lv_union, pools, vsd: &vsd, centroid_plane, inflow_label: options.inflow_label, closing_radius_mm: options.union.closing_radius_mm };
     let (lv_triangles, mid_lv, moved_mm) = lv_part.attach(&mut surface, (edge_mm, snap_mm, l.wall))?;
-    let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label };
+    let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label, far_pool: ("aorta", &pools.aorta) };
     let ao_triangles = ao_part.attach(&mut surface, &ao_union, edge_mm, snap_mm, l.wall)?;
     let extensions_ms = lap();
 
@@ -367,7 +371,7 @@ impl LvPart<'_> {
         for moved_mm in MID_LV_MOVES_MM {
             let plane = parallel_plane(&self.centroid_plane, self.centroid_plane.centroid + moved_mm * self.centroid_plane.normal);
             let attached = self.section(&plane).and_then(|lv_loop| {
-                let part = Extension { name: "LV", near: self.vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: self.inflow_label };
+                let part = Extension { name: "LV", near: self.vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: self.inflow_label, far_pool: ("LV", &self.pools.lv) };
                 part.attach(surface, self.union, edge_mm, snap_mm, wall).map_err(|e| e.to_string())
             });
             match attached {
@@ -546,6 +550,8 @@ struct Extension<'a> {
     far_name: &'static str,
     far_loop: &'a [Vec3],
     far_label: i32,
+    /// The pool the far cap closes (name, surface): its rim must lie on that surface.
+    far_pool: (&'static str, &'a TriMesh),
 }
 
 impl Extension<'_> {
@@ -559,6 +565,7 @@ impl Extension<'_> {
             Cut { name: self.far_name, plane: self.far, loop_mm: self.far_loop },
         ];
         let clipped = clip_between(union, &cuts, snap_mm).map_err(step)?;
+        self.far_rim_on_pool(&clipped.mesh, &clipped.rims[1]).map_err(step)?;
         let planes = [self.near.plane, self.far];
         let remeshed = remesh_wall(&clipped, &planes, edge_mm).map_err(step)?;
         let (retracted, near_boundary, far_rim) = retract_rim(&remeshed.mesh, &remeshed.rims[0], &self.far).map_err(step)?;
@@ -574,6 +581,28 @@ impl Extension<'_> {
         surface.face_ids.extend(std::iter::repeat_n(wall, band.len()));
         surface.triangles.extend(band);
         Ok(surface.triangles.len() - before)
+    }
+}
+
+impl Extension<'_> {
+    /// The far cut's rim must follow the far pool's surface: where the union joins
+    /// that pool to another one near the far plane (a septum thinner than the closing,
+    /// a second VSD), the cut runs over both, and the cap would close the other too.
+    fn far_rim_on_pool(&self, mesh: &TriMesh, rim: &[u32]) -> Result<(), String> {
+        let (pool_name, pool) = self.far_pool;
+        let bvh = TriangleBvh::new(pool)?;
+        let farthest = rim
+            .iter()
+            .map(|&v| mesh.points[v as usize])
+            .filter_map(|p| bvh.closest_point(pool, p).map(|h| (h.distance_mm, p)))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        match farthest {
+            Some((d, p)) if d > FAR_RIM_OFF_POOL_MM => Err(format!(
+                "the {} cut runs {d:.2} mm off the {} surface near ({:.1}, {:.1}, {:.1}) (over another pool joined to it there; at most {FAR_RIM_OFF_POOL_MM} mm)",
+                self.far_name, pool_name, p.x, p.y, p.z
+            )),
+            _ => Ok(()),
+        }
     }
 }
 

@@ -10,7 +10,8 @@
 use crate::input::BloodPools;
 use crate::shapes::{capped_tube, uv_sphere};
 use baffle_core::numerics::random::SplitMix64;
-use baffle_core::Vec3;
+use baffle_core::spatial::{winding_number, TriangleBvh};
+use baffle_core::{TriMesh, Vec3};
 
 /// The shape of one member (mm, radians per mm).
 #[derive(Clone, Debug)]
@@ -31,9 +32,27 @@ pub struct LvFamilyParams {
     /// where they may touch it a second and third time.
     pub rv_bend_per_mm: f64,
     pub aorta_radius_mm: f64,
+    /// A second, muscular VSD: a channel from the LV to the RV beside the first.
+    pub second_vsd: Option<SecondVsd>,
     /// Tilt of the aorta from the LV's long axis away from the LV (radians; negative
     /// tilts lean it over the LV, where it may touch it, as over a subaortic VSD).
     pub aorta_tilt: f64,
+}
+
+/// A channel joining the LV and the RV where they are 1-10 mm apart: on the LV at
+/// `height_offset` (fraction of the long semi-axis) from the VSD's height and
+/// `around_deg` round the LV's long axis (toward `side` y), to the nearest RV point.
+/// The LV-RV gap a second VSD crosses (mm): a muscular VSD through the septum.
+const MIN_SECOND_VSD_LENGTH_MM: f64 = 1.0;
+const MAX_SECOND_VSD_LENGTH_MM: f64 = 10.0;
+
+#[derive(Clone, Debug)]
+pub struct SecondVsd {
+    pub side: f64,
+    pub height_offset: f64,
+    /// Angle round the LV's long axis from the first VSD (degrees).
+    pub around_deg: f64,
+    pub radius_mm: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -63,9 +82,41 @@ pub fn lv_family_member(seed: u64) -> LvFamilyMember {
         rv_semi_axes_mm: [rv_across, rv_long],
         rv_bend_per_mm: rng.between(0.0, max_rv_bend),
         aorta_radius_mm: rng.between(3.0, 6.0),
-        aorta_tilt: rng.between(-35f64.to_radians(), 40f64.to_radians()),
+        aorta_tilt: rng.between(-25f64.to_radians(), 40f64.to_radians()),
+        second_vsd: None,
     };
+    let second_vsd = (rng.unit() < 0.5).then(|| SecondVsd {
+        side: if rng.unit() < 0.5 { -1.0 } else { 1.0 },
+        height_offset: rng.between(-0.3, 0.3),
+        around_deg: rng.between(60.0, 100.0),
+        radius_mm: rng.between(1.0, 2.0),
+    });
+    let params = LvFamilyParams { second_vsd, ..params };
     LvFamilyMember { seed, pools: lv_family_pools(&params), params }
+}
+
+/// The pools a capped ventricle "made by hand" would come from (`prepare` refuses
+/// pools whose union has a second LV-RV or an LV-aorta contact, by name): no second
+/// VSD, and the aorta's radius reduced in 0.25 mm steps until it stays
+/// `clearance_mm` off the LV. The designed domain then meets the member's pools as a
+/// published one meets its segmentation.
+pub fn hand_made_domain_pools(p: &LvFamilyParams, clearance_mm: f64) -> (LvFamilyParams, BloodPools) {
+    let mut clear = LvFamilyParams { second_vsd: None, ..p.clone() };
+    loop {
+        let pools = lv_family_pools(&clear);
+        if clear.aorta_radius_mm <= 1.0 || aorta_clearance_mm(&pools) >= clearance_mm {
+            return (clear, pools);
+        }
+        clear.aorta_radius_mm -= 0.25;
+    }
+}
+
+/// Smallest distance of an aorta point from the LV surface; 0 when one lies inside the LV.
+fn aorta_clearance_mm(pools: &BloodPools) -> f64 {
+    let Ok(bvh) = TriangleBvh::new(&pools.lv) else { return 0.0 };
+    let inside = pools.aorta.points.iter().any(|q| winding_number(&pools.lv, *q) > 0.5);
+    let nearest = pools.aorta.points.iter().filter_map(|q| bvh.closest_point(&pools.lv, *q)).map(|h| h.distance_mm).fold(f64::INFINITY, f64::min);
+    if inside { 0.0 } else { nearest }
 }
 
 /// The blood pools of `p`: the RV ellipsoid is centred on the VSD's outward normal
@@ -88,9 +139,38 @@ pub fn lv_family_pools(p: &LvFamilyParams) -> BloodPools {
     let rv_center = vsd + normal * (reach - p.vsd_overlap_mm);
     let mut rv = uv_sphere(Vec3::zeros(), 1.0, 48, 96);
     rv.points.iter_mut().for_each(|s| *s = rv_center + bend(Vec3::new(s.x * r, s.y * r, s.z * long), p.rv_bend_per_mm));
+    if let Some(channel) = p.second_vsd.as_ref().and_then(|second| second_vsd_channel(second, h, &rv, &|height, angle| lv_point(on_sphere(height, angle)))) {
+        append(&mut rv, &channel);
+    }
     let axis = Vec3::new(p.aorta_tilt.sin(), 0.0, p.aorta_tilt.cos());
     let aorta = capped_tube(rv_center + axis * (0.4 * long), rv_center + axis * (long + 6.0 * p.aorta_radius_mm), p.aorta_radius_mm, 24, 64);
     BloodPools { lv, rv, aorta }
+}
+
+/// The second VSD's channel (a tube 1 mm into each pool), or none when the RV lies
+/// more than `MAX_SECOND_VSD_LENGTH_MM` off the LV all around.
+fn second_vsd_channel(second: &SecondVsd, vsd_height: f64, rv: &TriMesh, lv_at: &dyn Fn(f64, f64) -> Vec3) -> Option<TriMesh> {
+    let bvh = TriangleBvh::new(rv).ok()?;
+    let height = (vsd_height + second.height_offset).clamp(-0.8, 0.8);
+    let gap_at = |deg: f64| {
+        let q = lv_at(height, second.side * deg.to_radians());
+        let hit = bvh.closest_point(rv, q)?;
+        (winding_number(rv, q) < 0.5).then_some((q, hit))
+    };
+    let (q, hit) = gap_at(second.around_deg)?;
+    if !(MIN_SECOND_VSD_LENGTH_MM..=MAX_SECOND_VSD_LENGTH_MM).contains(&hit.distance_mm) {
+        return None;
+    }
+    let dir = (hit.point - q).normalize();
+    Some(capped_tube(q - dir, hit.point + dir, second.radius_mm, 8, 24))
+}
+
+/// `other`'s points and triangles added to `mesh` (a second closed component).
+fn append(mesh: &mut TriMesh, other: &TriMesh) {
+    let offset = mesh.points.len() as u32;
+    mesh.points.extend_from_slice(&other.points);
+    mesh.triangles.extend(other.triangles.iter().map(|t| t.map(|v| v + offset)));
+    mesh.face_ids.extend_from_slice(&other.face_ids);
 }
 
 /// Bend the z axis into an arc of curvature `kappa` in the x-z plane (lengths along
