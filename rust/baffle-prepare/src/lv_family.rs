@@ -201,7 +201,7 @@ mod tests {
         for seed in 0..8 {
             let m = lv_family_member(seed);
             for (name, mesh) in [("LV", &m.pools.lv), ("RV", &m.pools.rv), ("aorta", &m.pools.aorta)] {
-                assert!(mesh.is_closed_manifold() && mesh.signed_volume_mm3() > 0.0, "seed {seed}: {name}");
+                assert!(baffle_core::mesh::manifold_report(mesh).is_closed_manifold() && mesh.signed_volume_mm3() > 0.0, "seed {seed}: {name}");
             }
             let inside_lv = m.pools.rv.points.iter().filter(|p| baffle_core::spatial::winding_number(&m.pools.lv, **p) > 0.5).count();
             assert!(inside_lv > 0, "seed {seed}: the RV does not reach into the LV: {:?}", m.params);

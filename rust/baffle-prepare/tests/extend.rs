@@ -5,7 +5,7 @@
 
 use baffle_core::io::{read_points, CoordinateSystem};
 use baffle_core::reference_data::reference_data_if_present;
-use baffle_core::{design, DesignOptions, TargetArea, TriMesh, Vec3};
+use baffle_core::{design, DesignOptions, TargetArea, Vec3};
 use baffle_prepare::extend::{extend, ExtendOptions};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};
 use baffle_prepare::{prepare, read_segmentations, BloodPools, PrepareError, PrepareOptions};
