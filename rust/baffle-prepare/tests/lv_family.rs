@@ -74,3 +74,41 @@ fn an_lv_without_room_behind_the_vsd_is_refused_with_every_move() {
     let m = extend(&domain, &moved, &extend_options).unwrap_err().to_string();
     assert!(m.contains("mid-LV plane") && m.contains("+0 mm") && m.contains("+8 mm") && m.contains("beyond the VSD"), "{m}");
 }
+
+/// `mesh` with `other`'s triangles added (pools are unions of closed components).
+fn joined(mut mesh: baffle_core::TriMesh, other: &baffle_core::TriMesh) -> baffle_core::TriMesh {
+    let offset = mesh.points.len() as u32;
+    mesh.points.extend_from_slice(&other.points);
+    mesh.triangles.extend(other.triangles.iter().map(|t| t.map(|v| v + offset)));
+    mesh.face_ids.extend_from_slice(&other.face_ids);
+    mesh
+}
+
+/// A second VSD 60 degrees round the LV from the first, into an RV pouch reached by
+/// an arm of the RV that stays 2 mm off the LV: the union of LV and RV has a handle
+/// through the VSD's rim, so no VSD cut separates the LV part (the held-back
+/// patient's "the kept surface has 1 openings, expected 2"). No plane move can undo
+/// a handle: the refusal lists every move and names the second contact.
+#[test]
+fn a_second_vsd_beside_the_first_is_refused_naming_it() {
+    let (prepare_options, extend_options) = options();
+    let rv_center = Vec3::new(16.0, 0.0, 0.0);
+    let pools = BloodPools {
+        lv: uv_sphere(Vec3::zeros(), 10.0, 48, 96),
+        rv: uv_sphere(rv_center, 9.0, 48, 96),
+        aorta: capped_tube(rv_center + Vec3::new(0.0, 0.0, 4.0), rv_center + Vec3::new(0.0, 0.0, 25.0), 4.0, 20, 64),
+    };
+    let (domain, _) = prepare(&pools, &prepare_options).unwrap();
+    let at = 60f64.to_radians();
+    let out = Vec3::new(at.cos(), at.sin(), 0.0);
+    let pouch_center = out * 17.0;
+    let arm = capped_tube(rv_center, pouch_center, 2.0, 16, 32);
+    let pouch = uv_sphere(pouch_center, 3.0, 16, 32);
+    let channel = capped_tube(out * 9.0, out * 15.0, 1.5, 8, 24);
+    let rv = [arm, pouch, channel].iter().fold(pools.rv.clone(), joined);
+    let second = BloodPools { rv, ..pools };
+    let m = extend(&domain, &second, &extend_options).unwrap_err().to_string();
+    eprintln!("{m}");
+    assert!(m.contains("mid-LV plane") && m.contains("+0 mm") && m.contains("+8 mm"), "{m}");
+    assert!(m.contains("comes within") && m.contains("of the RV near"), "{m}");
+}
