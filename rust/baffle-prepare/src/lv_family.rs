@@ -166,7 +166,7 @@ fn second_vsd_channel(second: &SecondVsd, vsd_height: f64, rv: &TriMesh, lv_at: 
 }
 
 /// `other`'s points and triangles added to `mesh` (a second closed component).
-fn append(mesh: &mut TriMesh, other: &TriMesh) {
+pub fn append(mesh: &mut TriMesh, other: &TriMesh) {
     let offset = mesh.points.len() as u32;
     mesh.points.extend_from_slice(&other.points);
     mesh.triangles.extend(other.triangles.iter().map(|t| t.map(|v| v + offset)));

@@ -7,7 +7,7 @@
 
 use baffle_core::Vec3;
 use baffle_prepare::extend::{extend, ExtendOptions};
-use baffle_prepare::lv_family::{hand_made_domain_pools, lv_family_member, lv_family_pools, LvFamilyParams};
+use baffle_prepare::lv_family::{append, hand_made_domain_pools, lv_family_member, lv_family_pools, LvFamilyParams};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};
 use baffle_prepare::{prepare, BloodPools, PrepareOptions};
 
@@ -75,15 +75,6 @@ fn an_lv_without_room_behind_the_vsd_is_refused_with_every_move() {
     assert!(m.contains("mid-LV plane") && m.contains("+0 mm") && m.contains("+8 mm") && m.contains("beyond the VSD"), "{m}");
 }
 
-/// `mesh` with `other`'s triangles added (pools are unions of closed components).
-fn joined(mut mesh: baffle_core::TriMesh, other: &baffle_core::TriMesh) -> baffle_core::TriMesh {
-    let offset = mesh.points.len() as u32;
-    mesh.points.extend_from_slice(&other.points);
-    mesh.triangles.extend(other.triangles.iter().map(|t| t.map(|v| v + offset)));
-    mesh.face_ids.extend_from_slice(&other.face_ids);
-    mesh
-}
-
 /// A second VSD 60 degrees round the LV from the first, into an RV pouch reached by
 /// an arm of the RV that stays 2 mm off the LV: the union of LV and RV has a handle
 /// through the VSD's rim, so no VSD cut separates the LV part (the held-back
@@ -105,7 +96,8 @@ fn a_second_vsd_beside_the_first_is_refused_naming_it() {
     let arm = capped_tube(rv_center, pouch_center, 2.0, 16, 32);
     let pouch = uv_sphere(pouch_center, 3.0, 16, 32);
     let channel = capped_tube(out * 9.0, out * 15.0, 1.5, 8, 24);
-    let rv = [arm, pouch, channel].iter().fold(pools.rv.clone(), joined);
+    let mut rv = pools.rv.clone();
+    [arm, pouch, channel].iter().for_each(|part| append(&mut rv, part));
     let second = BloodPools { rv, ..pools };
     let m = extend(&domain, &second, &extend_options).unwrap_err().to_string();
     eprintln!("{m}");
