@@ -17,8 +17,9 @@
 //!   changes the area by more than `max_step_change` (a branch or the arch). Without
 //!   such a minimum, the outflow cap is
 //!   `fallback_diameters` annulus diameters above the annulus, and the report says so.
-//! - The LV and aortic parts are cut from the union of the pools (made as `prepare`
-//!   makes it, on a grid covering the extension) by the same clip as `prepare`, along
+//! - The LV part is cut from the union of the LV and RV pools, the aortic part from
+//!   that of the RV and aorta (each made as `prepare` makes the union, on a grid
+//!   covering the part; an aorta touching the LV would join the parts), by the same clip as `prepare`, along
 //!   the designed caps' own planes. Each part is remeshed at the designed rims' edge
 //!   length, its first row of triangles at the designed cap is dropped and the gap is
 //!   zipped to the designed cap's rim, so that rim is shared (3 faces meet there: the
@@ -36,7 +37,7 @@ use baffle_core::caps::{cap_flatness, CapFlatness};
 use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
-use baffle_core::spatial::{Aabb, TriangleBvh};
+use baffle_core::spatial::{winding_number, Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use std::collections::{HashMap, HashSet};
 
@@ -50,6 +51,15 @@ const MIN_LV_DEPTH_MM: f64 = 1.0;
 /// the LV surface (a curved or pinched LV), the mid-LV plane is moved along the VSD
 /// normal by these distances (mm), in order: deeper into the LV first, then back.
 const MID_LV_MOVES_MM: [f64; 7] = [0.0, 2.0, 4.0, 6.0, -2.0, -4.0, 8.0];
+/// A mid-LV section loop counts (a second arm of a curved LV) when its area is
+/// above this fraction of the largest loop's.
+const MIN_SECOND_LOOP_FRACTION: f64 = 0.02;
+/// The union follows each pool within the closing and the smoothing (0.1-0.2 mm
+/// measured on the LV family); a far cut farther than this (mm) from its pool runs
+/// over another pool joined to it.
+const FAR_RIM_OFF_POOL_MM: f64 = 1.0;
+/// A second LV-RV contact is looked for this far (mm) beyond the VSD's equivalent radius.
+const SECOND_CONTACT_CLEARANCE_MM: f64 = 2.0;
 
 #[derive(Clone, Debug)]
 pub struct StjOptions {
@@ -193,22 +203,29 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     check_domain(domain)?;
     let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
     let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
-    let (centroid_plane, _) = mid_lv_plane(&pools.lv, &vsd.plane, 0.0)?;
+    let centroid_plane = lv_centroid_plane(&pools.lv, &vsd.plane)?;
     let (stj, stj_report, stj_loop) = sinotubular_junction(&pools.aorta, &annulus, &options.stj)?;
     let planes_ms = lap();
 
     let deepest_move_mm = MID_LV_MOVES_MM.iter().copied().fold(0.0, f64::max);
     let deepest = parallel_plane(&centroid_plane, centroid_plane.centroid + deepest_move_mm * centroid_plane.normal);
-    let bounds = extension_bounds(domain, pools, &deepest, &stj, options.union.crop_margin_mm);
-    let (union, _, _) = union_within(pools, &bounds, &options.union)?;
+    // Each part is cut from the union of the two pools its designed cap joins: where
+    // the aorta also touches the LV, the union of all three has a handle through
+    // both caps' rims, and neither cut then separates its part.
+    let margin_mm = options.union.crop_margin_mm;
+    let lv_bounds = part_bounds(domain, &vsd, &pools.lv, &deepest, margin_mm);
+    let (lv_union, _, _) = union_within(&[&pools.lv, &pools.rv], &lv_bounds, &options.union)?;
+    let ao_bounds = part_bounds(domain, &annulus, &pools.aorta, &stj, margin_mm);
+    let (ao_union, _, _) = union_within(&[&pools.rv, &pools.aorta], &ao_bounds, &options.union)?;
     let union_ms = lap();
 
     let edge_mm = options.remesh_edge_mm.unwrap_or_else(|| mean_rim_edge_mm(domain, &[&vsd.rim, &annulus.rim]));
     let snap_mm = 0.05 * options.union.voxel_mm;
     let mut surface = domain.clone();
-    let (lv_triangles, mid_lv, moved_mm) = attach_lv_part(&mut surface, &union, pools, &vsd, options.inflow_label, (edge_mm, snap_mm, l.wall))?;
-    let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label };
-    let ao_triangles = ao_part.attach(&mut surface, &union, edge_mm, snap_mm, l.wall)?;
+    let lv_part = LvPart { union: &lv_union, pools, vsd: &vsd, centroid_plane, inflow_label: options.inflow_label, closing_radius_mm: options.union.closing_radius_mm };
+    let (lv_triangles, mid_lv, moved_mm) = lv_part.attach(&mut surface, (edge_mm, snap_mm, l.wall))?;
+    let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label, far_pool: ("aorta", &pools.aorta) };
+    let ao_triangles = ao_part.attach(&mut surface, &ao_union, edge_mm, snap_mm, l.wall)?;
     let extensions_ms = lap();
 
     check_extended(&surface, domain.triangles.len(), &[l.vsd_cap, l.aortic_cap])?;
@@ -316,58 +333,89 @@ fn volume_centroid(mesh: &TriMesh) -> Option<Vec3> {
     (volume.abs() > 0.0 && volume.is_finite()).then(|| moment / volume)
 }
 
-/// The LV part between the VSD cap and the mid-LV plane, attached to `surface`: the
-/// plane through the LV's centroid, or failing a clean cut there, the first of
-/// `MID_LV_MOVES_MM` that gives one. Returns the part's triangles, the plane used and
-/// how far it was moved (mm).
-fn attach_lv_part(
-    surface: &mut TriMesh,
-    union: &TriMesh,
-    pools: &BloodPools,
-    vsd: &DesignedCap,
+/// What the LV part is cut from: the LV-RV union, the pools, the VSD cap and the
+/// plane through the LV's centroid parallel to it.
+struct LvPart<'a> {
+    union: &'a TriMesh,
+    pools: &'a BloodPools,
+    vsd: &'a DesignedCap,
+    centroid_plane: Plane,
     inflow_label: i32,
-    (edge_mm, snap_mm, wall): (f64, f64, i32),
-) -> Result<(usize, Plane, f64), PrepareError> {
-    let mut first_error = None;
-    let mut tried = Vec::new();
-    for moved_mm in MID_LV_MOVES_MM {
-        let Ok((plane, lv_loop)) = mid_lv_plane(&pools.lv, &vsd.plane, moved_mm) else { continue };
-        let part = Extension { name: "LV", near: vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: inflow_label };
-        match part.attach(surface, union, edge_mm, snap_mm, wall) {
-            Ok(triangles) => return Ok((triangles, plane, moved_mm)),
-            Err(e) => {
-                tried.push(format!("{moved_mm:+.0}"));
-                first_error.get_or_insert(e);
+    closing_radius_mm: f64,
+}
+
+impl LvPart<'_> {
+    /// The LV part between the VSD cap and the mid-LV plane, attached to `surface`:
+    /// the plane through the LV's centroid, or failing a clean cut there, the first of
+    /// `MID_LV_MOVES_MM` that gives one. Returns the part's triangles, the plane used
+    /// and how far it was moved (mm); the error lists each move and why it failed.
+    fn attach(&self, surface: &mut TriMesh, (edge_mm, snap_mm, wall): (f64, f64, i32)) -> Result<(usize, Plane, f64), PrepareError> {
+        let mut tried = Vec::new();
+        for moved_mm in MID_LV_MOVES_MM {
+            let plane = parallel_plane(&self.centroid_plane, self.centroid_plane.centroid + moved_mm * self.centroid_plane.normal);
+            let attached = self.section(&plane).and_then(|lv_loop| {
+                let part = Extension { name: "LV", near: self.vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: self.inflow_label, far_pool: ("LV", &self.pools.lv) };
+                part.attach(surface, self.union, edge_mm, snap_mm, wall).map_err(|e| e.to_string())
+            });
+            match attached {
+                Ok(triangles) => return Ok((triangles, plane, moved_mm)),
+                Err(why) => tried.push(format!("{moved_mm:+.0} mm ({:.1} mm beyond the VSD): {why}", self.vsd.plane.signed_distance_mm(&plane.centroid))),
             }
         }
-    }
-    let error = first_error.unwrap_or_else(|| PrepareError::geometry("mid-LV plane", "no plane parallel to the VSD cap cuts the LV behind it"));
-    Err(PrepareError::geometry(
-        "extension",
-        format!("{error} (the mid-LV plane was also moved {} mm from the LV centroid along the VSD normal, without a clean cut)", tried.join(", ")),
-    ))
-}
-
-/// The mid-LV plane, moved `moved_mm` along the VSD normal from the LV's centroid,
-/// and the LV's section in it (the far cut's loop).
-fn mid_lv_plane(lv: &TriMesh, vsd: &Plane, moved_mm: f64) -> Result<(Plane, Vec<Vec3>), PrepareError> {
-    let centroid = volume_centroid(lv).ok_or_else(|| PrepareError::geometry("mid-LV plane", "the LV surface encloses no volume"))?;
-    let centroid = centroid + moved_mm * vsd.normal;
-    let depth = vsd.signed_distance_mm(&centroid);
-    if depth < MIN_LV_DEPTH_MM {
-        return Err(PrepareError::geometry(
+        let c = self.centroid_plane.centroid;
+        Err(PrepareError::geometry(
             "mid-LV plane",
-            format!("the LV cavity's centroid lies {depth:.1} mm beyond the VSD cap's plane (need {MIN_LV_DEPTH_MM} mm toward the LV): the mid-LV plane would not cut the LV behind the VSD"),
-        ));
+            format!(
+                "no plane parallel to the VSD cap cuts the LV part cleanly; moved from the LV centroid ({:.1}, {:.1}, {:.1}) along the VSD normal by {}{}",
+                c.x, c.y, c.z, tried.join("; "), self.second_contact()
+            ),
+        ))
     }
-    let plane = parallel_plane(vsd, centroid);
-    let section = largest_contour(cut_mesh(lv, plane.centroid, plane.normal), &plane.normal)
-        .ok_or_else(|| PrepareError::geometry("mid-LV plane", "the plane through the LV cavity's centroid misses the LV surface"))?;
-    Ok((plane, section.points))
+
+    /// The LV's section in `plane` (the far cut's loop): the plane must lie
+    /// `MIN_LV_DEPTH_MM` beyond the VSD cap and cut the LV in one loop (a curved LV
+    /// cut in two would leave one arm open to the other).
+    fn section(&self, plane: &Plane) -> Result<Vec<Vec3>, String> {
+        let depth = self.vsd.plane.signed_distance_mm(&plane.centroid);
+        if depth < MIN_LV_DEPTH_MM {
+            return Err(format!("the plane lies {depth:.1} mm beyond the VSD cap's plane, need {MIN_LV_DEPTH_MM} mm toward the LV"));
+        }
+        let mut contours = cut_mesh(&self.pools.lv, plane.centroid, plane.normal);
+        contours.sort_by(|a, b| b.signed_area_mm2(&plane.normal).abs().total_cmp(&a.signed_area_mm2(&plane.normal).abs()));
+        let Some(largest) = contours.first() else { return Err("the plane misses the LV surface".into()) };
+        let largest_mm2 = largest.signed_area_mm2(&plane.normal).abs();
+        let loops = contours.iter().filter(|c| c.signed_area_mm2(&plane.normal).abs() > MIN_SECOND_LOOP_FRACTION * largest_mm2).count();
+        if loops > 1 {
+            return Err(format!("the plane cuts the LV in {loops} loops (a curved LV): one inflow cap would leave the others open"));
+        }
+        Ok(contours.swap_remove(0).points)
+    }
+
+    /// Where the LV comes near the RV again away from the VSD (the union joins them
+    /// there too, so no VSD cut separates the LV part): "; ..." or empty.
+    fn second_contact(&self) -> String {
+        let Ok(rv_bvh) = TriangleBvh::new(&self.pools.rv) else { return String::new() };
+        let vsd_radius_mm = (self.vsd.area_mm2 / std::f64::consts::PI).sqrt();
+        let joined_within_mm = 2.0 * self.closing_radius_mm + 0.1;
+        let away = self.pools.lv.points.iter().filter(|p| (*p - self.vsd.plane.centroid).norm() > vsd_radius_mm + SECOND_CONTACT_CLEARANCE_MM);
+        let nearest = away
+            .filter_map(|p| rv_bvh.closest_point(&self.pools.rv, *p).map(|h| (h.distance_mm, *p)))
+            .filter(|(d, p)| *d <= joined_within_mm || winding_number(&self.pools.rv, *p) > 0.5)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        match nearest {
+            Some((d, p)) => format!(
+                "; the LV also comes within {d:.2} mm of the RV near ({:.1}, {:.1}, {:.1}), {:.1} mm from the VSD: the pools join there too (a second VSD, or a septum thinner than the closing), so no cut separates the LV part",
+                p.x, p.y, p.z, (p - self.vsd.plane.centroid).norm()
+            ),
+            None => String::new(),
+        }
+    }
 }
 
-fn largest_contour(contours: Vec<Contour>, normal: &Vec3) -> Option<Contour> {
-    contours.into_iter().max_by(|a, b| a.signed_area_mm2(normal).abs().total_cmp(&b.signed_area_mm2(normal).abs()))
+/// The plane through the LV blood pool's volume centroid, parallel to the VSD cap.
+fn lv_centroid_plane(lv: &TriMesh, vsd: &Plane) -> Result<Plane, PrepareError> {
+    let centroid = volume_centroid(lv).ok_or_else(|| PrepareError::geometry("mid-LV plane", "the LV surface encloses no volume"))?;
+    Ok(parallel_plane(vsd, centroid))
 }
 
 /// The STJ plane (parallel to the annulus cap), its report and the aorta's section there.
@@ -457,12 +505,12 @@ fn first_maximum(areas: &[f64], window: usize) -> Option<usize> {
     (0..areas.len()).find(|&k| k + window < areas.len() && around(k).iter().all(|&a| a <= areas[k]))
 }
 
-/// The box the union must cover: the designed domain, the LV up to the mid-LV plane and
-/// the aorta up to the STJ plane (with `margin_mm`), all grown by `margin_mm`.
-fn extension_bounds(domain: &TriMesh, pools: &BloodPools, mid_lv: &Plane, stj: &Plane, margin_mm: f64) -> Aabb {
-    let lv = pools.lv.points.iter().filter(|p| mid_lv.signed_distance_mm(p) <= margin_mm);
-    let aorta = pools.aorta.points.iter().filter(|p| stj.signed_distance_mm(p) <= margin_mm);
-    Aabb::from_points(domain.points.iter().chain(lv).chain(aorta)).expanded(margin_mm)
+/// The box one part's union must cover: the designed cap's rim and the pool beyond it
+/// up to the far plane (with `margin_mm`), all grown by `margin_mm`.
+fn part_bounds(domain: &TriMesh, cap: &DesignedCap, pool: &TriMesh, far: &Plane, margin_mm: f64) -> Aabb {
+    let rim = cap.rim.iter().map(|&v| &domain.points[v as usize]);
+    let part = pool.points.iter().filter(|p| far.signed_distance_mm(p) <= margin_mm);
+    Aabb::from_points(rim.chain(part)).expanded(margin_mm)
 }
 
 fn mean_rim_edge_mm(mesh: &TriMesh, rims: &[&Vec<u32>]) -> f64 {
@@ -485,6 +533,8 @@ struct Extension<'a> {
     far_name: &'static str,
     far_loop: &'a [Vec3],
     far_label: i32,
+    /// The pool the far cap closes (name, surface): its rim must lie on that surface.
+    far_pool: (&'static str, &'a TriMesh),
 }
 
 impl Extension<'_> {
@@ -498,6 +548,7 @@ impl Extension<'_> {
             Cut { name: self.far_name, plane: self.far, loop_mm: self.far_loop },
         ];
         let clipped = clip_between(union, &cuts, snap_mm).map_err(step)?;
+        self.far_rim_on_pool(&clipped.mesh, &clipped.rims[1]).map_err(step)?;
         let planes = [self.near.plane, self.far];
         let remeshed = remesh_wall(&clipped, &planes, edge_mm).map_err(step)?;
         let (retracted, near_boundary, far_rim) = retract_rim(&remeshed.mesh, &remeshed.rims[0], &self.far).map_err(step)?;
@@ -513,6 +564,28 @@ impl Extension<'_> {
         surface.face_ids.extend(std::iter::repeat_n(wall, band.len()));
         surface.triangles.extend(band);
         Ok(surface.triangles.len() - before)
+    }
+}
+
+impl Extension<'_> {
+    /// The far cut's rim must follow the far pool's surface: where the union joins
+    /// that pool to another one near the far plane (a septum thinner than the closing,
+    /// a second VSD), the cut runs over both, and the cap would close the other too.
+    fn far_rim_on_pool(&self, mesh: &TriMesh, rim: &[u32]) -> Result<(), String> {
+        let (pool_name, pool) = self.far_pool;
+        let bvh = TriangleBvh::new(pool)?;
+        let farthest = rim
+            .iter()
+            .map(|&v| mesh.points[v as usize])
+            .filter_map(|p| bvh.closest_point(pool, p).map(|h| (h.distance_mm, p)))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        match farthest {
+            Some((d, p)) if d > FAR_RIM_OFF_POOL_MM => Err(format!(
+                "the {} cut runs {d:.2} mm off the {} surface near ({:.1}, {:.1}, {:.1}) (over another pool joined to it there; at most {FAR_RIM_OFF_POOL_MM} mm)",
+                self.far_name, pool_name, p.x, p.y, p.z
+            )),
+            _ => Ok(()),
+        }
     }
 }
 

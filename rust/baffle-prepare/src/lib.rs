@@ -20,6 +20,7 @@ pub mod caps;
 pub mod prepare;
 pub mod labelmap;
 pub mod extend;
+pub mod lv_family;
 
 pub use error::PrepareError;
 pub use input::{read_segmentations, BloodPools};

@@ -100,7 +100,7 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     let start = Instant::now();
     let mut lap = lap_timer();
     let bounds = Aabb::from_points(&pools.rv.points).expanded(options.crop_margin_mm);
-    let (union, grid, voxelize_ms) = union_within(pools, &bounds, options)?;
+    let (union, grid, voxelize_ms) = union_within(&[&pools.lv, &pools.rv, &pools.aorta], &bounds, options)?;
     let union_surface_ms = lap() - voxelize_ms;
 
     let bvhs = [&pools.lv, &pools.rv, &pools.aorta].map(|m| TriangleBvh::new(m).map_err(|e| PrepareError::geometry("structures", e)));
@@ -197,10 +197,10 @@ pub(crate) fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
     Ok(())
 }
 
-/// The smoothed union surface of the blood pools within `bounds` (mm), made with
+/// The smoothed union surface of the blood pools `pools` within `bounds` (mm), made with
 /// `options`' voxel, closing and smoothing (the pools beyond `bounds` are cut off, the
 /// cut closed flat at the grid's edge); also its grid and the voxelizing time (ms).
-pub(crate) fn union_within(pools: &BloodPools, bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
+pub(crate) fn union_within(pools: &[&TriMesh], bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
     let start = Instant::now();
     let grid = union_grid(bounds, options.voxel_mm)?;
     let closing_voxels = (options.closing_radius_mm / options.voxel_mm).round() as usize;
@@ -225,8 +225,8 @@ fn union_grid(bounds: &Aabb, voxel_mm: f64) -> Result<Grid, PrepareError> {
     }
 }
 
-fn union_mask(pools: &BloodPools, grid: &Grid) -> Vec<bool> {
-    let masks: Vec<Vec<bool>> = [&pools.lv, &pools.rv, &pools.aorta].par_iter().map(|m| voxelize(m, grid)).collect();
+fn union_mask(pools: &[&TriMesh], grid: &Grid) -> Vec<bool> {
+    let masks: Vec<Vec<bool>> = pools.par_iter().map(|m| voxelize(m, grid)).collect();
     let [nx, ny, nz] = grid.dims;
     let m = GRID_MARGIN_VOXELS;
     let interior = |c: usize, n: usize| c >= m && c + m < n;
