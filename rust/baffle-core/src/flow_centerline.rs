@@ -34,8 +34,8 @@
 //! published one) or an interior face set of the volume mesh (the extended domain, whose
 //! own end caps are then the seeds). Millimetres throughout.
 
-use crate::mesh::{manifold_report, TriMesh, Vec3};
-use crate::spatial::{ray_triangle, TriangleBvh};
+use crate::mesh::{axes_across, manifold_report, TriMesh, Vec3};
+use crate::spatial::{ray_triangle, Aabb, TriangleBvh};
 use crate::voxel::{best_first_search, voxelize, Grid};
 use rayon::prelude::*;
 
@@ -242,7 +242,7 @@ fn lumen_grid(surface: &TriMesh, voxel_mm: f64) -> Result<Grid, String> {
     if !(voxel_mm > 0.0) {
         return Err(format!("voxel size must be positive, got {voxel_mm}"));
     }
-    let (lo, hi) = surface.points.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+    let Aabb { min: lo, max: hi } = Aabb::from_points(&surface.points);
     let mut h = voxel_mm;
     loop {
         // Voxel centres off round coordinates: a cap plane exactly through a row of
@@ -335,9 +335,7 @@ fn recenter(points: &[Vec3], wall: &WallDistance, fraction: f64, h: f64) -> Vec<
             // One-sided at the ends: they are re-centred too (in their cap's region the
             // caps are not wall, so the largest R is still the lumen's centre).
             let t = (points[(i + 1).min(n - 1)] - points[i.saturating_sub(1)]).normalize();
-            let helper = if t.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
-            let u = t.cross(&helper).normalize();
-            let v = t.cross(&u);
+            let (u, v) = axes_across(&t);
             compass_search(points[i], [u, v], |p| wall.at(p), fraction * wall.at(points[i]), h)
         })
         .collect()

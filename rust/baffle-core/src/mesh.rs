@@ -61,6 +61,15 @@ impl std::hash::Hasher for EdgeHasher {
     }
 }
 
+/// Two unit axes (u, v) across the unit vector `n`, with (u, v, n) right-handed: the
+/// in-plane frame of a plane or a tube section normal to `n`.
+pub fn axes_across(n: &Vec3) -> (Vec3, Vec3) {
+    // Any vector not near `n`; x unless `n` is close to it.
+    let helper = if n.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+    let u = n.cross(&helper).normalize();
+    (u, n.cross(&u))
+}
+
 /// An undirected edge key with the smaller index first.
 #[inline]
 pub fn edge_key(a: u32, b: u32) -> (u32, u32) {
@@ -320,6 +329,16 @@ pub fn manifold_report(mesh: &TriMesh) -> ManifoldReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn axes_across_any_direction_are_a_right_handed_unit_frame() {
+        for n in [Vec3::x(), -Vec3::x(), Vec3::y(), Vec3::z(), Vec3::new(0.95, 0.3, 0.1).normalize(), Vec3::new(-1.0, 2.0, 3.0).normalize()] {
+            let (u, v) = axes_across(&n);
+            assert!((u.norm() - 1.0).abs() < 1e-12 && (v.norm() - 1.0).abs() < 1e-12, "{n:?}");
+            assert!(u.dot(&n).abs() < 1e-12 && v.dot(&n).abs() < 1e-12 && u.dot(&v).abs() < 1e-12, "{n:?}");
+            assert!((u.cross(&v) - n).norm() < 1e-12, "(u, v, n) right-handed for {n:?}");
+        }
+    }
 
     #[test]
     fn sorted_neighbors_match_the_edge_map_on_closed_open_and_non_manifold_meshes() {

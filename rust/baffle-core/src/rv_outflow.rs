@@ -22,9 +22,9 @@
 //!    with its place along the path.
 
 use crate::flow_centerline::{arc_lengths, moving_average, resample};
-use crate::mesh::{TriMesh, Vec3};
+use crate::mesh::{axes_across, TriMesh, Vec3};
 use crate::rv_cost::is_outside;
-use crate::spatial::TriangleBvh;
+use crate::spatial::{Aabb, TriangleBvh};
 use crate::voxel::{best_first_search, squared_distance_transform, voxelize, Grid};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -167,8 +167,8 @@ impl VoxelField {
         if pulmonary.triangles.is_empty() {
             return Err("the pulmonary artery surface has no triangles".into());
         }
-        let (lo, hi) = bounds(&ventricle.points);
-        let mut grid = Grid::covering(lo, hi, GRID_MM, 3);
+        let bounds = Aabb::from_points(&ventricle.points);
+        let mut grid = Grid::covering(bounds.min, bounds.max, GRID_MM, 3);
         // Voxel centres off round coordinates, as for the flow centerline (a plane of the
         // surface through a row of centres is not counted exactly).
         grid.origin -= GRID_MM * Vec3::new(0.137, 0.291, 0.419);
@@ -207,10 +207,6 @@ impl VoxelField {
     }
 }
 
-fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
-    points.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)))
-}
-
 fn membership(grid: &Grid, voxels: &[usize]) -> Vec<bool> {
     let mut mask = vec![false; grid.voxel_count()];
     voxels.iter().for_each(|&v| mask[v] = true);
@@ -222,8 +218,8 @@ fn membership(grid: &Grid, voxels: &[usize]) -> Vec<bool> {
 fn pulmonary_voxels(grid: &Grid, inside_ventricle: &[bool], pulmonary: &TriMesh) -> Result<Vec<bool>, String> {
     let inside = voxelize(pulmonary, grid);
     let bvh = TriangleBvh::new(pulmonary)?;
-    let (lo, hi) = bounds(&pulmonary.points);
-    let near_box = |p: Vec3| (0..3).all(|a| p[a] >= lo[a] - CONTACT_MM && p[a] <= hi[a] + CONTACT_MM);
+    let near = Aabb::from_points(&pulmonary.points).expanded(CONTACT_MM);
+    let near_box = |p: Vec3| (0..3).all(|a| p[a] >= near.min[a] && p[a] <= near.max[a]);
     Ok((0..grid.voxel_count())
         .into_par_iter()
         .map(|v| {
@@ -311,9 +307,8 @@ struct PlaneFrame {
 impl PlaneFrame {
     fn new(origin: Vec3, normal: Vec3) -> Self {
         let normal = normal.normalize();
-        let helper = if normal.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
-        let u = normal.cross(&helper).normalize();
-        PlaneFrame { origin, normal, u, v: normal.cross(&u) }
+        let (u, v) = axes_across(&normal);
+        PlaneFrame { origin, normal, u, v }
     }
 
     fn to_2d(&self, p: Vec3) -> (f64, f64) {

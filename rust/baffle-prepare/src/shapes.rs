@@ -1,6 +1,7 @@
 //! Closed, outward-wound test shapes (spheres, capped tubes, boxes) for the
 //! synthetic LV / RV / aorta case the tests use when no patient data is present.
 
+use baffle_core::mesh::axes_across;
 use baffle_core::{TriMesh, Vec3};
 use std::f64::consts::PI;
 
@@ -25,9 +26,7 @@ pub fn uv_sphere(center: Vec3, radius_mm: f64, rings: usize, segments: usize) ->
 pub fn capped_tube(start: Vec3, end: Vec3, radius_mm: f64, rings: usize, segments: usize) -> TriMesh {
     let axis = end - start;
     let w = axis.normalize();
-    let helper = if w.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
-    let u = w.cross(&helper).normalize();
-    let v = w.cross(&u);
+    let (u, v) = axes_across(&w);
     let circles: Vec<Vec<Vec3>> = (0..=rings)
         .map(|r| {
             let c = start + axis * (r as f64 / rings as f64);
