@@ -374,7 +374,7 @@ fn median3(mask: &[bool], grid: &Grid) -> Vec<bool> {
     (0..mask.len())
         .into_par_iter()
         .map(|idx| {
-            let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
+            let [i, j, k] = grid.ijk(idx);
             if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
                 return mask[idx];
             }

@@ -227,13 +227,9 @@ fn union_grid(bounds: &Aabb, voxel_mm: f64) -> Result<Grid, PrepareError> {
 
 fn union_mask(pools: &[&TriMesh], grid: &Grid) -> Vec<bool> {
     let masks: Vec<Vec<bool>> = pools.par_iter().map(|m| voxelize(m, grid)).collect();
-    let [nx, ny, nz] = grid.dims;
     let m = GRID_MARGIN_VOXELS;
-    let interior = |c: usize, n: usize| c >= m && c + m < n;
-    (0..grid.voxel_count())
-        .into_par_iter()
-        .map(|i| interior(i % nx, nx) && interior((i / nx) % ny, ny) && interior(i / (nx * ny), nz) && masks.iter().any(|mask| mask[i]))
-        .collect()
+    let interior = |i: usize| grid.ijk(i).iter().zip(grid.dims).all(|(&c, n)| c >= m && c + m < n);
+    (0..grid.voxel_count()).into_par_iter().map(|i| interior(i) && masks.iter().any(|mask| mask[i])).collect()
 }
 
 /// Smallest distance (mm) from a point of `a` to the surface of `b`, and that point of `a`.

@@ -65,7 +65,7 @@ fn marching_tetrahedra(field: &[u8], grid: &Grid) -> TriMesh {
     let [nx, ny, nz] = grid.dims;
     let corner_offsets: [usize; 8] = std::array::from_fn(|c| (c & 1) + nx * (((c >> 1) & 1) + ny * ((c >> 2) & 1)));
     let inside = |idx: usize| field[idx] as f64 > ISO_LEVEL;
-    let position = |idx: usize| grid.position(idx % nx, (idx / nx) % ny, idx / (nx * ny));
+    let position = |idx: usize| grid.centre(idx);
     let faces: Vec<[EdgeKey; 3]> = (0..nz.saturating_sub(1))
         .into_par_iter()
         .flat_map_iter(|k| {
