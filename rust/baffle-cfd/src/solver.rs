@@ -788,9 +788,10 @@ impl<'a> Solver<'a> {
             // extrapolation to the stage time t_n + af dt, second-order accurate in dt.
             extrapolate(x, &prev, alpha.alpha_f * sub_dt / gap);
             self.set_inflow(x, s.inflow.flow_ml_s(t));
+            // Prescribed velocities enter at their stage value u_{n+af}.
             for (i, _) in self.problem.dirichlet.iter().enumerate().filter(|(_, &d)| d) {
-                for k in i * B..i * B + 3 {
-                    x[k] = alpha.stage(x_old[k], x[k]);
+                for c in i * B..i * B + 3 {
+                    x[c] = alpha.stage(x_old[c], x[c]);
                 }
             }
             let stats = self.step(&phys, x, &u_star, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;

@@ -565,9 +565,7 @@ impl Extension<'_> {
         surface.triangles.extend(band);
         Ok(surface.triangles.len() - before)
     }
-}
 
-impl Extension<'_> {
     /// The far cut's rim must follow the far pool's surface: where the union joins
     /// that pool to another one near the far plane (a septum thinner than the closing,
     /// a second VSD), the cut runs over both, and the cap would close the other too.

@@ -39,13 +39,13 @@ pub struct LvFamilyParams {
     pub aorta_tilt: f64,
 }
 
-/// A channel joining the LV and the RV where they are 1-10 mm apart: on the LV at
-/// `height_offset` (fraction of the long semi-axis) from the VSD's height and
-/// `around_deg` round the LV's long axis (toward `side` y), to the nearest RV point.
 /// The LV-RV gap a second VSD crosses (mm): a muscular VSD through the septum.
 const MIN_SECOND_VSD_LENGTH_MM: f64 = 1.0;
 const MAX_SECOND_VSD_LENGTH_MM: f64 = 10.0;
 
+/// A channel joining the LV and the RV where they are 1-10 mm apart: on the LV at
+/// `height_offset` (fraction of the long semi-axis) from the VSD's height and
+/// `around_deg` round the LV's long axis (toward `side` y), to the nearest RV point.
 #[derive(Clone, Debug)]
 pub struct SecondVsd {
     pub side: f64,
