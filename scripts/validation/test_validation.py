@@ -196,3 +196,20 @@ def test_either_plane_moves_downstream():
     moved_a = planes.shifted_dp(grid, a, b, [-0.25], move_first=True)
     assert moved_a["-0.2"]["dp_static_area"] == pytest.approx(-2.5)  # a at x = 0.25
     assert moved_a["-0.2"]["dp_total_flux"] == pytest.approx(-2.5)  # uniform speed
+
+
+def test_the_full_run_studies_every_domain_of_every_patient_and_only_filters():
+    import validate
+
+    patients = ["p1", "p2", "p3"]
+    study = validate.row_specs("full", patients, only="gci")
+    levels = {}
+    for r in study:
+        assert r["study"] == "gci" and r["boundary_mm"] == r["interior_mm"]
+        levels.setdefault((r["patient"], r["domain"]), []).append(r["boundary_mm"])
+    assert sorted(levels) == [(p, d) for p in patients for d in ("designed", "published")]
+    assert all(sorted(v) == sorted(validate.MESH_LEVELS_MM) for v in levels.values())
+    base = validate.row_specs("full", patients, only="base")
+    assert base and not any(r.get("study") for r in base)
+    assert len(base) + len(study) == len(validate.row_specs("full", patients))
+    assert validate.row_specs("quick", ["p2"], only="gci") == []

@@ -210,7 +210,17 @@ MESH_LEVELS_MM = (1.25, 0.95, 0.75, 0.6)
 VSD_OFFSETS_MM = (-2.0, -1.0, 0.0, 1.0, 2.0)
 
 
-def row_specs(mode, patients_wanted):
+def row_specs(mode, patients_wanted, only=None):
+    """The rows of a run; `only` ("gci" or "base") keeps the mesh study or the rest."""
+    rows = all_row_specs(mode, patients_wanted)
+    if only == "gci":
+        return [r for r in rows if r.get("study") == "gci"]
+    if only == "base":
+        return [r for r in rows if r.get("study") != "gci"]
+    return rows
+
+
+def all_row_specs(mode, patients_wanted):
     rows = []
     ps = patients_wanted
     if mode == "smoke":
@@ -226,15 +236,17 @@ def row_specs(mode, patients_wanted):
     # and p3, the rows the issue asks about; p1 last (the largest mesh).
     first = [p for p in ("p2", "p3") if p in ps]
     variants = lambda p: [spec(p, "published", profile="poiseuille"), spec(p, "published", interior=0.75), spec(p, "published", flow="elevated")]
+    study = lambda p, d: [spec(p, d, boundary=h, interior=h, study="gci") for h in MESH_LEVELS_MM]
     for p in first:
         rows += variants(p)
     for p in first:
-        rows += [spec(p, "published", boundary=h, interior=h, study="gci") for h in MESH_LEVELS_MM]
+        rows += study(p, "published")
     if "p1" in ps:
         rows += variants("p1")
-    # The same study on our design of p2 (the smallest domain).
-    if "p2" in ps:
-        rows += [spec("p2", "designed", boundary=h, interior=h, study="gci") for h in MESH_LEVELS_MM]
+    # The same study on our designs, the smallest domain first; p1's published domain last.
+    rows += [r for p in ("p2", "p3", "p1") if p in ps for r in study(p, "designed")]
+    if "p1" in ps:
+        rows += study("p1", "published")
     return rows
 
 
@@ -346,6 +358,7 @@ def main(argv=None):
     ap.add_argument("--baffle", type=Path, required=True)
     ap.add_argument("--patients", default="p1,p2,p3")
     ap.add_argument("--nice", type=int, default=5)
+    ap.add_argument("--only", choices=("gci", "base"), help="run only the mesh-study rows, or only the others")
     ap.add_argument("--tables-only", action="store_true", help="rebuild the tables from the stages already run; rows with a stage missing are left out")
     args = ap.parse_args(argv)
     meta = json.loads((args.data / "patients.json").read_text())
@@ -357,7 +370,7 @@ def main(argv=None):
     args.out.mkdir(parents=True, exist_ok=True)
     r = Runner(args.baffle.resolve(), args.data.resolve(), (args.out / "work").resolve(), args.nice, args.tables_only)
     rows = []
-    for s in row_specs(args.mode, wanted):
+    for s in row_specs(args.mode, wanted, args.only):
         try:
             row = run_row(r, s, meta["patients"], meta["common"])
         except NotRun as e:
