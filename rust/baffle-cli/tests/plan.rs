@@ -389,6 +389,48 @@ fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
     std::fs::remove_dir_all(out).ok();
 }
 
+/// Triangles of a surface file (a mesh level's extended boundary).
+fn triangles(path: &Path) -> usize {
+    baffle_core::io::read_surface_labeled(path).unwrap().mesh.triangles.len()
+}
+
+#[test]
+fn a_mesh_study_on_an_extended_domain_refines_the_boundary_and_reports_the_gci() {
+    if skip_gmsh() {
+        return;
+    }
+    let out = temp_dir("synthetic-study");
+    let segmentations = out.join("segmentations");
+    std::fs::create_dir_all(&segmentations).unwrap();
+    let points = synthetic_heart(&segmentations);
+    let plan_out = out.join("plan");
+    let mut args = vec!["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap()];
+    args.extend_from_slice(&["--bsa", "0.2", "--bp", "107/78", "--out", plan_out.to_str().unwrap(), "--quick", "--mesh-study", "--edge-length-mm", "1.4"]);
+    let run = baffle(&args, &[]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&plan_out.join("report.json"));
+    // Each level is extended again at its own size: finer level, finer boundary.
+    let boundary: Vec<usize> = ["coarse", "nominal", "fine"].iter().map(|l| triangles(&plan_out.join(format!("extend-{l}/extended.vtp")))).collect();
+    let tets: Vec<f64> = ["coarse", "nominal", "fine"].iter().map(|l| read_json(&plan_out.join(format!("mesh-{l}/mesh-quality.json")))["tetrahedra"].as_f64().unwrap()).collect();
+    assert!(boundary[0] < boundary[1] && boundary[1] < boundary[2], "boundary triangles {boundary:?}");
+    assert!(tets[0] < tets[1] && tets[1] < tets[2], "tetrahedra {tets:?}");
+    // The study's figures are the runs' own: the fine dp and its band.
+    let study = &report["mesh_study"];
+    let fine_dp = read_json(&plan_out.join("simulate-fine/summary.json"))["dp_peak_mmhg"].as_f64().unwrap();
+    assert!(close(study["fine_dp_mmhg"].as_f64().unwrap(), fine_dp) && study["fine_edge_length_mm"].as_f64().unwrap() < 1.4, "{study}");
+    let (gci, band) = (study["gci_fine"].as_f64().unwrap(), study["band_mmhg"].as_f64().unwrap());
+    assert!(gci > 0.0 && close(band, gci * fine_dp.abs()), "{study}");
+    assert_eq!(study["converged"].as_bool(), Some(gci <= 0.05), "{study}");
+    let warned = report["verdict"]["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("not mesh-converged"));
+    assert_eq!(warned, gci > 0.05, "{}", report["verdict"]);
+    let html = std::fs::read_to_string(plan_out.join("report.html")).unwrap();
+    assert!(html.contains("Mesh study (boundary and volume refined together"), "no mesh-study line in the report");
+    eprintln!("synthetic heart mesh study: boundary triangles {boundary:?}, tetrahedra {tets:?}, {study}");
+    check_verdict(&plan_out, &stdout);
+    std::fs::remove_dir_all(out).ok();
+}
+
 /// p2's paper inputs (BSA 0.37 m2, BP 107/78, HR 133) with `source` as the ventricle.
 fn p2_plan(source: &[&str], points: &Path, out: &Path) -> Output {
     let mut args = vec!["plan"];

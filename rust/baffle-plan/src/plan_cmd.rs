@@ -15,7 +15,7 @@
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::design_cmd::{design_reporting, DesignArgs};
 use crate::plan_stages::{
-    command_args, extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, mesh_path, plan_stages, prepared_surface_path,
+    command_args, extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, level_extended_surface_path, mesh_path, plan_stages, prepared_surface_path,
     FlowCase, PlanArgs, Stage, StageRecord, Step,
 };
 use crate::prepare_cmd;
@@ -116,10 +116,14 @@ pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &P
             let centerline = command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?;
             centerline_cmd::run_centerline_with(&centerline, progress)
         }
-        Step::Extend => {
+        Step::Extend { level, remesh_domain_edge_mm } => {
             let domain = out.join("design").join("domain.vtp");
             let d = &args.design;
-            let mut argv: Vec<OsString> = vec!["--domain".into(), domain.into(), "--out".into(), extended_surface_path(out).into()];
+            let extended = level.map_or_else(|| extended_surface_path(out), |l| level_extended_surface_path(args, l));
+            let mut argv: Vec<OsString> = vec!["--domain".into(), domain.into(), "--out".into(), extended.into()];
+            if let Some(edge_mm) = remesh_domain_edge_mm {
+                argv.extend(["--remesh-domain-edge-mm".into(), edge_mm.to_string().into()]);
+            }
             for (flag, label) in [("--wall-label", d.wall_label), ("--baffle-label", d.baffle_label), ("--vsd-label", d.vsd_label), ("--aortic-label", d.aortic_label)] {
                 argv.extend([flag.into(), label.to_string().into()]);
             }
@@ -132,7 +136,7 @@ pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &P
             if is_extended(args) {
                 // The interior caps share the boundary's rim points: the boundary is meshed as built.
                 let interior = format!("{},{}", args.design.vsd_label, args.design.aortic_label);
-                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--interior-labels".into(), interior.into()]);
+                argv.extend(["--surface".into(), level_extended_surface_path(args, level).into(), "--interior-labels".into(), interior.into()]);
             } else {
                 argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into(), "--remesh-surface".into()]);
             }

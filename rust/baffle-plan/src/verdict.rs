@@ -6,6 +6,7 @@
 //! writes its run's doubts into summary.json (`doubts`), so the Slicer module shows the
 //! same verdict without a second copy of these rules.
 
+use crate::mesh_convergence::{grid_convergence, Convergence, Level};
 use serde_json::Value;
 
 /// The planning threshold of the peak pressure difference (mmHg): below it passes.
@@ -14,8 +15,9 @@ pub const DP_THRESHOLD_MMHG: f64 = 10.0;
 pub const PERIODICITY_LIMIT: f64 = 1e-2;
 /// Largest |inflow - outflow| / inflow over the reported cycle.
 pub const MASS_IMBALANCE_LIMIT: f64 = 1e-2;
-/// Largest relative change of dp from the nominal to the fine mesh of a mesh study.
-pub const MESH_DP_CHANGE_LIMIT: f64 = 0.05;
+/// Largest grid convergence index of dp (on the finest mesh of a study) for a dp called
+/// mesh-converged.
+pub const MESH_GCI_LIMIT: f64 = 0.05;
 /// Smallest scaled Jacobian below which a mesh is flagged (not a reason by itself).
 pub const POOR_SCALED_JACOBIAN: f64 = 0.1;
 
@@ -114,21 +116,68 @@ pub fn run_doubts(summary: &Value) -> Vec<String> {
     doubts
 }
 
-/// A mesh study's doubt: dp changes by more than [`MESH_DP_CHANGE_LIMIT`] from the
-/// nominal to the fine mesh (or the fine run gave none).
-pub fn mesh_study_doubt(nominal_dp_mmhg: f64, fine: Option<(f64, f64)>) -> Option<String> {
-    let (edge_mm, fine_dp) = fine?;
-    if !fine_dp.is_finite() {
-        return Some(format!("the mesh study's fine mesh ({edge_mm:.2} mm) gave no pressure difference"));
-    }
-    let change = (fine_dp - nominal_dp_mmhg).abs() / fine_dp.abs().max(1e-9);
-    (change > MESH_DP_CHANGE_LIMIT).then(|| {
+/// A mesh study's doubt: the mesh can decide the verdict. The nominal dp and the finest
+/// mesh's dp with its uncertainty band (the grid convergence index of the three levels,
+/// `mesh_convergence`) must lie on one side of the threshold; a study that could not
+/// estimate the band (a level without dp, equal values) is a doubt too.
+pub fn mesh_study_doubt(nominal_dp_mmhg: f64, study: &Result<MeshStudy, String>) -> Option<String> {
+    let study = match study {
+        Ok(study) => study,
+        Err(e) => return Some(format!("the mesh study could not estimate the discretization error ({e})")),
+    };
+    let (fine, band) = (study.fine_dp_mmhg, study.dp.band);
+    let (low, high) = (nominal_dp_mmhg.min(fine - band), nominal_dp_mmhg.max(fine + band));
+    (low < DP_THRESHOLD_MMHG && high >= DP_THRESHOLD_MMHG).then(|| {
         format!(
-            "the mesh is not converged: dp is {fine_dp:.2} mmHg on the fine mesh ({edge_mm:.2} mm) against {nominal_dp_mmhg:.2} mmHg, a {:.0} % change (limit {:.0} %)",
-            100.0 * change,
-            100.0 * MESH_DP_CHANGE_LIMIT
+            "the mesh decides the verdict: dp is {nominal_dp_mmhg:.2} mmHg on the nominal mesh and {fine:.2} +- {band:.2} mmHg on the fine mesh \
+({:.2} mm; grid convergence index {:.0} %), a range that contains the {DP_THRESHOLD_MMHG} mmHg threshold: refine the mesh",
+            study.fine_edge_length_mm,
+            100.0 * study.dp.gci_fine
         )
     })
+}
+
+/// A three-level mesh study of dp: the fine level and the grid convergence of dp.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshStudy {
+    pub fine_edge_length_mm: f64,
+    pub fine_dp_mmhg: f64,
+    pub dp: Convergence,
+}
+
+impl MeshStudy {
+    /// The study of three levels (any order); an error names a level without dp.
+    pub fn of(levels: &[Level]) -> Result<MeshStudy, String> {
+        let three: &[Level; 3] = levels.try_into().map_err(|_| format!("{} mesh levels, the study needs 3", levels.len()))?;
+        if let Some(l) = three.iter().find(|l| !l.value.is_finite()) {
+            return Err(format!("the {:.2} mm mesh gave no pressure difference", l.edge_length_mm));
+        }
+        let fine = three.iter().min_by(|a, b| a.h_mm().total_cmp(&b.h_mm())).copied().unwrap_or(three[0]);
+        Ok(MeshStudy { fine_edge_length_mm: fine.edge_length_mm, fine_dp_mmhg: fine.value, dp: grid_convergence(three)? })
+    }
+
+    /// A warning beside the verdict when dp is not converged to [`MESH_GCI_LIMIT`] (the
+    /// verdict may still stand: the band can lie clear of the threshold).
+    pub fn warning(&self) -> Option<String> {
+        (self.dp.gci_fine > MESH_GCI_LIMIT).then(|| format!("dp is not mesh-converged to {:.0} %: {}", 100.0 * MESH_GCI_LIMIT, self.text()))
+    }
+
+    /// The study in words: the fine dp with its band, the order, the extrapolation.
+    pub fn text(&self) -> String {
+        let c = &self.dp;
+        let order = if c.asymptotic {
+            format!("observed order {:.2}, extrapolated {:.2} mmHg", c.observed_order, c.extrapolated)
+        } else {
+            format!("no credible observed order ({:.2}{}): conservative band at order 2", c.observed_order, if c.oscillatory { ", the levels oscillate" } else { "" })
+        };
+        format!(
+            "grid convergence index {:.1} % on the fine mesh ({:.2} mm: {:.2} +- {:.2} mmHg; {order})",
+            100.0 * c.gci_fine,
+            self.fine_edge_length_mm,
+            self.fine_dp_mmhg,
+            c.band
+        )
+    }
 }
 
 /// The design's check: every constrained section reaches the target area.
@@ -204,13 +253,43 @@ mod tests {
     }
 
     #[test]
-    fn a_mesh_study_and_a_design_check_can_make_it_inconclusive() {
-        assert_eq!(mesh_study_doubt(7.0, None), None);
-        assert_eq!(mesh_study_doubt(7.0, Some((0.75, 7.2))), None);
-        assert!(mesh_study_doubt(7.0, Some((0.75, 8.0))).unwrap().contains("not converged"));
+    fn a_poor_mesh_and_a_design_check_are_reported() {
         let design = json!({ "min_constrained_final_area_mm2": 99.0, "target_area_mm2": 100.0 });
         assert!(design_doubt(&design).unwrap().contains("below the target"));
         assert_eq!(design_doubt(&json!({ "min_constrained_final_area_mm2": 100.5, "target_area_mm2": 100.0 })), None);
         assert!(mesh_warning(&json!({ "min_scaled_jacobian": 0.026 })).unwrap().contains("0.026"));
+    }
+
+    /// Levels at 1.25, 0.95 and 0.75 mm (V = 1 mm³, N = h^-3) with dp = limit + c h^2.
+    fn study(limit: f64, c: f64) -> Result<MeshStudy, String> {
+        let levels = [1.25, 0.95, 0.75].map(|h: f64| Level { edge_length_mm: h, tetrahedra: 1, volume_mm3: h.powi(3), value: limit + c * h * h });
+        MeshStudy::of(&levels)
+    }
+
+    #[test]
+    fn the_mesh_makes_it_inconclusive_only_when_its_band_reaches_the_threshold() {
+        // p3-like: 6.4 -> 5.3 mmHg, far below 10: not converged to 5 %, but the verdict stands.
+        let clear = study(4.5, 1.2);
+        assert_eq!(mesh_study_doubt(4.5 + 1.2 * 0.9025, &clear), None);
+        let warning = clear.as_ref().unwrap().warning().unwrap();
+        assert!(warning.contains("not mesh-converged") && warning.contains("observed order 2.00") && warning.contains("extrapolated 4.50"), "{warning}");
+        // Converging towards the threshold: the fine band reaches 10 mmHg.
+        let near = study(9.8, -2.0);
+        let doubt = mesh_study_doubt(9.8 - 2.0 * 0.9025, &near).unwrap();
+        assert!(doubt.contains("the mesh decides the verdict") && doubt.contains("10 mmHg"), "{doubt}");
+        assert_eq!(Verdict::of(8.0, vec![doubt]).key(), "inconclusive");
+        // A converged study raises neither.
+        let converged = study(3.0, 0.01);
+        assert_eq!(mesh_study_doubt(3.01, &converged), None);
+        assert_eq!(converged.unwrap().warning(), None);
+    }
+
+    #[test]
+    fn an_incomplete_mesh_study_is_a_doubt() {
+        let mut levels = [1.25, 0.95, 0.75].map(|h: f64| Level { edge_length_mm: h, tetrahedra: 1, volume_mm3: h.powi(3), value: 2.0 + h });
+        levels[2].value = f64::NAN;
+        let doubt = mesh_study_doubt(2.95, &MeshStudy::of(&levels)).unwrap();
+        assert!(doubt.contains("0.75 mm mesh gave no pressure difference"), "{doubt}");
+        assert!(MeshStudy::of(&levels[..2]).unwrap_err().contains("2 mesh levels"));
     }
 }

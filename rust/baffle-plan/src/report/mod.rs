@@ -14,7 +14,8 @@ use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
 use std::path::Path;
-use crate::verdict::{self, Verdict, DP_THRESHOLD_MMHG};
+use crate::mesh_convergence::Level;
+use crate::verdict::{self, MeshStudy, Verdict, DP_THRESHOLD_MMHG};
 
 fn read_json(path: &Path) -> Result<Value, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -64,6 +65,16 @@ struct Run {
 impl Run {
     fn dp_mmhg(&self) -> Result<f64, String> {
         number(&self.summary, "/dp_peak_mmhg", &self.summary_path)
+    }
+    /// This run as a level of a mesh study (its dp NaN when it gave none).
+    fn mesh_level(&self) -> Result<Level, String> {
+        let q = |key: &str| number(&self.quality, key, &self.quality_path);
+        Ok(Level {
+            edge_length_mm: self.edge_length_mm,
+            tetrahedra: q("/tetrahedra")? as usize,
+            volume_mm3: q("/volume_mm3")?,
+            value: self.dp_mmhg().unwrap_or(f64::NAN),
+        })
     }
     fn v_max_m_s(&self) -> Result<f64, String> {
         number(&self.summary, "/max_velocity_m_s", &self.summary_path)
@@ -276,13 +287,36 @@ fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
 }
 
 /// The plan's verdict: the nominal run's own doubts, the mesh study's and the design's.
-fn plan_verdict(nominal: &Run, runs: &[Run], design: &Value) -> Verdict {
+fn plan_verdict(nominal: &Run, study: Option<&Result<MeshStudy, String>>, design: &Value) -> Verdict {
     let dp = nominal.dp_mmhg().unwrap_or(f64::NAN);
     let mut doubts = verdict::run_doubts(&nominal.summary);
-    let fine = runs.iter().find(|r| r.level == "fine" && r.flow == FlowCase::Nominal);
-    doubts.extend(verdict::mesh_study_doubt(dp, fine.map(|r| (r.edge_length_mm, r.dp_mmhg().unwrap_or(f64::NAN)))));
+    doubts.extend(study.and_then(|s| verdict::mesh_study_doubt(dp, s)));
     doubts.extend(verdict::design_doubt(design));
     Verdict::of(dp, doubts)
+}
+
+/// The mesh study of the nominal-flow runs (None without --mesh-study).
+fn mesh_study(runs: &[Run]) -> Option<Result<MeshStudy, String>> {
+    let levels: Vec<&Run> = runs.iter().filter(|r| r.flow == FlowCase::Nominal).collect();
+    if levels.len() < 2 {
+        return None;
+    }
+    let levels: Result<Vec<Level>, String> = levels.iter().map(|r| r.mesh_level()).collect();
+    Some(levels.and_then(|l| MeshStudy::of(&l)))
+}
+
+/// report.json's `mesh_study`: the grid convergence of dp, or why there is none.
+fn mesh_study_json(study: &Result<MeshStudy, String>) -> Value {
+    match study {
+        Ok(s) => json!({
+            "quantity": "dp_peak_mmhg", "method": "grid convergence index, Celik et al. 2008 (three levels, observed order)",
+            "fine_edge_length_mm": s.fine_edge_length_mm, "fine_dp_mmhg": s.fine_dp_mmhg,
+            "observed_order": s.dp.observed_order, "asymptotic": s.dp.asymptotic, "oscillatory": s.dp.oscillatory,
+            "extrapolated_dp_mmhg": s.dp.extrapolated, "gci_fine": s.dp.gci_fine, "band_mmhg": s.dp.band,
+            "converged": s.dp.gci_fine <= verdict::MESH_GCI_LIMIT, "gci_limit": verdict::MESH_GCI_LIMIT,
+        }),
+        Err(e) => json!({ "quantity": "dp_peak_mmhg", "error": e }),
+    }
 }
 
 fn profile_series(s_mm: &[f64], values: &[Option<f64>]) -> Vec<(f64, f64)> {
@@ -526,9 +560,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let table = quantities(&design, &design_path, nominal, &flow_line)?;
     let dp = nominal.dp_mmhg()?;
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
-    let verdict = plan_verdict(nominal, &runs, &design);
+    let study = mesh_study(&runs);
+    let verdict = plan_verdict(nominal, study.as_ref(), &design);
     let verdict_line = verdict.text(dp);
-    let warnings: Vec<String> = verdict::mesh_warning(&nominal.quality).into_iter().collect();
+    let mut warnings: Vec<String> = verdict::mesh_warning(&nominal.quality).into_iter().collect();
+    warnings.extend(study.as_ref().and_then(|s| s.as_ref().ok()?.warning()));
     let cfd_domain = domain_summary(args, out, records)?;
     let dp_faces = if cfd_domain["extended"] == true {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
@@ -580,6 +616,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             "warnings": warnings,
         },
         "runs": run_rows,
+        "mesh_study": study.as_ref().map(mesh_study_json),
         "paper": paper.as_ref().map(|p| json!({
             "patient": p.id, "table": p.table,
             "note": "the paper's published values of this patient (pulsatile run, nominal 0.95 mm mesh)",
@@ -749,6 +786,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         })
         .collect();
     html.table(&["Run", "Mesh", "Cardiac index (L/min/m²)", "Tetrahedra", "dp (mmHg)", "v_max (m/s)", "10 mmHg verdict"], &rows);
+    match &study {
+        Some(Ok(s)) => html.para(&format!("Mesh study (boundary and volume refined together; Celik et al. 2008): {}.", s.text())),
+        Some(Err(e)) => html.para(&format!("Mesh study: no uncertainty estimate ({e}).")),
+        None => {}
+    }
     html.heading("Stages");
     let rows: Vec<Vec<String>> = records.iter().map(|r| vec![r.name.clone(), r.status.to_string(), format_value(r.wall_time_s.unwrap_or(f64::NAN), 1)]).collect();
     html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
