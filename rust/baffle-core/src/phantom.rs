@@ -421,14 +421,7 @@ impl ArcTable {
 /// (sweep, section) angles on the outer side of the bend.
 fn suture_points_mm(params: &PhantomParams) -> Vec<Vec3> {
     let count = params.suture_point_count.min(MAX_COUNT);
-    let samples: Vec<Vec3> = (0..=SUTURE_LOOP_SAMPLES)
-        .map(|k| suture_loop_point_mm(params, TAU * k as f64 / SUTURE_LOOP_SAMPLES as f64))
-        .collect();
-    let mut cumulative_mm = vec![0.0];
-    for pair in samples.windows(2) {
-        let last = cumulative_mm[cumulative_mm.len() - 1];
-        cumulative_mm.push(last + (pair[1] - pair[0]).norm());
-    }
+    let cumulative_mm = suture_loop_cumulative_mm(params);
     let loop_length_mm = cumulative_mm[cumulative_mm.len() - 1];
     let spacing_mm = loop_length_mm / count.max(1) as f64;
     let mut jitter = crate::numerics::random::SplitMix64::new(params.suture_jitter_seed);
@@ -448,6 +441,27 @@ fn suture_points_mm(params: &PhantomParams) -> Vec<Vec3> {
             params.wall_point_mm(sweep, section + across_mm / a.min(b))
         })
         .collect()
+}
+
+/// Cumulative 3D arc length (mm) at the suture loop's evenly spaced parameter samples.
+fn suture_loop_cumulative_mm(params: &PhantomParams) -> Vec<f64> {
+    let samples: Vec<Vec3> = (0..=SUTURE_LOOP_SAMPLES)
+        .map(|k| suture_loop_point_mm(params, TAU * k as f64 / SUTURE_LOOP_SAMPLES as f64))
+        .collect();
+    let mut cumulative_mm = vec![0.0];
+    for pair in samples.windows(2) {
+        let last = cumulative_mm[cumulative_mm.len() - 1];
+        cumulative_mm.push(last + (pair[1] - pair[0]).norm());
+    }
+    cumulative_mm
+}
+
+impl PhantomParams {
+    /// Length of the analytic suture loop the points are spaced along (mm): the seam the
+    /// surgeon's points describe, before their jitter.
+    pub fn suture_loop_length_mm(&self) -> f64 {
+        suture_loop_cumulative_mm(self).last().copied().unwrap_or(0.0)
+    }
 }
 
 /// Loop parameter (rad) where the sampled loop's arc length reaches `target_mm`.

@@ -42,7 +42,7 @@ pub struct PathPoint {
 /// The seam projected onto the wall, before it is inserted into the mesh.
 #[derive(Clone, Debug)]
 pub struct ProjectedSeam {
-    /// Suture points in loop order (PCA-plane angle), mm.
+    /// Suture points in loop order ([`loop_order`]), mm.
     pub ordered_points_mm: Vec<Vec3>,
     /// Spline samples projected onto the RV wall (with any midpoints added), mm.
     pub samples_mm: Vec<Vec3>,
@@ -55,6 +55,24 @@ const MAX_BISECTION_DEPTH: usize = 6;
 /// A sample whose nearest surface point is on a cap, nearer than the wall by more
 /// than this, means the spline passes over the cap.
 const CAP_MARGIN_MM: f64 = 0.05;
+
+/// The loop order of the suture points: the paper's angle order in their best-fit plane,
+/// or the order they were given in when that closes a shorter polygon. A loop bent round
+/// a strongly curved wall (a long tunnel) is not star-shaped in its plane, and there the
+/// angle order zigzags across it; a Slicer closed curve already holds the surgeon's order.
+pub fn loop_order(points: &[Vec3]) -> Vec<Vec3> {
+    let by_angle = order_by_pca_angle(points);
+    if closed_polygon_length_mm(points) < closed_polygon_length_mm(&by_angle) {
+        points.to_vec()
+    } else {
+        by_angle
+    }
+}
+
+/// Perimeter of the closed polygon through `points` in their order (mm).
+fn closed_polygon_length_mm(points: &[Vec3]) -> f64 {
+    (0..points.len()).map(|i| (points[(i + 1) % points.len()] - points[i]).norm()).sum()
+}
 
 /// Order points by their angle around the centroid in their best-fit plane.
 pub fn order_by_pca_angle(points: &[Vec3]) -> Vec<Vec3> {
@@ -90,7 +108,7 @@ pub fn project_seam(
     check_points_on_wall(&projector, points, max_point_distance_mm)?;
     check_points_distinct(points)?;
     check_points_enclose(points)?;
-    let ordered = order_by_pca_angle(points);
+    let ordered = loop_order(points);
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
     let samples = spline
         .resample_uniform_arclength(sample_count.max(16))

@@ -257,3 +257,46 @@ fn a_jump_through_a_thin_fold_is_refused_with_its_way_round() {
     let walk_mm = WallGraph::new(&mesh, 2).detour(&mesh, &top, &bottom).unwrap_err();
     assert!(walk_mm > 3.0, "the way round the slab's rim is at least 4 mm, not {walk_mm}");
 }
+
+/// Jittered points on a thin loop bent round a 115-degree, 20 mm radius tunnel with 4 mm
+/// caps: in their best-fit plane the loop is not star-shaped.
+fn thin_bent_loop() -> crate::phantom::PhantomParams {
+    crate::phantom::PhantomParams {
+        bend_radius_mm: 19.85,
+        sweep_angle_deg: 115.24,
+        vsd_semi_axes_mm: (4.01, 3.37),
+        aortic_semi_axes_mm: (4.02, 3.20),
+        suture_point_count: 12,
+        suture_rim_margin_mm: 2.22,
+        suture_half_angle_deg: 65.48,
+        suture_jitter_fraction: 0.1304,
+        suture_jitter_seed: 5179611965503769330,
+        ..Default::default()
+    }
+}
+
+/// Position of each of `ordered` in `given`.
+fn positions(given: &[Vec3], ordered: &[Vec3]) -> Vec<usize> {
+    ordered.iter().map(|q| given.iter().position(|p| p == q).unwrap()).collect()
+}
+
+/// Whether `order` runs round the loop 0..n (any start, either direction).
+fn is_cyclic(order: &[usize]) -> bool {
+    let n = order.len();
+    let step = |k: usize| (order[(k + 1) % n] + n - order[k]) % n;
+    (0..n).all(|k| step(k) == 1) || (0..n).all(|k| step(k) == n - 1)
+}
+
+#[test]
+fn the_loop_order_keeps_an_ordered_input_where_the_angle_order_zigzags() {
+    let phantom = crate::phantom::phantom(&thin_bent_loop());
+    let points = &phantom.suture_points_mm;
+    assert!(!is_cyclic(&positions(points, &order_by_pca_angle(points))), "the angle order should zigzag on this loop");
+    assert!(is_cyclic(&positions(points, &loop_order(points))));
+    // Points clicked in any order: the angle order, the paper's, is taken.
+    let shuffled: Vec<Vec3> = [3, 9, 0, 6, 1, 11, 4, 8, 2, 10, 5, 7].iter().map(|&k| points[k]).collect();
+    assert_eq!(loop_order(&shuffled), order_by_pca_angle(&shuffled));
+    let target = crate::TargetArea::AreaMm2(30.0);
+    let designed = crate::design(&phantom.surface, points, &target, &Default::default(), &mut |_, _| true).unwrap();
+    assert!(designed.report.min_constrained_final_area_mm2 >= 30.0);
+}
