@@ -358,12 +358,10 @@ fn check_extend_stage(out: &Path, report: &serde_json::Value) {
     assert!(html.contains("extended domain (paper 2.5)"), "the report names the extended domain");
 }
 
-#[test]
-fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
-    if skip_gmsh() {
-        return;
-    }
-    let out = temp_dir("synthetic");
+/// `baffle plan` from the synthetic heart's segment files in a new temp folder `name`, with
+/// `run_args`: (the folder, the plan's --out, the run).
+fn synthetic_heart_plan(name: &str, run_args: &[&str]) -> (PathBuf, PathBuf, Output) {
+    let out = temp_dir(name);
     let segmentations = out.join("segmentations");
     std::fs::create_dir_all(&segmentations).unwrap();
     let points = synthetic_heart(&segmentations);
@@ -371,8 +369,17 @@ fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
     // BSA 0.2 m2: a 37.7 mm2 target, below the 52 mm2 aortic cap of the 4 mm tube.
     let mut args = vec!["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap()];
     args.extend_from_slice(&["--bsa", "0.2", "--bp", "107/78", "--out", plan_out.to_str().unwrap()]);
-    args.extend_from_slice(COARSE_STEADY);
+    args.extend_from_slice(run_args);
     let run = baffle(&args, &[]);
+    (out, plan_out, run)
+}
+
+#[test]
+fn a_synthetic_heart_from_segment_files_is_prepared_and_planned() {
+    if skip_gmsh() {
+        return;
+    }
+    let (out, plan_out, run) = synthetic_heart_plan("synthetic", COARSE_STEADY);
     assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     let report = read_json(&plan_out.join("report.json"));
     check_prepare_stage(&plan_out, &report);
@@ -399,14 +406,7 @@ fn a_mesh_study_on_an_extended_domain_refines_the_boundary_and_reports_the_gci()
     if skip_gmsh() {
         return;
     }
-    let out = temp_dir("synthetic-study");
-    let segmentations = out.join("segmentations");
-    std::fs::create_dir_all(&segmentations).unwrap();
-    let points = synthetic_heart(&segmentations);
-    let plan_out = out.join("plan");
-    let mut args = vec!["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap()];
-    args.extend_from_slice(&["--bsa", "0.2", "--bp", "107/78", "--out", plan_out.to_str().unwrap(), "--quick", "--mesh-study", "--edge-length-mm", "1.4"]);
-    let run = baffle(&args, &[]);
+    let (out, plan_out, run) = synthetic_heart_plan("synthetic-study", &["--quick", "--mesh-study", "--edge-length-mm", "1.4"]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
     let report = read_json(&plan_out.join("report.json"));
