@@ -59,7 +59,7 @@ def plan(tmp_path_factory):
     run([exe, "phantom", "--heart", "--out", root / "heart"])
     result = run(
         [exe, "plan", "--segmentations", root / "heart", "--points", root / "heart" / "suture_points.mrk.json",
-         "--bsa", "0.2", "--bp", "107/78", "--steady", "--edge-length-mm", "1.25", "--out", root / "plan"],
+         "--bsa", "0.2", "--bp", "107/78", "--steady", "--edge-length-mm", "1.25", "--single-mesh", "--out", root / "plan"],
         cwd=root,
     )
     assert "no 3D pictures" not in result.stdout, result.stdout

@@ -40,7 +40,8 @@ fn phantom_inputs() -> &'static Path {
 }
 
 /// The quick run most tests use: steady, at the paper's coarse 1.25 mm mesh.
-const COARSE_STEADY: &[&str] = &["--steady", "--edge-length-mm", "1.25"];
+/// One coarse mesh, steady: the fast plan most tests need (the mesh study is the default).
+const COARSE_STEADY: &[&str] = &["--steady", "--edge-length-mm", "1.25", "--single-mesh"];
 
 /// `baffle plan` on `surface`/`points` with p2's BSA and BP, plus `run_args`.
 fn plan(surface: &Path, points: &Path, out: &Path, run_args: &[&str], env: &[(&str, &str)]) -> Output {
@@ -297,7 +298,7 @@ fn a_failing_prepare_stage_is_named_and_leaves_no_files() {
     std::fs::create_dir_all(&segmentations).unwrap();
     let points = phantom_inputs().join("suture_points.mrk.json");
     let plan_out = out.join("plan");
-    let args = ["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", plan_out.to_str().unwrap()];
+    let args = ["plan", "--segmentations", segmentations.to_str().unwrap(), "--points", points.to_str().unwrap(), "--bsa", "0.37", "--bp", "107/78", "--out", plan_out.to_str().unwrap(), "--single-mesh"];
     let run = baffle(&args, &[]);
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
@@ -402,11 +403,11 @@ fn triangles(path: &Path) -> usize {
 }
 
 #[test]
-fn a_mesh_study_on_an_extended_domain_refines_the_boundary_and_reports_the_gci() {
+fn the_default_mesh_study_on_an_extended_domain_refines_the_boundary_and_reports_the_gci() {
     if skip_gmsh() {
         return;
     }
-    let (out, plan_out, run) = synthetic_heart_plan("synthetic-study", &["--quick", "--mesh-study", "--edge-length-mm", "1.4"]);
+    let (out, plan_out, run) = synthetic_heart_plan("synthetic-study", &["--quick", "--edge-length-mm", "1.4"]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
     let report = read_json(&plan_out.join("report.json"));
@@ -494,7 +495,7 @@ fn a_quick_plan_stops_at_the_first_flow_peak_and_is_judged_there() {
         return;
     }
     let out = temp_dir("quick");
-    let run = phantom_plan(&out, &["--quick", "--edge-length-mm", "1.6"], &[]);
+    let run = phantom_plan(&out, &["--quick", "--edge-length-mm", "1.6", "--single-mesh"], &[]);
     assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     let verdict = check_verdict(&out, &String::from_utf8_lossy(&run.stdout));
     let summary = read_json(&out.join("simulate-nominal/summary.json"));
@@ -517,7 +518,7 @@ fn a_pulsatile_plan_reports_dp_over_the_last_cycle() {
     // A 0.25 s period (240 /min, the fastest plausible rate) keeps the run to 2 x 250 time
     // steps; what is checked is the reporting of a cycle.
     let out = temp_dir("pulsatile");
-    let run = phantom_plan(&out, &["--pulsatile", "--hr", "240", "--cycles", "2", "--edge-length-mm", "1.6"], &[]);
+    let run = phantom_plan(&out, &["--pulsatile", "--hr", "240", "--cycles", "2", "--edge-length-mm", "1.6", "--single-mesh"], &[]);
     assert!(run.status.success(), "{}\n{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     check_verdict(&out, &String::from_utf8_lossy(&run.stdout));
     let report = read_json(&out.join("report.json"));

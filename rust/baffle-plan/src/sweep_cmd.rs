@@ -238,6 +238,7 @@ fn plan_args(args: &SweepArgs, row_dir: &Path, target_area_mm2: f64) -> PlanArgs
         cycles: 4,
         edge_length_mm: c.edge_length_mm,
         mesh_study: false,
+        single_mesh: true,
         elevated_flow: false,
         cardiac_index: c.cardiac_index,
         prepare_remesh_edge_mm: None,

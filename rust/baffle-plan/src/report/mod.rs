@@ -565,6 +565,9 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let verdict_line = verdict.text(dp);
     let mut warnings: Vec<String> = verdict::mesh_warning(&nominal.quality).into_iter().collect();
     warnings.extend(study.as_ref().and_then(|s| s.as_ref().ok()?.warning()));
+    if !args.runs_mesh_study() {
+        warnings.push("dp comes from one mesh (--single-mesh): its discretization error is not known; without --single-mesh the plan runs the three-level mesh study".into());
+    }
     let cfd_domain = domain_summary(args, out, records)?;
     let dp_faces = if cfd_domain["extended"] == true {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
