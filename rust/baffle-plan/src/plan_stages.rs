@@ -60,7 +60,7 @@ pub struct PlanArgs {
     /// (on an extended domain every level is extended again from the designed domain
     /// remeshed at its size); the report gives dp's grid convergence index and judges the
     /// verdict with its band. No single edge length converges dp on every patient (the
-    /// dataset's p3 needs about 0.46 mm for 5 %: docs/validation.md).
+    /// dataset's p3 needs about 0.45 mm for 5 %: docs/validation.md).
     #[arg(long, conflicts_with = "single_mesh")]
     pub mesh_study: bool,
     /// The nominal mesh only (about a third of the study's time): the report then cannot
