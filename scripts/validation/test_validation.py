@@ -211,5 +211,27 @@ def test_the_full_run_studies_every_domain_of_every_patient_and_only_filters():
     assert all(sorted(v) == sorted(validate.MESH_LEVELS_MM) for v in levels.values())
     base = validate.row_specs("full", patients, only="base")
     assert base and not any(r.get("study") for r in base)
-    assert len(base) + len(study) == len(validate.row_specs("full", patients))
+    cycles = validate.row_specs("full", patients, only="cycles")
+    assert sorted(r["patient"] for r in cycles) == patients and all(r["cycles"] == 4 and r["domain"] == "published" for r in cycles)
+    assert len(base) + len(study) + len(cycles) == len(validate.row_specs("full", patients))
     assert validate.row_specs("quick", ["p2"], only="gci") == []
+
+
+def test_a_case_runs_to_a_step_or_whole_cycles(tmp_path):
+    import json
+    import validate
+
+    info = {"bsa_m2": 0.37, "sbp_mmhg": 107, "dbp_mmhg": 78}
+    validate.write_case(tmp_path / "a.json", info, "plug", 3.48, 170)
+    validate.write_case(tmp_path / "b.json", info, "plug", 3.48, None, 4)
+    a, b = (json.loads((tmp_path / n).read_text())["time"] for n in ("a.json", "b.json"))
+    assert (a["cycles"], a["steps"]) == (1, 170)
+    assert b["cycles"] == 4 and "steps" not in b
+
+
+def test_the_first_peak_dp_is_read_at_0164_s(tmp_path):
+    import validate
+
+    lines = ["step,time_s,p_plane1_11_mmhg,p_plane2_16_mmhg"] + [f"{k},{k / 1000:.3f},{10 + k / 100},{5}" for k in range(1, 400)]
+    (tmp_path / "timeseries.csv").write_text("\n".join(lines) + "\n")
+    assert validate.first_peak_dp_mmhg(tmp_path) == pytest.approx(5 + 1.64)

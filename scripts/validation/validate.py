@@ -31,6 +31,7 @@ import planes  # noqa: E402
 import published  # noqa: E402
 
 FIRST_PEAK_STEPS = 170  # peak of the built-in waveform at t = 0.164 s (dt 1 ms)
+FIRST_PEAK_TIME_S = 0.164
 DESIGN_BOUNDARY_MM = 0.85  # the paper's surface remesh edge (patients.json)
 
 
@@ -99,25 +100,36 @@ def designed_domain(r: Runner, patient, info):
     return design / "domain.vtp", times
 
 
-def write_case(path: Path, info, profile, cardiac_index, steps):
+def write_case(path: Path, info, profile, cardiac_index, steps, cycles=1):
     case = {
         "mesh": {"volume": "../mesh.vtu", "faces": "../mesh-faces.vtp", "format": "baffle", "units": "mm"},
         "faces": {"inlet": 20, "outlets": [21], "walls": [2, 10], "planes": [11, 16]},
         "fluid": {"density_g_cm3": 1.06, "viscosity_g_cm_s": 0.04},
         "inflow": {"bsa_m2": info["bsa_m2"], "cardiac_index_l_min_m2": cardiac_index, "period_s": 0.682, "profile": profile},
         "outlet": {"sbp_mmhg": info["sbp_mmhg"], "dbp_mmhg": info["dbp_mmhg"]},
-        "time": {"mode": "transient", "dt_s": 0.001, "cycles": 1, "steps": steps},
+        # One cycle cut at `steps` (the first peak), or whole cycles (steps None).
+        "time": {"mode": "transient", "dt_s": 0.001, "cycles": cycles, **({"steps": steps} if steps else {})},
         "output": {"vtu_every_steps": 0, "checkpoint_every_steps": 0},
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(case, indent=2))
 
 
+def first_peak_dp_mmhg(sim: Path):
+    """dp (VSD plane - aortic plane) at the first peak of flow, from a run's timeseries.csv."""
+    with open(sim / "timeseries.csv") as f:
+        rows = list(csv.DictReader(f))
+    row = min(rows, key=lambda r: abs(float(r["time_s"]) - FIRST_PEAK_TIME_S))
+    return float(row["p_plane1_11_mmhg"]) - float(row["p_plane2_16_mmhg"])
+
+
 def run_row(r: Runner, spec, patients, common):
     patient, domain_kind = spec["patient"], spec["domain"]
     info = patients[patient]
     boundary, interior = spec["boundary_mm"], spec["interior_mm"]
-    log(f"== {patient} {domain_kind} boundary {boundary} mm, interior {interior} mm, {spec['flow']} flow, {spec['profile']} inflow, {spec['steps']} steps")
+    cycles = spec.get("cycles", 1)
+    length = f"{cycles} cycles" if cycles > 1 else f"{spec['steps']} steps"
+    log(f"== {patient} {domain_kind} boundary {boundary} mm, interior {interior} mm, {spec['flow']} flow, {spec['profile']} inflow, {length}")
     if domain_kind == "published":
         domain, times = published_domain(r, patient, boundary)
     else:
@@ -134,8 +146,8 @@ def run_row(r: Runner, spec, patients, common):
     mesh = mesh_dir / "mesh.vtu"
     times["mesh"] = r.stage(mesh, ["mesh", "--surface", extended, "--interior-labels", "11,16", "--edge-length-mm", interior, "--out", mesh])
     ci = common["elevated_cardiac_index_l_min_m2"] if spec["flow"] == "elevated" else common["cardiac_index_l_min_m2"]
-    sim = mesh_dir / f"sim-{spec['flow']}-{spec['profile']}-{spec['steps']}"
-    write_case(sim / "case.json", info, spec["profile"], ci, spec["steps"])
+    sim = mesh_dir / f"sim-{spec['flow']}-{spec['profile']}-{length.replace(' ', '') if cycles > 1 else spec['steps']}"
+    write_case(sim / "case.json", info, spec["profile"], ci, None if cycles > 1 else spec["steps"], cycles)
     times["simulate"] = r.stage(sim / "summary.json", ["simulate", sim / "case.json", "--out", sim])
     # A run stopped before the peak (the smoke run) has no peak.vtu; its largest flow is
     # its last step, final.vtu, which is also the step summary.json's dp is taken at.
@@ -160,7 +172,11 @@ def run_row(r: Runner, spec, patients, common):
     return Row(
         patient=patient,
         domain=domain_kind,
-        mesh=f"{boundary} mm boundary, {interior} mm interior",
+        mesh=f"{boundary} mm boundary, {interior} mm interior" + (f", {cycles} cycles" if cycles > 1 else ""),
+        cycles=cycles,
+        # Several cycles: the first peak's dp beside the last cycle's (the quick estimate's error).
+        dp_first_peak_mmhg=first_peak_dp_mmhg(sim) if cycles > 1 else summary["dp_peak_mmhg"],
+        periodicity_nrmsd=summary.get("periodicity_nrmsd"),
         boundary_mm=boundary,
         interior_mm=interior,
         flow=spec["flow"],
@@ -211,13 +227,12 @@ VSD_OFFSETS_MM = (-2.0, -1.0, 0.0, 1.0, 2.0)
 
 
 def row_specs(mode, patients_wanted, only=None):
-    """The rows of a run; `only` ("gci" or "base") keeps the mesh study or the rest."""
+    """The rows of a run; `only` keeps the mesh study ("gci"), the four-cycle runs
+    ("cycles") or the rest ("base")."""
     rows = all_row_specs(mode, patients_wanted)
-    if only == "gci":
-        return [r for r in rows if r.get("study") == "gci"]
     if only == "base":
-        return [r for r in rows if r.get("study") != "gci"]
-    return rows
+        return [r for r in rows if not r.get("study")]
+    return [r for r in rows if only is None or r.get("study") == only]
 
 
 def all_row_specs(mode, patients_wanted):
@@ -243,7 +258,9 @@ def all_row_specs(mode, patients_wanted):
         rows += study(p, "published")
     if "p1" in ps:
         rows += variants("p1")
-    # The same study on our designs, the smallest domain first; p1's published domain last.
+    # Four cycles on the published domains (the quick estimate's first peak against the
+    # fourth cycle's), then the same study on our designs, smallest first; p1 published last.
+    rows += [spec(p, "published", cycles=4, study="cycles") for p in ("p2", "p3", "p1") if p in ps]
     rows += [r for p in ("p2", "p3", "p1") if p in ps for r in study(p, "designed")]
     if "p1" in ps:
         rows += study("p1", "published")
@@ -358,7 +375,7 @@ def main(argv=None):
     ap.add_argument("--baffle", type=Path, required=True)
     ap.add_argument("--patients", default="p1,p2,p3")
     ap.add_argument("--nice", type=int, default=5)
-    ap.add_argument("--only", choices=("gci", "base"), help="run only the mesh-study rows, or only the others")
+    ap.add_argument("--only", choices=("gci", "cycles", "base"), help="run only the mesh-study rows, the four-cycle rows, or the others")
     ap.add_argument("--tables-only", action="store_true", help="rebuild the tables from the stages already run; rows with a stage missing are left out")
     args = ap.parse_args(argv)
     meta = json.loads((args.data / "patients.json").read_text())
