@@ -432,6 +432,35 @@ fn the_default_mesh_study_on_an_extended_domain_refines_the_boundary_and_reports
     std::fs::remove_dir_all(out).ok();
 }
 
+#[test]
+fn a_failing_study_level_keeps_the_nominal_result_and_makes_the_verdict_inconclusive() {
+    if skip_gmsh() {
+        return;
+    }
+    // A gmsh that refuses the fine level (1.4 x 0.75 / 0.95 = 1.105 mm) and runs the
+    // wheel's gmsh otherwise.
+    let dir = temp_dir("study-level-fails");
+    let gmsh = dir.join("gmsh-refusing-fine.sh");
+    let script = "#!/bin/sh\nfor a in \"$@\"; do case \"$a\" in *.geo) if grep -q 'MeshSizeMax = 1.105' \"$a\"; then echo 'refused by the test' >&2; exit 3; fi;; esac; done\n\
+        exec python3 -c 'import sys, gmsh; gmsh.initialize(sys.argv, run=True); gmsh.finalize()' \"$@\"\n";
+    std::fs::write(&gmsh, script).unwrap();
+    std::fs::set_permissions(&gmsh, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let out = dir.join("plan");
+    let run = phantom_plan(&out, &["--quick", "--edge-length-mm", "1.4"], &[("BAFFLE_GMSH", gmsh.to_str().unwrap())]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    let report = read_json(&out.join("report.json"));
+    let status: Vec<(String, String)> = report["stages"].as_array().unwrap().iter().map(|s| (s["name"].as_str().unwrap().into(), s["status"].as_str().unwrap().into())).collect();
+    let of = |name: &str| status.iter().find(|s| s.0 == name).map(|s| s.1.as_str());
+    assert_eq!((of("mesh-fine"), of("simulate-fine"), of("simulate-nominal"), of("simulate-coarse")), (Some("failed"), Some("skipped"), Some("completed"), Some("completed")), "{status:?}");
+    assert_eq!(report["verdict"]["verdict"], "inconclusive");
+    let reason = report["verdict"]["reason"].as_str().unwrap();
+    assert!(reason.contains("mesh study") && reason.contains("mesh-fine") && reason.contains("refused by the test"), "{reason}");
+    assert!(report["quantities"]["dp_peak_mmhg"].as_f64().unwrap().is_finite(), "the nominal result stands");
+    check_verdict(&out, &stdout);
+    std::fs::remove_dir_all(dir).ok();
+}
+
 /// p2's paper inputs (BSA 0.37 m2, BP 107/78, HR 133) with `source` as the ventricle.
 fn p2_plan(source: &[&str], points: &Path, out: &Path) -> Output {
     let mut args = vec!["plan"];

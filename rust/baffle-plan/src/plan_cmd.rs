@@ -160,8 +160,16 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
     let mut records: Vec<StageRecord> =
         stages.iter().map(|s| StageRecord { name: s.name.clone(), status: "not run", wall_time_s: None, error: None }).collect();
     let mut done = 0.0;
+    // Mesh-study levels that failed, with the stage and its reason.
+    let mut failed_levels: Vec<(&str, String)> = Vec::new();
     for (k, stage) in stages.iter().enumerate() {
         let range = (done / total, (done + stage.weight) / total);
+        if let Some((_, why)) = failed_levels.iter().find(|(level, _)| Some(*level) == stage.study_level()) {
+            records[k].status = "skipped";
+            records[k].error = Some(why.clone());
+            done += stage.weight;
+            continue;
+        }
         println!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name);
         let part = progress.part(range);
         part.report(0.0, &stage.name, "starting");
@@ -176,6 +184,13 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
             let _ = std::fs::remove_dir(&dir);
             record.status = "failed";
             record.error = Some(e.clone());
+            if let Some(level) = stage.study_level() {
+                // The nominal result stands; the report's mesh study says why it has no band.
+                println!("plan: stage {} failed: {e}\nplan: the mesh study goes on without its {level} level", stage.name);
+                failed_levels.push((level, format!("the {level} level's stage {} failed: {e}", stage.name)));
+                done += stage.weight;
+                continue;
+            }
             report::write_failure_json(out, &stage.name, &e, &records)?;
             let kept: Vec<String> = stages[..k].iter().map(|s| out.join(&s.name).display().to_string()).collect();
             let kept = if kept.is_empty() { "none".to_string() } else { kept.join(", ") };

@@ -144,6 +144,19 @@ pub struct Stage {
     pub weight: f64,
 }
 
+impl Stage {
+    /// The mesh-study level (coarse or fine) this stage belongs to: a level that fails
+    /// leaves the plan's nominal result standing (the study then says why it has no band).
+    pub fn study_level(&self) -> Option<&'static str> {
+        let level = match self.step {
+            Step::Extend { level, .. } => level?,
+            Step::Mesh { level, .. } | Step::Simulate { level, .. } => level,
+            _ => return None,
+        };
+        (level != "nominal").then_some(level)
+    }
+}
+
 /// Outcome of one stage, for report.json.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StageRecord {
@@ -326,6 +339,8 @@ mod tests {
             .collect();
         assert_eq!(extends, [None, Some(0.95), Some(1.25), Some(0.75)]);
         assert_eq!(level_extended_surface_path(&args, "fine"), PathBuf::from("o/extend-fine/extended.vtp"));
+        let study: Vec<(String, Option<&str>)> = plan_stages(&args).unwrap().into_iter().map(|s| (s.name.clone(), s.study_level())).collect();
+        assert!(study.iter().all(|(name, level)| level.is_some() == (name.ends_with("-coarse") || name.ends_with("-fine"))), "{study:?}");
         // From a surface the mesh stage remeshes the boundary itself: no extend stages.
         let names = stage_names(&["--surface", "capped.vtp"]);
         assert!(!names.iter().any(|n| n.starts_with("extend")) && names.contains(&"mesh-fine".to_string()), "{names:?}");

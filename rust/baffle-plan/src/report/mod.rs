@@ -85,7 +85,7 @@ impl Run {
     }
 }
 
-fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage]) -> Result<Vec<Run>, String> {
+fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage], records: &[StageRecord]) -> Result<Vec<Run>, String> {
     let edge = |level: &str| {
         stages.iter().find_map(|s| match s.step {
             Step::Mesh { level: l, edge_length_mm } if l == level => Some(edge_length_mm),
@@ -93,7 +93,10 @@ fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage]) -> Result<Vec<Run>, 
         })
     };
     let mut runs = Vec::new();
-    for stage in stages {
+    for (stage, record) in stages.iter().zip(records) {
+        if record.status != "completed" {
+            continue;
+        }
         if let Step::Simulate { level, flow } = stage.step {
             let summary_path = out.join(&stage.name).join("summary.json");
             let quality_path = mesh_path(out, level).with_file_name("mesh-quality.json");
@@ -295,12 +298,18 @@ fn plan_verdict(nominal: &Run, study: Option<&Result<MeshStudy, String>>, design
     Verdict::of(dp, doubts)
 }
 
-/// The mesh study of the nominal-flow runs (None without --mesh-study).
-fn mesh_study(runs: &[Run]) -> Option<Result<MeshStudy, String>> {
-    let levels: Vec<&Run> = runs.iter().filter(|r| r.flow == FlowCase::Nominal).collect();
-    if levels.len() < 2 {
+/// The mesh study of the nominal-flow runs (None with --single-mesh); a level whose stage
+/// failed makes it an error that says which and why.
+fn mesh_study(args: &PlanArgs, runs: &[Run], records: &[StageRecord]) -> Option<Result<MeshStudy, String>> {
+    if !args.runs_mesh_study() {
         return None;
     }
+    if let Some(failed) = records.iter().find(|r| r.status == "failed") {
+        // One line: the verdict is the command's last line.
+        let why: Vec<&str> = failed.error.as_deref().unwrap_or("no reason given").lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        return Some(Err(format!("its stage {} failed: {}", failed.name, why.join("; "))));
+    }
+    let levels: Vec<&Run> = runs.iter().filter(|r| r.flow == FlowCase::Nominal).collect();
     let levels: Result<Vec<Level>, String> = levels.iter().map(|r| r.mesh_level()).collect();
     Some(levels.and_then(|l| MeshStudy::of(&l)))
 }
@@ -552,7 +561,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let design_dir = out.join("design");
     let design_path = design_dir.join("report.json");
     let design = read_json(&design_path)?;
-    let runs = load_runs(args, out, stages)?;
+    let runs = load_runs(args, out, stages, records)?;
     let nominal = runs.iter().find(|r| r.level == "nominal" && r.flow == FlowCase::Nominal).ok_or("no nominal simulation stage")?;
     let nominal_dir = out.join(&nominal.stage);
     let flow_line = centerline_profile(out, &nominal_dir.join("peak.vtu"))?;
@@ -560,7 +569,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let table = quantities(&design, &design_path, nominal, &flow_line)?;
     let dp = nominal.dp_mmhg()?;
     let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
-    let study = mesh_study(&runs);
+    let study = mesh_study(args, &runs, records);
     let verdict = plan_verdict(nominal, study.as_ref(), &design);
     let verdict_line = verdict.text(dp);
     let mut warnings: Vec<String> = verdict::mesh_warning(&nominal.quality).into_iter().collect();
