@@ -11,6 +11,7 @@ use crate::clip::{clip_between, Clipped, Cut};
 use crate::interfaces::{InterfaceLoop, Structure};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::{TriMesh, Vec3};
+use rayon::prelude::*;
 
 /// Resolution of the move search (mm).
 pub const MOVE_STEP_MM: f64 = 0.5;
@@ -57,6 +58,13 @@ impl CutSeparation {
     }
 }
 
+/// One cut pair's clip, its rims on their pools, and their gap (mm).
+struct Attempt {
+    clipped: Clipped,
+    planes: [Plane; 2],
+    rim_gap_mm: f64,
+}
+
 /// The clip of the two openings: the kept wall, the planes it was cut along (VSD, aortic), and how.
 pub struct Separated {
     pub clipped: Clipped,
@@ -88,47 +96,52 @@ pub fn separate_openings(
 ) -> Result<Separated, String> {
     let interface_loops_gap_mm = min_distance_mm(&loops[0].points_mm, &loops[1].points_mm);
     let away = loops.map(|lp| outward_normal(&lp.plane, rv_center));
-    let mut first_error = None;
-    let mut closest: Option<(f64, (f64, f64))> = None;
-    for (tried, &(vsd_mm, aortic_mm)) in moves.iter().enumerate() {
+    let attempt = |&(vsd_mm, aortic_mm): &(f64, f64)| -> Result<Attempt, String> {
         let shift = [vsd_mm, aortic_mm];
         let planes = [0, 1].map(|k| Plane { centroid: loops[k].plane.centroid + shift[k] * away[k], ..loops[k].plane });
         let moved: [Vec<Vec3>; 2] = [0, 1].map(|k| loops[k].points_mm.iter().map(|p| p + shift[k] * away[k]).collect());
-        let cuts = [
-            Cut { name: "VSD", plane: planes[0], loop_mm: &moved[0] },
-            Cut { name: "aortic annulus", plane: planes[1], loop_mm: &moved[1] },
-        ];
-        match clip_between(union, &cuts, snap_mm) {
-            Ok(clipped) => {
-                let rim = |k: usize| -> Vec<Vec3> { clipped.rims[k].iter().map(|&v| clipped.mesh.points[v as usize]).collect() };
-                let rim_gap_mm = min_distance_mm(&rim(0), &rim(1));
-                let off_pool = [0, 1].map(|k| farthest_off_mm(&rim(k), beyond[k]));
-                if let Some(k) = (0..2).find(|&k| off_pool[k].0 > RIM_OFF_POOL_MM) {
-                    let (d, p) = off_pool[k];
-                    first_error.get_or_insert_with(|| format!(
-                        "the {} cut runs {d:.2} mm off the {} near ({:.1}, {:.1}, {:.1}), over another pool (at most {RIM_OFF_POOL_MM} mm)",
-                        cuts[k].name, ["LV", "aorta"][k], p.x, p.y, p.z
-                    ));
-                    continue;
-                }
-                if rim_gap_mm >= clearance_mm {
+        let names = ["VSD", "aortic annulus"];
+        let cuts = [0, 1].map(|k| Cut { name: names[k], plane: planes[k], loop_mm: &moved[k] });
+        let clipped = clip_between(union, &cuts, snap_mm)?;
+        let rim = |k: usize| -> Vec<Vec3> { clipped.rims[k].iter().map(|&v| clipped.mesh.points[v as usize]).collect() };
+        if let Some((k, (d, p))) = [0, 1].map(|k| (k, farthest_off_mm(&rim(k), beyond[k]))).into_iter().find(|(_, off)| off.0 > RIM_OFF_POOL_MM) {
+            return Err(format!(
+                "the {} cut runs {d:.2} mm off the {} near ({:.1}, {:.1}, {:.1}), over another pool (at most {RIM_OFF_POOL_MM} mm)",
+                names[k], ["LV", "aorta"][k], p.x, p.y, p.z
+            ));
+        }
+        let rim_gap_mm = min_distance_mm(&rim(0), &rim(1));
+        Ok(Attempt { clipped, planes, rim_gap_mm })
+    };
+    let mut first_error = None;
+    let mut closest: Option<(f64, (f64, f64))> = None;
+    // A few cut pairs at a time in parallel, judged in order: the first accepted is the
+    // same as a sequential search's.
+    let batch = rayon::current_num_threads().max(1);
+    for (b, chunk) in moves.chunks(batch).enumerate() {
+        let outcomes: Vec<Result<Attempt, String>> = chunk.par_iter().map(attempt).collect();
+        for (k, (outcome, &(vsd_mm, aortic_mm))) in outcomes.into_iter().zip(chunk).enumerate() {
+            match outcome {
+                Ok(a) if a.rim_gap_mm >= clearance_mm => {
                     let report = CutSeparation {
                         interface_loops_gap_mm,
                         vsd_cut_moved_into_lv_mm: vsd_mm,
                         aortic_cut_moved_into_aorta_mm: aortic_mm,
-                        rim_gap_mm,
+                        rim_gap_mm: a.rim_gap_mm,
                         clearance_mm,
-                        cuts_tried: tried + 1,
+                        cuts_tried: b * batch + k + 1,
                     };
-                    return Ok(Separated { clipped, planes, report });
+                    return Ok(Separated { clipped: a.clipped, planes: a.planes, report });
                 }
-                if closest.is_none_or(|(gap, _)| rim_gap_mm > gap) {
-                    closest = Some((rim_gap_mm, (vsd_mm, aortic_mm)));
+                Ok(a) => {
+                    if closest.is_none_or(|(gap, _)| a.rim_gap_mm > gap) {
+                        closest = Some((a.rim_gap_mm, (vsd_mm, aortic_mm)));
+                    }
+                    first_error.get_or_insert_with(|| format!("the openings are {:.2} mm apart, less than the clearance {clearance_mm:.2} mm", a.rim_gap_mm));
                 }
-                first_error.get_or_insert_with(|| format!("the openings are {rim_gap_mm:.2} mm apart, less than the clearance {clearance_mm:.2} mm"));
-            }
-            Err(e) => {
-                first_error.get_or_insert(e);
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
             }
         }
     }

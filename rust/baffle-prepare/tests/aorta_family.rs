@@ -11,8 +11,9 @@ use baffle_prepare::aorta_family::{aorta_tilt_member, AortaTiltMember};
 use baffle_prepare::{prepare, PrepareOptions, PrepareReport};
 use baffle_verify::{edge_usage_counts, is_consistently_oriented, signed_volume_mm3};
 
-/// Tilts 0-75 degrees, one member in each 5 degrees.
-const SEEDS: std::ops::Range<u64> = 0..15;
+/// Tilts 0-40 degrees, one member in each 5 degrees (the `aorta_tilt` example runs the
+/// whole family to 75 degrees; a refusal tries 169 cut pairs, so the test stops at 40).
+const SEEDS: std::ops::Range<u64> = 0..8;
 
 fn options() -> PrepareOptions {
     PrepareOptions { voxel_mm: 0.3, closing_radius_mm: 0.0, ..PrepareOptions::default() }
@@ -93,6 +94,8 @@ fn the_aorta_tilt_family_is_separated_or_refused_with_reasons_and_designs() {
         }
     }
     eprintln!("{separated} separated by moved cuts, {refused} refused, {designed} designed of {}", SEEDS.end - SEEDS.start);
-    assert!(separated >= 3, "members separated by moved cuts: {separated}");
-    assert!(refused <= 8, "refusals: {refused}");
+    // Measured: seeds 2, 3, 4 and 6 separated, seeds 5 and 7 refused, every prepared one designed.
+    assert!(separated >= 4, "members separated by moved cuts: {separated}");
+    assert!(refused <= 2, "refusals: {refused}");
+    assert_eq!(designed, SEEDS.end - SEEDS.start - refused, "every prepared member designs");
 }
