@@ -4,7 +4,7 @@ use crate::caps::{close_with_caps, remesh_wall};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
 use crate::interfaces::{interface_edges, interface_loop, label_by_nearest, InterfaceLoop, LoopOptions, Structure};
-use crate::separation::{min_distance_mm, move_grid, separate_openings, CutSeparation, Separated, MAX_MOVE_MM};
+use crate::separation::{min_distance_mm, separate_by_moves, separate_openings, CutSeparation, Separated, MAX_MOVE_MM};
 use crate::union_surface::{union_surface, SmoothingOptions};
 use crate::voxelize::{close_mask, voxelize, Grid};
 use baffle_core::mesh::manifold_report;
@@ -117,18 +117,16 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     let snap_mm = 0.05 * options.voxel_mm;
     // The cuts in the loops' own planes first; where they cannot be kept apart, the
     // moves, on a union reaching far enough into the LV and the aorta to hold them.
-    let separate = |around: &AroundRv, moves: &[(f64, f64)]| {
-        separate_openings(&around.union, [&around.vsd, &around.aortic], [&structures[1], &structures[2]], rv_center, moves, clearance_mm, snap_mm)
-    };
     let mut around = AroundRv::new(pools, &structures, options.crop_margin_mm, options, &mut timings)?;
     let mut lap = lap_timer();
-    let mut separated = separate(&around, &[(0.0, 0.0)]);
+    let beyond = [&structures[1], &structures[2]];
+    let mut separated = separate_openings(&around.union, [&around.vsd, &around.aortic], beyond, rv_center, &[(0.0, 0.0)], clearance_mm, snap_mm);
     timings.clip_ms += lap();
     if separated.is_err() {
         let margin_mm = options.crop_margin_mm.max(MOVE_CROP_MARGIN_MM);
         around = AroundRv::new(pools, &structures, margin_mm, options, &mut timings)?;
         lap();
-        separated = separate(&around, &move_grid());
+        separated = separate_by_moves(&around.union, [&around.vsd, &around.aortic], beyond, rv_center, clearance_mm, snap_mm);
         timings.clip_ms += lap();
     }
     let why = |m: String| PrepareError::geometry("clip", m + &around.aorta_over_lv() + &aorta_on_lv(&pools.aorta, &structures[1], options.voxel_mm));

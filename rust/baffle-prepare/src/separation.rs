@@ -3,8 +3,9 @@
 //! the union of the pools, and a plane through either loop also cuts the other opening:
 //! the clip cannot separate them. The cuts are then moved, each parallel to its plane and
 //! away from the RV (the VSD cut into the LV, the annulus cut up the aortic root), by the
-//! smallest total distance on a grid of `MOVE_STEP_MM` that gives two clean openings at
-//! least a clearance apart. The result's caps then lie that far from the interfaces (the
+//! smallest total distance on a grid of `COARSE_STEP_MM` that gives two clean openings at
+//! least a clearance apart, then by `FINE_STEP_MM` less where that is still clean (each
+//! clip of the wide union costs a few hundred ms, so the fine grid is searched only there). The result's caps then lie that far from the interfaces (the
 //! kept band between them is LV or aortic wall), and the report says by how much.
 
 use crate::clip::{clip_between, Clipped, Cut};
@@ -13,10 +14,12 @@ use baffle_core::numerics::pca::Plane;
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 
-/// Resolution of the move search (mm).
-pub const MOVE_STEP_MM: f64 = 0.5;
-/// Largest move of either cut (mm): beyond it the cap would no longer be the opening.
-pub const MAX_MOVE_MM: f64 = 6.0;
+/// Steps of the move search (mm).
+pub const COARSE_STEP_MM: f64 = 1.0;
+pub const FINE_STEP_MM: f64 = 0.5;
+/// Largest move of either cut (mm): less than an infant's aortic root to the
+/// sinotubular junction (about one annulus diameter), where `extend` ends it.
+pub const MAX_MOVE_MM: f64 = 9.0;
 /// The union follows each pool within the closing and the smoothing; a rim farther than
 /// this (mm) from the pool its cap closes (the LV for the VSD cap, the aorta for the
 /// annulus cap) runs over another pool, and the cap would close that one too.
@@ -74,11 +77,37 @@ pub struct Separated {
 
 /// (VSD move, aortic move) pairs on the search grid, by total distance, the aortic
 /// move first at equal totals (it keeps the VSD cap at the VSD, where the baffle starts).
-pub fn move_grid() -> Vec<(f64, f64)> {
-    let n = (MAX_MOVE_MM / MOVE_STEP_MM).round() as usize;
+pub fn move_grid(step_mm: f64) -> Vec<(f64, f64)> {
+    let n = (MAX_MOVE_MM / step_mm).round() as usize;
     let mut pairs: Vec<(usize, usize)> = (0..=n).flat_map(|i| (0..=n).map(move |j| (i, j))).collect();
     pairs.sort_by_key(|&(i, j)| (i + j, i));
-    pairs.into_iter().map(|(i, j)| (i as f64 * MOVE_STEP_MM, j as f64 * MOVE_STEP_MM)).collect()
+    pairs.into_iter().map(|(i, j)| (i as f64 * step_mm, j as f64 * step_mm)).collect()
+}
+
+/// The coarse grid's first accepted pair, then the pairs one fine step below it.
+pub fn separate_by_moves(
+    union: &TriMesh,
+    loops: [&InterfaceLoop; 2],
+    beyond: [&Structure; 2],
+    rv_center: Vec3,
+    clearance_mm: f64,
+    snap_mm: f64,
+) -> Result<Separated, String> {
+    let search = |moves: &[(f64, f64)]| separate_openings(union, loops, beyond, rv_center, moves, clearance_mm, snap_mm);
+    let coarse = search(&move_grid(COARSE_STEP_MM))?;
+    let (v, a) = (coarse.report.vsd_cut_moved_into_lv_mm, coarse.report.aortic_cut_moved_into_aorta_mm);
+    let mut finer: Vec<(f64, f64)> = [(v - FINE_STEP_MM, a - FINE_STEP_MM), (v - FINE_STEP_MM, a), (v, a - FINE_STEP_MM)]
+        .into_iter()
+        .filter(|m| m.0 >= 0.0 && m.1 >= 0.0)
+        .collect();
+    finer.sort_by(|x, y| (x.0 + x.1).total_cmp(&(y.0 + y.1)).then(x.0.total_cmp(&y.0)));
+    match search(&finer) {
+        Ok(mut fine) => {
+            fine.report.cuts_tried += coarse.report.cuts_tried;
+            Ok(fine)
+        }
+        Err(_) => Ok(coarse),
+    }
 }
 
 /// The first of `moves` whose cuts clip `union` into one part with two openings at least
@@ -155,13 +184,14 @@ fn refusal(moves: &[(f64, f64)], loops_gap_mm: f64, first_error: Option<String>,
         return first;
     }
     let (max_vsd, max_aortic) = moves.iter().fold((0.0f64, 0.0f64), |(a, b), m| (a.max(m.0), b.max(m.1)));
+    let step_mm = moves.iter().flat_map(|m| [m.0, m.1]).filter(|&d| d > 0.0).fold(f64::INFINITY, f64::min);
     let best = match closest {
         Some((gap, (v, a))) => format!("the widest clean pair of openings was {gap:.2} mm apart (VSD cut {v:.1} mm into the LV, aortic cut {a:.1} mm up the aorta)"),
         None => "no pair of cuts gave one part with two openings".into(),
     };
     format!(
         "{first}; the VSD and aortic interfaces come within {loops_gap_mm:.2} mm of each other, and moving the VSD cut up to {max_vsd:.1} mm into \
-         the LV and the aortic cut up to {max_aortic:.1} mm up the aorta ({} pairs, {MOVE_STEP_MM} mm steps) did not separate them: {best}",
+         the LV and the aortic cut up to {max_aortic:.1} mm up the aorta ({} pairs, {step_mm} mm steps) did not separate them: {best}",
         moves.len()
     )
 }
@@ -193,11 +223,11 @@ mod tests {
 
     #[test]
     fn the_move_grid_starts_unmoved_and_prefers_the_aortic_move() {
-        let grid = move_grid();
+        let grid = move_grid(COARSE_STEP_MM);
         assert_eq!(grid[0], (0.0, 0.0));
-        assert_eq!(grid[1], (0.0, MOVE_STEP_MM), "aortic move first at equal totals");
-        assert_eq!(grid[2], (MOVE_STEP_MM, 0.0));
-        let n = (MAX_MOVE_MM / MOVE_STEP_MM) as usize + 1;
+        assert_eq!(grid[1], (0.0, COARSE_STEP_MM), "aortic move first at equal totals");
+        assert_eq!(grid[2], (COARSE_STEP_MM, 0.0));
+        let n = (MAX_MOVE_MM / COARSE_STEP_MM) as usize + 1;
         assert_eq!(grid.len(), n * n);
         let totals: Vec<f64> = grid.iter().map(|m| m.0 + m.1).collect();
         assert!(totals.windows(2).all(|w| w[0] <= w[1]), "by total distance");
