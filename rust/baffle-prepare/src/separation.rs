@@ -4,9 +4,12 @@
 //! the clip cannot separate them. The cuts are then moved, each parallel to its plane and
 //! away from the RV (the VSD cut into the LV, the annulus cut up the aortic root), by the
 //! smallest total distance on a grid of `COARSE_STEP_MM` that gives two clean openings at
-//! least a clearance apart, then by `FINE_STEP_MM` less where that is still clean (each
-//! clip of the wide union costs a few hundred ms, so the fine grid is searched only there). The result's caps then lie that far from the interfaces (the
-//! kept band between them is LV or aortic wall), and the report says by how much.
+//! least a clearance apart, then by `FINE_STEP_MM` less where that is still clean (every
+//! clip of the wide union is a full split of it, so the fine grid is searched only there).
+//! The result's caps then lie that far from the interfaces (the kept band between them is
+//! LV or aortic wall), and the report says by how much. Parallel moves keep each cap
+//! facing as its opening does (the design's tunnel runs cap to cap); tilting a cut or
+//! trimming it to part of its plane would leave a non-planar or partial rim.
 
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::interfaces::{InterfaceLoop, Structure};
