@@ -236,6 +236,41 @@ mod tests {
         assert!(totals.windows(2).all(|w| w[0] <= w[1]), "by total distance");
     }
 
+    /// Loops on a tube of radius 2 along z in the planes z = 3 + 0.6 y and z = 5 - 0.6 y:
+    /// they cross on the tube near y = 1.67, so the unmoved cuts touch.
+    #[test]
+    fn crossing_cuts_on_a_tube_are_moved_apart_by_the_smallest_total() {
+        use crate::shapes::capped_tube;
+        use baffle_core::numerics::pca::best_fit_plane;
+        use baffle_core::spatial::TriangleBvh;
+        let tube = capped_tube(Vec3::zeros(), Vec3::new(0.0, 0.0, 10.0), 2.0, 40, 64);
+        let bvh = TriangleBvh::new(&tube).unwrap();
+        let pool = Structure { label: 1, surface: &tube, bvh: &bvh };
+        let ring = |z0: f64, slope: f64| {
+            let points_mm: Vec<Vec3> = (0..32)
+                .map(|k| {
+                    let a = k as f64 * std::f64::consts::PI / 16.0;
+                    Vec3::new(2.0 * a.cos(), 2.0 * a.sin(), z0 + slope * 2.0 * a.sin())
+                })
+                .collect();
+            InterfaceLoop { plane: best_fit_plane(&points_mm), points_mm }
+        };
+        let (vsd, aortic) = (ring(3.0, 0.6), ring(5.0, -0.6));
+        let middle = Vec3::new(0.0, 0.0, 4.0);
+        let search = |moves: &[(f64, f64)]| separate_openings(&tube, [&vsd, &aortic], [&pool, &pool], middle, moves, 0.5, 1e-6);
+        assert!(search(&[(0.0, 0.0)]).is_err(), "the unmoved cuts touch");
+        let s = search(&move_grid(FINE_STEP_MM)).unwrap_or_else(|e| panic!("{e}"));
+        let r = &s.report;
+        // The rims are 0.4 mm apart along z at y = 2 the wrong way round; a move d along
+        // a normal 31 degrees off z shifts a rim by 1.17 d, so a 0.5 mm gap needs d >= 0.77.
+        let total = r.vsd_cut_moved_into_lv_mm + r.aortic_cut_moved_into_aorta_mm;
+        assert!((1.0..=1.5).contains(&total) && r.rim_gap_mm >= 0.5 && r.cuts_tried > 3, "{r:?}");
+        let moved_z = [3.0 - s.planes[0].centroid.z, s.planes[1].centroid.z - 5.0];
+        let expected = [r.vsd_cut_moved_into_lv_mm, r.aortic_cut_moved_into_aorta_mm].map(|d| d * vsd.plane.normal.z.abs());
+        assert!((0..2).all(|k| (moved_z[k] - expected[k]).abs() < 1e-9), "moved away from the middle: {moved_z:?} vs {expected:?}");
+        assert_eq!(s.clipped.rims.len(), 2);
+    }
+
     #[test]
     fn the_normal_points_away_from_the_rv() {
         let plane = baffle_core::numerics::pca::best_fit_plane(&[Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 5.0), Vec3::new(0.0, 1.0, 5.0), Vec3::new(1.0, 1.0, 5.0)]);
