@@ -12,17 +12,24 @@ fn baffle(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_baffle")).args(args).output().expect("run baffle")
 }
 
-/// LV and RV spheres overlapping, an aorta tube leaving the RV.
-fn synthetic_segmentations(name: &str, with_aorta: bool) -> PathBuf {
+/// LV and RV spheres overlapping, an aorta tube leaving the RV, tilted toward the VSD by `tilt_deg`.
+fn tilted_segmentations(name: &str, with_aorta: bool, tilt_deg: f64) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("baffle-cli-prepare-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     write_trimesh_vtp(&dir.join("LV.vtp"), &uv_sphere(Vec3::zeros(), 10.0, 32, 64)).unwrap();
     write_trimesh_vtp(&dir.join("RV.vtp"), &uv_sphere(Vec3::new(16.0, 0.0, 0.0), 9.0, 32, 64)).unwrap();
     if with_aorta {
-        let tube = capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 12, 48);
+        let t = tilt_deg.to_radians();
+        let (center, axis) = (Vec3::new(16.0, 0.0, 0.0), Vec3::new(-t.sin(), 0.0, t.cos()));
+        let tube = capped_tube(center + axis * 4.0, center + axis * 25.0, 4.0, 12, 48);
         write_trimesh_vtp(&dir.join("aorta.vtp"), &tube).unwrap();
     }
     dir
+}
+
+/// LV and RV spheres overlapping, an aorta tube leaving the RV's top.
+fn synthetic_segmentations(name: &str, with_aorta: bool) -> PathBuf {
+    tilted_segmentations(name, with_aorta, 0.0)
 }
 
 #[test]
@@ -50,5 +57,22 @@ fn a_missing_segment_is_named() {
     assert!(!run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(err.contains("aorta") && err.contains("aorta.vtp"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The aorta leaning 30 degrees toward the VSD meets the LV: the cuts are moved apart,
+/// and the command says by how much (and the report has it).
+#[test]
+fn prepare_reports_cuts_moved_apart_where_the_aorta_meets_the_lv() {
+    let dir = tilted_segmentations("tilted", true, 30.0);
+    let out = dir.join("capped.vtp");
+    let run = baffle(&["prepare", "--segmentations", dir.to_str().unwrap(), "--out", out.to_str().unwrap(), "--closing-radius-mm", "0"]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}{}", String::from_utf8_lossy(&run.stderr));
+    assert!(stdout.contains("so the cuts were moved") && stdout.contains("mm up the aortic root") && stdout.contains("openings"), "{stdout}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("capped-report.json")).unwrap()).unwrap();
+    let s = &report["separation"];
+    let moved = s["vsd_cut_moved_into_lv_mm"].as_f64().unwrap() + s["aortic_cut_moved_into_aorta_mm"].as_f64().unwrap();
+    assert!(moved > 0.0 && s["rim_gap_mm"].as_f64().unwrap() >= 0.45, "{s}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -89,6 +89,8 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
         "{} triangles, {:.0} mm3; VSD cap {:.1} mm2, aortic cap {:.1} mm2; {:.0} ms",
         report.triangles, report.volume_mm3, report.vsd_cap.area_mm2, report.aortic_cap.area_mm2, report.timings.total_ms
     );
+    // The caps' distance from the true interfaces when the cuts had to be moved apart.
+    println!("{}", report.separation.summary());
     println!("wrote {}, {}", args.out.display(), report_path.display());
     Ok(())
 }

@@ -17,10 +17,12 @@ pub mod input;
 pub mod interfaces;
 pub mod clip;
 pub mod caps;
+pub mod separation;
 pub mod prepare;
 pub mod labelmap;
 pub mod extend;
 pub mod lv_family;
+pub mod aorta_family;
 
 pub use error::PrepareError;
 pub use input::{read_segmentations, BloodPools};

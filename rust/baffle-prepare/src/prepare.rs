@@ -1,10 +1,10 @@
 //! The whole of paper section 2.2.2: blood pools in, capped ventricle out.
 
 use crate::caps::{close_with_caps, remesh_wall};
-use crate::clip::{clip_between, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
-use crate::interfaces::{interface_loop, label_by_nearest, InterfaceLoop, LoopOptions, Structure};
+use crate::interfaces::{interface_edges, interface_loop, label_by_nearest, InterfaceLoop, LoopOptions, Structure};
+use crate::separation::{min_distance_mm, separate_by_moves, separate_openings, CutSeparation, Separated, MAX_MOVE_MM};
 use crate::union_surface::{union_surface, SmoothingOptions};
 use crate::voxelize::{close_mask, voxelize, Grid};
 use baffle_core::mesh::manifold_report;
@@ -24,6 +24,9 @@ const RV_NEIGHBOURHOOD: f64 = 0.6;
 const MIN_CROP_MARGIN_MM: f64 = 3.0;
 /// Empty voxels around the structures (the blur and the contour need two).
 const GRID_MARGIN_VOXELS: usize = 4;
+/// Crop margin (mm) of the union the cut moves search: its kept neighbourhood of the RV
+/// must reach past the farthest move into the LV and up the aorta.
+const MOVE_CROP_MARGIN_MM: f64 = (MAX_MOVE_MM + 3.0) / RV_NEIGHBOURHOOD;
 /// Largest grid `prepare` allocates (one byte per voxel, a few times over).
 const MAX_VOXELS: usize = 300_000_000;
 
@@ -90,6 +93,8 @@ pub struct PrepareReport {
     pub volume_mm3: f64,
     pub vsd_cap: CapReport,
     pub aortic_cap: CapReport,
+    /// How far apart the two openings are, and how far their cuts were moved to keep them so.
+    pub separation: CutSeparation,
     pub timings: PrepareTimings,
 }
 
@@ -98,11 +103,6 @@ pub struct PrepareReport {
 pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh, PrepareReport), PrepareError> {
     validate(options)?;
     let start = Instant::now();
-    let mut lap = lap_timer();
-    let bounds = Aabb::from_points(&pools.rv.points).expanded(options.crop_margin_mm);
-    let (union, grid, voxelize_ms) = union_within(&[&pools.lv, &pools.rv, &pools.aorta], &bounds, options)?;
-    let union_surface_ms = lap() - voxelize_ms;
-
     let bvhs = [&pools.lv, &pools.rv, &pools.aorta].map(|m| TriangleBvh::new(m).map_err(|e| PrepareError::geometry("structures", e)));
     let [lv_bvh, rv_bvh, aorta_bvh] = bvhs;
     let (lv_bvh, rv_bvh, aorta_bvh) = (lv_bvh?, rv_bvh?, aorta_bvh?);
@@ -111,59 +111,123 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
         Structure { label: LV, surface: &pools.lv, bvh: &lv_bvh },
         Structure { label: AORTA, surface: &pools.aorta, bvh: &aorta_bvh },
     ];
-    // Only the RV's neighbourhood can be kept: the rest (and the grid's crop
-    // faces, farther out) is dropped before the loops and the clip.
-    let near = label_by_nearest(&union, &structures, RV_NEIGHBOURHOOD * options.crop_margin_mm);
-    let keep: Vec<bool> = near.iter().map(Option::is_some).collect();
-    let labels: Vec<i32> = near.into_iter().flatten().collect();
-    let union = union.submesh(&keep).0;
-    let union_bvh = TriangleBvh::new(&union).map_err(|e| PrepareError::geometry("union surface", e))?;
-    let find_loop = |pair: (i32, i32), names: (&'static str, &'static str), what: &'static str, b: &Structure, a: &TriMesh| {
-        interface_loop(&union, &union_bvh, &labels, pair, &options.loops).ok_or_else(|| PrepareError::NoContact {
-            a: names.0,
-            b: names.1,
-            what,
-            distance_mm: closest_approach(a, b).0,
-        })
-    };
-    let vsd = find_loop((LV, RV), ("LV", "RV"), "VSD", &structures[0], &pools.lv)?;
-    let aortic = find_loop((RV, AORTA), ("RV", "aorta"), "aortic annulus", &structures[0], &pools.aorta)?;
-    let loops_ms = lap();
-
-    let cuts = [cut("VSD", &vsd), cut("aortic annulus", &aortic)];
-    let clipped = clip_between(&union, &cuts, 0.05 * options.voxel_mm)
-        .map_err(|m| PrepareError::geometry("clip", m + &aorta_on_lv(&pools.aorta, &structures[1], options.voxel_mm)))?;
-    let clip_ms = lap();
+    let mut timings = PrepareTimings::default();
+    let clearance_mm = options.remesh_edge_mm.unwrap_or(2.0 * options.voxel_mm);
+    let rv_center = pools.rv.points.iter().sum::<Vec3>() / pools.rv.points.len().max(1) as f64;
+    let snap_mm = 0.05 * options.voxel_mm;
+    // The cuts in the loops' own planes first; where they cannot be kept apart, the
+    // moves, on a union reaching far enough into the LV and the aorta to hold them.
+    let mut around = AroundRv::new(pools, &structures, options.crop_margin_mm, options, &mut timings)?;
+    let mut lap = lap_timer();
+    let beyond = [&structures[1], &structures[2]];
+    let mut separated = separate_openings(&around.union, [&around.vsd, &around.aortic], beyond, rv_center, &[(0.0, 0.0)], clearance_mm, snap_mm);
+    timings.clip_ms += lap();
+    if separated.is_err() {
+        let margin_mm = options.crop_margin_mm.max(MOVE_CROP_MARGIN_MM);
+        around = AroundRv::new(pools, &structures, margin_mm, options, &mut timings)?;
+        lap();
+        separated = separate_by_moves(&around.union, [&around.vsd, &around.aortic], beyond, rv_center, clearance_mm, snap_mm);
+        timings.clip_ms += lap();
+    }
+    let why = |m: String| PrepareError::geometry("clip", m + &around.aorta_over_lv() + &aorta_on_lv(&pools.aorta, &structures[1], options.voxel_mm));
+    let Separated { clipped, planes, report: mut separation } = separated.map_err(why)?;
 
     let l = &options.labels;
-    let planes = [vsd.plane, aortic.plane];
     let wall = match options.remesh_edge_mm {
         Some(edge) => remesh_wall(&clipped, &planes, edge).map_err(|m| PrepareError::geometry("remesh", m))?,
         None => clipped,
     };
     let capped = close_with_caps(&wall, &planes, l.wall, &[l.vsd_cap, l.aortic_cap]).map_err(|m| PrepareError::geometry("caps", m))?;
     check_result(&capped)?;
-    let caps_ms = lap();
+    // The gap as the result has it (the remesh resamples the rims).
+    separation.rim_gap_mm = cap_gap_mm(&capped, l.vsd_cap, l.aortic_cap);
+    timings.caps_ms = lap();
+    timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
 
     let report = PrepareReport {
         voxel_mm: options.voxel_mm,
-        grid_dims: grid.dims,
-        union_triangles: union.triangles.len(),
+        grid_dims: around.grid.dims,
+        union_triangles: around.union.triangles.len(),
         triangles: capped.triangles.len(),
         area_mm2: capped.area_mm2(),
         volume_mm3: capped.signed_volume_mm3(),
         vsd_cap: cap_report(&capped, l.vsd_cap)?,
         aortic_cap: cap_report(&capped, l.aortic_cap)?,
-        timings: PrepareTimings {
-            voxelize_ms,
-            union_surface_ms,
-            loops_ms,
-            clip_ms,
-            caps_ms,
-            total_ms: start.elapsed().as_secs_f64() * 1e3,
-        },
+        separation,
+        timings,
     };
     Ok((capped, report))
+}
+
+/// The union of the pools kept around the RV, its labels' VSD and aortic loops, its grid.
+struct AroundRv {
+    union: TriMesh,
+    grid: Grid,
+    vsd: InterfaceLoop,
+    aortic: InterfaceLoop,
+    /// Length of the aorta's boundary on the union against the LV and against the RV (mm).
+    aorta_on_lv_mm: f64,
+    aorta_on_rv_mm: f64,
+}
+
+impl AroundRv {
+    /// The union on a grid over the RV with `margin_mm`, kept within `RV_NEIGHBOURHOOD`
+    /// of that margin of the RV; its times are added to `timings`.
+    fn new(pools: &BloodPools, structures: &[Structure; 3], margin_mm: f64, options: &PrepareOptions, timings: &mut PrepareTimings) -> Result<Self, PrepareError> {
+        let mut lap = lap_timer();
+        let bounds = Aabb::from_points(&pools.rv.points).expanded(margin_mm);
+        let (union, grid, voxelize_ms) = union_within(&[&pools.lv, &pools.rv, &pools.aorta], &bounds, options)?;
+        timings.voxelize_ms += voxelize_ms;
+        timings.union_surface_ms += lap() - voxelize_ms;
+        // Only the RV's neighbourhood can be kept: the rest (and the grid's crop
+        // faces, farther out) is dropped before the loops and the clip.
+        let near = label_by_nearest(&union, structures, RV_NEIGHBOURHOOD * margin_mm);
+        let keep: Vec<bool> = near.iter().map(Option::is_some).collect();
+        let labels: Vec<i32> = near.into_iter().flatten().collect();
+        let union = union.submesh(&keep).0;
+        let union_bvh = TriangleBvh::new(&union).map_err(|e| PrepareError::geometry("union surface", e))?;
+        let find_loop = |pair: (i32, i32), names: (&'static str, &'static str), what: &'static str, a: &TriMesh| {
+            interface_loop(&union, &union_bvh, &labels, pair, &options.loops).ok_or_else(|| PrepareError::NoContact {
+                a: names.0,
+                b: names.1,
+                what,
+                distance_mm: closest_approach(a, &structures[0]).0,
+            })
+        };
+        let vsd = find_loop((LV, RV), ("LV", "RV"), "VSD", &pools.lv)?;
+        let aortic = find_loop((RV, AORTA), ("RV", "aorta"), "aortic annulus", &pools.aorta)?;
+        let length = |other: i32| {
+            interface_edges(&union, &labels, AORTA, other).iter().map(|&(a, b)| (union.points[a as usize] - union.points[b as usize]).norm()).sum::<f64>()
+        };
+        let (aorta_on_lv_mm, aorta_on_rv_mm) = (length(LV), length(RV));
+        timings.loops_ms += lap();
+        Ok(AroundRv { union, grid, vsd, aortic, aorta_on_lv_mm, aorta_on_rv_mm })
+    }
+
+    /// How much of the aorta's boundary on the union borders the LV: over half, the
+    /// aorta arises from the LV (the 50% rule that defines DORV) and no cut can leave
+    /// the RV between a VSD cap and an annulus cap. Empty when it borders only the RV.
+    fn aorta_over_lv(&self) -> String {
+        if self.aorta_on_lv_mm <= 0.0 {
+            return String::new();
+        }
+        let fraction = self.aorta_on_lv_mm / (self.aorta_on_lv_mm + self.aorta_on_rv_mm);
+        let verdict = if fraction > 0.5 { ": the aorta arises mostly from the LV, which is not a double-outlet RV (the 50% rule)" } else { "" };
+        format!(
+            "; the aorta borders the LV along {:.1} mm and the RV along {:.1} mm of its rim on the union ({:.0}% over the LV){verdict}",
+            self.aorta_on_lv_mm, self.aorta_on_rv_mm, 100.0 * fraction
+        )
+    }
+}
+
+/// Smallest distance between a rim point of cap `a` and one of cap `b` (mm).
+fn cap_gap_mm(mesh: &TriMesh, a: i32, b: i32) -> f64 {
+    let rim = |label: i32| -> Vec<Vec3> {
+        let cap = mesh.with_labels(|l| l == label);
+        let loops = cap.boundary_loops().unwrap_or_default();
+        loops.concat().iter().map(|&v| cap.points[v as usize]).collect()
+    };
+    min_distance_mm(&rim(a), &rim(b))
 }
 
 pub(crate) fn lap_timer() -> impl FnMut() -> f64 {
@@ -254,10 +318,6 @@ fn aorta_on_lv(aorta: &TriMesh, lv: &Structure, voxel_mm: f64) -> String {
          or design on a capped ventricle made by hand)",
         at.x, at.y, at.z
     )
-}
-
-fn cut<'a>(name: &'a str, lp: &'a InterfaceLoop) -> Cut<'a> {
-    Cut { name, plane: lp.plane, loop_mm: &lp.points_mm }
 }
 
 fn check_result(mesh: &TriMesh) -> Result<(), PrepareError> {

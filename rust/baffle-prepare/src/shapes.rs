@@ -113,20 +113,30 @@ pub struct SyntheticHeart {
 
 pub fn synthetic_heart() -> SyntheticHeart {
     let (rv_center, rv_radius) = (Vec3::new(16.0, 0.0, 0.0), 9.0);
-    let rho = 46f64.to_radians();
-    let (side, vsd, aorta) = (Vec3::y(), -Vec3::x(), Vec3::z());
-    let arc = |t: f64| Vec3::new(-t.cos(), 0.0, t.sin());
-    let around = |center: Vec3, away: Vec3, phi: f64| center * rho.cos() + (away * phi.cos() + side * phi.sin()) * rho.sin();
-    let quarter = PI / 2.0;
-    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() + side * rho.sin()).collect();
-    directions.extend((1..4).map(|k| around(aorta, Vec3::x(), quarter - PI * k as f64 / 4.0)));
-    directions.extend((0..=5).rev().map(|k| arc(quarter * k as f64 / 5.0) * rho.cos() - side * rho.sin()));
-    directions.extend((1..4).map(|k| around(vsd, -Vec3::z(), -quarter + PI * k as f64 / 4.0)));
     SyntheticHeart {
         lv: uv_sphere(Vec3::zeros(), 10.0, 32, 64),
         rv: uv_sphere(rv_center, rv_radius, 32, 64),
         aorta: capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 12, 48),
-        suture_points_mm: directions.iter().map(|d| rv_center + d.normalize() * rv_radius).collect(),
+        suture_points_mm: suture_ring(rv_center, rv_radius, -Vec3::x(), Vec3::z(), 46f64.to_radians()),
         bsa_m2: 0.2,
     }
+}
+
+/// 18 points on the sphere (`center`, `radius_mm`) enclosing the directions `vsd` and
+/// `aorta` (unit vectors from the centre, not parallel): `rho` (radians) to either side
+/// of the great-circle arc between them (6 points each side) and around each end beyond
+/// it (3 points each).
+pub fn suture_ring(center: Vec3, radius_mm: f64, vsd: Vec3, aorta: Vec3, rho: f64) -> Vec<Vec3> {
+    let toward = (aorta - vsd * vsd.dot(&aorta)).normalize();
+    let span = vsd.dot(&aorta).clamp(-1.0, 1.0).acos();
+    let side = vsd.cross(&toward);
+    let arc = |t: f64| vsd * t.cos() + toward * t.sin();
+    let beyond_aorta = toward * span.cos() - vsd * span.sin();
+    let around = |end: Vec3, away: Vec3, phi: f64| end * rho.cos() + (away * phi.cos() + side * phi.sin()) * rho.sin();
+    let quarter = PI / 2.0;
+    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(span * k as f64 / 5.0) * rho.cos() + side * rho.sin()).collect();
+    directions.extend((1..4).map(|k| around(aorta, beyond_aorta, quarter - PI * k as f64 / 4.0)));
+    directions.extend((0..=5).rev().map(|k| arc(span * k as f64 / 5.0) * rho.cos() - side * rho.sin()));
+    directions.extend((1..4).map(|k| around(vsd, -toward, -quarter + PI * k as f64 / 4.0)));
+    directions.iter().map(|d| center + d.normalize() * radius_mm).collect()
 }

@@ -42,7 +42,8 @@ fn check_caps(patient: &str, dir: &Path, pools: &BloodPools) -> TriMesh {
         assert!(distance < 1.5, "{patient} {name} cap centroid {distance:.2} mm from the published one");
         assert!((a / area - 1.0).abs() < 0.25, "{patient} {name} cap area {a:.1} vs {area:.1} mm2");
     }
-    eprintln!("{patient}: {} triangles, {:.0} ms", report.triangles, report.timings.total_ms);
+    eprintln!("{patient}: {} triangles, {:.0} ms; {}", report.triangles, report.timings.total_ms, report.separation.summary());
+    assert!(!report.separation.moved(), "{patient}: the openings are apart, the cuts stay in the loops' planes");
     mesh
 }
 

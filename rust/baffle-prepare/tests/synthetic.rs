@@ -93,7 +93,7 @@ fn bad_options_are_errors_not_panics() {
 }
 
 /// The aorta tilted from the RV's top towards the VSD by `tilt_deg` (the
-/// `aorta_tilt` example prints the whole family): from 30 degrees it meets the LV.
+/// `aorta_tilt` example prints the seeded family): from 30 degrees it meets the LV.
 fn tilted_aorta(tilt_deg: f64) -> BloodPools {
     let t = tilt_deg.to_radians();
     let (center, axis) = (Vec3::new(RV_CENTER_X, 0.0, 0.0), Vec3::new(-t.sin(), 0.0, t.cos()));
@@ -101,12 +101,19 @@ fn tilted_aorta(tilt_deg: f64) -> BloodPools {
 }
 
 #[test]
-fn an_aorta_leaning_towards_the_vsd_is_capped_until_it_meets_the_lv() {
+fn an_aorta_leaning_towards_the_vsd_is_capped_with_its_cuts_moved_apart() {
     // 0.5 mm clear of the LV at 25 degrees.
     let (mesh, report) = prepare(&tilted_aorta(25.0), &options()).unwrap();
     assert!(manifold_report(&mesh).is_closed_manifold());
     assert!((report.aortic_cap.area_mm2 / (std::f64::consts::PI * AORTA_RADIUS * AORTA_RADIUS) - 1.0).abs() < 0.15);
-    // Touching it at 40 degrees: refused, with where and why.
-    let err = prepare(&tilted_aorta(40.0), &options()).unwrap_err().to_string();
+    // Touching it at 30 degrees (the refusal before): the cuts move apart, by a named distance.
+    let (mesh, report) = prepare(&tilted_aorta(30.0), &options()).unwrap();
+    assert!(manifold_report(&mesh).is_closed_manifold() && mesh.signed_volume_mm3() > 0.0);
+    let s = &report.separation;
+    assert!(s.moved() && s.interface_loops_gap_mm < 0.1 && s.rim_gap_mm >= 0.45, "{s:?}");
+    assert!((report.aortic_cap.area_mm2 / (std::f64::consts::PI * AORTA_RADIUS * AORTA_RADIUS) - 1.0).abs() < 0.15);
+    // Over the LV at 45 degrees: refused, with where, why and how far the cuts were moved.
+    let err = prepare(&tilted_aorta(45.0), &options()).unwrap_err().to_string();
     assert!(err.contains("the aorta comes within") && err.contains("of the LV near ("), "{err}");
+    assert!(err.contains("did not separate them") && err.contains("9.0 mm up the aorta") && err.contains("% over the LV"), "{err}");
 }

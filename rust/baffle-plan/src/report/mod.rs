@@ -434,8 +434,25 @@ fn prepare_summary(out: &Path, records: &[StageRecord]) -> Result<Option<Value>,
     let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
     Ok(Some(json!({
         "report": path, "wall_time_s": record.wall_time_s, "triangles": doc["triangles"],
-        "vsd_cap": cap("vsd_cap"), "aortic_cap": cap("aortic_cap"),
+        "vsd_cap": cap("vsd_cap"), "aortic_cap": cap("aortic_cap"), "separation": doc["separation"],
     })))
+}
+
+/// How far apart prepare kept the two openings, and how far it moved their cuts to do so.
+fn separation_text(separation: &Value) -> String {
+    let mm = |key: &str| format_value(separation[key].as_f64().unwrap_or(f64::NAN), 2);
+    let gap = format!("The VSD and aortic openings are {} mm apart (at least {} mm).", mm("rim_gap_mm"), mm("clearance_mm"));
+    let moved = ["vsd_cut_moved_into_lv_mm", "aortic_cut_moved_into_aorta_mm"].iter().any(|k| separation[k].as_f64().unwrap_or(0.0) > 0.0);
+    if !moved {
+        return gap;
+    }
+    format!(
+        "{gap} Their interfaces meet (within {} mm), so the VSD cut was moved {} mm into the LV and the aortic cut {} mm up the aortic root: \
+         the caps lie that far from the anatomical openings.",
+        mm("interface_loops_gap_mm"),
+        mm("vsd_cut_moved_into_lv_mm"),
+        mm("aortic_cut_moved_into_aorta_mm")
+    )
 }
 
 /// The HTML rows of the prepare stage's caps: name, label, area, centroid.
@@ -731,6 +748,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         html.heading("Capped ventricle (prepare stage)");
         html.table(&["Cap", "ModelFaceID", "Area (mm²)", "Centroid (mm)"], &prepare_rows(prepare));
         html.para(&format!("Built from the segmentations in {} s.", format_value(prepare["wall_time_s"].as_f64().unwrap_or(f64::NAN), 1)));
+        html.para(&separation_text(&prepare["separation"]));
     }
     html.heading("Section area");
     html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
@@ -818,6 +836,15 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_prepare_separation_names_any_move() {
+        let kept = json!({ "rim_gap_mm": 5.49, "clearance_mm": 0.5, "interface_loops_gap_mm": 5.2, "vsd_cut_moved_into_lv_mm": 0.0, "aortic_cut_moved_into_aorta_mm": 0.0 });
+        assert_eq!(separation_text(&kept), "The VSD and aortic openings are 5.49 mm apart (at least 0.50 mm).");
+        let moved = json!({ "rim_gap_mm": 0.66, "clearance_mm": 0.5, "interface_loops_gap_mm": 0.01, "vsd_cut_moved_into_lv_mm": 2.0, "aortic_cut_moved_into_aorta_mm": 4.0 });
+        let text = separation_text(&moved);
+        assert!(text.contains("0.66 mm apart") && text.contains("moved 2.00 mm into the LV") && text.contains("4.00 mm up the aortic root"), "{text}");
+    }
 
     #[test]
     fn dates_are_utc_calendar_dates() {
