@@ -112,7 +112,7 @@ impl RvOutflow {
 
 impl Default for RvOutflow {
     fn default() -> Self {
-        RvOutflow::unavailable("no pulmonary artery surface given (baffle design --pulmonary, or --segmentations with pulmonary.vtp)")
+        RvOutflow::unavailable("no pulmonary artery surface given (baffle design --pulmonary, --segmentations with pulmonary.vtp, or --labelmap with the pulmonary label, --pulmonary-label, default 7)")
     }
 }
 

@@ -186,7 +186,7 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
     let prepared = prepare_once(args)?;
     let (surface, points, default_bsa) = design_inputs(&DesignArgs { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
-    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface());
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&plan_stages::prepared_surface_path(&args.design.out)));
     if args.cfd.cfd {
         // Every stage's arguments are checked before the first design, as the plan does.
         plan_stages::plan_stages(&plan_args(args, &args.design.out, f64::NAN))?;
