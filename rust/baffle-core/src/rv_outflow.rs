@@ -5,12 +5,8 @@
 //! 1. the region: inside the capped ventricle, and (after) outside the designed domain;
 //! 2. the outflow end: region voxels next to the pulmonary artery, i.e. next to a voxel
 //!    outside the ventricle whose centre is inside the pulmonary segmentation or within
-//!    [`CONTACT_MM`] of it (the RV's interface with the pulmonary label). Where the two
-//!    segmentations do not touch (the outflow tract between them not segmented), the
-//!    path ends at the RV's boundary nearest the pulmonary artery instead: the voxels
-//!    outside the RV within the gap + [`END_BAND_MM`] of it are the opening, and the
-//!    figures carry the gap and a caveat. Beyond [`MAX_END_GAP_MM`] the figure is
-//!    unavailable, with the gap in mm;
+//!    [`CONTACT_MM`] of it (the RV's interface with the pulmonary label). Without such
+//!    voxels there is no interface and the figure is unavailable, with the gap in mm;
 //! 3. the radius R of each region voxel: its distance to the nearest wall voxel (neither
 //!    region nor pulmonary: the interface is an opening, not a wall), exact Euclidean
 //!    distance transform;
@@ -43,13 +39,6 @@ use serde::Serialize;
 pub const GRID_MM: f64 = 0.5;
 /// A voxel outside the RV this close to the pulmonary segmentation (mm) is pulmonary.
 pub const CONTACT_MM: f64 = 0.5;
-/// Where the pulmonary segmentation does not touch the RV: the RV's boundary within this
-/// much of its closest approach to the pulmonary artery is the path's end.
-pub const END_BAND_MM: f64 = 1.0;
-/// The largest gap between the RV and the pulmonary artery bridged that way (mm): an
-/// infant's infundibulum is about 10-20 mm long; farther, the nearest RV boundary need
-/// not be its outflow tract (or the file is not this patient's).
-pub const MAX_END_GAP_MM: f64 = 20.0;
 /// The apex region: region voxels at least this fraction of the largest distance from
 /// the outflow end (along the region).
 pub const APEX_FRACTION: f64 = 0.75;
@@ -102,11 +91,6 @@ pub struct RvOutflow {
     pub rv_outflow_most_narrowed: Option<NarrowedSection>,
     /// Why the figures are missing (null when measured).
     pub rv_outflow_unavailable: Option<String>,
-    /// The gap (mm) between the RV and the pulmonary segmentation where they do not touch
-    /// and the path ends at the RV's boundary nearest it (null where they touch).
-    pub rv_outflow_end_gap_mm: Option<f64>,
-    /// What limits the figures' meaning (null when nothing does beyond the method).
-    pub rv_outflow_caveat: Option<String>,
     /// Area of the capped ventricle's surface inside the pulmonary segmentation or within
     /// CONTACT_MM of it: the interface the path ends at (null without a pulmonary surface).
     pub rv_pulmonary_interface_mm2: Option<f64>,
@@ -121,8 +105,6 @@ impl RvOutflow {
             rv_outflow_after: None,
             rv_outflow_most_narrowed: None,
             rv_outflow_unavailable: Some(reason.into()),
-            rv_outflow_end_gap_mm: None,
-            rv_outflow_caveat: None,
             rv_pulmonary_interface_mm2: None,
         }
     }
@@ -159,32 +141,14 @@ fn interface_area_mm2(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<f64, S
 }
 
 /// The paths before and after the baffle, their smallest sections and, after, the
-/// section the baffle narrows most; where the segmentations do not touch, to the RV's
-/// boundary nearest the pulmonary artery.
+/// section the baffle narrows most; what is missing after the baffle is said (the
+/// figure before stays).
 fn outflow_paths(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<RvOutflow, String> {
-    let mut field = VoxelField::new(ventricle, domain, pulmonary, CONTACT_MM)?;
+    let field = VoxelField::new(ventricle, domain, pulmonary)?;
     let sections = Sections { ventricle, domain };
-    match field.path(false) {
-        Err(PathFailure::NoInterface) => {}
-        before => return measure(&field, before, &sections, None),
-    }
-    let gap_mm = closest_approach_mm(ventricle, pulmonary)?;
-    if gap_mm > MAX_END_GAP_MM {
-        return Ok(RvOutflow::unavailable(format!(
-            "the pulmonary artery segmentation does not touch the RV: it is {gap_mm:.1} mm from the capped ventricle, more than the {MAX_END_GAP_MM} mm an outflow tract would span, so there is no RV-pulmonary interface to end the path at"
-        )));
-    }
-    field.pulmonary = pulmonary_voxels(&field.grid, &field.ventricle, pulmonary, gap_mm + END_BAND_MM)?;
-    let before = field.path(false);
-    measure(&field, before, &sections, Some(gap_mm))
-}
-
-/// The figures of the path before (`before`) and after the baffle; `gap_mm` where the
-/// path ends at the RV's boundary nearest a pulmonary artery it does not touch.
-fn measure(field: &VoxelField, before: Result<(Vec<Vec3>, f64), PathFailure>, sections: &Sections, gap_mm: Option<f64>) -> Result<RvOutflow, String> {
-    let before = match before {
+    let before = match field.path(false) {
         Ok(path) => sections.along(&path, false).smallest().ok_or("no section of the RV along the path before the baffle")?,
-        Err(PathFailure::NoInterface) => return Ok(RvOutflow::unavailable("no RV voxel next to the pulmonary artery or the RV's boundary nearest it")),
+        Err(PathFailure::NoInterface) => return Ok(RvOutflow::unavailable(no_interface_reason(ventricle, pulmonary)?)),
         Err(PathFailure::Other(reason)) => return Ok(RvOutflow::unavailable(reason)),
     };
     let after = match field.path(true) {
@@ -206,23 +170,17 @@ fn measure(field: &VoxelField, before: Result<(Vec<Vec3>, f64), PathFailure>, se
         rv_outflow_unavailable: after.as_ref().err().cloned(),
         rv_outflow_after: after.ok(),
         rv_outflow_most_narrowed: most_narrowed,
-        rv_outflow_end_gap_mm: gap_mm,
-        rv_outflow_caveat: gap_mm.map(gap_caveat),
         rv_pulmonary_interface_mm2: None,
     })
 }
 
-/// What a path to the RV's boundary nearest the pulmonary artery does not measure.
-fn gap_caveat(gap_mm: f64) -> String {
-    format!(
-        "the pulmonary artery segmentation does not touch the RV ({gap_mm:.1} mm apart): the path ends at the RV's boundary within {END_BAND_MM} mm of its closest approach, so the {gap_mm:.1} mm between (not segmented) are not measured and a smallest section at the path's end is where the RV segmentation stops, not the pulmonary valve"
-    )
-}
-
-/// The closest approach of the capped ventricle (its vertices) to the pulmonary surface.
-fn closest_approach_mm(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<f64, String> {
+/// "no interface" with the closest approach of the two surfaces (at their vertices).
+fn no_interface_reason(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<String, String> {
     let bvh = TriangleBvh::new(pulmonary)?;
-    Ok(ventricle.points.par_iter().filter_map(|&p| bvh.closest_point(pulmonary, p)).map(|h| h.distance_mm).reduce(|| f64::INFINITY, f64::min))
+    let gap = ventricle.points.par_iter().filter_map(|&p| bvh.closest_point(pulmonary, p)).map(|h| h.distance_mm).reduce(|| f64::INFINITY, f64::min);
+    Ok(format!(
+        "the pulmonary artery segmentation does not touch the RV: it is {gap:.1} mm from the capped ventricle (no voxel outside the RV within {CONTACT_MM} mm of it), so there is no RV-pulmonary interface to end the path at"
+    ))
 }
 
 enum PathFailure {
@@ -239,7 +197,7 @@ struct VoxelField {
 }
 
 impl VoxelField {
-    fn new(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh, contact_mm: f64) -> Result<Self, String> {
+    fn new(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<Self, String> {
         if pulmonary.triangles.is_empty() {
             return Err("the pulmonary artery surface has no triangles".into());
         }
@@ -250,7 +208,7 @@ impl VoxelField {
         grid.origin -= GRID_MM * Vec3::new(0.137, 0.291, 0.419);
         let inside_ventricle = voxelize(ventricle, &grid);
         let inside_domain = voxelize(domain, &grid);
-        let pulmonary_mask = pulmonary_voxels(&grid, &inside_ventricle, pulmonary, contact_mm)?;
+        let pulmonary_mask = pulmonary_voxels(&grid, &inside_ventricle, pulmonary)?;
         Ok(VoxelField { grid, ventricle: inside_ventricle, domain: inside_domain, pulmonary: pulmonary_mask })
     }
 
@@ -290,17 +248,17 @@ fn membership(grid: &Grid, voxels: &[usize]) -> Vec<bool> {
 }
 
 /// Voxels outside the ventricle whose centre is inside the pulmonary surface or within
-/// `contact_mm` of it.
-fn pulmonary_voxels(grid: &Grid, inside_ventricle: &[bool], pulmonary: &TriMesh, contact_mm: f64) -> Result<Vec<bool>, String> {
+/// CONTACT_MM of it.
+fn pulmonary_voxels(grid: &Grid, inside_ventricle: &[bool], pulmonary: &TriMesh) -> Result<Vec<bool>, String> {
     let inside = voxelize(pulmonary, grid);
     let bvh = TriangleBvh::new(pulmonary)?;
-    let near = Aabb::from_points(&pulmonary.points).expanded(contact_mm);
+    let near = Aabb::from_points(&pulmonary.points).expanded(CONTACT_MM);
     let near_box = |p: Vec3| (0..3).all(|a| p[a] >= near.min[a] && p[a] <= near.max[a]);
     Ok((0..grid.voxel_count())
         .into_par_iter()
         .map(|v| {
             let p = grid.centre(v);
-            !inside_ventricle[v] && (inside[v] || (near_box(p) && bvh.closest_point_within(pulmonary, p, contact_mm).is_some()))
+            !inside_ventricle[v] && (inside[v] || (near_box(p) && bvh.closest_point_within(pulmonary, p, CONTACT_MM).is_some()))
         })
         .collect())
 }
