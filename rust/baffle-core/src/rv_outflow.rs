@@ -179,7 +179,7 @@ fn no_interface_reason(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<Strin
     let bvh = TriangleBvh::new(pulmonary)?;
     let gap = ventricle.points.par_iter().filter_map(|&p| bvh.closest_point(pulmonary, p)).map(|h| h.distance_mm).reduce(|| f64::INFINITY, f64::min);
     Ok(format!(
-        "the pulmonary artery segmentation does not touch the RV: it is {gap:.1} mm from the capped ventricle (no voxel outside the RV within {CONTACT_MM} mm of it), so there is no RV-pulmonary interface to end the path at"
+        "the pulmonary artery segmentation does not touch the RV: it is {gap:.1} mm from the capped ventricle (no voxel outside the RV within {CONTACT_MM} mm of it), so there is no RV-pulmonary interface to end the path at (the RV's boundary nearest it need not be its outflow tract: an RV-outflow segment or a marked pulmonary valve plane is needed)"
     ))
 }
 

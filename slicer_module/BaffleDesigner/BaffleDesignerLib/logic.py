@@ -242,7 +242,7 @@ def _nan(value) -> float:
 def rv_outflow_attributes(report):
     """The RV outflow figures of a design report as (attribute, text) pairs: the smallest
     section after the baffle and the section the baffle narrows most ("" where not
-    measured), and RvOutflowNote: why they are missing, or what limits them."""
+    measured), and RvOutflowNote: why they are missing."""
     narrowed = report.get("rv_outflow_most_narrowed") or {}
     text = lambda value, digits: "" if value is None else f"{value:.{digits}f}"
     return (
@@ -251,7 +251,7 @@ def rv_outflow_attributes(report):
         ("RvOutflowMostNarrowedAfterMm2", text(narrowed.get("area_after_mm2"), 1)),
         ("RvOutflowMostNarrowedAfterOverBefore", text(narrowed.get("after_over_before"), 3)),
         ("RvOutflowMostNarrowedFromPulmonaryEndMm", text(narrowed.get("distance_from_pulmonary_end_mm"), 1)),
-        ("RvOutflowNote", report.get("rv_outflow_unavailable") or report.get("rv_outflow_caveat") or ""),
+        ("RvOutflowNote", report.get("rv_outflow_unavailable") or ""),
     )
 
 
@@ -261,13 +261,13 @@ def rv_outflow_line(attribute):
     note = attribute("RvOutflowNote") or ""
     if not after:
         return f"RV outflow not measured: {note}" if note else "RV outflow not measured"
-    line = (
+    return (
         f"RV outflow: smallest section {attribute('RvOutflowMinSectionMm2')} mm2; the baffle narrows it most "
         f"{attribute('RvOutflowMostNarrowedFromPulmonaryEndMm')} mm from the pulmonary end: "
         f"{attribute('RvOutflowMostNarrowedBeforeMm2')} -> {after} mm2 "
         f"({100.0 * float(attribute('RvOutflowMostNarrowedAfterOverBefore')):.0f} % left)"
     )
-    return f"{line} ({note})" if note else line
+
 
 def polygon_area(loop: np.ndarray) -> float:
     """Area of a closed planar polygon (points in order, first not repeated)."""
