@@ -151,17 +151,13 @@ fn outflow_paths(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> 
         Err(PathFailure::NoInterface) => return Ok(RvOutflow::unavailable(no_interface_reason(ventricle, pulmonary)?)),
         Err(PathFailure::Other(reason)) => return Ok(RvOutflow::unavailable(reason)),
     };
-    let after = match field.path(true) {
+    let (after, most_narrowed) = match field.path(true) {
         Ok(path) => {
             let measured = sections.along(&path, true);
-            measured.smallest().map(|smallest| (smallest, measured.most_narrowed())).ok_or_else(|| "no section of the RV along the path after the baffle".to_string())
+            (measured.smallest().ok_or_else(|| "no section of the RV along the path after the baffle".to_string()), measured.most_narrowed())
         }
-        Err(PathFailure::NoInterface) => Err("the designed domain covers the RV's interface with the pulmonary artery".to_string()),
-        Err(PathFailure::Other(reason)) => Err(reason),
-    };
-    let (after, most_narrowed) = match after {
-        Ok((path, narrowed)) => (Ok(path), narrowed),
-        Err(reason) => (Err(reason), None),
+        Err(PathFailure::NoInterface) => (Err("the designed domain covers the RV's interface with the pulmonary artery".to_string()), None),
+        Err(PathFailure::Other(reason)) => (Err(reason), None),
     };
     Ok(RvOutflow {
         rv_outflow_min_section_mm2: after.as_ref().ok().map(|a| a.min_section_mm2),
