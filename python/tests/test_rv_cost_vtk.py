@@ -10,7 +10,9 @@ the library says so (baffle_area_outside_ventricle_mm2 > 0).
 
 The smallest RV-to-pulmonary section (rv_outflow_*) is re-cut with vtkCutter at the
 reported point and normal, the cut joined into loops by vtkStripper, and the area of the
-loop holding the point (less the loops inside it) taken as a polygon."""
+loop holding the point (less the loops inside it) taken as a polygon. The section the
+baffle narrows most (rv_outflow_most_narrowed) is re-measured without any plane cut: a
+pixel grid on its plane classified in 3D by vtkSelectEnclosedPoints."""
 
 import json
 import os
@@ -161,6 +163,57 @@ def check_rv_outflow(ventricle_path, domain_path, report):
     return vtk_before, vtk_after
 
 
+def plane_grid(surface, point, normal, pixel_mm):
+    """Pixel centres (3D) of a square over the plane's cut through `surface`, with their
+    in-plane indices' shape; the point lies on a pixel centre."""
+    loops = section_loops(surface, point, normal)
+    reach = max(np.abs(loop).max() for loop in loops) + 2 * pixel_mm
+    steps = np.arange(-np.ceil(reach / pixel_mm), np.ceil(reach / pixel_mm) + 1) * pixel_mm
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    a, b = np.meshgrid(steps, steps, indexing="ij")
+    return np.asarray(point) + a[..., None] * u + b[..., None] * v, (len(steps) // 2, len(steps) // 2)
+
+
+def component(mask, seed):
+    """The 4-connected piece of a 2D mask holding `seed` (grown by shifts until it stops)."""
+    piece = np.zeros_like(mask)
+    piece[seed] = mask[seed]
+    while True:
+        grown = piece.copy()
+        grown[1:, :] |= piece[:-1, :]
+        grown[:-1, :] |= piece[1:, :]
+        grown[:, 1:] |= piece[:, :-1]
+        grown[:, :-1] |= piece[:, 1:]
+        grown &= mask
+        if (grown == piece).all():
+            return piece
+        piece = grown
+
+
+def check_most_narrowed(ventricle_path, domain_path, report, pixel_mm=0.125):
+    """The section the baffle narrows most, re-measured without our plane cut: a pixel
+    grid on its plane classified in 3D by vtkSelectEnclosedPoints (inside the ventricle,
+    inside the domain), the piece holding the point after (ventricle less domain) and
+    before (ventricle alone)."""
+    ventricle, domain = read_vtp(ventricle_path), read_vtp(domain_path)
+    narrowed = report["rv_outflow_most_narrowed"]
+    centres, seed = plane_grid(ventricle, narrowed["point_mm"], narrowed["normal"], pixel_mm)
+    shape = centres.shape[:2]
+    flat = centres.reshape(-1, 3)
+    in_ventricle = inside(ventricle, flat).reshape(shape)
+    in_domain = inside(domain, flat).reshape(shape)
+    pixel_mm2 = pixel_mm * pixel_mm
+    after = component(in_ventricle & ~in_domain, seed).sum() * pixel_mm2
+    before = component(in_ventricle, seed).sum() * pixel_mm2
+    assert narrowed["area_after_mm2"] == pytest.approx(after, rel=0.03)
+    assert narrowed["area_before_mm2"] == pytest.approx(before, rel=0.03)
+    assert narrowed["after_over_before"] == pytest.approx(after / before, rel=0.04)
+    return before, after
+
+
 def patient(name):
     root = data_dir() / name
     if not (root / "segmentations" / "RV.vtp").exists():
@@ -181,6 +234,7 @@ def test_rv_volumes_on_the_segmented_ventricle_by_vtk(tmp_path):
     assert report["baffle_area_outside_ventricle_mm2"] == 0.0, "the baffle runs inside the whole RV"
     check_rv_volumes(capped, tmp_path / "design" / "domain.vtp", report)
     print("RV outflow smallest section before / after (VTK):", check_rv_outflow(capped, tmp_path / "design" / "domain.vtp", report))
+    print("RV outflow section the baffle narrows most, before / after (VTK):", check_most_narrowed(capped, tmp_path / "design" / "domain.vtp", report))
     # The prepared ventricle is the segmented RV blood pool, less what lies beyond the
     # VSD and aortic planes and the smoothing: within a few percent of RV.vtp.
     assert report["rv_volume_before_ml"] == pytest.approx(volume_mm3(read_vtp(root / "segmentations" / "RV.vtp")) / 1e3, rel=0.1)

@@ -359,6 +359,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                 f"smallest section {a('MinSectionAreaMm2'):.1f} mm2 ({curve.GetAttribute('BaffleDesigner.DesignTimeMs')} ms)\n"
                 f"RV {a('RvVolumeBeforeMl'):.2f} mL before, {a('RvVolumeAfterMl'):.2f} mL after the baffle"
                 + (" (net: the baffle leaves the capped ventricle)" if a("BaffleAreaOutsideVentricleMm2") > 0 else "")
+                + "\n"
+                + bdlogic.rv_outflow_line(lambda name: curve.GetAttribute("BaffleDesigner." + name))
             )
         if status == "failed":
             return f"{curve.GetName()}: {curve.GetAttribute('BaffleDesigner.Error')}"

@@ -112,6 +112,9 @@ fn phantom_plan_reports_the_stages_own_figures() {
     let q = &report["quantities"];
     let dp = q["dp_peak_mmhg"].as_f64().unwrap();
     assert!(dp.is_finite() && dp > 0.0, "dp {dp}");
+    // The phantom has no pulmonary artery: the RV outflow rows are null and the report says why.
+    assert!(q["rv_outflow_most_narrowed_after_mm2"].is_null() && q["rv_outflow_min_section_mm2"].is_null());
+    assert!(report["rv_outflow"]["unavailable"].as_str().unwrap().contains("no pulmonary artery surface"), "{}", report["rv_outflow"]);
     check_verdict(&out, &stdout);
     assert_eq!(report["verdict"]["dp_peak_mmhg"].as_f64().unwrap(), dp);
     // Every table value is the one in the stage's own file.
@@ -493,7 +496,15 @@ fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
     // p2 is the paper's: its published values stand beside ours.
     assert_eq!(report["paper"]["patient"], "p2");
     assert_eq!(report["paper"]["quantities"]["dp_peak_mmhg"], 1.58);
+    // The RV outflow from the segmentations' pulmonary.vtp: the design's figures, in words too.
+    let design = read_json(&out.join("design/report.json"));
+    for (key, field) in [("before_mm2", "area_before_mm2"), ("after_mm2", "area_after_mm2"), ("after_over_before", "after_over_before"), ("from_pulmonary_end_mm", "distance_from_pulmonary_end_mm")] {
+        let (a, b) = (&q[format!("rv_outflow_most_narrowed_{key}")], &design["rv_outflow_most_narrowed"][field]);
+        assert!(a.is_f64() && a == b, "{key}: {a} vs {b}");
+    }
+    assert!(report["rv_outflow"]["unavailable"].is_null(), "{}", report["rv_outflow"]);
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("where the baffle narrows it most"), "no RV outflow text in the report");
     assert!(html.contains("<th>Paper (p2)</th>") && html.contains("Patient: p2"), "no paper column or patient");
     assert_eq!(report["patient"], "p2");
     std::fs::remove_dir_all(out).ok();

@@ -20,6 +20,12 @@
 //!    surfaces' cut segments are filled on a [`PIXEL_MM`] raster (even-odd) and the
 //!    4-connected piece holding the sample is the section. The smallest is reported
 //!    with its place along the path.
+//! 7. what the baffle costs the outflow: along the path after the baffle, each plane is
+//!    also filled without the domain, and the piece of the capped ventricle holding the
+//!    same pixel is that plane's section before the baffle. The section with the
+//!    smallest ratio after / before is the one the baffle narrows most
+//!    ([`NarrowedSection`]). The smallest section itself often sits at the pulmonary end,
+//!    where the baffle does not act, and is then the same before and after.
 
 use crate::flow_centerline::{arc_lengths, moving_average, resample};
 use crate::mesh::{axes_across, TriMesh, Vec3};
@@ -57,6 +63,21 @@ pub struct OutflowPath {
     pub bottleneck_radius_mm: f64,
 }
 
+/// The section of the outflow path after the baffle that the baffle narrows most: the
+/// same plane's section of the capped ventricle before the baffle and of what the
+/// domain leaves of it after.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NarrowedSection {
+    pub area_before_mm2: f64,
+    pub area_after_mm2: f64,
+    /// area_after_mm2 / area_before_mm2 (1: the baffle does not narrow the path).
+    pub after_over_before: f64,
+    /// Along the path from its pulmonary end (the RV's interface with the pulmonary artery).
+    pub distance_from_pulmonary_end_mm: f64,
+    pub point_mm: [f64; 3],
+    pub normal: [f64; 3],
+}
+
 /// The RV-to-pulmonary figures of a design, or why there are none.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RvOutflow {
@@ -65,6 +86,9 @@ pub struct RvOutflow {
     pub rv_outflow_min_section_before_mm2: Option<f64>,
     pub rv_outflow_before: Option<OutflowPath>,
     pub rv_outflow_after: Option<OutflowPath>,
+    /// Where along the path after the baffle the baffle narrows the outflow most (null
+    /// when the path after is not measured).
+    pub rv_outflow_most_narrowed: Option<NarrowedSection>,
     /// Why the figures are missing (null when measured).
     pub rv_outflow_unavailable: Option<String>,
     /// Area of the capped ventricle's surface inside the pulmonary segmentation or within
@@ -79,6 +103,7 @@ impl RvOutflow {
             rv_outflow_min_section_before_mm2: None,
             rv_outflow_before: None,
             rv_outflow_after: None,
+            rv_outflow_most_narrowed: None,
             rv_outflow_unavailable: Some(reason.into()),
             rv_pulmonary_interface_mm2: None,
         }
@@ -87,7 +112,7 @@ impl RvOutflow {
 
 impl Default for RvOutflow {
     fn default() -> Self {
-        RvOutflow::unavailable("no pulmonary artery surface given (baffle design --pulmonary, or --segmentations with pulmonary.vtp)")
+        RvOutflow::unavailable("no pulmonary artery surface given (baffle design --pulmonary, --segmentations with pulmonary.vtp, or --labelmap with the pulmonary label, --pulmonary-label, default 7)")
     }
 }
 
@@ -115,20 +140,24 @@ fn interface_area_mm2(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<f64, S
         .max(0.0))
 }
 
-/// The paths before and after the baffle and their smallest sections; what is missing
-/// after the baffle is said (the figure before stays).
+/// The paths before and after the baffle, their smallest sections and, after, the
+/// section the baffle narrows most; what is missing after the baffle is said (the
+/// figure before stays).
 fn outflow_paths(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> Result<RvOutflow, String> {
     let field = VoxelField::new(ventricle, domain, pulmonary)?;
     let sections = Sections { ventricle, domain };
     let before = match field.path(false) {
-        Ok(path) => sections.smallest(&path, false).ok_or("no section of the RV along the path before the baffle")?,
+        Ok(path) => sections.along(&path, false).smallest().ok_or("no section of the RV along the path before the baffle")?,
         Err(PathFailure::NoInterface) => return Ok(RvOutflow::unavailable(no_interface_reason(ventricle, pulmonary)?)),
         Err(PathFailure::Other(reason)) => return Ok(RvOutflow::unavailable(reason)),
     };
-    let after = match field.path(true) {
-        Ok(path) => sections.smallest(&path, true).ok_or_else(|| "no section of the RV along the path after the baffle".to_string()),
-        Err(PathFailure::NoInterface) => Err("the designed domain covers the RV's interface with the pulmonary artery".to_string()),
-        Err(PathFailure::Other(reason)) => Err(reason),
+    let (after, most_narrowed) = match field.path(true) {
+        Ok(path) => {
+            let measured = sections.along(&path, true);
+            (measured.smallest().ok_or_else(|| "no section of the RV along the path after the baffle".to_string()), measured.most_narrowed())
+        }
+        Err(PathFailure::NoInterface) => (Err("the designed domain covers the RV's interface with the pulmonary artery".to_string()), None),
+        Err(PathFailure::Other(reason)) => (Err(reason), None),
     };
     Ok(RvOutflow {
         rv_outflow_min_section_mm2: after.as_ref().ok().map(|a| a.min_section_mm2),
@@ -136,6 +165,7 @@ fn outflow_paths(ventricle: &TriMesh, domain: &TriMesh, pulmonary: &TriMesh) -> 
         rv_outflow_before: Some(before),
         rv_outflow_unavailable: after.as_ref().err().cloned(),
         rv_outflow_after: after.ok(),
+        rv_outflow_most_narrowed: most_narrowed,
         rv_pulmonary_interface_mm2: None,
     })
 }
@@ -145,7 +175,7 @@ fn no_interface_reason(ventricle: &TriMesh, pulmonary: &TriMesh) -> Result<Strin
     let bvh = TriangleBvh::new(pulmonary)?;
     let gap = ventricle.points.par_iter().filter_map(|&p| bvh.closest_point(pulmonary, p)).map(|h| h.distance_mm).reduce(|| f64::INFINITY, f64::min);
     Ok(format!(
-        "the pulmonary artery segmentation does not touch the RV: it is {gap:.1} mm from the capped ventricle (no voxel outside the RV within {CONTACT_MM} mm of it), so there is no RV-pulmonary interface to end the path at"
+        "the pulmonary artery segmentation does not touch the RV: it is {gap:.1} mm from the capped ventricle (no voxel outside the RV within {CONTACT_MM} mm of it), so there is no RV-pulmonary interface to end the path at (the RV's boundary nearest it need not be its outflow tract: an RV-outflow segment or a marked pulmonary valve plane is needed)"
     ))
 }
 
@@ -247,27 +277,67 @@ struct Sections<'a> {
 }
 
 impl Sections<'_> {
-    /// The smallest section along `path` (samples, bottleneck radius); None without any.
-    fn smallest(&self, (path, bottleneck): &(Vec<Vec3>, f64), after: bool) -> Option<OutflowPath> {
-        let s = arc_lengths(path);
-        let measured: Vec<(usize, Vec3, f64)> = (0..path.len())
+    /// The sections along `path` (samples, bottleneck radius), each plane filled with
+    /// and, after the baffle, without the domain.
+    fn along<'p>(&self, (path, bottleneck): &'p (Vec<Vec3>, f64), after: bool) -> Measured<'p> {
+        let samples = (0..path.len())
             .into_par_iter()
             .filter_map(|k| {
                 let normal = tangent(path, k)?;
-                let area = section_area(self.ventricle, after.then_some(self.domain), path[k], normal)?;
-                Some((k, normal, area))
+                let areas = section_areas(self.ventricle, after.then_some(self.domain), path[k], normal)?;
+                Some(Sample { k, normal, areas })
             })
             .collect();
-        let &(k, normal, area) = measured.iter().min_by(|a, b| a.2.total_cmp(&b.2))?;
+        Measured { path, s: arc_lengths(path), bottleneck_radius_mm: *bottleneck, samples }
+    }
+}
+
+struct Sample {
+    k: usize,
+    normal: Vec3,
+    areas: SectionAreas,
+}
+
+/// The sections measured along one path.
+struct Measured<'p> {
+    path: &'p [Vec3],
+    s: Vec<f64>,
+    bottleneck_radius_mm: f64,
+    samples: Vec<Sample>,
+}
+
+impl Measured<'_> {
+    /// The smallest section of the region; None without any.
+    fn smallest(&self) -> Option<OutflowPath> {
+        let best = self.samples.iter().min_by(|a, b| a.areas.region_mm2.total_cmp(&b.areas.region_mm2))?;
         Some(OutflowPath {
-            min_section_mm2: area,
-            min_section_s_mm: s[k],
-            min_section_point_mm: path[k].into(),
-            min_section_normal: normal.into(),
-            path_length_mm: *s.last().unwrap_or(&0.0),
-            sections: measured.len(),
-            bottleneck_radius_mm: *bottleneck,
+            min_section_mm2: best.areas.region_mm2,
+            min_section_s_mm: self.s[best.k],
+            min_section_point_mm: self.path[best.k].into(),
+            min_section_normal: best.normal.into(),
+            path_length_mm: self.length_mm(),
+            sections: self.samples.len(),
+            bottleneck_radius_mm: self.bottleneck_radius_mm,
         })
+    }
+
+    /// The section with the smallest ratio of its area after to before the baffle (the
+    /// first of equals, from the apex end).
+    fn most_narrowed(&self) -> Option<NarrowedSection> {
+        let ratio = |a: &SectionAreas| a.region_mm2 / a.solid_mm2;
+        let best = self.samples.iter().filter(|m| m.areas.solid_mm2 > 0.0).min_by(|a, b| ratio(&a.areas).total_cmp(&ratio(&b.areas)))?;
+        Some(NarrowedSection {
+            area_before_mm2: best.areas.solid_mm2,
+            area_after_mm2: best.areas.region_mm2,
+            after_over_before: ratio(&best.areas),
+            distance_from_pulmonary_end_mm: self.length_mm() - self.s[best.k],
+            point_mm: self.path[best.k].into(),
+            normal: best.normal.into(),
+        })
+    }
+
+    fn length_mm(&self) -> f64 {
+        *self.s.last().unwrap_or(&0.0)
     }
 }
 
@@ -284,14 +354,32 @@ fn tangent(path: &[Vec3], k: usize) -> Option<Vec3> {
 /// `point` normal to `normal` that holds `point` (4-connected on a PIXEL_MM raster);
 /// None when the point is not inside.
 pub fn section_area(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, normal: Vec3) -> Option<f64> {
+    section_areas(solid, hole, point, normal).map(|a| a.region_mm2)
+}
+
+/// One plane's section with and without the hole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SectionAreas {
+    /// The piece of {inside solid, outside hole} holding the point.
+    pub region_mm2: f64,
+    /// The piece of the solid alone holding the same pixel (the section before the hole).
+    pub solid_mm2: f64,
+}
+
+/// [`section_area`], and the solid's piece through the same pixel without the hole.
+pub fn section_areas(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, normal: Vec3) -> Option<SectionAreas> {
     let plane = PlaneFrame::new(point, normal);
     let solid_cut = plane.cut(solid);
     let hole_cut = hole.map(|h| plane.cut(h)).unwrap_or_default();
     let (lo, hi) = segment_bounds(&solid_cut)?;
     let raster = Raster::new(lo, hi);
-    let inside: Vec<bool> = raster.fill(&solid_cut).iter().zip(raster.fill(&hole_cut)).map(|(&s, h)| s && !h).collect();
+    let solid_fill = raster.fill(&solid_cut);
+    let inside: Vec<bool> = solid_fill.iter().zip(raster.fill(&hole_cut)).map(|(&s, h)| s && !h).collect();
     let seed = raster.nearest_inside(&inside, (0.0, 0.0))?;
-    Some(raster.flood_count(&inside, seed) as f64 * PIXEL_MM * PIXEL_MM)
+    let pixel_mm2 = PIXEL_MM * PIXEL_MM;
+    let region_mm2 = raster.flood_count(&inside, seed) as f64 * pixel_mm2;
+    let solid_mm2 = if hole.is_some() { raster.flood_count(&solid_fill, seed) as f64 * pixel_mm2 } else { region_mm2 };
+    Some(SectionAreas { region_mm2, solid_mm2 })
 }
 
 type Segment = [(f64, f64); 2];

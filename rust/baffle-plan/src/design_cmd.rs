@@ -236,16 +236,33 @@ pub fn measure_rv_outflow(ventricle: &TriMesh, result: &mut DesignResult, pulmon
     Ok(())
 }
 
-/// The RV outflow's smallest section before and after, or why it is not measured.
+/// The RV outflow's smallest section before and after and where the baffle narrows it
+/// most, or why it is not measured.
 pub fn rv_outflow_line(o: &RvOutflow) -> String {
     let place = |p: &Option<baffle_core::rv_outflow::OutflowPath>| p.as_ref().map(|p| format!(" at {:.1} of {:.1} mm along the path", p.min_section_s_mm, p.path_length_mm)).unwrap_or_default();
     match (o.rv_outflow_min_section_before_mm2, o.rv_outflow_min_section_mm2) {
         (Some(before), Some(after)) => format!(
-            "RV outflow (apex region to the pulmonary interface): smallest section {before:.1} mm2{} before, {after:.1} mm2{} after the baffle",
+            "RV outflow (apex region to the pulmonary interface): smallest section {before:.1} mm2{} before, {after:.1} mm2{} after the baffle; {}",
             place(&o.rv_outflow_before),
-            place(&o.rv_outflow_after)
+            place(&o.rv_outflow_after),
+            most_narrowed_text(o.rv_outflow_most_narrowed.as_ref())
         ),
         _ => format!("RV outflow smallest section not measured: {}", o.rv_outflow_unavailable.as_deref().unwrap_or("no reason given")),
+    }
+}
+
+/// Where the baffle narrows the outflow path most, in words.
+pub fn most_narrowed_text(n: Option<&baffle_core::rv_outflow::NarrowedSection>) -> String {
+    match n {
+        Some(n) if n.after_over_before < 1.0 => format!(
+            "the baffle narrows the path most {:.1} mm from its pulmonary end: {:.1} mm2 before, {:.1} mm2 after ({:.0} % left)",
+            n.distance_from_pulmonary_end_mm,
+            n.area_before_mm2,
+            n.area_after_mm2,
+            100.0 * n.after_over_before
+        ),
+        Some(_) => "the baffle narrows no section of the path".into(),
+        None => "where the baffle narrows the path is not measured".into(),
     }
 }
 

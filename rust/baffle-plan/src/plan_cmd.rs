@@ -94,7 +94,7 @@ pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &P
         }
         Step::Design => {
             let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
-            let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface());
+            let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
             let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, ..args.design.clone() };
             design_reporting(&design, &mut |f, s| {
                 progress.report(f, "design", s);

@@ -4,7 +4,11 @@
 use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
 use crate::files::write_atomic;
-use baffle_prepare::{pools_from_labelmap, prepare, read_labelmap, read_segmentations, BloodPools, LabelSurfaceOptions, PoolLabels, PrepareOptions, PrepareReport};
+use baffle_core::TriMesh;
+use baffle_prepare::{
+    pools_from_labelmap, prepare, pulmonary_from_labelmap, read_labelmap, read_segmentations, BloodPools, LabelMap, LabelSurfaceOptions, PoolLabels, PrepareOptions,
+    PrepareReport,
+};
 use crate::progress::{Progress, Style};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -30,6 +34,11 @@ pub struct PrepareSource {
     /// Label value of the aorta in --labelmap.
     #[arg(long, default_value_t = 6)]
     pub aorta_label: i32,
+    /// Label value of the pulmonary artery in --labelmap: its surface is written beside
+    /// the capped ventricle (<stem>-pulmonary.vtp) and ends the RV outflow path. A label
+    /// map without it still prepares; the RV outflow is then not measured.
+    #[arg(long, default_value_t = 7)]
+    pub pulmonary_label: i32,
     /// Skip the 3x3x3 median filter of each --labelmap label mask.
     #[arg(long)]
     pub no_median: bool,
@@ -41,9 +50,22 @@ impl PrepareSource {
         self.segmentations.is_some() || self.labelmap.is_some()
     }
 
-    /// The pulmonary artery's surface in --segmentations, where there is one.
-    pub fn pulmonary_surface(&self) -> Option<PathBuf> {
-        self.segmentations.as_deref().and_then(baffle_prepare::input::pulmonary_file)
+    /// The pulmonary artery's surface, where there is one: in --segmentations, or the one
+    /// prepare made from --labelmap beside the capped ventricle `prepared`.
+    pub fn pulmonary_surface(&self, prepared: &Path) -> Option<PathBuf> {
+        match (&self.segmentations, &self.labelmap) {
+            (Some(dir), _) => baffle_prepare::input::pulmonary_file(dir),
+            (None, Some(_)) => Some(pulmonary_path(prepared)).filter(|p| p.is_file()),
+            (None, None) => None,
+        }
+    }
+
+    fn pool_labels(&self) -> PoolLabels {
+        PoolLabels { lv: self.lv_label, rv: self.rv_label, aorta: self.aorta_label }
+    }
+
+    fn label_options(&self) -> LabelSurfaceOptions {
+        LabelSurfaceOptions { median: !self.no_median, ..LabelSurfaceOptions::default() }
     }
 }
 
@@ -91,7 +113,9 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
     );
     // The caps' distance from the true interfaces when the cuts had to be moved apart.
     println!("{}", report.separation.summary());
-    println!("wrote {}, {}", args.out.display(), report_path.display());
+    let pulmonary = Some(pulmonary_path(&args.out)).filter(|p| args.source.labelmap.is_some() && p.is_file());
+    let pulmonary = pulmonary.map(|p| format!(", {}", p.display())).unwrap_or_default();
+    println!("wrote {}, {}{pulmonary}", args.out.display(), report_path.display());
     Ok(())
 }
 
@@ -100,10 +124,16 @@ pub fn report_path(out: &Path) -> PathBuf {
     PathBuf::from(format!("{}-report.json", out.with_extension("").display()))
 }
 
+/// The pulmonary artery's surface from a label map, beside the capped ventricle `out`:
+/// `<stem>-pulmonary.vtp`.
+pub fn pulmonary_path(out: &Path) -> PathBuf {
+    PathBuf::from(format!("{}-pulmonary.vtp", out.with_extension("").display()))
+}
+
 /// Build the capped ventricle and write it and its report (each written whole or
 /// not at all); returns the report and its path.
 pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), String> {
-    let pools = read_pools(&args.source)?;
+    let (pools, pulmonary) = read_inputs(&args.source)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,
         crop_margin_mm: args.crop_margin_mm,
@@ -124,7 +154,26 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
         let _ = std::fs::remove_file(&args.out);
         return Err(e);
     }
+    if let Some(pulmonary) = pulmonary {
+        write_pulmonary(&args.out, pulmonary.as_ref(), args.source.pulmonary_label)?;
+    }
     Ok((report, report_path))
+}
+
+/// The label map's pulmonary artery beside the capped ventricle `out`; without it, no
+/// such file (not one left from an earlier run) and a note.
+fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32) -> Result<(), String> {
+    let path = pulmonary_path(out);
+    match pulmonary {
+        Some(mesh) => write_trimesh_vtp(&path, mesh).map_err(|e| e.to_string()),
+        None => {
+            println!("note: no voxel of the label map has the pulmonary artery's label {label} (--pulmonary-label): the RV outflow will not be measured");
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(format!("{}: {e}", path.display())),
+                _ => Ok(()),
+            }
+        }
+    }
 }
 
 /// `baffle phantom --heart`: the synthetic heart's segment surfaces and suture points in `out`.
@@ -144,12 +193,23 @@ pub fn write_synthetic_heart(out: &Path) -> Result<(), String> {
 pub(crate) fn read_pools(source: &PrepareSource) -> Result<BloodPools, String> {
     match (&source.segmentations, &source.labelmap) {
         (Some(dir), _) => read_segmentations(dir).map_err(|e| e.to_string()),
-        (None, Some(file)) => {
-            let map = read_labelmap(file).map_err(|e| e.to_string())?;
-            let labels = PoolLabels { lv: source.lv_label, rv: source.rv_label, aorta: source.aorta_label };
-            let options = LabelSurfaceOptions { median: !source.no_median, ..LabelSurfaceOptions::default() };
-            pools_from_labelmap(&map, &labels, &options).map_err(|e| format!("{}: {e}", file.display()))
-        }
+        (None, Some(file)) => labelmap_pools(source, file, &read_labelmap(file).map_err(|e| e.to_string())?),
         (None, None) => Err("give --segmentations DIR or --labelmap FILE".into()),
     }
+}
+
+/// The blood pools and, from a label map, its pulmonary artery (None inside: the label
+/// map has none; None outside: segmentations, whose pulmonary file is read where needed).
+fn read_inputs(source: &PrepareSource) -> Result<(BloodPools, Option<Option<TriMesh>>), String> {
+    let (None, Some(file)) = (&source.segmentations, &source.labelmap) else {
+        return Ok((read_pools(source)?, None));
+    };
+    let map = read_labelmap(file).map_err(|e| e.to_string())?;
+    let pools = labelmap_pools(source, file, &map)?;
+    let pulmonary = pulmonary_from_labelmap(&map, &source.pool_labels(), source.pulmonary_label, &source.label_options()).map_err(|e| format!("{}: {e}", file.display()))?;
+    Ok((pools, Some(pulmonary)))
+}
+
+fn labelmap_pools(source: &PrepareSource, file: &Path, map: &LabelMap) -> Result<BloodPools, String> {
+    pools_from_labelmap(map, &source.pool_labels(), &source.label_options()).map_err(|e| format!("{}: {e}", file.display()))
 }

@@ -15,11 +15,12 @@ use crate::plan_cmd;
 use crate::plan_stages::{self, PlanArgs, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
 use crate::progress::{Progress, Style};
-use crate::report::svg_plot::{line_chart, Series};
+use crate::report::svg_plot::{line_chart, with_note, Series};
 use crate::design_cmd::{design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignArgs, TargetArgs};
 use crate::verdict::{self, Verdict};
 use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
 use baffle_core::outputs::write_design_outputs;
+use baffle_core::rv_outflow::NarrowedSection;
 use baffle_core::{design, DesignError, DesignReport, TargetArea};
 use clap::Args;
 use serde_json::json;
@@ -124,6 +125,16 @@ impl Row {
         self.report().and_then(|d| d.rv_cost.rv_outflow.rv_outflow_min_section_mm2).unwrap_or(f64::NAN)
     }
 
+    /// A figure of the outflow section the baffle narrows most, NaN where not measured.
+    fn most_narrowed(&self, f: impl Fn(&NarrowedSection) -> f64) -> f64 {
+        self.report().and_then(|d| d.rv_cost.rv_outflow.rv_outflow_most_narrowed.as_ref()).map_or(f64::NAN, f)
+    }
+
+    /// Why the RV outflow figures of a designed row are missing.
+    fn outflow_unavailable(&self) -> Option<&str> {
+        self.report()?.rv_cost.rv_outflow.rv_outflow_unavailable.as_deref()
+    }
+
     fn max_feasible(&self) -> (f64, Option<f64>) {
         match self.outcome {
             Outcome::Infeasible { max_feasible_area_mm2, max_feasible_z_score, .. } => (max_feasible_area_mm2, max_feasible_z_score),
@@ -175,7 +186,7 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
     let prepared = prepare_once(args)?;
     let (surface, points, default_bsa) = design_inputs(&DesignArgs { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
-    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface());
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&plan_stages::prepared_surface_path(&args.design.out)));
     if args.cfd.cfd {
         // Every stage's arguments are checked before the first design, as the plan does.
         plan_stages::plan_stages(&plan_args(args, &args.design.out, f64::NAN))?;
@@ -359,7 +370,7 @@ fn optional(v: Option<f64>, decimals: usize) -> String {
     cell(v.unwrap_or(f64::NAN), decimals)
 }
 
-const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,rv_outflow_min_section_mm2,max_feasible_area_mm2,max_feasible_z_score,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
+const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,rv_outflow_min_section_mm2,rv_outflow_most_narrowed_before_mm2,rv_outflow_most_narrowed_after_mm2,rv_outflow_most_narrowed_after_over_before,rv_outflow_most_narrowed_from_pulmonary_end_mm,max_feasible_area_mm2,max_feasible_z_score,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
 
 fn csv(rows: &[Row]) -> String {
     let mut s = format!("{CSV_HEADER}\n");
@@ -376,6 +387,10 @@ fn csv(rows: &[Row]) -> String {
             cell(r.designed(|d| d.rv_cost.rv_volume_taken_ml), 4),
             cell(r.designed(|d| d.rv_cost.baffle_area_outside_ventricle_mm2), 2),
             cell(r.rv_outflow_mm2(), 2),
+            cell(r.most_narrowed(|n| n.area_before_mm2), 2),
+            cell(r.most_narrowed(|n| n.area_after_mm2), 2),
+            cell(r.most_narrowed(|n| n.after_over_before), 4),
+            cell(r.most_narrowed(|n| n.distance_from_pulmonary_end_mm), 1),
             cell(max_area, 3),
             optional(max_z, 3),
             cell(r.quick(|q| q.dp_mmhg), 3),
@@ -393,8 +408,8 @@ fn csv(rows: &[Row]) -> String {
 
 fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | RV outflow smallest section (mm2) | largest feasible target (mm2) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | RV outflow smallest section (mm2) | RV outflow most narrowed: before / after (mm2) | left (%) | from the pulmonary end (mm) | largest feasible target (mm2) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let (max_area, max_z) = r.max_feasible();
@@ -404,7 +419,7 @@ fn markdown(rows: &[Row]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             optional(r.z_score, 2),
             cell(r.target_area_mm2, 1),
             r.status(),
@@ -414,6 +429,9 @@ fn markdown(rows: &[Row]) -> String {
             cell(r.designed(|d| d.rv_cost.rv_volume_after_ml), 2),
             cell(r.designed(|d| d.rv_cost.rv_volume_taken_ml), 2),
             cell(r.rv_outflow_mm2(), 1),
+            before_after(r.most_narrowed(|n| n.area_before_mm2), r.most_narrowed(|n| n.area_after_mm2)),
+            cell(r.most_narrowed(|n| 100.0 * n.after_over_before), 0),
+            cell(r.most_narrowed(|n| n.distance_from_pulmonary_end_mm), 1),
             largest,
             cell(r.quick(|q| q.dp_mmhg), 2),
             cell(r.quick(|q| q.vmax_m_s), 2),
@@ -423,18 +441,37 @@ fn markdown(rows: &[Row]) -> String {
     }
     let mut notes: Vec<String> = rows.iter().filter(|r| !r.note().is_empty()).map(|r| format!("- {}: {}", r.folder(), r.note())).collect();
     // Why the RV outflow is not measured, once per distinct reason.
-    let mut outflow_reasons: Vec<&str> = rows.iter().filter_map(|r| r.report()?.rv_cost.rv_outflow.rv_outflow_unavailable.as_deref()).collect();
-    outflow_reasons.dedup();
-    notes.extend(outflow_reasons.iter().map(|reason| format!("- RV outflow smallest section not measured: {reason}")));
+    notes.extend(outflow_reasons(rows).iter().map(|reason| format!("- RV outflow sections not measured: {reason}")));
     if !notes.is_empty() {
         let _ = write!(s, "\n{}\n", notes.join("\n"));
     }
     s
 }
 
-/// Three charts over the sweep's x (z-score, else target area): the areas, the baffle,
-/// and the RV volumes (and, with --cfd, the quick dp against 10 mmHg); infeasible targets
-/// are gaps, the largest feasible target a line.
+/// "before / after", empty when not measured.
+fn before_after(before: f64, after: f64) -> String {
+    if before.is_finite() && after.is_finite() {
+        format!("{before:.1} / {after:.1}")
+    } else {
+        String::new()
+    }
+}
+
+/// Why the RV outflow is not measured, once per distinct reason.
+fn outflow_reasons(rows: &[Row]) -> Vec<&str> {
+    let mut reasons: Vec<&str> = Vec::new();
+    for reason in rows.iter().filter_map(Row::outflow_unavailable) {
+        if !reasons.contains(&reason) {
+            reasons.push(reason);
+        }
+    }
+    reasons
+}
+
+/// Four charts over the sweep's x (z-score, else target area): the areas, the baffle,
+/// the RV volumes and the RV outflow sections (and, with --cfd, the quick dp against 10
+/// mmHg); infeasible targets and unmeasured figures are gaps, the largest feasible target
+/// a line.
 fn plot(rows: &[Row]) -> String {
     let by_z = rows.iter().all(|r| r.z_score.is_some());
     let x = |r: &Row| if by_z { r.z_score.unwrap_or(f64::NAN) } else { r.target_area_mm2 };
@@ -469,6 +506,7 @@ fn plot(rows: &[Row]) -> String {
             ],
             true,
         ),
+        outflow_chart(rows, x_label, &series),
     ];
     if rows.iter().any(|r| r.quick.is_some()) {
         let threshold = Series { label: "10 mmHg".into(), dashed: true, markers: false, ..series("", "#d62728", &|_| verdict::DP_THRESHOLD_MMHG) };
@@ -476,6 +514,25 @@ fn plot(rows: &[Row]) -> String {
         charts.push(line_chart("Quick dp estimate", x_label, "dp (mmHg)", &[dp, threshold], true));
     }
     stack(&charts)
+}
+
+/// The RV outflow's smallest section after the baffle and the section the baffle narrows
+/// most, before and after; rows without them are gaps, and the chart says why.
+fn outflow_chart(rows: &[Row], x_label: &str, series: &dyn Fn(&str, &'static str, &dyn Fn(&Row) -> f64) -> Series) -> String {
+    let lines = [
+        series("smallest section", "#1f77b4", &|r| r.rv_outflow_mm2()),
+        Series { dashed: true, ..series("most narrowed, before", "#7f7f7f", &|r| r.most_narrowed(|n| n.area_before_mm2)) },
+        series("most narrowed, after", "#ff7f0e", &|r| r.most_narrowed(|n| n.area_after_mm2)),
+    ];
+    let chart = line_chart("RV outflow (apex region to the pulmonary artery)", x_label, "section area (mm2)", &lines, true);
+    let missing = rows.iter().filter(|r| r.report().is_some() && r.rv_outflow_mm2().is_nan()).count();
+    match missing {
+        0 => chart,
+        _ => {
+            let why = outflow_reasons(rows).first().map_or(String::new(), |r| format!(": {r}"));
+            with_note(&chart, &format!("not measured at {missing} of {} designed targets{why}", rows.iter().filter(|r| r.report().is_some()).count()))
+        }
+    }
 }
 
 /// The charts one below the other in one SVG document.
@@ -512,6 +569,10 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
                 "rv_volume_taken_ml": number(r.designed(|d| d.rv_cost.rv_volume_taken_ml)),
                 "baffle_area_outside_ventricle_mm2": number(r.designed(|d| d.rv_cost.baffle_area_outside_ventricle_mm2)),
                 "rv_outflow_min_section_mm2": number(r.rv_outflow_mm2()),
+                "rv_outflow_most_narrowed_before_mm2": number(r.most_narrowed(|n| n.area_before_mm2)),
+                "rv_outflow_most_narrowed_after_mm2": number(r.most_narrowed(|n| n.area_after_mm2)),
+                "rv_outflow_most_narrowed_after_over_before": number(r.most_narrowed(|n| n.after_over_before)),
+                "rv_outflow_most_narrowed_from_pulmonary_end_mm": number(r.most_narrowed(|n| n.distance_from_pulmonary_end_mm)),
                 "rv_outflow_unavailable": r.report().and_then(|d| d.rv_cost.rv_outflow.rv_outflow_unavailable.clone()),
                 "max_feasible_area_mm2": number(max_area),
                 "max_feasible_z_score": max_z,
@@ -529,6 +590,7 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use baffle_core::rv_outflow::RvOutflow;
 
     fn rows() -> Vec<Row> {
         vec![
@@ -558,12 +620,101 @@ mod tests {
     }
 
     #[test]
-    fn the_plot_is_one_svg_of_three_charts_without_nan() {
+    fn the_plot_is_one_svg_of_four_charts_without_nan() {
         let svg = plot(&rows());
         assert!(svg.starts_with("<svg") && svg.ends_with("</svg>"));
-        assert_eq!(svg.matches("<svg").count(), 4);
-        assert!(svg.contains(r#"height="900""#), "{}", &svg[..200]);
+        assert_eq!(svg.matches("<svg").count(), 5);
+        assert!(svg.contains(r#"height="1200""#), "{}", &svg[..200]);
         assert!(!svg.contains("NaN") && !svg.contains("inf"));
         assert!(svg.contains("largest feasible"));
+    }
+
+    /// Designed rows on the phantom (no pulmonary artery there), their RV outflow figures
+    /// set: measured at z = -1 and +1, unavailable at z = 0.
+    fn outflow_rows() -> Vec<Row> {
+        let p = baffle_core::phantom::phantom_default();
+        let options = baffle_core::DesignOptions::default();
+        let report = design(&p.surface, &p.suture_points_mm, &TargetArea::AreaMm2(60.0), &options, &mut |_, _| true).unwrap().report;
+        let measured = |smallest: f64, before: f64, after: f64| RvOutflow {
+            rv_outflow_min_section_mm2: Some(smallest),
+            rv_outflow_min_section_before_mm2: Some(smallest),
+            rv_outflow_most_narrowed: Some(NarrowedSection {
+                area_before_mm2: before,
+                area_after_mm2: after,
+                after_over_before: after / before,
+                distance_from_pulmonary_end_mm: 11.3,
+                point_mm: [0.0; 3],
+                normal: [0.0, 0.0, 1.0],
+            }),
+            rv_outflow_unavailable: None,
+            ..RvOutflow::unavailable("")
+        };
+        let outflows = [(-1.0, measured(17.0, 320.0, 230.0)), (0.0, RvOutflow::unavailable("the pulmonary artery does not touch the RV")), (1.0, measured(17.0, 330.0, 180.0))];
+        outflows
+            .into_iter()
+            .map(|(z, outflow)| {
+                let mut report = report.clone();
+                report.rv_cost.rv_outflow = outflow;
+                Row { z_score: Some(z), target_area_mm2: 60.0, outcome: Outcome::Designed(Box::new(report)), design_ms: 1.0, quick: None }
+            })
+            .collect()
+    }
+
+    /// A chart's data coordinates from its tick labels: (value, pixel) pairs of an axis.
+    fn axis_map(ticks: &[(f64, f64)]) -> impl Fn(f64) -> f64 {
+        let ((v0, p0), (v1, p1)) = (ticks[0], ticks[ticks.len() - 1]);
+        move |pixel| v0 + (pixel - p0) * (v1 - v0) / (p1 - p0)
+    }
+
+    #[test]
+    fn the_plot_shows_the_rv_outflow_sections_with_unmeasured_rows_as_gaps() {
+        let svg = plot(&outflow_rows());
+        let doc = roxmltree::Document::parse(&svg).expect("the sweep plot is XML");
+        let chart = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("svg"))
+            .find(|c| c.children().find(|n| n.has_tag_name("text")).and_then(|t| t.text()) == Some("RV outflow (apex region to the pulmonary artery)"))
+            .expect("an RV outflow chart");
+        let number = |n: roxmltree::Node, a: &str| n.attribute(a).unwrap().parse::<f64>().unwrap();
+        let texts: Vec<roxmltree::Node> = chart.children().filter(|n| n.has_tag_name("text")).collect();
+        let value = |t: &roxmltree::Node| t.text().and_then(|v| v.parse::<f64>().ok());
+        // Tick labels: the y axis's are right-aligned (4 px below their line), the x axis's on one row under the plot.
+        let y_ticks: Vec<(f64, f64)> = texts.iter().filter(|t| t.attribute("text-anchor") == Some("end")).filter_map(|t| Some((value(t)?, number(*t, "y") - 4.0))).collect();
+        let x_ticks: Vec<(f64, f64)> = texts.iter().filter(|t| t.attribute("y") == Some("270")).filter_map(|t| Some((value(t)?, number(*t, "x")))).collect();
+        let (to_y, to_x) = (axis_map(&y_ticks), axis_map(&x_ticks));
+        let markers = |color: &str| -> Vec<(f64, f64)> {
+            chart.children().filter(|n| n.has_tag_name("circle") && n.attribute("fill") == Some(color)).map(|c| (to_x(number(c, "cx")), to_y(number(c, "cy")))).collect()
+        };
+        let near = |a: &[(f64, f64)], b: &[(f64, f64)]| a.len() == b.len() && a.iter().zip(b).all(|(p, q)| (p.0 - q.0).abs() < 0.02 && (p.1 - q.1).abs() < 2.0);
+        // Each series has a point at z = -1 and +1 and none at z = 0 (not a zero).
+        for (color, expected) in [("#1f77b4", [(-1.0, 17.0), (1.0, 17.0)]), ("#7f7f7f", [(-1.0, 320.0), (1.0, 330.0)]), ("#ff7f0e", [(-1.0, 230.0), (1.0, 180.0)])] {
+            assert!(near(&markers(color), &expected), "{color}: {:?}, expected {expected:?}", markers(color));
+        }
+        let legend: Vec<&str> = texts.iter().filter_map(|t| t.text()).collect();
+        for label in ["smallest section", "most narrowed, before", "most narrowed, after", "section area (mm2)"] {
+            assert!(legend.contains(&label), "{label}: {legend:?}");
+        }
+        let note = texts.iter().find(|t| t.attribute("class") == Some("note")).and_then(|t| t.text()).expect("a note on the missing row");
+        assert!(note.starts_with("not measured at 1 of 3 designed targets: the pulmonary artery"), "{note}");
+    }
+
+    #[test]
+    fn the_tables_carry_the_rv_outflow_sections_with_their_units() {
+        let rows = outflow_rows();
+        let csv = csv(&rows);
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        let column = |name: &str, line: usize| csv.lines().nth(line).unwrap().split(',').nth(header.iter().position(|h| *h == name).unwrap()).unwrap().to_string();
+        assert_eq!(column("rv_outflow_min_section_mm2", 1), "17.00");
+        assert_eq!(column("rv_outflow_most_narrowed_after_mm2", 3), "180.00");
+        assert_eq!(column("rv_outflow_most_narrowed_after_over_before", 3), "0.5455");
+        assert_eq!(column("rv_outflow_most_narrowed_from_pulmonary_end_mm", 1), "11.3");
+        assert_eq!(column("rv_outflow_most_narrowed_after_mm2", 2), "", "not measured: empty, not 0");
+        let md = markdown(&rows);
+        assert!(md.contains("| RV outflow most narrowed: before / after (mm2) | left (%) | from the pulmonary end (mm) |"), "{md}");
+        assert!(md.contains("| 17.0 | 330.0 / 180.0 | 55 | 11.3 |"), "{md}");
+        assert!(md.contains("- RV outflow sections not measured: the pulmonary artery does not touch the RV"), "{md}");
+        let json = json_doc(&rows, 1.0);
+        assert_eq!(json["rows"][2]["rv_outflow_most_narrowed_before_mm2"], 330.0);
+        assert!(json["rows"][1]["rv_outflow_most_narrowed_after_mm2"].is_null());
     }
 }

@@ -325,15 +325,35 @@ impl Default for LabelSurfaceOptions {
 /// binary mask, closing, 3x3x3 median, marching tetrahedra, Taubin smoothing.
 /// A label with no voxel is named.
 pub fn pools_from_labelmap(map: &LabelMap, labels: &PoolLabels, options: &LabelSurfaceOptions) -> Result<BloodPools, PrepareError> {
+    check_map(map)?;
+    labels.check_distinct()?;
+    let surface = |name: &'static str, value: i32| label_surface(map, name, value, options);
+    Ok(BloodPools { lv: surface("LV", labels.lv)?, rv: surface("RV", labels.rv)?, aorta: surface("aorta", labels.aorta)? })
+}
+
+/// The pulmonary artery's surface of a label map, made as the pools' are: where the RV
+/// outflow ends. None when no voxel has `label` (the label map still prepares; only the
+/// RV outflow is then not measured). `label` must not be one of the pools'.
+pub fn pulmonary_from_labelmap(map: &LabelMap, pools: &PoolLabels, label: i32, options: &LabelSurfaceOptions) -> Result<Option<TriMesh>, PrepareError> {
+    check_map(map)?;
+    if let Some((name, _)) = [("LV", pools.lv), ("RV", pools.rv), ("aorta", pools.aorta)].into_iter().find(|&(_, l)| l == label) {
+        return Err(PrepareError::geometry("label map", format!("the pulmonary artery and the {name} have the same label {label}; each structure needs its own")));
+    }
+    if !map.labels.contains(&label) {
+        return Ok(None);
+    }
+    label_surface(map, "pulmonary artery", label, options).map(Some)
+}
+
+/// As many labels as voxels, and finite, non-degenerate voxel axes.
+fn check_map(map: &LabelMap) -> Result<(), PrepareError> {
     if voxel_count(&map.dims).ok() != Some(map.labels.len()) {
         return Err(PrepareError::geometry("label map", format!("{} labels for a {:?} image", map.labels.len(), map.dims)));
     }
     if !(map.axes_mm.determinant().abs() > 0.0 && map.axes_mm.iter().chain(map.origin_mm.iter()).all(|v| v.is_finite())) {
         return Err(PrepareError::geometry("label map", "the voxel axes are degenerate or not finite"));
     }
-    labels.check_distinct()?;
-    let surface = |name: &'static str, value: i32| label_surface(map, name, value, options);
-    Ok(BloodPools { lv: surface("LV", labels.lv)?, rv: surface("RV", labels.rv)?, aorta: surface("aorta", labels.aorta)? })
+    Ok(())
 }
 
 /// Voxels padded on every side so the contour closes inside the grid.
@@ -526,6 +546,31 @@ mod tests {
         let [m_lv, m_rv, m_ao] = [&lv, &rv, &aorta].map(|m| voxelize(m, &grid));
         let labels = (0..grid.voxel_count()).map(|v| if m_rv[v] { 2 } else if m_lv[v] { 1 } else if m_ao[v] { 6 } else { 0 }).collect();
         LabelMap { dims: grid.dims, labels, origin_mm: grid.origin, axes_mm: Matrix3::from_diagonal(&Vec3::repeat(voxel_mm)) }
+    }
+
+    #[test]
+    fn the_pulmonary_label_gives_its_surface_or_none() {
+        let mut map = synthetic_labelmap(0.5);
+        let pools = PoolLabels::default();
+        let options = LabelSurfaceOptions::default();
+        assert_eq!(pulmonary_from_labelmap(&map, &pools, 7, &options).unwrap(), None, "no voxel has label 7");
+        // A pulmonary box on the RV, beside the aorta (outside the RV only: the RV keeps its voxels).
+        let grid = Grid { origin: map.origin_mm, spacing_mm: 0.5, dims: map.dims };
+        let in_box = |p: Vec3| (20.0..24.0).contains(&p.x) && p.y.abs() < 3.0 && (5.0..11.0).contains(&p.z);
+        let mut box_mm3 = 0.0;
+        for v in 0..map.labels.len() {
+            if map.labels[v] == 0 && in_box(grid.centre(v)) {
+                map.labels[v] = 7;
+                box_mm3 += 0.125;
+            }
+        }
+        let pa = pulmonary_from_labelmap(&map, &pools, 7, &options).unwrap().expect("a pulmonary surface");
+        // Outward, about the labelled volume (the smoothing rounds its edges), and where it was labelled.
+        let volume_mm3 = pa.signed_volume_mm3();
+        assert!((volume_mm3 / box_mm3 - 1.0).abs() < 0.25, "{volume_mm3} vs {box_mm3} mm3");
+        assert!(pa.points.iter().all(|&p| (19.0..25.0).contains(&p.x) && p.y.abs() < 4.0 && (4.0..12.0).contains(&p.z)));
+        let e = pulmonary_from_labelmap(&map, &pools, 2, &options).unwrap_err().to_string();
+        assert!(e.contains("the pulmonary artery and the RV have the same label 2"), "{e}");
     }
 
     #[test]

@@ -27,5 +27,5 @@ pub mod aorta_family;
 pub use error::PrepareError;
 pub use input::{read_segmentations, BloodPools};
 pub use prepare::{prepare, PrepareOptions, PrepareReport};
-pub use labelmap::{pools_from_labelmap, read_labelmap, LabelMap, LabelSurfaceOptions, PoolLabels};
+pub use labelmap::{pools_from_labelmap, pulmonary_from_labelmap, read_labelmap, LabelMap, LabelSurfaceOptions, PoolLabels};
 pub use extend::{extend, ExtendOptions, ExtendReport, Extended};

@@ -238,6 +238,37 @@ def _nan(value) -> float:
     return float("nan") if value is None else float(value)
 
 
+
+def rv_outflow_attributes(report):
+    """The RV outflow figures of a design report as (attribute, text) pairs: the smallest
+    section after the baffle and the section the baffle narrows most ("" where not
+    measured), and RvOutflowNote: why they are missing."""
+    narrowed = report.get("rv_outflow_most_narrowed") or {}
+    text = lambda value, digits: "" if value is None else f"{value:.{digits}f}"
+    return (
+        ("RvOutflowMinSectionMm2", text(report.get("rv_outflow_min_section_mm2"), 1)),
+        ("RvOutflowMostNarrowedBeforeMm2", text(narrowed.get("area_before_mm2"), 1)),
+        ("RvOutflowMostNarrowedAfterMm2", text(narrowed.get("area_after_mm2"), 1)),
+        ("RvOutflowMostNarrowedAfterOverBefore", text(narrowed.get("after_over_before"), 3)),
+        ("RvOutflowMostNarrowedFromPulmonaryEndMm", text(narrowed.get("distance_from_pulmonary_end_mm"), 1)),
+        ("RvOutflowNote", report.get("rv_outflow_unavailable") or ""),
+    )
+
+
+def rv_outflow_line(attribute):
+    """The RV outflow in one line from a candidate's attributes (`attribute(name)`)."""
+    after = attribute("RvOutflowMostNarrowedAfterMm2")
+    note = attribute("RvOutflowNote") or ""
+    if not after:
+        return f"RV outflow not measured: {note}" if note else "RV outflow not measured"
+    return (
+        f"RV outflow: smallest section {attribute('RvOutflowMinSectionMm2')} mm2; the baffle narrows it most "
+        f"{attribute('RvOutflowMostNarrowedFromPulmonaryEndMm')} mm from the pulmonary end: "
+        f"{attribute('RvOutflowMostNarrowedBeforeMm2')} -> {after} mm2 "
+        f"({100.0 * float(attribute('RvOutflowMostNarrowedAfterOverBefore')):.0f} % left)"
+    )
+
+
 def polygon_area(loop: np.ndarray) -> float:
     """Area of a closed planar polygon (points in order, first not repeated)."""
     origin = loop.mean(axis=0)
@@ -495,6 +526,7 @@ class BaffleDesignerLogic:
             ("RvVolumeBeforeMl", f"{report['rv_volume_before_ml']:.3f}"),
             ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
             ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
+            *rv_outflow_attributes(report),
             ("DesignTimeMs", f"{elapsed_ms:.0f}"),
         ):
             curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))

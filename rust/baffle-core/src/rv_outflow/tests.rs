@@ -96,6 +96,41 @@ fn a_domain_in_the_neck_narrows_the_section_after_the_baffle() {
     let (before, after) = (r.rv_outflow_min_section_before_mm2.unwrap(), r.rv_outflow_min_section_mm2.unwrap());
     assert!((before - 12.0).abs() <= 0.24, "{r:?}");
     assert!((after - 6.0).abs() <= 0.24, "{r:?}");
+    // The neck is also where the baffle narrows the path most: half of it is left.
+    let n = r.rv_outflow_most_narrowed.unwrap();
+    assert!((n.area_before_mm2 - 12.0).abs() <= 0.24 && (n.area_after_mm2 - 6.0).abs() <= 0.24, "{n:?}");
+    assert!((n.after_over_before - 0.5).abs() <= 0.03, "{n:?}");
+    // The domain spans x 11..15 of the neck; the path ends at the far cube's face x = 26.
+    assert!(n.point_mm[0] > 11.0 && n.point_mm[0] < 15.0, "{n:?}");
+    assert!((n.distance_from_pulmonary_end_mm - (26.0 - n.point_mm[0])).abs() < 1.0, "{n:?}");
+}
+
+#[test]
+fn a_domain_off_the_path_narrows_nothing() {
+    // The corner box is cut by the tilted planes near the path's start (9 % there);
+    // a domain beside the ventricle is in no section's piece.
+    let r = rv_outflow(&dumbbell(), &small_domain(), &pulmonary(0.0)).unwrap();
+    assert!(r.rv_outflow_most_narrowed.as_ref().unwrap().after_over_before > 0.8, "{r:?}");
+    let beside = boxes(&[([2.0, 11.0, 2.0], [8.0, 14.0, 8.0])]);
+    let n = rv_outflow(&dumbbell(), &beside, &pulmonary(0.0)).unwrap().rv_outflow_most_narrowed.unwrap();
+    assert_eq!(n.after_over_before, 1.0, "{n:?}");
+    assert_eq!(n.area_before_mm2, n.area_after_mm2);
+}
+
+#[test]
+fn the_section_before_is_the_solid_through_the_same_pixel() {
+    // A cube with a hole box through the middle that splits the plane x = 5 into a ring:
+    // the hole does not split the ring, so after = 100 - 24, before = 100.
+    let cube = boxes(&[([0.0, 0.0, 0.0], [10.0, 10.0, 10.0])]);
+    let hole = boxes(&[([2.0, 3.0, 3.0], [8.0, 7.0, 7.0])]);
+    let a = section_areas(&cube, Some(&hole), Vec3::new(5.0, 1.0, 1.0), Vec3::x()).unwrap();
+    assert!((a.region_mm2 - 84.0).abs() < 0.5 && (a.solid_mm2 - 100.0).abs() < 0.5, "{a:?}");
+    // A wall across the cube (y 4..6) cuts the plane in two: after is the half holding
+    // the point (40 mm2 of y 0..4), before the whole square.
+    let wall = boxes(&[([-1.0, 4.0, -1.0], [11.0, 6.0, 11.0])]);
+    let a = section_areas(&cube, Some(&wall), Vec3::new(5.0, 1.0, 5.0), Vec3::x()).unwrap();
+    assert!((a.region_mm2 - 40.0).abs() < 0.5 && (a.solid_mm2 - 100.0).abs() < 0.5, "{a:?}");
+    assert_eq!(section_areas(&cube, None, Vec3::new(5.0, 5.0, 5.0), Vec3::x()).map(|a| a.region_mm2 == a.solid_mm2), Some(true));
 }
 
 #[test]
@@ -111,6 +146,7 @@ fn a_domain_covering_the_interface_is_named() {
     let domain = boxes(&[([20.0, -1.0, -1.0], [27.0, 11.0, 11.0])]);
     let r = rv_outflow(&dumbbell(), &domain, &pulmonary(0.0)).unwrap();
     assert!(r.rv_outflow_min_section_before_mm2.is_some() && r.rv_outflow_min_section_mm2.is_none(), "{r:?}");
+    assert_eq!(r.rv_outflow_most_narrowed, None);
     assert!(r.rv_outflow_unavailable.unwrap().contains("covers the RV's interface"));
 }
 

@@ -139,6 +139,10 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
         row("rv_volume_after_ml", "RV volume after the baffle (outside the pathway)", d("/rv_volume_after_ml")?, "mL", 2),
         // Null where the pulmonary artery is not known or does not touch the RV ("—").
         row("rv_outflow_min_section_mm2", "RV outflow smallest section after the baffle (apex region to the pulmonary interface)", optional_number(design, "/rv_outflow_min_section_mm2"), "mm²", 1),
+        row("rv_outflow_most_narrowed_before_mm2", "RV outflow section the baffle narrows most: before the baffle", optional_number(design, "/rv_outflow_most_narrowed/area_before_mm2"), "mm²", 1),
+        row("rv_outflow_most_narrowed_after_mm2", "RV outflow section the baffle narrows most: after the baffle", optional_number(design, "/rv_outflow_most_narrowed/area_after_mm2"), "mm²", 1),
+        row("rv_outflow_most_narrowed_after_over_before", "RV outflow section the baffle narrows most: after / before", optional_number(design, "/rv_outflow_most_narrowed/after_over_before"), "", 2),
+        row("rv_outflow_most_narrowed_from_pulmonary_end_mm", "RV outflow section the baffle narrows most: distance from the pulmonary end", optional_number(design, "/rv_outflow_most_narrowed/distance_from_pulmonary_end_mm"), "mm", 1),
         row("tetrahedra", "Tetrahedra", q("/tetrahedra")?, "", 0),
         row("min_scaled_jacobian", "Scaled Jacobian, min", q("/min_scaled_jacobian")?, "", 3),
         row("p1_scaled_jacobian", "Scaled Jacobian, 1st percentile", q("/p1_scaled_jacobian")?, "", 3),
@@ -147,6 +151,25 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
         row("max_velocity_m_s", "v_max (domain)", nominal.v_max_m_s()?, "m/s", 3),
         row("max_centerline_velocity_m_s", "v_max along the flow-domain centerline", centerline.profile.v_max_m_s(), "m/s", 3),
     ])
+}
+
+/// The RV outflow figures in words for the surgeon: what each means, or why there are none.
+fn rv_outflow_text(design: &Value) -> String {
+    if let Some(reason) = design["rv_outflow_unavailable"].as_str() {
+        return format!("RV outflow sections not measured: {reason}.");
+    }
+    let n = |key: &str| optional_number(design, &format!("/rv_outflow_most_narrowed/{key}"));
+    let smallest = optional_number(design, "/rv_outflow_min_section_mm2");
+    let verdict = if n("after_over_before") >= 1.0 {
+        "the baffle narrows no section of it".to_string()
+    } else if n("area_after_mm2") >= smallest {
+        format!("where the baffle narrows it most ({:.1} mm from the pulmonary end) {:.0} % of the section is left, {:.1} mm², still no less than the smallest section ({smallest:.1} mm²): the baffle does not make a new narrowest point", n("distance_from_pulmonary_end_mm"), 100.0 * n("after_over_before"), n("area_after_mm2"))
+    } else {
+        format!("where the baffle narrows it most ({:.1} mm from the pulmonary end) {:.0} % of the section is left, {:.1} mm²: this is the outflow's narrowest point after the baffle", n("distance_from_pulmonary_end_mm"), 100.0 * n("after_over_before"), n("area_after_mm2"))
+    };
+    format!(
+        "RV outflow (the widest, centred path from the RV apex region to the pulmonary artery, with no pulmonary valve plane known): its smallest section is {smallest:.1} mm² after the baffle; {verdict}."
+    )
 }
 
 /// The flow-domain centerline of the centerline stage (mm) and the nominal run's
@@ -638,6 +661,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         "prepare": prepare,
         "domain": cfd_domain,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
+        // Why the RV outflow quantities are null, and what they mean.
+        "rv_outflow": { "unavailable": design["rv_outflow_unavailable"], "text": rv_outflow_text(&design) },
         // passes is true only for a trusted run below the threshold, never for an inconclusive one.
         "verdict": {
             "verdict": verdict.key(), "reason": verdict.reason(), "passes": verdict == Verdict::Passes,
@@ -743,6 +768,8 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         }
         None => html.table(&["Quantity", "Value", "Unit"], &rows),
     }
+
+    html.para(&rv_outflow_text(&design));
 
     if let Some(prepare) = &prepare {
         html.heading("Capped ventricle (prepare stage)");

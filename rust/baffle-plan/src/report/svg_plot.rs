@@ -124,6 +124,18 @@ pub fn line_chart(title: &str, x_label: &str, y_label: &str, series: &[Series], 
     s
 }
 
+/// `chart` with a one-line note at the top of its plot area (why values are missing),
+/// cut to what fits the width.
+pub fn with_note(chart: &str, note: &str) -> String {
+    let fits = ((WIDTH - LEFT - RIGHT - 8.0) / 5.0) as usize;
+    let text: String = if note.chars().count() > fits { note.chars().take(fits - 3).chain("...".chars()).collect() } else { note.into() };
+    let line = format!(r##"<text class="note" x="{}" y="{}" font-size="10" fill="#555">{}</text>"##, LEFT + 4.0, TOP + 12.0, escape(&text));
+    match chart.rfind("</svg>") {
+        Some(end) => format!("{}{line}</svg>", &chart[..end]),
+        None => chart.to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -313,6 +313,22 @@ def test_rv_volumes_are_on_the_candidate(p2_scene):
     assert float(curve.GetAttribute("BaffleDesigner.RvVolumeBeforeMl")) == pytest.approx(mass.GetVolume() / 1e3, abs=1e-3)
     after = report["rv_volume_before_ml"] - report["rv_volume_taken_ml"]
     assert float(curve.GetAttribute("BaffleDesigner.RvVolumeAfterMl")) == pytest.approx(after, abs=1e-3)
+    # The library is given no pulmonary artery here: the outflow figures are empty, not 0, and the reason is shown.
+    assert curve.GetAttribute("BaffleDesigner.RvOutflowMostNarrowedAfterMm2") == ""
+    line = bdlogic.rv_outflow_line(lambda name: curve.GetAttribute("BaffleDesigner." + name))
+    assert line.startswith("RV outflow not measured: no pulmonary artery surface given"), line
+
+
+def test_the_rv_outflow_line_says_where_the_baffle_narrows_it():
+    report = {
+        "rv_outflow_min_section_mm2": 17.04,
+        "rv_outflow_most_narrowed": {"area_before_mm2": 326.77, "area_after_mm2": 228.92, "after_over_before": 0.70055, "distance_from_pulmonary_end_mm": 11.31},
+        "rv_outflow_unavailable": None,
+    }
+    attributes = dict(bdlogic.rv_outflow_attributes(report))
+    assert attributes["RvOutflowMostNarrowedAfterMm2"] == "228.9" and attributes["RvOutflowMostNarrowedAfterOverBefore"] == "0.701"
+    line = bdlogic.rv_outflow_line(attributes.get)
+    assert line == "RV outflow: smallest section 17.0 mm2; the baffle narrows it most 11.3 mm from the pulmonary end: 326.8 -> 228.9 mm2 (70 % left)", line
 
 
 def test_flatten_and_save_template(p2_scene, tmp_path):
