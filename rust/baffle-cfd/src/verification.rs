@@ -409,6 +409,26 @@ fn a_stalled_linear_solve_is_retried_and_the_run_goes_on() {
 }
 
 #[test]
+fn reused_preconditioners_give_the_fresh_answer_with_fewer_factorizations() {
+    // Keeping the factors for up to 4 solves changes only how GMRES gets to the linear
+    // tolerance, not the solution it reaches.
+    let mesh = tube(RADIUS_CM, 1.0, 3, 8, &[]);
+    let fresh = simulate(&mesh, &retry_case(600), &mut |_, _| true).unwrap();
+    let mut s = retry_case(600);
+    s.preconditioner_max_age = 4;
+    let reused = simulate(&mesh, &s, &mut |_, _| true).unwrap();
+    let n = fresh.steps.len();
+    assert_eq!(fresh.timings.factorizations, n);
+    assert!(reused.timings.factorizations < n && reused.timings.factorizations >= n / 4, "{} factorizations in {n} steps", reused.timings.factorizations);
+    assert!(reused.steps.iter().all(|s| s.retries == 0));
+    let p = |s: &crate::StepResult| s.face(INLET).unwrap().mean_pressure_dyn_cm2;
+    let scale = fresh.steps.iter().map(|s| p(s).abs()).fold(0.0, f64::max);
+    for (a, b) in reused.steps.iter().zip(&fresh.steps) {
+        assert!((p(a) - p(b)).abs() <= 1e-4 * scale, "step {}: {} vs {} (largest {scale})", a.step, p(a), p(b));
+    }
+}
+
+#[test]
 fn a_step_that_fails_every_retry_says_what_was_tried_and_what_to_try() {
     let mesh = tube(RADIUS_CM, 1.0, 3, 8, &[]);
     let mut s = retry_case(1);
