@@ -192,7 +192,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
             }
             let step_s = (t.total_s - t.setup_s) / n;
             println!(
-                "  run {k} ({}, coarse aggregates of {} nodes, GMRES({}), preconditioner kept <= {} solves): {step_s:.3} s/step, CPU {cpu_step_s:.3} s/step incl. setup (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, vmax {:.2} cm/s, load {}",
+                "  run {k} ({}, coarse aggregates of {} nodes, GMRES({}), preconditioner kept <= {} solves): {step_s:.3} s/step, CPU {cpu_step_s:.3} s/step incl. setup (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration, {} factorizations), last dp(11-16) {:.4} mmHg, vmax {:.2} cm/s, load {}",
                 if case.mixed_precision { "mixed" } else { "f64" },
                 case.coarse_aggregate_nodes,
                 case.gmres_restart,
@@ -202,6 +202,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
                 t.gmres_s / n,
                 gmres as f64 / n,
                 1e3 * t.gmres_s / gmres.max(1) as f64,
+                t.factorizations,
                 dp_mmhg(&summary, summary.steps.len() - 1),
                 summary.steps.last().map_or(f64::NAN, |r| r.max_velocity_cm_s),
                 load_average()
