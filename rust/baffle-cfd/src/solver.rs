@@ -111,6 +111,15 @@
 //! published mesh 15.3 iterations, 0.61 against 1.07 s a step, the same dp to 0.06 %.
 //! A step whose solve stalls is retried down [`RETRY_LADDER`] before the run fails.
 //!
+//! Fifth session (issue 14, 2026-12-03): transient runs keep the ILU(0) factors and the
+//! coarse correction over several steps ([`FactorsUse`]). An earlier trial (fixed reuse
+//! for 2-8 solves, p2 from rest at t = 0.1 s, README) had stalled. Here the f32 operator
+//! copy is refreshed at every solve, a solve with old factors has a bounded budget and is
+//! redone with new ones when it misses (the step right after an impulsive start does),
+//! and renewal follows the iterations aging adds. p2 from rest to the first peak (164
+//! steps) makes 12 factorizations instead of 164 at 14.2 instead of 13.7 GMRES
+//! iterations a step, with the same dp and v_max to 4 digits.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
