@@ -21,6 +21,9 @@
 //!   (radius 4 mm, length 40 mm, Re ~2,700 at peak flow) meshed at 9.7k, 45k and 150k
 //!   tets (`--big`: and 622k), S steps from rest at t = T, median over N runs.
 //!
+//! `--reuse N`: solves one preconditioner factorization may serve (1: new factors every step);
+//! BENCH_VERBOSE=1 in the environment also prints the GMRES iterations of every step.
+//!
 //! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
 
 mod support;
