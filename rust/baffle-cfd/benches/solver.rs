@@ -3,7 +3,8 @@
 //! paper's settings.
 //!
 //!   cargo bench -p baffle-cfd --bench solver -- [--runs N] [--steps S] [--t0 T] [--picard K]
-//!                          [--precision mixed|f64|both] [--steady] [--full] [--compare-schemes] [--smoke]
+//!                          [--precision mixed|f64|both] [--coarse N] [--restart N] [--reuse N]
+//!                          [--steady] [--full] [--compare-schemes] [--smoke]
 //!
 //! - default: time per time step, median over N runs (3) of S steps (20) started from
 //!   rest at t = T (0.1 s: steep systole, the hardest part) with at most K nonlinear
@@ -19,6 +20,9 @@
 //! - `--scaling`: GMRES iterations and time per step against the mesh size, on one tube
 //!   (radius 4 mm, length 40 mm, Re ~2,700 at peak flow) meshed at 9.7k, 45k and 150k
 //!   tets (`--big`: and 622k), S steps from rest at t = T, median over N runs.
+//!
+//! `--reuse N`: solves one preconditioner factorization may serve (1: new factors every step);
+//! BENCH_VERBOSE=1 in the environment also prints the GMRES iterations of every step.
 //!
 //! Every mode prints the peak resident memory (VmHWM). Data: $BAFFLE_DATA_DIR or ../shared/data.
 
@@ -52,13 +56,15 @@ struct Options {
     from_size: usize,
     /// GMRES restart length (default: the case's, 60).
     restart: Option<usize>,
+    /// Solves one preconditioner may serve (default: the case's).
+    reuse: Option<usize>,
     compare_schemes: bool,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, reuse: None, compare_schemes: false, t0_s: 0.1, picard: None };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -79,6 +85,7 @@ fn options() -> Result<Options, String> {
             "--scaling" => o.scaling = true,
             "--big" => o.big = true,
             "--restart" => o.restart = Some(value("--restart")?.parse().map_err(|e| format!("--restart: {e}"))?),
+            "--reuse" => o.reuse = Some(value("--reuse")?.parse().map_err(|e| format!("--reuse: {e}"))?),
             "--from-size" => o.from_size = value("--from-size")?.parse().map_err(|e| format!("--from-size: {e}"))?,
             "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
@@ -169,6 +176,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
         s.mixed_precision = mixed;
         s.coarse_aggregate_nodes = o.coarse;
         s.gmres_restart = o.restart.unwrap_or(s.gmres_restart);
+        s.preconditioner_max_age = o.reuse.unwrap_or(s.preconditioner_max_age);
         if let Some(k) = o.picard {
             s.max_nonlinear_iterations = k;
         }
@@ -182,18 +190,24 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
             let t = &summary.timings;
             let n = summary.steps.len() as f64;
             let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
+            if std::env::var_os("BENCH_VERBOSE").is_some() {
+                println!("    GMRES it per step: {:?}", summary.steps.iter().map(|r| r.linear_iterations).collect::<Vec<_>>());
+            }
             let step_s = (t.total_s - t.setup_s) / n;
             println!(
-                "  run {k} ({}, coarse aggregates of {} nodes, GMRES({})): {step_s:.3} s/step, CPU {cpu_step_s:.3} s/step incl. setup (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration), last dp(11-16) {:.4} mmHg, load {}",
+                "  run {k} ({}, coarse aggregates of {} nodes, GMRES({}), preconditioner kept <= {} solves): {step_s:.3} s/step, CPU {cpu_step_s:.3} s/step incl. setup (assembly {:.3}, ILU {:.3}, GMRES {:.3} s/step; {:.1} GMRES it/step, {:.1} ms per GMRES iteration, {} factorizations), last dp(11-16) {:.4} mmHg, vmax {:.2} cm/s, load {}",
                 if case.mixed_precision { "mixed" } else { "f64" },
                 case.coarse_aggregate_nodes,
                 case.gmres_restart,
+                case.preconditioner_max_age,
                 t.assembly_s / n,
                 t.preconditioner_s / n,
                 t.gmres_s / n,
                 gmres as f64 / n,
                 1e3 * t.gmres_s / gmres.max(1) as f64,
+                t.factorizations,
                 dp_mmhg(&summary, summary.steps.len() - 1),
+                summary.steps.last().map_or(f64::NAN, |r| r.max_velocity_cm_s),
                 load_average()
             );
             times.push(step_s);
@@ -337,6 +351,7 @@ fn scaling(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
         let mut case = window(&settings, o.t0_s, o.steps);
         case.coarse_aggregate_nodes = o.coarse;
         case.gmres_restart = o.restart.unwrap_or(case.gmres_restart);
+        case.preconditioner_max_age = o.reuse.unwrap_or(case.preconditioner_max_age);
         let (mut step_s, mut cpu_step_s, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
         for _ in 0..o.runs {
             let cpu_before = process_cpu_s();

@@ -111,8 +111,11 @@ pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]
     ElementState { u_old_bar: mean3(u_old), tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(a_bar, ga)) }
 }
 
-/// Row `ai` of the element system: the blocks (ai, 0..4) and node ai's right-hand side.
-pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old: &[[f64; 3]; 4], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
+/// Row `ai` of the element system: the blocks (ai, 0..4) and node ai's right-hand side,
+/// `u_old_ai` being node ai's previous-step velocity (the consistent mass row only needs
+/// it and the centroid's: sum_b M_ab u_b = V/5 u_bar + V/20 u_a, so the rows gather no
+/// other node's old velocity).
+pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
     let rho = phys.density_g_cm3;
     let mu = phys.viscosity_g_cm_s;
     let idt = phys.inv_dt_per_s;
@@ -139,12 +142,9 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old: &[[f64; 3]; 
             blk[3 * B + i] = 0.25 * v * g[bi][i] + tau * v * g[ai][i] * (0.25 * idt + s[bi]);
         }
         blk[3 * B + 3] = tau / rho * v * crate::mesh::dot(g[ai], g[bi]);
-        for i in 0..3 {
-            f[i] += rho * idt * mass * u_old[bi][i];
-        }
     }
     for i in 0..3 {
-        f[i] += tau * v * s[ai] * rho * idt * u_old_bar[i];
+        f[i] = rho * idt * (0.2 * v * u_old_bar[i] + 0.05 * v * u_old_ai[i]) + tau * v * s[ai] * rho * idt * u_old_bar[i];
     }
     f[3] = tau * v * idt * crate::mesh::dot(g[ai], u_old_bar);
     (k, f)
@@ -153,7 +153,7 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old: &[[f64; 3]; 
 /// Element system for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
 pub fn element_system(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> ElementSystem {
     let st = element_state(geo, a, u_old, phys);
-    let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, u_old, phys, ai));
+    let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, &u_old[ai], phys, ai));
     ElementSystem { k: rows.map(|r| r.0), f: rows.map(|r| r.1) }
 }
 
@@ -296,9 +296,10 @@ impl Assembler {
         this.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
             row_vals.fill(0.0);
             rhs_i.fill(0.0);
+            let u_old_i = [0, 1, 2].map(|c| u_old[i * B + c]);
             for &(e, ai) in this.elements_of(i) {
                 let (e, ai) = (e as usize, ai as usize);
-                let (k, f) = element_row(&this.geometry[e], &this.states[e], &nodal(&this.tets[e], u_old), phys, ai);
+                let (k, f) = element_row(&this.geometry[e], &this.states[e], &u_old_i, phys, ai);
                 (0..4).for_each(|bi| this.add_block(row_vals, first, e, ai, bi, &k[bi]));
                 rhs_i.iter_mut().zip(f).for_each(|(d, s)| *d += s);
             }
@@ -352,6 +353,24 @@ mod tests {
             }
         }
         assert!(sum_p.iter().all(|v| v.abs() < 1e-12), "{sum_p:?}");
+    }
+
+    #[test]
+    fn time_rows_apply_the_consistent_mass_matrix_to_the_old_velocity() {
+        // With no advection (no SUPG term) node a's right-hand side is rho/dt sum_b M_ab u_b,
+        // M_ab = V/10 on the diagonal and V/20 off it.
+        let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
+        let geo = element_geometry(&p, &[0, 1, 2, 3]);
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1e3, inv_dt_tau_per_s: 1e3 };
+        let u_old = [[1.0, -2.0, 0.5], [0.3, 0.7, -1.1], [2.2, 0.0, 0.4], [-0.6, 1.5, 0.9]];
+        let es = element_system(&geo, &[[0.0; 3]; 4], &u_old, &phys);
+        for a in 0..4 {
+            for i in 0..3 {
+                let mass: f64 = (0..4).map(|b| if a == b { 0.1 } else { 0.05 } * geo.volume_cm3 * u_old[b][i]).sum();
+                let expected = phys.density_g_cm3 * phys.inv_dt_per_s * mass;
+                assert!((es.f[a][i] - expected).abs() < 1e-12 * expected.abs().max(1.0), "node {a}, component {i}: {} vs {expected}", es.f[a][i]);
+            }
+        }
     }
 
     #[test]

@@ -131,6 +131,9 @@ fn stopped_run_resumes_to_the_same_result_with(scheme: TimeIntegration) {
     s.cycles = 1;
     s.dt_s = 1e-3;
     s.time_integration = scheme;
+    // New factors every step: a resumed run starts with new factors where the straight
+    // run may still reuse old ones, which changes the solves within the linear tolerance.
+    s.preconditioner_max_age = 1;
     let straight = crate::simulate_from(&mesh, &s, None, &mut |_| true).unwrap();
     assert_eq!(straight.summary.steps.len(), 10);
     assert!(straight.cancelled_at_s.is_none());
@@ -405,6 +408,29 @@ fn a_stalled_linear_solve_is_retried_and_the_run_goes_on() {
     for (a, b) in capped.steps.iter().zip(&free.steps) {
         // Both solved each step to the linear tolerance (or accepted at 100x it).
         assert!((p(a) - p(b)).abs() <= 1e-3 * scale, "step {}: {} vs {} (largest {scale})", a.step, p(a), p(b));
+    }
+}
+
+#[test]
+fn reused_preconditioners_give_the_fresh_answer_with_fewer_factorizations() {
+    // Keeping the factors (the default) changes only how GMRES gets to the linear
+    // tolerance, not the solution it reaches; new factors every step as the reference.
+    let mesh = tube(RADIUS_CM, 1.0, 3, 8, &[]);
+    let mut s = retry_case(600);
+    s.preconditioner_max_age = 1;
+    let fresh = simulate(&mesh, &s, &mut |_, _| true).unwrap();
+    let reused = simulate(&mesh, &retry_case(600), &mut |_, _| true).unwrap();
+    let n = fresh.steps.len();
+    assert_eq!(fresh.timings.factorizations, n);
+    assert!(reused.timings.factorizations < n, "{} factorizations in {n} steps", reused.timings.factorizations);
+    s.preconditioner_max_age = 3;
+    let capped = simulate(&mesh, &s, &mut |_, _| true).unwrap();
+    assert!(capped.timings.factorizations >= n.div_ceil(3), "at most 3 solves a factorization: {} in {n} steps", capped.timings.factorizations);
+    assert!(reused.steps.iter().all(|s| s.retries == 0));
+    let p = |s: &crate::StepResult| s.face(INLET).unwrap().mean_pressure_dyn_cm2;
+    let scale = fresh.steps.iter().map(|s| p(s).abs()).fold(0.0, f64::max);
+    for (a, b) in reused.steps.iter().zip(&fresh.steps) {
+        assert!((p(a) - p(b)).abs() <= 1e-4 * scale, "step {}: {} vs {} (largest {scale})", a.step, p(a), p(b));
     }
 }
 

@@ -149,6 +149,10 @@ pub struct TimeSpec {
     /// Preconditioner of the linear solves: "ilu" (block ILU(0)) or "two-level" (ILU(0)
     /// and a coarse correction on node aggregates, `baffle_cfd::coarse`).
     pub preconditioner: Option<String>,
+    /// Transient runs: solves one preconditioner factorization may serve (default 50,
+    /// renewed earlier when GMRES slows down; 1: new factors every step, so that a
+    /// resumed run continues bit for bit instead of to the linear tolerance).
+    pub preconditioner_max_age: Option<usize>,
     /// Time integration of transient runs: "backward-euler" (default) or
     /// "generalized-alpha" (second order, as svMultiPhysics; `baffle_cfd::time_integration`).
     pub time_integration: Option<String>,
@@ -170,6 +174,7 @@ impl Default for TimeSpec {
             linear_tolerance: None,
             max_linear_iterations: None,
             preconditioner: None,
+            preconditioner_max_age: None,
             time_integration: None,
             rho_inf: None,
             steady_tolerance: None,
@@ -450,6 +455,9 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
         Some("ilu") => s.coarse_aggregate_nodes = 0,
         Some("two-level") => s.coarse_aggregate_nodes = baffle_cfd::TWO_LEVEL_AGGREGATE_NODES,
         Some(other) => return Err(format!("time.preconditioner '{other}': expected ilu or two-level")),
+    }
+    if let Some(v) = t.preconditioner_max_age {
+        s.preconditioner_max_age = v;
     }
     s.time_integration = time_integration(t)?;
     if let Some(v) = t.steady_tolerance {
