@@ -62,11 +62,25 @@ const CAP_MARGIN_MM: f64 = 0.05;
 /// angle order zigzags across it; a Slicer closed curve already holds the surgeon's order.
 pub fn loop_order(points: &[Vec3]) -> Vec<Vec3> {
     let by_angle = order_by_pca_angle(points);
+    // The same cycle in another start or direction: the angle order, so the seam does not
+    // depend on a rounding-level difference of two equal lengths.
+    if is_rotation_or_reversal(points, &by_angle) {
+        return by_angle;
+    }
     if closed_polygon_length_mm(points) < closed_polygon_length_mm(&by_angle) {
         points.to_vec()
     } else {
         by_angle
     }
+}
+
+/// Whether `ordered` runs round `given`'s cycle (any start, either direction).
+fn is_rotation_or_reversal(given: &[Vec3], ordered: &[Vec3]) -> bool {
+    let n = given.len();
+    let position: Option<Vec<usize>> = ordered.iter().map(|q| given.iter().position(|p| p == q)).collect();
+    let Some(position) = position.filter(|p| p.len() == n && n > 0) else { return false };
+    let step = |k: usize| (position[(k + 1) % n] + n - position[k]) % n;
+    (0..n).all(|k| step(k) == 1) || (0..n).all(|k| step(k) == n - 1)
 }
 
 /// Perimeter of the closed polygon through `points` in their order (mm).

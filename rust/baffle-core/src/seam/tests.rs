@@ -275,24 +275,21 @@ fn thin_bent_loop() -> crate::phantom::PhantomParams {
     }
 }
 
-/// Position of each of `ordered` in `given`.
-fn positions(given: &[Vec3], ordered: &[Vec3]) -> Vec<usize> {
-    ordered.iter().map(|q| given.iter().position(|p| p == q).unwrap()).collect()
-}
-
-/// Whether `order` runs round the loop 0..n (any start, either direction).
-fn is_cyclic(order: &[usize]) -> bool {
-    let n = order.len();
-    let step = |k: usize| (order[(k + 1) % n] + n - order[k]) % n;
-    (0..n).all(|k| step(k) == 1) || (0..n).all(|k| step(k) == n - 1)
-}
-
 #[test]
 fn the_loop_order_keeps_an_ordered_input_where_the_angle_order_zigzags() {
     let phantom = crate::phantom::phantom(&thin_bent_loop());
     let points = &phantom.suture_points_mm;
-    assert!(!is_cyclic(&positions(points, &order_by_pca_angle(points))), "the angle order should zigzag on this loop");
-    assert!(is_cyclic(&positions(points, &loop_order(points))));
+    assert!(!is_rotation_or_reversal(points, &order_by_pca_angle(points)), "the angle order should zigzag on this loop");
+    assert_eq!(loop_order(points), *points);
+    // Where the two orders are the same cycle the angle order is kept, whatever rounding
+    // does to the two equal lengths (a translated input designs as the original).
+    let round: Vec<Vec3> = (0..12).map(|k| (k as f64 * std::f64::consts::TAU / 12.0).sin_cos()).map(|(s, c)| Vec3::new(10.0 * c, 6.0 * s, 0.1 * s * c)).collect();
+    let rotated: Vec<Vec3> = round.iter().cycle().skip(5).take(12).copied().collect();
+    assert!(is_rotation_or_reversal(&round, &rotated) && is_rotation_or_reversal(&round, &rotated.iter().rev().copied().collect::<Vec<_>>()));
+    for shift in [Vec3::zeros(), Vec3::new(12.0, -5.0, 3.0)] {
+        let moved: Vec<Vec3> = rotated.iter().map(|p| p + shift).collect();
+        assert_eq!(loop_order(&moved), order_by_pca_angle(&moved));
+    }
     // Points clicked in any order: the angle order, the paper's, is taken.
     let shuffled: Vec<Vec3> = [3, 9, 0, 6, 1, 11, 4, 8, 2, 10, 5, 7].iter().map(|&k| points[k]).collect();
     assert_eq!(loop_order(&shuffled), order_by_pca_angle(&shuffled));
