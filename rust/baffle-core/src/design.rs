@@ -11,7 +11,7 @@ use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
 use crate::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
 use crate::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
 use crate::rv_cost::{rv_cost, RvCost};
-use crate::seam::{imprint_seam, project_seam};
+use crate::seam::seam_on_wall;
 use crate::spatial::{Aabb, TriangleBvh};
 use crate::surface::Domain;
 use crate::target::TargetArea;
@@ -163,8 +163,7 @@ pub fn design(
 
     clock.stage(0.05, "seam")?;
     let bvh = TriangleBvh::new(&surface).map_err(DesignError::Surface)?;
-    let projected = project_seam(&surface, &bvh, &labels, suture_points_mm, options.seam_samples, options.max_point_distance_mm)?;
-    let imprinted = imprint_seam(&surface, &projected)?;
+    let (projected, imprinted) = seam_on_wall(&surface, &bvh, &labels, suture_points_mm, options.seam_samples, options.max_point_distance_mm)?;
     let imprinted_seam_mm: Vec<Vec3> = imprinted.loop_vertices.iter().map(|&v| imprinted.mesh.points[v as usize]).collect();
     let seam_ms = clock.lap();
 

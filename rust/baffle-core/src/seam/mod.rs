@@ -42,7 +42,7 @@ pub struct PathPoint {
 /// The seam projected onto the wall, before it is inserted into the mesh.
 #[derive(Clone, Debug)]
 pub struct ProjectedSeam {
-    /// Suture points in loop order ([`loop_order`]), mm.
+    /// Suture points in loop order ([`PointOrder`]), mm.
     pub ordered_points_mm: Vec<Vec3>,
     /// Spline samples projected onto the RV wall (with any midpoints added), mm.
     pub samples_mm: Vec<Vec3>,
@@ -56,36 +56,13 @@ const MAX_BISECTION_DEPTH: usize = 6;
 /// than this, means the spline passes over the cap.
 const CAP_MARGIN_MM: f64 = 0.05;
 
-/// The loop order of the suture points: the paper's angle order in their best-fit plane,
-/// or the order they were given in when that closes a shorter polygon. A loop bent round
-/// a strongly curved wall (a long tunnel) is not star-shaped in its plane, and there the
-/// angle order zigzags across it; a Slicer closed curve already holds the surgeon's order.
-pub fn loop_order(points: &[Vec3]) -> Vec<Vec3> {
-    let by_angle = order_by_pca_angle(points);
-    // The same cycle in another start or direction: the angle order, so the seam does not
-    // depend on a rounding-level difference of two equal lengths.
-    if is_rotation_or_reversal(points, &by_angle) {
-        return by_angle;
-    }
-    if closed_polygon_length_mm(points) < closed_polygon_length_mm(&by_angle) {
-        points.to_vec()
-    } else {
-        by_angle
-    }
-}
-
 /// Whether `ordered` runs round `given`'s cycle (any start, either direction).
-fn is_rotation_or_reversal(given: &[Vec3], ordered: &[Vec3]) -> bool {
+pub fn is_rotation_or_reversal(given: &[Vec3], ordered: &[Vec3]) -> bool {
     let n = given.len();
     let position: Option<Vec<usize>> = ordered.iter().map(|q| given.iter().position(|p| p == q)).collect();
     let Some(position) = position.filter(|p| p.len() == n && n > 0) else { return false };
     let step = |k: usize| (position[(k + 1) % n] + n - position[k]) % n;
     (0..n).all(|k| step(k) == 1) || (0..n).all(|k| step(k) == n - 1)
-}
-
-/// Perimeter of the closed polygon through `points` in their order (mm).
-fn closed_polygon_length_mm(points: &[Vec3]) -> f64 {
-    (0..points.len()).map(|i| (points[(i + 1) % points.len()] - points[i]).norm()).sum()
 }
 
 /// Order points by their angle around the centroid in their best-fit plane.
@@ -102,8 +79,41 @@ pub fn order_by_pca_angle(points: &[Vec3]) -> Vec<Vec3> {
     keyed.into_iter().map(|(_, p)| p).collect()
 }
 
-/// Check the suture points against the surface, order them, fit the closed spline,
-/// resample it, project the samples onto the wall and trace the path between them.
+/// How the suture points are put in loop order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PointOrder {
+    /// The paper's: by angle around their centroid in their best-fit plane.
+    ByAngle,
+    /// As given (a Slicer closed curve holds the surgeon's order).
+    AsGiven,
+}
+
+/// The seam on the wall, projected and inserted as an edge loop: with the points in the
+/// paper's angle order, or, where that seam crosses itself and the given order is another
+/// cycle, in the given order. A loop bent round a strongly curved wall (a long tunnel) is
+/// not star-shaped in its plane, and there the angle order zigzags across it.
+pub fn seam_on_wall(
+    surface: &TriMesh,
+    bvh: &TriangleBvh,
+    labels: &FaceLabels,
+    points: &[Vec3],
+    sample_count: usize,
+    max_point_distance_mm: f64,
+) -> Result<(ProjectedSeam, ImprintedSeam), DesignError> {
+    let in_order = |order| {
+        let projected = project_seam_in(surface, bvh, labels, points, sample_count, max_point_distance_mm, order)?;
+        let imprinted = imprint_seam(surface, &projected)?;
+        Ok((projected, imprinted))
+    };
+    match in_order(PointOrder::ByAngle) {
+        Err(DesignError::Seam(why)) if !is_rotation_or_reversal(points, &order_by_pca_angle(points)) => {
+            in_order(PointOrder::AsGiven).map_err(|_: DesignError| DesignError::Seam(why))
+        }
+        result => result,
+    }
+}
+
+/// [`project_seam_in`] with the points in the paper's angle order.
 pub fn project_seam(
     surface: &TriMesh,
     bvh: &TriangleBvh,
@@ -111,6 +121,20 @@ pub fn project_seam(
     points: &[Vec3],
     sample_count: usize,
     max_point_distance_mm: f64,
+) -> Result<ProjectedSeam, DesignError> {
+    project_seam_in(surface, bvh, labels, points, sample_count, max_point_distance_mm, PointOrder::ByAngle)
+}
+
+/// Check the suture points against the surface, order them, fit the closed spline,
+/// resample it, project the samples onto the wall and trace the path between them.
+pub fn project_seam_in(
+    surface: &TriMesh,
+    bvh: &TriangleBvh,
+    labels: &FaceLabels,
+    points: &[Vec3],
+    sample_count: usize,
+    max_point_distance_mm: f64,
+    order: PointOrder,
 ) -> Result<ProjectedSeam, DesignError> {
     if points.len() < 4 {
         return Err(DesignError::SuturePoints(format!(
@@ -122,7 +146,10 @@ pub fn project_seam(
     check_points_on_wall(&projector, points, max_point_distance_mm)?;
     check_points_distinct(points)?;
     check_points_enclose(points)?;
-    let ordered = loop_order(points);
+    let ordered = match order {
+        PointOrder::ByAngle => order_by_pca_angle(points),
+        PointOrder::AsGiven => points.to_vec(),
+    };
     let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
     let samples = spline
         .resample_uniform_arclength(sample_count.max(16))
