@@ -89,9 +89,9 @@ pub enum PointOrder {
 }
 
 /// The seam on the wall, projected and inserted as an edge loop: with the points in the
-/// paper's angle order, or, where that seam crosses itself and the given order is another
-/// cycle, in the given order. A loop bent round a strongly curved wall (a long tunnel) is
-/// not star-shaped in its plane, and there the angle order zigzags across it.
+/// paper's angle order, or in the given order (a Slicer closed curve's) where the angle
+/// order jumps across the loop or its seam fails. A loop bent round a strongly curved wall
+/// (a long tunnel) is not star-shaped in its plane, and there the angle order zigzags.
 pub fn seam_on_wall(
     surface: &TriMesh,
     bvh: &TriangleBvh,
@@ -105,12 +105,27 @@ pub fn seam_on_wall(
         let imprinted = imprint_seam(surface, &projected)?;
         Ok((projected, imprinted))
     };
+    let by_angle = order_by_pca_angle(points);
+    if is_rotation_or_reversal(points, &by_angle) {
+        return in_order(PointOrder::ByAngle);
+    }
+    if jumps_across_the_loop(points, &by_angle) {
+        return in_order(PointOrder::AsGiven);
+    }
     match in_order(PointOrder::ByAngle) {
-        Err(DesignError::Seam(why)) if !is_rotation_or_reversal(points, &order_by_pca_angle(points)) => {
-            in_order(PointOrder::AsGiven).map_err(|_: DesignError| DesignError::Seam(why))
-        }
+        Err(DesignError::Seam(why)) => in_order(PointOrder::AsGiven).map_err(|_: DesignError| DesignError::Seam(why)),
         result => result,
     }
+}
+
+/// Whether the angle order jumps across the loop where the given order runs round it: its
+/// closed polygon is longer by more than half the mean spacing of the points. Swapping two
+/// neighbouring clicks changes the perimeter by less; a jump across the loop and back adds
+/// about twice the loop's width.
+fn jumps_across_the_loop(given: &[Vec3], by_angle: &[Vec3]) -> bool {
+    let perimeter_mm = |p: &[Vec3]| -> f64 { (0..p.len()).map(|i| (p[(i + 1) % p.len()] - p[i]).norm()).sum() };
+    let given_mm = perimeter_mm(given);
+    perimeter_mm(by_angle) - given_mm > 0.5 * given_mm / given.len().max(1) as f64
 }
 
 /// [`project_seam_in`] with the points in the paper's angle order.
