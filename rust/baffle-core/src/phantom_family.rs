@@ -26,7 +26,7 @@ pub const SEAM_RANGE_MM: (f64, f64) = (50.0, 120.0);
 const MAX_DRAWS: usize = 64;
 
 /// The member for `seed`. Ranges span infant to adolescent hearts: a tunnel of 2.8-
-/// 8.5 mm semi-axes bent with radius 9-26 mm through 60-130 degrees, at most 40 mm long,
+/// 8.5 mm semi-axes bent with radius 9-26 mm through 60-130 degrees, at most 46 mm long,
 /// a suture loop of 50-120 mm (draws outside it are redrawn), BSA 0.2-1.2 m2 at z-scores
 /// -1 to +2 (some targets exceed the tube).
 pub fn family_member(seed: u64) -> FamilyMember {
@@ -58,7 +58,7 @@ fn draw(seed: u64, rng: &mut SplitMix64) -> FamilyMember {
     let aortic_semi_axes_mm = semi_axes(rng);
     let widest_mm = vsd_semi_axes_mm.0.max(aortic_semi_axes_mm.0);
     let sweep_angle_deg: f64 = rng.between(60.0, 130.0);
-    // Tunnels up to 40 mm long: longer bent tunnels than any child's put the patch
+    // Tunnels up to MAX_TUNNEL_LENGTH_MM long: longer bent tunnels put the patch
     // spanning an outer-bend seam through the inner wall (a limit of R_init).
     let longest_radius_mm = (MAX_TUNNEL_LENGTH_MM / sweep_angle_deg.to_radians()).min(26.0);
     let shortest_radius_mm = (widest_mm + 3.0).max(9.0);

@@ -42,7 +42,7 @@ pub struct PathPoint {
 /// The seam projected onto the wall, before it is inserted into the mesh.
 #[derive(Clone, Debug)]
 pub struct ProjectedSeam {
-    /// Suture points in loop order ([`PointOrder`]), mm.
+    /// Suture points in loop order ([`seam_on_wall`]), mm.
     pub ordered_points_mm: Vec<Vec3>,
     /// Spline samples projected onto the RV wall (with any midpoints added), mm.
     pub samples_mm: Vec<Vec3>,
@@ -57,7 +57,7 @@ const MAX_BISECTION_DEPTH: usize = 6;
 const CAP_MARGIN_MM: f64 = 0.05;
 
 /// Whether `ordered` runs round `given`'s cycle (any start, either direction).
-pub fn is_rotation_or_reversal(given: &[Vec3], ordered: &[Vec3]) -> bool {
+fn is_rotation_or_reversal(given: &[Vec3], ordered: &[Vec3]) -> bool {
     let n = given.len();
     let position: Option<Vec<usize>> = ordered.iter().map(|q| given.iter().position(|p| p == q)).collect();
     let Some(position) = position.filter(|p| p.len() == n && n > 0) else { return false };
@@ -79,15 +79,6 @@ pub fn order_by_pca_angle(points: &[Vec3]) -> Vec<Vec3> {
     keyed.into_iter().map(|(_, p)| p).collect()
 }
 
-/// How the suture points are put in loop order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PointOrder {
-    /// The paper's: by angle around their centroid in their best-fit plane.
-    ByAngle,
-    /// As given (a Slicer closed curve holds the surgeon's order).
-    AsGiven,
-}
-
 /// The seam on the wall, projected and inserted as an edge loop: with the points in the
 /// paper's angle order, or in the given order (a Slicer closed curve's) where the angle
 /// order jumps across the loop or its seam fails. A loop bent round a strongly curved wall
@@ -100,20 +91,21 @@ pub fn seam_on_wall(
     sample_count: usize,
     max_point_distance_mm: f64,
 ) -> Result<(ProjectedSeam, ImprintedSeam), DesignError> {
-    let in_order = |order| {
-        let projected = project_seam_in(surface, bvh, labels, points, sample_count, max_point_distance_mm, order)?;
+    let in_order = |ordered: &[Vec3]| {
+        let projected = project_ordered_seam(surface, bvh, labels, ordered, sample_count, max_point_distance_mm)?;
         let imprinted = imprint_seam(surface, &projected)?;
         Ok((projected, imprinted))
     };
+    check_suture_points(surface, bvh, labels, points, max_point_distance_mm)?;
     let by_angle = order_by_pca_angle(points);
     if is_rotation_or_reversal(points, &by_angle) {
-        return in_order(PointOrder::ByAngle);
+        return in_order(&by_angle);
     }
     if jumps_across_the_loop(points, &by_angle) {
-        return in_order(PointOrder::AsGiven);
+        return in_order(points);
     }
-    match in_order(PointOrder::ByAngle) {
-        Err(DesignError::Seam(why)) => in_order(PointOrder::AsGiven).map_err(|_: DesignError| DesignError::Seam(why)),
+    match in_order(&by_angle) {
+        Err(DesignError::Seam(why)) => in_order(points).map_err(|_: DesignError| DesignError::Seam(why)),
         result => result,
     }
 }
@@ -128,7 +120,7 @@ fn jumps_across_the_loop(given: &[Vec3], by_angle: &[Vec3]) -> bool {
     perimeter_mm(by_angle) - given_mm > 0.5 * given_mm / given.len().max(1) as f64
 }
 
-/// [`project_seam_in`] with the points in the paper's angle order.
+/// [`project_ordered_seam`] with the points in the paper's angle order.
 pub fn project_seam(
     surface: &TriMesh,
     bvh: &TriangleBvh,
@@ -137,20 +129,19 @@ pub fn project_seam(
     sample_count: usize,
     max_point_distance_mm: f64,
 ) -> Result<ProjectedSeam, DesignError> {
-    project_seam_in(surface, bvh, labels, points, sample_count, max_point_distance_mm, PointOrder::ByAngle)
+    check_suture_points(surface, bvh, labels, points, max_point_distance_mm)?;
+    project_ordered_seam(surface, bvh, labels, &order_by_pca_angle(points), sample_count, max_point_distance_mm)
 }
 
-/// Check the suture points against the surface, order them, fit the closed spline,
-/// resample it, project the samples onto the wall and trace the path between them.
-pub fn project_seam_in(
+/// The suture points as given (numbered as the surgeon placed them): at least 4, each on
+/// the wall, distinct, enclosing an area.
+fn check_suture_points(
     surface: &TriMesh,
     bvh: &TriangleBvh,
     labels: &FaceLabels,
     points: &[Vec3],
-    sample_count: usize,
     max_point_distance_mm: f64,
-    order: PointOrder,
-) -> Result<ProjectedSeam, DesignError> {
+) -> Result<(), DesignError> {
     if points.len() < 4 {
         return Err(DesignError::SuturePoints(format!(
             "{} point(s) given; a closed seam needs at least 4",
@@ -160,12 +151,21 @@ pub fn project_seam_in(
     let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
     check_points_on_wall(&projector, points, max_point_distance_mm)?;
     check_points_distinct(points)?;
-    check_points_enclose(points)?;
-    let ordered = match order {
-        PointOrder::ByAngle => order_by_pca_angle(points),
-        PointOrder::AsGiven => points.to_vec(),
-    };
-    let spline = ClosedSpline::fit(&ordered).map_err(DesignError::SuturePoints)?;
+    check_points_enclose(points)
+}
+
+/// Fit the closed spline through the checked suture points in loop order, resample it,
+/// project the samples onto the wall and trace the path between them.
+fn project_ordered_seam(
+    surface: &TriMesh,
+    bvh: &TriangleBvh,
+    labels: &FaceLabels,
+    points: &[Vec3],
+    sample_count: usize,
+    max_point_distance_mm: f64,
+) -> Result<ProjectedSeam, DesignError> {
+    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
+    let spline = ClosedSpline::fit(points).map_err(DesignError::SuturePoints)?;
     let samples = spline
         .resample_uniform_arclength(sample_count.max(16))
         .iter()
@@ -174,7 +174,7 @@ pub fn project_seam_in(
         .collect::<Result<Vec<_>, _>>()?;
     let tracer = PathTracer { projector, neighbors: surface.triangle_neighbors(), wall: OnceCell::new() };
     let (path, samples_mm) = tracer.trace_closed(&samples)?;
-    Ok(ProjectedSeam { ordered_points_mm: ordered, samples_mm, path })
+    Ok(ProjectedSeam { ordered_points_mm: points.to_vec(), samples_mm, path })
 }
 
 /// Projects points onto the RV wall. A spline sample over a cap is moved onto the
