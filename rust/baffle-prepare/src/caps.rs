@@ -4,6 +4,7 @@
 //! shrunk toward its centroid, so cap and wall triangles are alike.
 
 use crate::clip::Clipped;
+use crate::planar_cap::refine_planar_cap;
 use baffle_core::numerics::pca::Plane;
 use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
 use baffle_core::{TriMesh, Vec3};
@@ -81,7 +82,8 @@ pub fn close_with_caps(clipped: &Clipped, planes: &[Plane], wall_label: i32, cap
 
 /// A flat cap inside `outline` (wound as the cap should be) made of rings shrunk
 /// toward the centroid about one rim edge apart, zipped together: near-isotropic
-/// triangles. Outlines that are not star-shaped about their centroid are ear-clipped.
+/// triangles. Outlines that are not star-shaped about their centroid are ear-clipped
+/// and refined to the same edge (`planar_cap`).
 fn ring_cap(points: &mut Vec<Vec3>, outline: &[u32], plane: &Plane) -> Result<Vec<[u32; 3]>, String> {
     let rim: Vec<Vec3> = outline.iter().map(|&v| points[v as usize]).collect();
     let center = rim.iter().sum::<Vec3>() / rim.len() as f64;
@@ -93,12 +95,14 @@ fn ring_cap(points: &mut Vec<Vec3>, outline: &[u32], plane: &Plane) -> Result<Ve
     };
     let turns: Vec<f64> = (0..rim.len()).map(|i| turn(&rim[i], &rim[(i + 1) % rim.len()])).collect();
     let sense = turns.iter().sum::<f64>().signum();
-    if turns.iter().any(|t| t * sense <= 0.0) {
-        let uv_all: Vec<(f64, f64)> = points.iter().map(uv).collect();
-        return ear_clip(outline, &uv_all);
-    }
     let perimeter: f64 = (0..rim.len()).map(|i| (rim[(i + 1) % rim.len()] - rim[i]).norm()).sum();
     let edge = perimeter / rim.len() as f64;
+    if turns.iter().any(|t| t * sense <= 0.0) {
+        let local_uv: Vec<(f64, f64)> = rim.iter().map(uv).collect();
+        let local: Vec<u32> = (0..rim.len() as u32).collect();
+        let fan: Vec<[usize; 3]> = ear_clip(&local, &local_uv)?.iter().map(|t| t.map(|v| v as usize)).collect();
+        return Ok(refine_planar_cap(points, outline, &fan, plane, edge));
+    }
     let mean_radius = rim.iter().map(|p| (p - center).norm()).sum::<f64>() / rim.len() as f64;
     let rings = ((mean_radius / edge).round() as usize).max(1);
     let mut outer: Vec<u32> = outline.to_vec();

@@ -17,6 +17,7 @@ pub mod input;
 pub mod interfaces;
 pub mod clip;
 pub mod caps;
+mod planar_cap;
 pub mod separation;
 pub mod prepare;
 pub mod labelmap;
