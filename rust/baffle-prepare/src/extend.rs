@@ -769,6 +769,23 @@ mod tests {
     }
 
     #[test]
+    fn the_vsd_footprint_is_the_cap_grown_by_the_margin_between_its_depths() {
+        // A square cap 4 mm wide in the plane x = 0, normal +x (toward the LV).
+        let rim = [(2.0, 2.0), (-2.0, 2.0), (-2.0, -2.0), (2.0, -2.0)];
+        let plane = Plane { centroid: Vec3::zeros(), normal: Vec3::x(), axis_u: Vec3::y(), axis_v: Vec3::z(), singular_values: [1.0, 1.0, 0.0] };
+        let polygon: Vec<(f64, f64)> = rim.to_vec();
+        let f = VsdFootprint { plane, polygon, reach_mm: 2.0 * 2f64.sqrt() + VSD_FOOTPRINT_MARGIN_MM, depth_mm: [-RV_BEHIND_VSD_MM, 10.0] };
+        assert!(f.contains(&Vec3::new(5.0, 0.0, 0.0)) && f.contains(&Vec3::new(-5.9, 1.0, 1.0)));
+        // Within the margin of an edge, not of the corner's diagonal beyond it.
+        assert!(f.contains(&Vec3::new(1.0, 2.0 + 0.99 * VSD_FOOTPRINT_MARGIN_MM, 0.0)));
+        assert!(!f.contains(&Vec3::new(1.0, 2.0 + 1.01 * VSD_FOOTPRINT_MARGIN_MM, 0.0)));
+        let d = 0.99 * VSD_FOOTPRINT_MARGIN_MM / 2f64.sqrt();
+        assert!(f.contains(&Vec3::new(1.0, 2.0 + d, 2.0 + d)) && !f.contains(&Vec3::new(1.0, 2.0 + 1.5 * d, 2.0 + 1.5 * d)));
+        // Depth limits: behind the plane on the RV's side, beyond the far depth.
+        assert!(!f.contains(&Vec3::new(-RV_BEHIND_VSD_MM - 0.1, 0.0, 0.0)) && !f.contains(&Vec3::new(10.1, 0.0, 0.0)));
+    }
+
+    #[test]
     fn the_volume_centroid_of_a_sphere_is_its_centre() {
         let sphere = crate::shapes::uv_sphere(Vec3::new(3.0, -2.0, 5.0), 4.0, 24, 48);
         let c = volume_centroid(&sphere).unwrap();
