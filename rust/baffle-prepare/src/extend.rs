@@ -277,7 +277,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
                 "the RV only over the VSD: within {VSD_FOOTPRINT_MARGIN_MM} mm of the VSD cap's rim seen along its normal, from {RV_BEHIND_VSD_MM} mm on the RV's side of its plane to {:.1} mm into the LV",
                 footprint.depth_mm[1]
             ),
-            other_lv_rv_contact: lv_part.other_contact(),
+            other_lv_rv_contact: lv_part.other_contact().map(|w| format!("{w}: left out of the LV part, which takes the RV only over the VSD, so it is wall in the extended domain")),
         },
         vsd_cap_off_plane_mm: vsd.off_plane_mm,
         aortic_cap_off_plane_mm: annulus.off_plane_mm,
@@ -431,7 +431,7 @@ impl LvPart<'_> {
             .filter(|(d, _)| *d <= joined_within_mm)
             .min_by(|a, b| a.0.total_cmp(&b.0))?;
         Some(format!(
-            "the LV also comes within {d:.2} mm of the RV near ({:.1}, {:.1}, {:.1}), {:.1} mm from the VSD cap's centre (a second VSD, or a septum thinner than the closing): left out of the LV part, which takes the RV only over the VSD, so it is wall in the extended domain",
+            "the LV also comes within {d:.2} mm of the RV near ({:.1}, {:.1}, {:.1}), {:.1} mm from the VSD cap's centre (a second VSD, or a septum thinner than the closing)",
             p.x, p.y, p.z, (p - self.vsd.plane.centroid).norm()
         ))
     }
