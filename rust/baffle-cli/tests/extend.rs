@@ -40,7 +40,10 @@ fn p2_extended_domain_meshes_with_conforming_interior_caps() {
     let extended = out.join("extended.vtp");
     let stdout = ok(baffle(&["extend", "--domain", s(&out.join("design/domain.vtp")), "--segmentations", s(&segmentations), "--out", s(&extended)]));
     eprintln!("{stdout}");
+    // p2's LV comes no nearer than 1.76 mm to its RV away from the VSD: no contact to note.
+    assert!(stdout.contains("inflow: parallel to the VSD cap") && stdout.contains("the LV part with the RV only over the VSD") && !stdout.contains("note:"), "{stdout}");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("extended-report.json")).unwrap()).unwrap();
+    assert!(report["mid_lv_plane"]["other_lv_rv_contact"].is_null(), "{}", report["mid_lv_plane"]);
     assert!(report["baffle_area_relative_change"].as_f64().unwrap().abs() < 1e-3, "{}", report["baffle_area_relative_change"]);
     assert_eq!(report["interior_labels"], serde_json::json!([11, 16]));
     if std::env::var("BAFFLE_SKIP_GMSH").is_ok_and(|v| v == "1") {

@@ -72,6 +72,11 @@ pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
         r.triangles, r.designed_triangles, r.volume_mm3, r.designed_volume_mm3, r.inflow_cap.area_mm2, r.mid_lv_plane.distance_from_vsd_mm,
         r.outflow_cap.area_mm2, r.stj.distance_from_annulus_mm, r.baffle_area_relative_change
     );
+    let m = &r.mid_lv_plane;
+    println!("inflow: {}, {:.1} mm beyond the VSD (moved {:+.0} mm from the LV centroid); the LV part with {}", m.rule, m.distance_from_vsd_mm, m.moved_from_centroid_mm, m.rv_in_lv_part);
+    if let Some(contact) = &m.other_lv_rv_contact {
+        println!("note: {contact}");
+    }
     println!("outflow: {}", r.stj.note);
     println!("wrote {}, {}", args.out.display(), report.display());
     Ok(())

@@ -17,10 +17,16 @@
 //!   changes the area by more than `max_step_change` (a branch or the arch). Without
 //!   such a minimum, the outflow cap is
 //!   `fallback_diameters` annulus diameters above the annulus, and the report says so.
-//! - The LV part is cut from the union of the LV and RV pools, the aortic part from
-//!   that of the RV and aorta (each made as `prepare` makes the union, on a grid
-//!   covering the part; an aorta touching the LV would join the parts), by the same clip as `prepare`, along
-//!   the designed caps' own planes. Each part is remeshed at the designed rims' edge
+//! - The LV part is cut from the union of the LV pool and the RV over the VSD (the RV
+//!   within `VSD_FOOTPRINT_MARGIN_MM` of the VSD cap seen along its normal), the
+//!   aortic part from that of the RV and aorta (each made as `prepare` makes the union,
+//!   on a grid covering the part; an aorta touching the LV would join the parts), by
+//!   the same clip as `prepare`, along the designed caps' own planes. The RV counts
+//!   only over the VSD because anywhere else where the LV meets it (a second,
+//!   muscular VSD; a septum thinner than the closing, which fuses the pools) the union
+//!   has a handle through the VSD's rim: no VSD cut then separates the LV part ("the
+//!   kept surface has 1 openings, expected 2"), and no plane move removes a handle.
+//!   Such a contact is wall in the extension, and the report names it. Each part is remeshed at the designed rims' edge
 //!   length, its first row of triangles at the designed cap is dropped and the gap is
 //!   zipped to the designed cap's rim, so that rim is shared (3 faces meet there: the
 //!   designed wall, the interior cap, the extension).
@@ -32,13 +38,14 @@ use crate::caps::{close_with_caps, remesh_wall, zip_rings};
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
-use crate::prepare::{cap_report, lap_timer, union_within, validate, CapReport, PrepareOptions};
+use crate::prepare::{cap_report, everywhere, lap_timer, union_within, validate, CapReport, PrepareOptions};
 use baffle_core::caps::{cap_flatness, CapFlatness};
 use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
-use baffle_core::spatial::{winding_number, Aabb, TriangleBvh};
+use baffle_core::spatial::{Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
+use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
 
 /// Default `ModelFaceID` of the inflow cap (the mid-LV plane).
@@ -58,8 +65,14 @@ const MIN_SECOND_LOOP_FRACTION: f64 = 0.02;
 /// measured on the LV family); a far cut farther than this (mm) from its pool runs
 /// over another pool joined to it.
 const FAR_RIM_OFF_POOL_MM: f64 = 1.0;
-/// A second LV-RV contact is looked for this far (mm) beyond the VSD's equivalent radius.
-const SECOND_CONTACT_CLEARANCE_MM: f64 = 2.0;
+/// The RV joins the LV part only within this distance (mm) of the VSD cap's rim, seen
+/// along the cap's normal: wide enough for the closing's fillet where the pools part
+/// at the rim (0.6 mm closing: about 2 mm), narrow enough to leave out the septum
+/// around the VSD.
+const VSD_FOOTPRINT_MARGIN_MM: f64 = 3.0;
+/// ... and from this far (mm) on the RV's side of the VSD cap's plane: the union's
+/// section in that plane, which the VSD cut follows, then stays the designed one.
+const RV_BEHIND_VSD_MM: f64 = 6.0;
 
 #[derive(Clone, Debug)]
 pub struct StjOptions {
@@ -122,6 +135,12 @@ pub struct MidLvPlaneReport {
     /// How far the plane was moved from the LV centroid along its normal (mm; 0 when
     /// the cut through the centroid was clean).
     pub moved_from_centroid_mm: f64,
+    /// Which part of the RV the LV part was cut with.
+    pub rv_in_lv_part: String,
+    /// Where the LV meets the RV (or comes within twice the closing radius of it)
+    /// away from the VSD: a second VSD or a thin septum, wall in the extension; `None`
+    /// when there is no such place.
+    pub other_lv_rv_contact: Option<String>,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -214,15 +233,17 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     // both caps' rims, and neither cut then separates its part.
     let margin_mm = options.union.crop_margin_mm;
     let lv_bounds = part_bounds(domain, &vsd, &pools.lv, &deepest, margin_mm);
-    let (lv_union, _, _) = union_within(&[&pools.lv, &pools.rv], &lv_bounds, &options.union)?;
+    let footprint = VsdFootprint::new(domain, &vsd, vsd.plane.signed_distance_mm(&deepest.centroid) + margin_mm);
+    let over_vsd = |q: &Vec3| footprint.contains(q);
+    let (lv_union, _, _) = union_within(&[(&pools.lv, &everywhere), (&pools.rv, &over_vsd)], &lv_bounds, &options.union)?;
     let ao_bounds = part_bounds(domain, &annulus, &pools.aorta, &stj, margin_mm);
-    let (ao_union, _, _) = union_within(&[&pools.rv, &pools.aorta], &ao_bounds, &options.union)?;
+    let (ao_union, _, _) = union_within(&[(&pools.rv, &everywhere), (&pools.aorta, &everywhere)], &ao_bounds, &options.union)?;
     let union_ms = lap();
 
     let edge_mm = options.remesh_edge_mm.unwrap_or_else(|| mean_rim_edge_mm(domain, &[&vsd.rim, &annulus.rim]));
     let snap_mm = 0.05 * options.union.voxel_mm;
     let mut surface = domain.clone();
-    let lv_part = LvPart { union: &lv_union, pools, vsd: &vsd, centroid_plane, inflow_label: options.inflow_label, closing_radius_mm: options.union.closing_radius_mm };
+    let lv_part = LvPart { union: &lv_union, pools, vsd: &vsd, footprint: &footprint, centroid_plane, inflow_label: options.inflow_label, closing_radius_mm: options.union.closing_radius_mm };
     let (lv_triangles, mid_lv, moved_mm) = lv_part.attach(&mut surface, (edge_mm, snap_mm, l.wall))?;
     let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label, far_pool: ("aorta", &pools.aorta) };
     let ao_triangles = ao_part.attach(&mut surface, &ao_union, edge_mm, snap_mm, l.wall)?;
@@ -252,6 +273,11 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
             normal: arr(mid_lv.normal),
             distance_from_vsd_mm: vsd.plane.signed_distance_mm(&mid_lv.centroid),
             moved_from_centroid_mm: moved_mm,
+            rv_in_lv_part: format!(
+                "the RV only over the VSD: within {VSD_FOOTPRINT_MARGIN_MM} mm of the VSD cap's rim seen along its normal, from {RV_BEHIND_VSD_MM} mm on the RV's side of its plane to {:.1} mm into the LV",
+                footprint.depth_mm[1]
+            ),
+            other_lv_rv_contact: lv_part.other_contact().map(|w| format!("{w}: left out of the LV part, which takes the RV only over the VSD, so it is wall in the extended domain")),
         },
         vsd_cap_off_plane_mm: vsd.off_plane_mm,
         aortic_cap_off_plane_mm: annulus.off_plane_mm,
@@ -339,6 +365,7 @@ struct LvPart<'a> {
     union: &'a TriMesh,
     pools: &'a BloodPools,
     vsd: &'a DesignedCap,
+    footprint: &'a VsdFootprint,
     centroid_plane: Plane,
     inflow_label: i32,
     closing_radius_mm: f64,
@@ -367,7 +394,7 @@ impl LvPart<'_> {
             "mid-LV plane",
             format!(
                 "no plane parallel to the VSD cap cuts the LV part cleanly; moved from the LV centroid ({:.1}, {:.1}, {:.1}) along the VSD normal by {}{}",
-                c.x, c.y, c.z, tried.join("; "), self.second_contact()
+                c.x, c.y, c.z, tried.join("; "), self.other_contact().map_or_else(String::new, |w| format!("; {w}"))
             ),
         ))
     }
@@ -391,25 +418,77 @@ impl LvPart<'_> {
         Ok(contours.swap_remove(0).points)
     }
 
-    /// Where the LV comes near the RV again away from the VSD (the union joins them
-    /// there too, so no VSD cut separates the LV part): "; ..." or empty.
-    fn second_contact(&self) -> String {
-        let Ok(rv_bvh) = TriangleBvh::new(&self.pools.rv) else { return String::new() };
-        let vsd_radius_mm = (self.vsd.area_mm2 / std::f64::consts::PI).sqrt();
+    /// Where the LV comes near the RV outside the VSD's footprint, where the full union
+    /// would join them too: the nearest such LV point, said. (Where the pools overlap,
+    /// LV points lie on the RV surface to within an edge; no winding test is needed.)
+    fn other_contact(&self) -> Option<String> {
+        let rv_bvh = TriangleBvh::new(&self.pools.rv).ok()?;
         let joined_within_mm = 2.0 * self.closing_radius_mm + 0.1;
-        let away = self.pools.lv.points.iter().filter(|p| (*p - self.vsd.plane.centroid).norm() > vsd_radius_mm + SECOND_CONTACT_CLEARANCE_MM);
-        let nearest = away
-            .filter_map(|p| rv_bvh.closest_point(&self.pools.rv, *p).map(|h| (h.distance_mm, *p)))
-            .filter(|(d, p)| *d <= joined_within_mm || winding_number(&self.pools.rv, *p) > 0.5)
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        match nearest {
-            Some((d, p)) => format!(
-                "; the LV also comes within {d:.2} mm of the RV near ({:.1}, {:.1}, {:.1}), {:.1} mm from the VSD: the pools join there too (a second VSD, or a septum thinner than the closing), so no cut separates the LV part",
-                p.x, p.y, p.z, (p - self.vsd.plane.centroid).norm()
-            ),
-            None => String::new(),
+        let away: Vec<&Vec3> = self.pools.lv.points.iter().filter(|p| !self.footprint.contains(p)).collect();
+        let (d, p) = away
+            .par_iter()
+            .filter_map(|p| rv_bvh.closest_point(&self.pools.rv, **p).map(|h| (h.distance_mm, **p)))
+            .filter(|(d, _)| *d <= joined_within_mm)
+            .min_by(|a, b| a.0.total_cmp(&b.0))?;
+        Some(format!(
+            "the LV also comes within {d:.2} mm of the RV near ({:.1}, {:.1}, {:.1}), {:.1} mm from the VSD cap's centre (a second VSD, or a septum thinner than the closing)",
+            p.x, p.y, p.z, (p - self.vsd.plane.centroid).norm()
+        ))
+    }
+}
+
+/// The part of space where the RV joins the LV part: within `VSD_FOOTPRINT_MARGIN_MM`
+/// of the VSD cap's rim polygon seen along the cap's normal, between `depth_mm`
+/// along that normal (negative: the RV's side).
+struct VsdFootprint {
+    plane: Plane,
+    /// The rim in the plane's (u, v) coordinates (mm).
+    polygon: Vec<(f64, f64)>,
+    /// No point of the footprint lies farther than this from the plane's centroid, in the plane (mm).
+    reach_mm: f64,
+    depth_mm: [f64; 2],
+}
+
+impl VsdFootprint {
+    /// The footprint of `vsd` (rim points in `domain`) from `RV_BEHIND_VSD_MM` behind
+    /// its plane to `depth_mm` into the LV.
+    fn new(domain: &TriMesh, vsd: &DesignedCap, depth_mm: f64) -> Self {
+        let polygon: Vec<(f64, f64)> = vsd.rim.iter().map(|&v| vsd.plane.project_2d(&domain.points[v as usize])).collect();
+        let rim_reach_mm = polygon.iter().map(|&(u, v)| u.hypot(v)).fold(0.0, f64::max);
+        VsdFootprint { plane: vsd.plane, polygon, reach_mm: rim_reach_mm + VSD_FOOTPRINT_MARGIN_MM, depth_mm: [-RV_BEHIND_VSD_MM, depth_mm] }
+    }
+
+    fn contains(&self, q: &Vec3) -> bool {
+        let depth = self.plane.signed_distance_mm(q);
+        let (u, v) = self.plane.project_2d(q);
+        if depth < self.depth_mm[0] || depth > self.depth_mm[1] || u.hypot(v) > self.reach_mm {
+            return false;
+        }
+        inside_polygon(&self.polygon, (u, v)) || distance_to_polygon_mm(&self.polygon, (u, v)) <= VSD_FOOTPRINT_MARGIN_MM
+    }
+}
+
+/// Even-odd test of `p` against the closed polygon `poly`.
+fn inside_polygon(poly: &[(f64, f64)], p: (f64, f64)) -> bool {
+    let mut inside = false;
+    for (i, &a) in poly.iter().enumerate() {
+        let b = poly[(i + 1) % poly.len()];
+        if (a.1 > p.1) != (b.1 > p.1) && p.0 < a.0 + (p.1 - a.1) / (b.1 - a.1) * (b.0 - a.0) {
+            inside = !inside;
         }
     }
+    inside
+}
+
+/// Distance (mm) from `p` to the closed polygon `poly`'s edges.
+fn distance_to_polygon_mm(poly: &[(f64, f64)], p: (f64, f64)) -> f64 {
+    let segment = |a: (f64, f64), b: (f64, f64)| {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let length2 = dx * dx + dy * dy;
+        let t = if length2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / length2).clamp(0.0, 1.0) } else { 0.0 };
+        (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
+    };
+    (0..poly.len()).map(|i| segment(poly[i], poly[(i + 1) % poly.len()])).fold(f64::INFINITY, f64::min)
 }
 
 /// The plane through the LV blood pool's volume centroid, parallel to the VSD cap.
@@ -687,6 +766,23 @@ mod tests {
         assert_eq!(area_minimum_after_maximum(&areas, 3, 0.05), None);
         let shallow: Vec<f64> = (0..40).map(|k| 50.0 - 0.01 * (k as f64 - 20.0).abs()).collect();
         assert_eq!(area_minimum_after_maximum(&shallow, 3, 0.05), None);
+    }
+
+    #[test]
+    fn the_vsd_footprint_is_the_cap_grown_by_the_margin_between_its_depths() {
+        // A square cap 4 mm wide in the plane x = 0, normal +x (toward the LV).
+        let rim = [(2.0, 2.0), (-2.0, 2.0), (-2.0, -2.0), (2.0, -2.0)];
+        let plane = Plane { centroid: Vec3::zeros(), normal: Vec3::x(), axis_u: Vec3::y(), axis_v: Vec3::z(), singular_values: [1.0, 1.0, 0.0] };
+        let polygon: Vec<(f64, f64)> = rim.to_vec();
+        let f = VsdFootprint { plane, polygon, reach_mm: 2.0 * 2f64.sqrt() + VSD_FOOTPRINT_MARGIN_MM, depth_mm: [-RV_BEHIND_VSD_MM, 10.0] };
+        assert!(f.contains(&Vec3::new(5.0, 0.0, 0.0)) && f.contains(&Vec3::new(-5.9, 1.0, 1.0)));
+        // Within the margin of an edge, not of the corner's diagonal beyond it.
+        assert!(f.contains(&Vec3::new(1.0, 2.0 + 0.99 * VSD_FOOTPRINT_MARGIN_MM, 0.0)));
+        assert!(!f.contains(&Vec3::new(1.0, 2.0 + 1.01 * VSD_FOOTPRINT_MARGIN_MM, 0.0)));
+        let d = 0.99 * VSD_FOOTPRINT_MARGIN_MM / 2f64.sqrt();
+        assert!(f.contains(&Vec3::new(1.0, 2.0 + d, 2.0 + d)) && !f.contains(&Vec3::new(1.0, 2.0 + 1.5 * d, 2.0 + 1.5 * d)));
+        // Depth limits: behind the plane on the RV's side, beyond the far depth.
+        assert!(!f.contains(&Vec3::new(-RV_BEHIND_VSD_MM - 0.1, 0.0, 0.0)) && !f.contains(&Vec3::new(10.1, 0.0, 0.0)));
     }
 
     #[test]

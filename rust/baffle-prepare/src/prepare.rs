@@ -176,7 +176,7 @@ impl AroundRv {
     fn new(pools: &BloodPools, structures: &[Structure; 3], margin_mm: f64, options: &PrepareOptions, timings: &mut PrepareTimings) -> Result<Self, PrepareError> {
         let mut lap = lap_timer();
         let bounds = Aabb::from_points(&pools.rv.points).expanded(margin_mm);
-        let (union, grid, voxelize_ms) = union_within(&[&pools.lv, &pools.rv, &pools.aorta], &bounds, options)?;
+        let (union, grid, voxelize_ms) = union_within(&[(&pools.lv, &everywhere), (&pools.rv, &everywhere), (&pools.aorta, &everywhere)], &bounds, options)?;
         timings.voxelize_ms += voxelize_ms;
         timings.union_surface_ms += lap() - voxelize_ms;
         // Only the RV's neighbourhood can be kept: the rest (and the grid's crop
@@ -261,10 +261,20 @@ pub(crate) fn validate(options: &PrepareOptions) -> Result<(), PrepareError> {
     Ok(())
 }
 
-/// The smoothed union surface of the blood pools `pools` within `bounds` (mm), made with
-/// `options`' voxel, closing and smoothing (the pools beyond `bounds` are cut off, the
-/// cut closed flat at the grid's edge); also its grid and the voxelizing time (ms).
-pub(crate) fn union_within(pools: &[&TriMesh], bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
+/// Where a pool counts in a union: a voxel of it is in the union where this holds at
+/// the voxel's centre (mm).
+pub(crate) type Within<'a> = &'a (dyn Fn(&Vec3) -> bool + Sync);
+
+/// A pool that counts everywhere.
+pub(crate) fn everywhere(_: &Vec3) -> bool {
+    true
+}
+
+/// The smoothed union surface of the blood pools `pools`, each where its region holds,
+/// within `bounds` (mm), made with `options`' voxel, closing and smoothing (the pools
+/// beyond `bounds` are cut off, the cut closed flat at the grid's edge); also its grid
+/// and the voxelizing time (ms).
+pub(crate) fn union_within(pools: &[(&TriMesh, Within)], bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
     let start = Instant::now();
     let grid = union_grid(bounds, options.voxel_mm)?;
     let closing_voxels = (options.closing_radius_mm / options.voxel_mm).round() as usize;
@@ -289,11 +299,12 @@ fn union_grid(bounds: &Aabb, voxel_mm: f64) -> Result<Grid, PrepareError> {
     }
 }
 
-fn union_mask(pools: &[&TriMesh], grid: &Grid) -> Vec<bool> {
-    let masks: Vec<Vec<bool>> = pools.par_iter().map(|m| voxelize(m, grid)).collect();
+fn union_mask(pools: &[(&TriMesh, Within)], grid: &Grid) -> Vec<bool> {
+    let masks: Vec<Vec<bool>> = pools.par_iter().map(|(m, _)| voxelize(m, grid)).collect();
     let m = GRID_MARGIN_VOXELS;
     let interior = |i: usize| grid.ijk(i).iter().zip(grid.dims).all(|(&c, n)| c >= m && c + m < n);
-    (0..grid.voxel_count()).into_par_iter().map(|i| interior(i) && masks.iter().any(|mask| mask[i])).collect()
+    let counts = |i: usize| masks.iter().zip(pools).any(|(mask, (_, within))| mask[i] && within(&grid.centre(i)));
+    (0..grid.voxel_count()).into_par_iter().map(|i| interior(i) && counts(i)).collect()
 }
 
 /// Smallest distance (mm) from a point of `a` to the surface of `b`, and that point of `a`.

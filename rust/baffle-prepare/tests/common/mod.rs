@@ -37,6 +37,17 @@ fn rim_off_pool_mm(mesh: &TriMesh, label: i32, pool: &TriMesh) -> f64 {
     rim.iter().filter_map(|&v| bvh.closest_point(pool, cap.points[v as usize])).map(|h| h.distance_mm).fold(0.0, f64::max)
 }
 
+/// Smallest distance of an inflow-cap (20) point beyond the VSD cap's (11) plane,
+/// toward the LV (mm; negative: on the RV's side).
+pub fn inflow_clearance_mm(extended: &TriMesh) -> f64 {
+    let (c_vsd, n_vsd, _) = extended.with_labels(|l| l == 11).label_centroid_normal(11).expect("VSD cap");
+    let (c_in, _, _) = extended.with_labels(|l| l == 20).label_centroid_normal(20).expect("inflow cap");
+    // The VSD cap's normal may point either way: toward the LV is toward the inflow cap.
+    let toward_lv = if (c_in - c_vsd).dot(&n_vsd) >= 0.0 { n_vsd } else { -n_vsd };
+    let inflow = extended.with_labels(|l| l == 20);
+    inflow.points.iter().map(|p| (p - c_vsd).dot(&toward_lv)).fold(f64::INFINITY, f64::min)
+}
+
 /// What the issue promises, re-measured on `extended` of `domain`.
 pub fn check_extended(name: &str, domain: &TriMesh, pools: &BloodPools, extended: &Extended) {
     let s = &extended.surface;
@@ -74,10 +85,12 @@ pub fn check_extended(name: &str, domain: &TriMesh, pools: &BloodPools, extended
     let far = rim_off_pool_mm(s, 21, &pools.aorta);
     assert!(far < 1.0, "{name}: the outflow cap's rim is up to {far:.2} mm off the aorta surface");
     assert!(winding_number(&pools.aorta, outflow) > 0.5, "{name}: the outflow cap's centroid is not inside the aorta");
+    let vsd_clearance = inflow_clearance_mm(s);
+    assert!(vsd_clearance >= 1.0 - 1e-9, "{name}: the inflow cap comes within {vsd_clearance:.2} mm of the VSD cap's plane (at least 1 mm)");
     let r = &extended.report;
     assert!(r.baffle_area_relative_change.abs() < 1e-3, "{name}: baffle area change {}", r.baffle_area_relative_change);
     eprintln!(
-        "{name}: {} triangles ({} designed, LV part {}, aortic part {}); volume {volume:.0} vs {designed:.0} mm3; inflow cap {inflow_area:.1} mm2 at {:.2} mm beyond the VSD, \
+        "{name}: {} triangles ({} designed, LV part {}, aortic part {}); volume {volume:.0} vs {designed:.0} mm3; inflow cap {inflow_area:.1} mm2 at {:.2} mm beyond the VSD (all of it >= {vsd_clearance:.2} mm), \
          outflow cap {outflow_area:.1} mm2 at {:.2} mm above the annulus (STJ found: {}; {}), inflow / outflow rims within {inflow_far:.2} / {far:.2} mm of the LV / aorta surface; \
          baffle {:.2} -> {:.2} mm2 ({:+.2e}); edge {:.2} mm; {:.0} ms",
         r.triangles, r.designed_triangles, r.lv_extension_triangles, r.aortic_extension_triangles, r.mid_lv_plane.distance_from_vsd_mm,
