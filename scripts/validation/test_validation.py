@@ -226,11 +226,12 @@ def test_the_chain_rows_move_one_cap_at_a_time_in_their_own_directories():
     assert len(chain) == 2 * per_patient and all(r["domain"] == "published" and r["steps"] == validate.FIRST_PEAK_STEPS for r in chain)
     # Each row moves at most one cap; the default row is the same extension as the base row.
     assert [validate.variant_name(r) for r in chain[:per_patient]] == [
-        "default", "inflow cap -5 mm", "inflow cap +5 mm", "outflow cap at 0.75 annulus diameters", "outflow cap at 1.35 annulus diameters"]
+        "default", "inflow cap -5 mm", "inflow cap -2.5 mm", "inflow cap +2.5 mm", "inflow cap +5 mm",
+        "outflow cap at 0.75 annulus diameters", "outflow cap at 1.35 annulus diameters"]
     suffixes = [validate.chain_suffix(r) for r in chain[:per_patient]]
-    assert suffixes == ["", "-in-5", "-in+5", "-out0.75d", "-out1.35d"]
+    assert suffixes == ["", "-in-5", "-in-2.5", "-in+2.5", "-in+5", "-out0.75d", "-out1.35d"]
     assert validate.chain_argv(chain[1]) == ["--inflow-offset-mm", -5.0]
-    assert validate.chain_argv(chain[4]) == ["--outflow-diameters", 1.35]
+    assert validate.chain_argv(chain[-1]) == ["--outflow-diameters", 1.35]
     assert validate.chain_argv(chain[0]) == []
 
 

@@ -257,7 +257,7 @@ VSD_OFFSETS_MM = (-2.0, -1.0, 0.0, 1.0, 2.0)
 # The extension's caps moved (issue 13): the mid-LV inflow cap along the VSD normal from
 # the LV centroid (mm; positive: away from the VSD), the outflow cap at fixed heights
 # (annulus diameters; p2's aortic root sections end at 1.39, p1's and p3's at 1.5).
-INFLOW_OFFSETS_MM = (-5.0, 5.0)
+INFLOW_OFFSETS_MM = (-5.0, -2.5, 2.5, 5.0)
 OUTFLOW_DIAMETERS = (0.75, 1.35)
 
 
