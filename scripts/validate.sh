@@ -28,7 +28,7 @@ while [[ $# -gt 0 ]]; do
     --out) out="$2"; shift ;;
     --patients) patients="$2"; shift ;;
     --only) extra+=(--only "$2"); shift ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,15p' "$0"; exit 0 ;;
     *) echo "validate.sh: unknown argument $1" >&2; exit 2 ;;
   esac
   shift
