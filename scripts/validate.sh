@@ -2,12 +2,13 @@
 # Regenerates the CFD rows of docs/validation.md (paper 2.5 chain on the published and
 # on our designed domains, p1-p3) with target/release/baffle; see
 # scripts/validation/validate.py for what each row runs.
-#   bash scripts/validate.sh [--quick|--smoke] [--out DIR] [--patients p1,p2,p3] [--only gci|base] [--tables-only]
+#   bash scripts/validate.sh [--quick|--smoke] [--out DIR] [--patients p1,p2,p3] [--only gci|cycles|chain|base] [--tables-only]
 #   --smoke: p2 published, 1.25 mm, 20 time steps (about a minute; scripts/test.sh)
 #   --quick: published and designed domains of every patient to the first peak at 1.25 mm
 #   (default, full): plus inflow profile, fine interior mesh, elevated flow and the
-#   mesh study with GCI on every patient's published and designed domain (--only gci: just
-#   the study, --only base: everything else)
+#   mesh study with GCI on every patient's published and designed domain, four cycles and the
+#   extension's inflow/outflow caps moved (--only gci: just the study, --only cycles: the
+#   four-cycle runs, --only chain: the moved caps, --only base: everything else)
 # A stage whose output exists under OUT/work is reused (delete OUT after changing the
 # code); --smoke always starts from an empty OUT. --tables-only rebuilds the tables from
 # the stages already run (rows with a stage missing are left out).
@@ -27,7 +28,7 @@ while [[ $# -gt 0 ]]; do
     --out) out="$2"; shift ;;
     --patients) patients="$2"; shift ;;
     --only) extra+=(--only "$2"); shift ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,15p' "$0"; exit 0 ;;
     *) echo "validate.sh: unknown argument $1" >&2; exit 2 ;;
   esac
   shift

@@ -69,11 +69,14 @@ def plane_frame(points, tris):
 
 
 def lengths(path, vsd, aortic):
-    """vsd, aortic: (points, triangles) of each plane. Lengths in the path's units."""
+    """vsd, aortic: (points, triangles) of each plane. Lengths in the path's units; without
+    a path (None) only those of the planes themselves."""
     (cv, nv), (ca, na) = plane_frame(*vsd), plane_frame(*aortic)
     out = {"centroids": float(np.linalg.norm(cv - ca))}
     pv, pa = vsd[0][np.unique(vsd[1])], aortic[0][np.unique(aortic[1])]
     out["closest_nodes"] = float(np.min(np.linalg.norm(pv[:, None, :] - pa[None, :, :], axis=2)))
+    if path is None:
+        return out
     tv = crossings(path, cv, nv)
     ta = crossings(path, ca, na)
     if tv and any(t > tv[0] for t in ta):

@@ -213,8 +213,52 @@ def test_the_full_run_studies_every_domain_of_every_patient_and_only_filters():
     assert base and not any(r.get("study") for r in base)
     cycles = validate.row_specs("full", patients, only="cycles")
     assert sorted(r["patient"] for r in cycles) == patients and all(r["cycles"] == 4 and r["domain"] == "published" for r in cycles)
-    assert len(base) + len(study) + len(cycles) == len(validate.row_specs("full", patients))
+    chain = validate.row_specs("full", patients, only="chain")
+    assert len(base) + len(study) + len(cycles) + len(chain) == len(validate.row_specs("full", patients))
     assert validate.row_specs("quick", ["p2"], only="gci") == []
+
+
+def test_the_chain_rows_move_one_cap_at_a_time_in_their_own_directories():
+    import validate
+
+    chain = validate.row_specs("full", ["p2", "p3"], only="chain")
+    per_patient = 1 + len(validate.INFLOW_OFFSETS_MM) + len(validate.OUTFLOW_DIAMETERS)
+    assert len(chain) == 2 * per_patient and all(r["domain"] == "published" and r["steps"] == validate.FIRST_PEAK_STEPS for r in chain)
+    # Each row moves at most one cap; the default row is the same extension as the base row.
+    assert [validate.variant_name(r) for r in chain[:per_patient]] == [
+        "default", "inflow cap -5 mm", "inflow cap -2.5 mm", "inflow cap +2.5 mm", "inflow cap +5 mm",
+        "outflow cap at 0.75 annulus diameters", "outflow cap at 1.35 annulus diameters"]
+    suffixes = [validate.chain_suffix(r) for r in chain[:per_patient]]
+    assert suffixes == ["", "-in-5", "-in-2.5", "-in+2.5", "-in+5", "-out0.75d", "-out1.35d"]
+    assert validate.chain_argv(chain[1]) == ["--inflow-offset-mm", -5.0]
+    assert validate.chain_argv(chain[-1]) == ["--outflow-diameters", 1.35]
+    assert validate.chain_argv(chain[0]) == []
+
+
+def test_the_chain_table_lists_only_chain_rows_and_names_failures():
+    import validate
+
+    row = dict(patient="p2", study="chain", inflow_offset_mm=-5.0, outflow_diameters=None, inflow_cap_from_vsd_mm=2.56, inflow_cap_mm2=186.0,
+               stj_from_annulus_mm=12.0, outflow_cap_mm2=132.0, tets=26506, dp_mmhg=0.65, dp_total_flux_mmhg=3.36, vmax_centerline_m_s=1.96,
+               paper_dp_mmhg=1.58, paper_vmax_m_s=1.48)
+    failed = dict(patient="p1", study="chain", variant="inflow cap +5 mm", error="baffle extend failed\nthe inflow cap offset leaves no valid cut")
+    table = validate.chain_markdown([row, failed, dict(row, study="gci")])
+    lines = table.strip().splitlines()
+    assert len(lines) == 4
+    assert lines[2] == "| p2 | inflow cap -5 mm | 2.6, 186 | 12.0, 132 | 26,506 | 0.65 | 3.36 | 1.96 | 1.58 / 1.48 |"
+    assert "failed: the inflow cap offset leaves no valid cut" in lines[3]
+    assert validate.chain_markdown([dict(row, study="gci")]) == ""
+    # The main table leaves the chain rows to their own table.
+    assert validate.markdown([failed]).count("\n") == 2
+
+
+def test_lengths_without_a_path_keep_the_planes_own():
+    import centerline_defs as cd
+
+    sq = np.array([[0, 1, 2], [0, 2, 3]])
+    vsd = (np.array([[0, -1, -1], [0, 1, -1], [0, 1, 1], [0, -1, 1]], float), sq)
+    ao = (vsd[0] + [3.0, 4.0, 0.0], sq)
+    assert cd.lengths(None, vsd, ao) == {"centroids": pytest.approx(5.0), "closest_nodes": pytest.approx(math.sqrt(13.0))}
 
 
 def test_a_case_runs_to_a_step_or_whole_cycles(tmp_path):

@@ -128,16 +128,17 @@ def run_row(r: Runner, spec, patients, common):
     info = patients[patient]
     boundary, interior = spec["boundary_mm"], spec["interior_mm"]
     cycles = spec.get("cycles", 1)
+    variant = variant_name(spec)
     length = f"{cycles} cycles" if cycles > 1 else f"{spec['steps']} steps"
-    log(f"== {patient} {domain_kind} boundary {boundary} mm, interior {interior} mm, {spec['flow']} flow, {spec['profile']} inflow, {length}")
+    log(f"== {patient} {domain_kind} boundary {boundary} mm, interior {interior} mm, {spec['flow']} flow, {spec['profile']} inflow, {length}, extension {variant}")
     if domain_kind == "published":
         domain, times = published_domain(r, patient, boundary)
     else:
         domain, times = designed_domain(r, patient, info)
     # Beside the published domain, or beside the design's domain.vtp.
-    base = (r.work / patient / "published" if domain_kind == "published" else domain.parent) / f"b{boundary}"
+    base = (r.work / patient / "published" if domain_kind == "published" else domain.parent) / (f"b{boundary}" + chain_suffix(spec))
     extended = base / "extended.vtp"
-    extend_argv = ["extend", "--domain", domain, "--segmentations", r.data / patient / "segmentations", "--out", extended]
+    extend_argv = ["extend", "--domain", domain, "--segmentations", r.data / patient / "segmentations", "--out", extended] + chain_argv(spec)
     if boundary != DESIGN_BOUNDARY_MM:
         # The whole boundary at this size, the planes conforming (mesh study).
         extend_argv += ["--remesh-domain-edge-mm", boundary]
@@ -158,21 +159,27 @@ def run_row(r: Runner, spec, patients, common):
     )
     # The whole path, inflow cap to outflow cap, for the other length definitions.
     whole = base / "centerline-ends.vtp"
-    times["centerline_whole"] = r.stage(whole, ["centerline", "--surface", extended, "--ends", "20,21", "--planes", "20,21", "--out", whole])
+    try:
+        times["centerline_whole"] = r.stage(whole, ["centerline", "--surface", extended, "--ends", "20,21", "--planes", "20,21", "--out", whole])
+    except RuntimeError as e:
+        # It only feeds the other length definitions: the row stands without them.
+        log(f"  whole-path centerline failed, other lengths left out: {e}")
+        whole = None
     summary = json.loads((sim / "summary.json").read_text())
     quality = json.loads((mesh_dir / "mesh-quality.json").read_text())
     centerline = json.loads((sim / "centerline.json").read_text())
     defs = planes.dp_definitions(fields, mesh_dir / "mesh-faces.vtp", offsets_mm=spec.get("vsd_offsets_mm", ()))
     ext = json.loads((base / "extended-report.json").read_text())
     _, points, _, _, tris, labels = planes.load(fields, mesh_dir / "mesh-faces.vtp")
-    path = planes.points_of(whole)
+    path = planes.points_of(whole) if whole else None
     lengths = centerline_defs.lengths(path, (points, tris[labels == 11]), (points, tris[labels == 16]))
     paper_dp = info["cfd_dp_peak_mmhg"] if spec["flow"] == "nominal" else None
     paper_v = info["cfd_centerline_vmax_m_s"] if spec["flow"] == "nominal" else None
     return Row(
         patient=patient,
         domain=domain_kind,
-        mesh=f"{boundary} mm boundary, {interior} mm interior" + (f", {cycles} cycles" if cycles > 1 else ""),
+        mesh=f"{boundary} mm boundary, {interior} mm interior" + (f", {cycles} cycles" if cycles > 1 else "") + ("" if variant == "default" else f", {variant}"),
+        variant=variant,
         cycles=cycles,
         # Several cycles: the first peak's dp beside the last cycle's (the quick estimate's error).
         dp_first_peak_mmhg=first_peak_dp_mmhg(sim) if cycles > 1 else summary["dp_peak_mmhg"],
@@ -194,6 +201,9 @@ def run_row(r: Runner, spec, patients, common):
         aortic_cap_mm2=ext["aortic_cap"]["area_mm2"],
         inflow_cap_mm2=ext["inflow_cap"]["area_mm2"],
         inflow_cap_from_vsd_mm=ext["mid_lv_plane"]["distance_from_vsd_mm"],
+        inflow_offset_mm=spec.get("inflow_offset_mm"),
+        outflow_diameters=spec.get("outflow_diameters"),
+        annulus_diameter_mm=ext["stj"]["annulus_diameter_mm"],
         outflow_cap_mm2=ext["outflow_cap"]["area_mm2"],
         stj_found=ext["stj"]["found"],
         stj_from_annulus_mm=ext["stj"]["distance_from_annulus_mm"],
@@ -216,6 +226,26 @@ def run_row(r: Runner, spec, patients, common):
     )
 
 
+def chain_suffix(spec):
+    """The extension's directory suffix for a moved inflow or outflow cap ("" for the default)."""
+    parts = []
+    if spec.get("inflow_offset_mm") is not None:
+        parts.append(f"-in{spec['inflow_offset_mm']:+g}")
+    if spec.get("outflow_diameters") is not None:
+        parts.append(f"-out{spec['outflow_diameters']:g}d")
+    return "".join(parts)
+
+
+def chain_argv(spec):
+    """`baffle extend` options placing the inflow / outflow cap as the row asks."""
+    argv = []
+    if spec.get("inflow_offset_mm") is not None:
+        argv += ["--inflow-offset-mm", spec["inflow_offset_mm"]]
+    if spec.get("outflow_diameters") is not None:
+        argv += ["--outflow-diameters", spec["outflow_diameters"]]
+    return argv
+
+
 def spec(patient, domain, boundary=DESIGN_BOUNDARY_MM, interior=1.25, flow="nominal", profile="plug", steps=FIRST_PEAK_STEPS, **kw):
     return dict(patient=patient, domain=domain, boundary_mm=boundary, interior_mm=interior, flow=flow, profile=profile, steps=steps, **kw)
 
@@ -224,11 +254,27 @@ def spec(patient, domain, boundary=DESIGN_BOUNDARY_MM, interior=1.25, flow="nomi
 # The GCI takes the three finest.
 MESH_LEVELS_MM = (1.25, 0.95, 0.75, 0.6)
 VSD_OFFSETS_MM = (-2.0, -1.0, 0.0, 1.0, 2.0)
+# The extension's caps moved (issue 13): the mid-LV inflow cap along the VSD normal from
+# the LV centroid (mm; positive: away from the VSD), the outflow cap at fixed heights
+# (annulus diameters; p2's aortic root sections end at 1.39, p1's and p3's at 1.5).
+INFLOW_OFFSETS_MM = (-5.0, -2.5, 2.5, 5.0)
+OUTFLOW_DIAMETERS = (0.75, 1.35)
+
+
+def chain_specs(patients):
+    """Published domains, 0.85 / 1.25 mm, first peak: the default extension (baseline of
+    the same run), then each inflow offset and each outflow height, one at a time."""
+    rows = []
+    for p in patients:
+        rows.append(spec(p, "published", study="chain"))
+        rows += [spec(p, "published", inflow_offset_mm=o, study="chain") for o in INFLOW_OFFSETS_MM]
+        rows += [spec(p, "published", outflow_diameters=k, study="chain") for k in OUTFLOW_DIAMETERS]
+    return rows
 
 
 def row_specs(mode, patients_wanted, only=None):
     """The rows of a run; `only` keeps the mesh study ("gci"), the four-cycle runs
-    ("cycles") or the rest ("base")."""
+    ("cycles"), the moved extension caps ("chain") or the rest ("base")."""
     rows = all_row_specs(mode, patients_wanted)
     if only == "base":
         return [r for r in rows if not r.get("study")]
@@ -264,6 +310,7 @@ def all_row_specs(mode, patients_wanted):
     rows += [r for p in ("p2", "p3", "p1") if p in ps for r in study(p, "designed")]
     if "p1" in ps:
         rows += study("p1", "published")
+    rows += chain_specs([p for p in ("p2", "p3", "p1") if p in ps])
     return rows
 
 
@@ -276,7 +323,8 @@ def fmt(x, nd=2):
 def markdown(rows):
     head = "| patient | domain | mesh | flow | inflow | tets | dp (mmHg) | paper | dp total, flow-weighted | v_max centerline (m/s) | paper | v_max domain | centerline (mm) | wall time (s) |"
     out = [head, "|" + "---|" * (head.count("|") - 1)]
-    for r in rows:
+    # The moved-cap rows have their own table (chain_markdown).
+    for r in (r for r in rows if r.get("study") != "chain"):
         if "error" in r:
             out.append(f"| {r['patient']} | {r['domain']} | {r.get('mesh', '')} | | | | failed: {r['error'].splitlines()[0]} | | | | | | | |")
             continue
@@ -321,6 +369,34 @@ def shifted_markdown(rows, key):
             out = [head, "|" + "---|" * (head.count("|") - 1)]
         out.append(f"| {r['patient']} | {r['domain']} | {r['mesh']} | " + " | ".join(f"{v['dp_static_area']:.2f} / {v['dp_total_flux']:.2f}" for v in sh.values()) + " |")
     return "\n".join(out) + "\n" if out else ""
+
+
+def chain_markdown(rows):
+    """dp and v_max with the extension's inflow or outflow cap moved (the "chain" rows)."""
+    head = ("| patient | extension | inflow cap (mm from VSD, mm2) | outflow cap (mm above annulus, mm2) | tets | dp static (mmHg) | dp total, flow-weighted "
+            "| v_max centerline (m/s) | paper dp / v_max |")
+    out = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in rows:
+        if r.get("study") != "chain":
+            continue
+        if "error" in r:
+            out.append(f"| {r['patient']} | {r.get('variant', '')} | failed: {r['error'].splitlines()[-1]} | | | | | | |")
+            continue
+        out.append(
+            f"| {r['patient']} | {variant_name(r)} | {r['inflow_cap_from_vsd_mm']:.1f}, {r['inflow_cap_mm2']:.0f} | {r['stj_from_annulus_mm']:.1f}, {r['outflow_cap_mm2']:.0f} | {r['tets']:,} | "
+            f"{fmt(r['dp_mmhg'])} | {fmt(r['dp_total_flux_mmhg'])} | {fmt(r['vmax_centerline_m_s'])} | {fmt(r['paper_dp_mmhg'])} / {fmt(r['paper_vmax_m_s'])} |"
+        )
+    return "\n".join(out) + "\n" if len(out) > 2 else ""
+
+
+def variant_name(spec):
+    """How a row's extension differs from the default (mid-LV centroid, STJ or 1 diameter)."""
+    parts = []
+    if spec.get("inflow_offset_mm") is not None:
+        parts.append(f"inflow cap {spec['inflow_offset_mm']:+g} mm")
+    if spec.get("outflow_diameters") is not None:
+        parts.append(f"outflow cap at {spec['outflow_diameters']:g} annulus diameters")
+    return ", ".join(parts) or "default"
 
 
 def gci_markdown(study):
@@ -375,7 +451,7 @@ def main(argv=None):
     ap.add_argument("--baffle", type=Path, required=True)
     ap.add_argument("--patients", default="p1,p2,p3")
     ap.add_argument("--nice", type=int, default=5)
-    ap.add_argument("--only", choices=("gci", "cycles", "base"), help="run only the mesh-study rows, the four-cycle rows, or the others")
+    ap.add_argument("--only", choices=("gci", "cycles", "chain", "base"), help="run only the mesh-study rows, the four-cycle rows, the moved extension caps, or the others")
     ap.add_argument("--tables-only", action="store_true", help="rebuild the tables from the stages already run; rows with a stage missing are left out")
     args = ap.parse_args(argv)
     meta = json.loads((args.data / "patients.json").read_text())
@@ -395,7 +471,7 @@ def main(argv=None):
             continue
         except (RuntimeError, ValueError, OSError, KeyError) as e:
             log(f"  FAILED: {e}")
-            row = Row(patient=s["patient"], domain=s["domain"], mesh=f"{s['boundary_mm']} / {s['interior_mm']} mm", error=str(e))
+            row = Row(patient=s["patient"], domain=s["domain"], mesh=f"{s['boundary_mm']} / {s['interior_mm']} mm", variant=variant_name(s), error=str(e))
         if "study" in s:
             row["study"] = s["study"]
         rows.append(row)
@@ -424,6 +500,7 @@ def write_outputs(out, rows):
         + "\n## The extended domains, meshes and centerline lengths\n\n" + geometry_markdown(rows)
         + "\n## dp with the VSD plane moved along the flow (negative: into the LV)\n\n" + shifted_markdown(rows, "vsd_plane_shifted")
         + "\n## dp with the aortic plane moved along the flow (positive: into the aorta)\n\n" + shifted_markdown(rows, "aortic_plane_shifted")
+        + "\n## dp with the extension's inflow or outflow cap moved\n\n" + chain_markdown(rows)
     )
     study = study_tables(rows)
     if study:

@@ -32,13 +32,9 @@ fn s(p: &Path) -> &str {
 fn p2_extended_domain_meshes_with_conforming_interior_caps() {
     let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
     let out = temp_dir("p2");
-    let segmentations = data.join("p2/segmentations");
-    let capped = out.join("capped.vtp");
-    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
-    let points = data.join("p2/design_input/suture_points.mrk.json");
-    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.37", "--out", s(&out.join("design"))]));
+    let (domain_path, segmentations) = designed_p2(&data, &out);
     let extended = out.join("extended.vtp");
-    let stdout = ok(baffle(&["extend", "--domain", s(&out.join("design/domain.vtp")), "--segmentations", s(&segmentations), "--out", s(&extended)]));
+    let stdout = ok(baffle(&["extend", "--domain", s(&domain_path), "--segmentations", s(&segmentations), "--out", s(&extended)]));
     eprintln!("{stdout}");
     // p2's LV comes no nearer than 1.76 mm to its RV away from the VSD: no contact to note.
     assert!(stdout.contains("inflow: parallel to the VSD cap") && stdout.contains("the LV part with the RV only over the VSD") && !stdout.contains("note:"), "{stdout}");
@@ -75,12 +71,7 @@ fn label_area_mm2(mesh: &baffle_core::TriMesh, label: i32) -> f64 {
 fn a_remeshed_designed_domain_refines_the_whole_boundary_with_conforming_planes() {
     let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
     let out = temp_dir("p2-remesh");
-    let segmentations = data.join("p2/segmentations");
-    let capped = out.join("capped.vtp");
-    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
-    let points = data.join("p2/design_input/suture_points.mrk.json");
-    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.37", "--out", s(&out.join("design"))]));
-    let domain_path = out.join("design/domain.vtp");
+    let (domain_path, segmentations) = designed_p2(&data, &out);
     let domain = read_surface_labeled(&domain_path).unwrap().mesh;
     let extended = out.join("extended.vtp");
     let edge = 0.6;
@@ -114,6 +105,54 @@ fn a_remeshed_designed_domain_refines_the_whole_boundary_with_conforming_planes(
         let set = mesh.faces.iter().find(|f| f.id == label).unwrap_or_else(|| panic!("no face set {label}"));
         assert!(set.interior && set.triangles.len() == count, "face {label}: {} interior triangles, the cap has {count}", set.triangles.len());
     }
+    std::fs::remove_dir_all(out).ok();
+}
+
+fn report_of(extended: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(extended.with_file_name("extended-report.json")).unwrap()).unwrap()
+}
+
+/// p2's domain designed from its segmentations (prepare, design as commands), and the
+/// segmentations folder.
+fn designed_p2(data: &Path, out: &Path) -> (PathBuf, PathBuf) {
+    let segmentations = data.join("p2/segmentations");
+    let capped = out.join("capped.vtp");
+    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
+    let points = data.join("p2/design_input/suture_points.mrk.json");
+    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.37", "--out", s(&out.join("design"))]));
+    (out.join("design/domain.vtp"), segmentations)
+}
+
+#[test]
+fn the_inflow_and_outflow_caps_move_as_asked_or_are_refused_by_name() {
+    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let out = temp_dir("p2-caps-moved");
+    let (domain, segmentations) = designed_p2(&data, &out);
+    let extend = |name: &str, extra: &[&str]| {
+        let extended = out.join(name).join("extended.vtp");
+        let mut argv = vec!["extend", "--domain", s(&domain), "--segmentations", s(&segmentations), "--out", s(&extended)];
+        argv.extend_from_slice(extra);
+        (baffle(&argv), extended)
+    };
+    let (run, default) = extend("default", &[]);
+    ok(run);
+    let (run, moved) = extend("moved", &["--inflow-offset-mm", "-3", "--outflow-diameters", "0.75"]);
+    ok(run);
+    let (d, m) = (report_of(&default), report_of(&moved));
+    let depth = |r: &serde_json::Value| r["mid_lv_plane"]["distance_from_vsd_mm"].as_f64().unwrap();
+    // The plane parallel to the VSD cap, 3 mm nearer it than the LV centroid's.
+    assert!((depth(&d) - depth(&m) - 3.0).abs() < 1e-6, "mid-LV plane {} -> {} mm from the VSD", depth(&d), depth(&m));
+    let stj = &m["stj"];
+    let height = stj["distance_from_annulus_mm"].as_f64().unwrap();
+    assert!((height - 0.75 * stj["annulus_diameter_mm"].as_f64().unwrap()).abs() <= 0.25, "{stj}");
+    // -7 mm leaves the plane 0.5 mm beyond the VSD cap (p2's LV centroid lies 7.5 mm
+    // beyond it; 1 mm is needed); p2's aortic root sections end at 1.4 annulus diameters.
+    let (run, bad) = extend("near", &["--inflow-offset-mm", "-7"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && stderr.contains("inflow cap offset leaves no valid cut") && !bad.exists(), "{stderr}");
+    let (run, _) = extend("high", &["--outflow-diameters", "3"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && stderr.contains("below the asked outflow height"), "{stderr}");
     std::fs::remove_dir_all(out).ok();
 }
 

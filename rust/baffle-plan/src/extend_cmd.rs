@@ -8,7 +8,7 @@ use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
 use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
 use baffle_core::{FaceLabels, TriMesh};
-use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
+use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
 use crate::progress::{Progress, Style};
 use clap::Args;
@@ -60,6 +60,17 @@ pub struct ExtendArgs {
     /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
     #[arg(long)]
     pub remesh_domain_edge_mm: Option<f64>,
+    /// Move the inflow cap (mid-LV plane) this far (mm) from the LV volume centroid along
+    /// the VSD normal (positive: away from the VSD, toward the apex), for a sensitivity
+    /// study; an offset that leaves no clean cut of the LV is an error (no fallback).
+    /// Default: through the centroid, moved only when that cut is not clean.
+    #[arg(long, allow_hyphen_values = true)]
+    pub inflow_offset_mm: Option<f64>,
+    /// Put the outflow cap this many annulus diameters above the annulus instead of at the
+    /// sinotubular junction (the STJ search still runs and is reported), for a sensitivity
+    /// study of the outflow length; a height past the aortic root's sections is an error.
+    #[arg(long)]
+    pub outflow_diameters: Option<f64>,
 }
 
 pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
@@ -106,6 +117,8 @@ pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), Stri
         inflow_label: args.inflow_label,
         outflow_label: args.outflow_label,
         remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),
+        stj: StjOptions { fixed_diameters: args.outflow_diameters, ..StjOptions::default() },
+        inflow_offset_mm: args.inflow_offset_mm,
         ..ExtendOptions::default()
     };
     let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;

@@ -86,6 +86,9 @@ pub struct StjOptions {
     pub window_mm: f64,
     /// Without a minimum, the outflow cap lies this many annulus diameters above the annulus.
     pub fallback_diameters: f64,
+    /// The outflow cap this many annulus diameters above the annulus wherever the STJ is
+    /// (a sensitivity study of the outflow length); the search still runs and is reported.
+    pub fixed_diameters: Option<f64>,
     /// The search stops where one step changes the section area by more than this
     /// fraction (a branch or the arch enters the plane): a minimum needs a gradual rise after it.
     pub max_step_change: f64,
@@ -93,7 +96,7 @@ pub struct StjOptions {
 
 impl Default for StjOptions {
     fn default() -> Self {
-        StjOptions { step_mm: 0.25, search_diameters: 2.5, min_drop: 0.05, window_mm: 1.5, fallback_diameters: 1.0, max_step_change: 0.1 }
+        StjOptions { step_mm: 0.25, search_diameters: 2.5, min_drop: 0.05, window_mm: 1.5, fallback_diameters: 1.0, max_step_change: 0.1, fixed_diameters: None }
     }
 }
 
@@ -109,6 +112,10 @@ pub struct ExtendOptions {
     /// Target edge of the extension's remesh (mm); `None`: the designed caps' mean rim edge.
     pub remesh_edge_mm: Option<f64>,
     pub stj: StjOptions,
+    /// The mid-LV plane this far (mm) from the LV centroid along the VSD normal (positive:
+    /// away from the VSD), and only there (a sensitivity study of the inflow position);
+    /// `None`: through the centroid, moved by `MID_LV_MOVES_MM` until a cut is clean.
+    pub inflow_offset_mm: Option<f64>,
 }
 
 impl Default for ExtendOptions {
@@ -120,13 +127,14 @@ impl Default for ExtendOptions {
             outflow_label: OUTFLOW_CAP_LABEL,
             remesh_edge_mm: None,
             stj: StjOptions::default(),
+            inflow_offset_mm: None,
         }
     }
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct MidLvPlaneReport {
-    pub rule: &'static str,
+    pub rule: String,
     pub point_mm: [f64; 3],
     /// Unit normal, from the VSD toward the LV.
     pub normal: [f64; 3],
@@ -226,7 +234,8 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let (stj, stj_report, stj_loop) = sinotubular_junction(&pools.aorta, &annulus, &options.stj)?;
     let planes_ms = lap();
 
-    let deepest_move_mm = MID_LV_MOVES_MM.iter().copied().fold(0.0, f64::max);
+    let moves_mm = mid_lv_moves_mm(options.inflow_offset_mm);
+    let deepest_move_mm = moves_mm.iter().copied().fold(0.0, f64::max);
     let deepest = parallel_plane(&centroid_plane, centroid_plane.centroid + deepest_move_mm * centroid_plane.normal);
     // Each part is cut from the union of the two pools its designed cap joins: where
     // the aorta also touches the LV, the union of all three has a handle through
@@ -243,7 +252,17 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let edge_mm = options.remesh_edge_mm.unwrap_or_else(|| mean_rim_edge_mm(domain, &[&vsd.rim, &annulus.rim]));
     let snap_mm = 0.05 * options.union.voxel_mm;
     let mut surface = domain.clone();
-    let lv_part = LvPart { union: &lv_union, pools, vsd: &vsd, footprint: &footprint, centroid_plane, inflow_label: options.inflow_label, closing_radius_mm: options.union.closing_radius_mm };
+    let lv_part = LvPart {
+        union: &lv_union,
+        pools,
+        vsd: &vsd,
+        footprint: &footprint,
+        centroid_plane,
+        moves_mm,
+        fixed: options.inflow_offset_mm.is_some(),
+        inflow_label: options.inflow_label,
+        closing_radius_mm: options.union.closing_radius_mm,
+    };
     let (lv_triangles, mid_lv, moved_mm) = lv_part.attach(&mut surface, (edge_mm, snap_mm, l.wall))?;
     let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label, far_pool: ("aorta", &pools.aorta) };
     let ao_triangles = ao_part.attach(&mut surface, &ao_union, edge_mm, snap_mm, l.wall)?;
@@ -268,7 +287,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
         inflow_cap: cap_report(&surface, options.inflow_label)?,
         outflow_cap: cap_report(&surface, options.outflow_label)?,
         mid_lv_plane: MidLvPlaneReport {
-            rule: "parallel to the VSD cap, through the LV blood pool's volume centroid",
+            rule: mid_lv_rule(options.inflow_offset_mm),
             point_mm: arr(mid_lv.centroid),
             normal: arr(mid_lv.normal),
             distance_from_vsd_mm: vsd.plane.signed_distance_mm(&mid_lv.centroid),
@@ -288,6 +307,19 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     Ok(Extended { surface, report })
 }
 
+/// The moves of the mid-LV plane from the LV centroid to try, in order (mm along the VSD normal).
+fn mid_lv_moves_mm(offset_mm: Option<f64>) -> Vec<f64> {
+    offset_mm.map_or_else(|| MID_LV_MOVES_MM.to_vec(), |o| vec![o])
+}
+
+fn mid_lv_rule(offset_mm: Option<f64>) -> String {
+    let rule = "parallel to the VSD cap, through the LV blood pool's volume centroid";
+    match offset_mm {
+        Some(o) => format!("{rule} moved {o:+.2} mm along the VSD normal (positive: away from the VSD), as asked"),
+        None => rule.to_string(),
+    }
+}
+
 fn arr(v: Vec3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
@@ -305,9 +337,12 @@ fn validate_options(options: &ExtendOptions) -> Result<(), PrepareError> {
         return Err(PrepareError::Option(format!("the inflow and outflow cap labels must differ, both are {}", options.inflow_label)));
     }
     let s = &options.stj;
-    let positive = [s.step_mm, s.search_diameters, s.window_mm, s.fallback_diameters, s.max_step_change, options.remesh_edge_mm.unwrap_or(1.0)];
+    let positive = [s.step_mm, s.search_diameters, s.window_mm, s.fallback_diameters, s.max_step_change, s.fixed_diameters.unwrap_or(1.0), options.remesh_edge_mm.unwrap_or(1.0)];
     if positive.iter().any(|v| !(v.is_finite() && *v > 0.0)) || !(0.0..1.0).contains(&s.min_drop) {
         return Err(PrepareError::Option(format!("STJ search and remesh settings must be positive (min drop in [0, 1)), got {s:?}, edge {:?}", options.remesh_edge_mm)));
+    }
+    if !options.inflow_offset_mm.unwrap_or(0.0).is_finite() {
+        return Err(PrepareError::Option(format!("the inflow cap offset must be finite, got {:?}", options.inflow_offset_mm)));
     }
     Ok(())
 }
@@ -367,18 +402,22 @@ struct LvPart<'a> {
     vsd: &'a DesignedCap,
     footprint: &'a VsdFootprint,
     centroid_plane: Plane,
+    /// The moves from the centroid plane to try (mm, along its normal), in order.
+    moves_mm: Vec<f64>,
+    /// Whether the move was asked for (one plane, no fallback).
+    fixed: bool,
     inflow_label: i32,
     closing_radius_mm: f64,
 }
 
 impl LvPart<'_> {
     /// The LV part between the VSD cap and the mid-LV plane, attached to `surface`:
-    /// the plane through the LV's centroid, or failing a clean cut there, the first of
-    /// `MID_LV_MOVES_MM` that gives one. Returns the part's triangles, the plane used
+    /// the plane through the LV's centroid (or at the asked offset), or failing a clean
+    /// cut there, the first of `MID_LV_MOVES_MM` that gives one. Returns the part's triangles, the plane used
     /// and how far it was moved (mm); the error lists each move and why it failed.
     fn attach(&self, surface: &mut TriMesh, (edge_mm, snap_mm, wall): (f64, f64, i32)) -> Result<(usize, Plane, f64), PrepareError> {
         let mut tried = Vec::new();
-        for moved_mm in MID_LV_MOVES_MM {
+        for &moved_mm in &self.moves_mm {
             let plane = parallel_plane(&self.centroid_plane, self.centroid_plane.centroid + moved_mm * self.centroid_plane.normal);
             let attached = self.section(&plane).and_then(|lv_loop| {
                 let part = Extension { name: "LV", near: self.vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: self.inflow_label, far_pool: ("LV", &self.pools.lv) };
@@ -390,6 +429,12 @@ impl LvPart<'_> {
             }
         }
         let c = self.centroid_plane.centroid;
+        if self.fixed {
+            return Err(PrepareError::geometry(
+                "mid-LV plane",
+                format!("the inflow cap offset leaves no valid cut of the LV: moved from the LV centroid ({:.1}, {:.1}, {:.1}) by {}", c.x, c.y, c.z, tried.join("; ")),
+            ));
+        }
         Err(PrepareError::geometry(
             "mid-LV plane",
             format!(
@@ -501,7 +546,8 @@ fn lv_centroid_plane(lv: &TriMesh, vsd: &Plane) -> Result<Plane, PrepareError> {
 fn sinotubular_junction(aorta: &TriMesh, annulus: &DesignedCap, opts: &StjOptions) -> Result<(Plane, StjReport, Vec<Vec3>), PrepareError> {
     let diameter_mm = 2.0 * (annulus.area_mm2 / std::f64::consts::PI).sqrt();
     let n = annulus.plane.normal;
-    let steps = (opts.search_diameters * diameter_mm / opts.step_mm).ceil() as usize;
+    let reach = opts.search_diameters.max(opts.fixed_diameters.unwrap_or(0.0));
+    let steps = (reach * diameter_mm / opts.step_mm).ceil() as usize;
     let mut track = annulus.plane.centroid;
     let mut heights = Vec::new();
     let mut sections: Vec<Contour> = Vec::new();
@@ -524,21 +570,30 @@ fn sinotubular_junction(aorta: &TriMesh, annulus: &DesignedCap, opts: &StjOption
     // Above the sinuses, the root ends where a step jumps in area (a branch, the arch
     // entering the plane): a minimum needs a gradual rise after it.
     let first_max = first_maximum(&areas, window).unwrap_or(0);
-    if let Some(jump) = (first_max + 1..raw.len()).find(|&k| (raw[k] / raw[k - 1] - 1.0).abs() > opts.max_step_change) {
-        areas.truncate(jump);
-        heights.truncate(jump);
-        sections.truncate(jump);
-    }
-    let found = area_minimum_after_maximum(&areas, window, opts.min_drop);
+    // The root's sections: up to the first jump (no cap is placed beyond it).
+    let root = (first_max + 1..raw.len()).find(|&k| (raw[k] / raw[k - 1] - 1.0).abs() > opts.max_step_change).unwrap_or(raw.len());
+    let search_end = root.min((opts.search_diameters * diameter_mm / opts.step_mm).ceil() as usize);
+    areas.truncate(root);
+    heights.truncate(root);
+    let found = area_minimum_after_maximum(&areas[..search_end], window, opts.min_drop);
     let profile: Vec<[f64; 2]> = heights.iter().zip(&areas).map(|(&h, &a)| [h, a]).collect();
-    let (index, note) = match found {
-        Some((_, k)) => (k, format!("first section-area minimum above the sinus maximum, at {:.2} mm above the annulus", heights[k])),
-        None => {
-            let h = opts.fallback_diameters * diameter_mm;
-            let k = heights.iter().position(|&x| x >= h - 0.5 * opts.step_mm).ok_or_else(|| {
-                PrepareError::geometry("STJ", format!("no section-area minimum above the sinuses, and the aorta surface ends {:.1} mm above the annulus, below the fallback height {h:.1} mm", heights.last().copied().unwrap_or(0.0)))
-            })?;
-            (k, format!("STJ not found (no section-area minimum {:.0}% below a maximum in the root's sections up to {:.1} mm): outflow cap at the fallback, {} annulus diameter(s) = {:.2} mm above the annulus", opts.min_drop * 100.0, heights.last().copied().unwrap_or(0.0), opts.fallback_diameters, heights[k]))
+    let top_mm = heights.last().copied().unwrap_or(0.0);
+    let at_height = |h: f64, what: &str| {
+        heights.iter().position(|&x| x >= h - 0.5 * opts.step_mm).ok_or_else(|| {
+            let found_note = if found.is_some() { "" } else { "no section-area minimum above the sinuses, and " };
+            PrepareError::geometry("STJ", format!("{found_note}the aorta surface's root sections end {top_mm:.1} mm above the annulus (a branch, the arch or the surface's end), below the {what} height {h:.1} mm"))
+        })
+    };
+    let (index, note) = match (opts.fixed_diameters, found) {
+        (Some(k), _) => {
+            let i = at_height(k * diameter_mm, "asked outflow")?;
+            let stj = found.map_or("not found".to_string(), |(_, m)| format!("found at {:.2} mm", heights[m]));
+            (i, format!("outflow cap fixed at {k} annulus diameter(s) = {:.2} mm above the annulus, as asked (STJ {stj})", heights[i]))
+        }
+        (None, Some((_, m))) => (m, format!("first section-area minimum above the sinus maximum, at {:.2} mm above the annulus", heights[m])),
+        (None, None) => {
+            let i = at_height(opts.fallback_diameters * diameter_mm, "fallback")?;
+            (i, format!("STJ not found (no section-area minimum {:.0}% below a maximum in the root's sections up to {:.1} mm): outflow cap at the fallback, {} annulus diameter(s) = {:.2} mm above the annulus", opts.min_drop * 100.0, heights[search_end.max(1) - 1], opts.fallback_diameters, heights[i]))
         }
     };
     let max_k = found.map_or_else(|| (0..=index).max_by(|&a, &b| areas[a].total_cmp(&areas[b])).unwrap_or(0), |(m, _)| m);

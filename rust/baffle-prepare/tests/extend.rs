@@ -6,7 +6,7 @@
 use baffle_core::io::{read_points, CoordinateSystem};
 use baffle_core::reference_data::reference_data_if_present;
 use baffle_core::{design, DesignOptions, TargetArea, Vec3};
-use baffle_prepare::extend::{extend, ExtendOptions};
+use baffle_prepare::extend::{extend, ExtendOptions, StjOptions};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};
 use baffle_prepare::{prepare, read_segmentations, BloodPools, PrepareError, PrepareOptions};
 
@@ -36,6 +36,47 @@ fn the_synthetic_heart_is_extended_to_the_lv_centre_and_one_diameter_up_the_aort
     assert!(!r.stj.found && r.stj.note.contains("not found"), "{:?}", r.stj.note);
     assert!((r.stj.distance_from_annulus_mm - r.stj.annulus_diameter_mm).abs() < 0.3, "{:?}", r.stj);
     assert!((r.outflow_cap.area_mm2 / (std::f64::consts::PI * 16.0) - 1.0).abs() < 0.05, "outflow {}", r.outflow_cap.area_mm2);
+}
+
+#[test]
+fn the_inflow_and_outflow_caps_move_where_asked() {
+    let pools = synthetic_pools();
+    let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
+    let stj = StjOptions { fixed_diameters: Some(1.5), ..StjOptions::default() };
+    let options = ExtendOptions { inflow_offset_mm: Some(3.0), stj, ..ExtendOptions::default() };
+    let extended = extend(&capped, &pools, &options).unwrap();
+    check_extended("synthetic, caps moved", &capped, &pools, &extended);
+    let r = &extended.report;
+    // 3 mm from the LV centre away from the VSD (the normal is -x): x = -3, and the
+    // section of a 10 mm sphere there is pi (100 - 9).
+    assert!((r.mid_lv_plane.point_mm[0] + 3.0).abs() < 0.05 && r.mid_lv_plane.moved_from_centroid_mm == 3.0, "{:?}", r.mid_lv_plane);
+    assert!(r.mid_lv_plane.rule.contains("+3.00 mm"), "{}", r.mid_lv_plane.rule);
+    assert!((r.inflow_cap.area_mm2 / (std::f64::consts::PI * 91.0) - 1.0).abs() < 0.05, "inflow {}", r.inflow_cap.area_mm2);
+    // 1.5 annulus diameters up the tube instead of the fallback's one.
+    assert!((r.stj.distance_from_annulus_mm - 1.5 * r.stj.annulus_diameter_mm).abs() < 0.3, "{:?}", r.stj);
+    assert!(r.stj.note.contains("as asked"), "{}", r.stj.note);
+}
+
+#[test]
+fn cap_positions_that_leave_no_valid_cut_are_named() {
+    let pools = synthetic_pools();
+    let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
+    let run = |options: ExtendOptions| extend(&capped, &pools, &options).unwrap_err().to_string();
+    // The VSD plane is x = 8.6: 8 mm toward it leaves the plane 0.6 mm beyond it; 12 mm
+    // away misses the 10 mm LV. Neither falls back to another plane.
+    let near = run(ExtendOptions { inflow_offset_mm: Some(-8.0), ..ExtendOptions::default() });
+    assert!(near.contains("inflow cap offset leaves no valid cut") && near.contains("need 1 mm toward the LV") && !near.contains("+2 mm"), "{near}");
+    let beyond = run(ExtendOptions { inflow_offset_mm: Some(12.0), ..ExtendOptions::default() });
+    assert!(beyond.contains("inflow cap offset leaves no valid cut"), "{beyond}");
+    // The aorta tube is 21 mm long: 4 diameters (32 mm) is past its end.
+    let high = run(ExtendOptions { stj: StjOptions { fixed_diameters: Some(4.0), ..StjOptions::default() }, ..ExtendOptions::default() });
+    assert!(high.contains("below the asked outflow height"), "{high}");
+    for bad in [Some(0.0), Some(-1.0), Some(f64::NAN)] {
+        let err = run(ExtendOptions { stj: StjOptions { fixed_diameters: bad, ..StjOptions::default() }, ..ExtendOptions::default() });
+        assert!(err.contains("must be positive"), "{bad:?}: {err}");
+    }
+    let err = run(ExtendOptions { inflow_offset_mm: Some(f64::INFINITY), ..ExtendOptions::default() });
+    assert!(err.contains("offset must be finite"), "{err}");
 }
 
 #[test]
