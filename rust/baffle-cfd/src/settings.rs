@@ -37,13 +37,14 @@ pub enum NonlinearIterations {
     /// `nonlinear_tolerance`. The step is never reported unconverged.
     Fixed(usize),
     /// Until an update changes the velocity and the pressure by less than
-    /// `nonlinear_tolerance` (relative 2-norms, each apart), at most `cap` solves; a step
-    /// still changing at the cap is reported unconverged (`StepResult::nonlinear_converged`).
+    /// `nonlinear_tolerance` (relative 2-norms, each apart; see `solver::relative_change`),
+    /// at most `cap` solves; a step still changing at the cap is reported unconverged
+    /// (`StepResult::nonlinear_converged`).
     Auto { cap: usize },
 }
 
-/// The auto loop's cap: on p2's published mesh generalized-alpha needs 2-4 iterations a
-/// step at dt 1-2 ms (README, Measured).
+/// The auto loop's cap: on p2's published mesh, from rest to the first peak, generalized-alpha
+/// needs at most 3 solves a step at dt 1-2 ms (1.9 / 2.6 on average; README).
 pub const AUTO_NONLINEAR_CAP: usize = 6;
 
 impl NonlinearIterations {
@@ -157,7 +158,8 @@ impl CaseSettings {
     /// linear solve (semi-implicit, see solver.rs): on p2 it follows Picard iterated to
     /// 1e-3 within 0.3 % in dp, at a third of the time, its damping hiding the
     /// extrapolation's oscillation. Generalized-alpha iterates to convergence: semi-implicit
-    /// it oscillates in p2's VSD jet at dt 1-2 ms (README, Measured).
+    /// it oscillates in p2's VSD jet at dt 1-2 ms (dp at the first peak -3.5 % at 1 ms,
+    /// +12 % at 2 ms; iterated -0.15 % and +0.8 %, against 0.5 ms; README).
     pub fn nonlinear(&self) -> NonlinearIterations {
         self.nonlinear_iterations.unwrap_or(match self.time_integration {
             TimeIntegration::BackwardEuler => NonlinearIterations::Fixed(1),

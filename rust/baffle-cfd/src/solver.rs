@@ -33,9 +33,9 @@
 //! 60 iterations (1.6e-3; dp 6.31 mmHg, v_max 239 cm/s at that point).
 //!
 //! Transient: linear extrapolation 2 u_n - u_(n-1) is the initial guess of every step;
-//! with one Picard iteration (`NonlinearIterations::Fixed(1)`, backward Euler's default) the step is semi-implicit (one
-//! linear solve with the extrapolated convection velocity, no residual re-assembly
-//! afterwards). Accuracy, p2 from rest at t = 0 through peak flow (180 steps, bench
+//! with one Picard iteration (`NonlinearIterations::Fixed(1)`, backward Euler's default)
+//! the step is semi-implicit (one linear solve with the extrapolated convection velocity,
+//! no residual re-assembly afterwards). Accuracy, p2 from rest at t = 0 through peak flow (180 steps, bench
 //! `--compare-schemes --t0 0 --steps 180`): semi-implicit vs Picard iterated to 1e-3
 //! (2-4 iterations a step) differ by at most ~0.3% in dp(11-16) (e.g. 5.738 vs 5.755
 //! mmHg at t = 0.110 s; 7.364 vs 7.367 mmHg at peak flow, t = 0.165 s) and by < 0.1
@@ -119,6 +119,14 @@
 //! and renewal follows the iterations aging adds. p2 from rest to the first peak (164
 //! steps) makes 12 factorizations instead of 164 at 14.2 instead of 13.7 GMRES
 //! iterations a step, with the same dp and v_max to 4 digits.
+//!
+//! Sixth session (issue 14 item 4, 2026-12-03): generalized-alpha's default is the
+//! convergence-controlled Picard loop (`NonlinearIterations::Auto`, [`LoopControl`]):
+//! solves until the update changes velocity and pressure by less than 1e-3
+//! ([`relative_change`]), at most 6, the factors reused across them as across steps. On
+//! p2 from rest to the first peak (bench `--time-accuracy`) it removes the semi-implicit
+//! step's oscillation in the VSD jet: dp 7.272 instead of 7.030 mmHg at 1 ms (7.283 at
+//! 0.5 ms) with 1.9 solves a step, 7.338 instead of 8.173 at 2 ms with 2.6.
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as

@@ -144,13 +144,13 @@ pub struct TimeSpec {
     /// Stop after this time step (default: cycles x period / dt).
     pub steps: Option<usize>,
     /// Picard iterations per step: a count (1: semi-implicit, one linear solve with the
-    /// extrapolated convection velocity) or "auto" (until the velocity changes by less
-    /// than `nonlinear_tolerance`, at most 6; a step at the cap is counted in
-    /// summary.json's `unconverged_nonlinear_steps`). Default: 1 for backward Euler,
+    /// extrapolated convection velocity) or "auto" (until the velocity and the pressure
+    /// change by less than `nonlinear_tolerance`, at most 6; a step at the cap is counted
+    /// in summary.json's `unconverged_nonlinear_steps`). Default: 1 for backward Euler,
     /// "auto" for generalized-alpha.
     pub nonlinear_iterations: Option<IterationsSpec>,
-    /// The auto loop's relative velocity change (the fixed count's residual reduction)
-    /// at which a step's Picard iterations stop (default 1e-3).
+    /// The auto loop's relative change of velocity and pressure (a fixed count's residual
+    /// reduction) at which a step's Picard iterations stop (default 1e-3).
     pub nonlinear_tolerance: Option<f64>,
     pub linear_tolerance: Option<f64>,
     /// GMRES iterations per linear solve at most (default 600).
