@@ -158,8 +158,9 @@ impl CaseSettings {
     /// linear solve (semi-implicit, see solver.rs): on p2 it follows Picard iterated to
     /// 1e-3 within 0.3 % in dp, at a third of the time, its damping hiding the
     /// extrapolation's oscillation. Generalized-alpha iterates to convergence: semi-implicit
-    /// it oscillates in p2's VSD jet at dt 1-2 ms (dp at the first peak -3.5 % at 1 ms,
-    /// +12 % at 2 ms; iterated -0.15 % and +0.8 %, against 0.5 ms; README).
+    /// it oscillates in p2's VSD jet at dt 1-2 ms (dp at the first peak -4.6 % at 1 ms,
+    /// +10.9 % at 2 ms against the 0.25 ms run; iterated -1.3 % and -0.4 %, within the
+    /// jet's own 0.1 mmHg fluctuation, as backward Euler; README).
     pub fn nonlinear(&self) -> NonlinearIterations {
         self.nonlinear_iterations.unwrap_or(match self.time_integration {
             TimeIntegration::BackwardEuler => NonlinearIterations::Fixed(1),

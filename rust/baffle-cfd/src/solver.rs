@@ -125,8 +125,9 @@
 //! solves until the update changes velocity and pressure by less than 1e-3
 //! ([`relative_change`]), at most 6, the factors reused across them as across steps. On
 //! p2 from rest to the first peak (bench `--time-accuracy`) it removes the semi-implicit
-//! step's oscillation in the VSD jet: dp 7.272 instead of 7.030 mmHg at 1 ms (7.283 at
-//! 0.5 ms) with 1.9 solves a step, 7.338 instead of 8.173 at 2 ms with 2.6.
+//! step's oscillation in the VSD jet: dp 7.272 instead of 7.030 mmHg at 1 ms with 1.9
+//! solves a step, 7.338 instead of 8.173 at 2 ms with 2.6 (7.283 at 0.5 ms, 7.367 at
+//! 0.25 ms: near the peak the jet's dp itself fluctuates by ~0.1 mmHg within a few ms).
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
@@ -1028,8 +1029,12 @@ impl<'a> Solver<'a> {
             let result = self.step_result(&x, step, time_s, q_in, &stats, retries)?;
             let retried = if retries > 0 { format!(" (retried: {})", RETRY_LADDER[retries].describe()) } else { String::new() };
             let msg = format!(
-                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={} gmres={}{retried}",
-                result.inflow_ml_s, result.max_velocity_cm_s / crate::vtu::CM_S_PER_M_S, stats.nonlinear_iterations, stats.linear_iterations
+                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={}{} gmres={}{retried}",
+                result.inflow_ml_s,
+                result.max_velocity_cm_s / crate::vtu::CM_S_PER_M_S,
+                stats.nonlinear_iterations,
+                if stats.converged { "" } else { " (at the cap, not converged)" },
+                stats.linear_iterations
             );
             results.push(result);
             let view = StepView {
