@@ -16,6 +16,9 @@
 //!   1e-3): the difference of dp and v_max, step by step;
 //! - `--full`: one complete 4-cycle run (2728 steps): wall time, dp at peak flow,
 //!   periodicity (cycle 3 vs 4);
+//! - `--time-accuracy be,ga,ga1 [--dt-ms 0.5,1,2] [--t-end 0.164]`: each scheme (backward
+//!   Euler; generalized-alpha with its auto Picard loop; generalized-alpha semi-implicit)
+//!   at each dt from rest to t_end: dp, v_max, steps, linear solves, GMRES iterations, CPU;
 //! - `--smoke`: a few steps on a small tube, so CI checks the bench still runs;
 //! - `--scaling`: GMRES iterations and time per step against the mesh size, on one tube
 //!   (radius 4 mm, length 40 mm, Re ~2,700 at peak flow) meshed at 9.7k, 45k and 150k
@@ -34,7 +37,10 @@ use std::time::Instant;
 use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2};
 use baffle_cfd::test_meshes::{tube, INLET, OUTLET};
 use baffle_cfd::vtu::read_simvascular_mesh;
-use baffle_cfd::{periodicity_nrmsd, simulate, simulate_from, CaseSettings, FlowMesh, Outlet, RunMode, Summary, Waveform};
+use baffle_cfd::{
+    periodicity_nrmsd, simulate, simulate_from, CaseSettings, FlowMesh, NonlinearIterations, Outlet, RunMode, Summary, TimeIntegration, Waveform, AUTO_NONLINEAR_CAP,
+    DEFAULT_RHO_INF,
+};
 
 const MMHG: f64 = 1333.22;
 const VSD_CAP: i32 = 11;
@@ -59,12 +65,15 @@ struct Options {
     /// Solves one preconditioner may serve (default: the case's).
     reuse: Option<usize>,
     compare_schemes: bool,
+    /// `--time-accuracy`: these schemes at these time steps (ms), from rest to t_end.
+    time_accuracy: Option<(Vec<String>, Vec<f64>, f64)>,
     t0_s: f64,
     picard: Option<usize>,
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, reuse: None, compare_schemes: false, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, reuse: None, compare_schemes: false, time_accuracy: None, t0_s: 0.1, picard: None };
+    let (mut schemes, mut dts_ms, mut t_end_s) = (None, None, 0.164);
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -89,11 +98,17 @@ fn options() -> Result<Options, String> {
             "--from-size" => o.from_size = value("--from-size")?.parse().map_err(|e| format!("--from-size: {e}"))?,
             "--coarse" => o.coarse = value("--coarse")?.parse().map_err(|e| format!("--coarse: {e}"))?,
             "--compare-schemes" => o.compare_schemes = true,
+            "--time-accuracy" => schemes = Some(value("--time-accuracy")?.split(',').map(str::to_string).collect::<Vec<_>>()),
+            "--dt-ms" => dts_ms = Some(value("--dt-ms")?.split(',').map(|v| v.parse::<f64>().map_err(|e| format!("--dt-ms: {e}"))).collect::<Result<Vec<_>, _>>()?),
+            "--t-end" => t_end_s = value("--t-end")?.parse().map_err(|e| format!("--t-end: {e}"))?,
             "--t0" => o.t0_s = value("--t0")?.parse().map_err(|e| format!("--t0: {e}"))?,
             "--picard" => o.picard = Some(value("--picard")?.parse().map_err(|e| format!("--picard: {e}"))?),
             "--bench" => {} // passed by `cargo bench`
             other => return Err(format!("unknown argument {other}")),
         }
+    }
+    if let Some(schemes) = schemes {
+        o.time_accuracy = Some((schemes, dts_ms.unwrap_or_else(|| vec![0.5, 1.0, 2.0]), t_end_s));
     }
     if o.runs == 0 || o.steps == 0 {
         return Err("--runs and --steps must be >= 1".into());
@@ -178,7 +193,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
         s.gmres_restart = o.restart.unwrap_or(s.gmres_restart);
         s.preconditioner_max_age = o.reuse.unwrap_or(s.preconditioner_max_age);
         if let Some(k) = o.picard {
-            s.max_nonlinear_iterations = k;
+            s.nonlinear_iterations = Some(NonlinearIterations::Fixed(k));
         }
         cases.push(s);
     }
@@ -218,7 +233,7 @@ fn per_step(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(),
         println!(
             "transient ({} precision, at most {} nonlinear iterations): median {m:.3} s per step over {} runs of {} steps (min {:.3}, max {:.3}); 4 cycles = {total_steps} steps ~ {:.1} min",
             if case.mixed_precision { "mixed f32/f64" } else { "f64" },
-            case.max_nonlinear_iterations,
+            case.nonlinear().max_iterations(),
             o.runs,
             o.steps,
             times.iter().cloned().fold(f64::INFINITY, f64::min),
@@ -289,9 +304,9 @@ fn full(mesh: &FlowMesh, settings: &CaseSettings) -> Result<(), Box<dyn std::err
 
 fn compare_schemes(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Result<(), Box<dyn std::error::Error>> {
     let mut semi = window(settings, o.t0_s, o.steps);
-    semi.max_nonlinear_iterations = 1;
+    semi.nonlinear_iterations = Some(NonlinearIterations::Fixed(1));
     let mut picard = semi.clone();
-    picard.max_nonlinear_iterations = 5;
+    picard.nonlinear_iterations = Some(NonlinearIterations::Fixed(5));
     picard.nonlinear_tolerance = 1e-3;
     let (a, wall_a) = run_window(mesh, &semi, o.steps)?;
     let (b, wall_b) = run_window(mesh, &picard, o.steps)?;
@@ -319,6 +334,58 @@ fn compare_schemes(mesh: &FlowMesh, settings: &CaseSettings, o: &Options) -> Res
         100.0 * worst_dp,
         100.0 * worst_v
     );
+    Ok(())
+}
+
+/// The case with a scheme by name: `be` (backward Euler, one solve a step), `ga`
+/// (generalized-alpha, rho_inf 0.5, the auto Picard loop), `ga1` (generalized-alpha,
+/// one solve a step), `be-auto` (backward Euler with the auto loop).
+fn with_scheme(settings: &CaseSettings, scheme: &str) -> Result<CaseSettings, String> {
+    let mut s = settings.clone();
+    let ga = TimeIntegration::GeneralizedAlpha { rho_inf: DEFAULT_RHO_INF };
+    (s.time_integration, s.nonlinear_iterations) = match scheme {
+        "be" => (TimeIntegration::BackwardEuler, None),
+        "be-auto" => (TimeIntegration::BackwardEuler, Some(NonlinearIterations::Auto { cap: AUTO_NONLINEAR_CAP })),
+        "ga" => (ga, None),
+        "ga1" => (ga, Some(NonlinearIterations::Fixed(1))),
+        other => return Err(format!("--time-accuracy takes be, be-auto, ga or ga1, not {other}")),
+    };
+    Ok(s)
+}
+
+/// From rest to `t_end_s` (p2's first flow peak: 0.164 s) with each scheme at each
+/// dt: dp(11-16) and v_max at t_end, and the cost (steps, linear solves, GMRES
+/// iterations, factorizations, CPU s), one line a run as it ends.
+fn time_accuracy(mesh: &FlowMesh, settings: &CaseSettings, schemes: &[String], dts_ms: &[f64], t_end_s: f64) -> Result<(), Box<dyn std::error::Error>> {
+    for name in schemes {
+        for &dt_ms in dts_ms {
+            let mut s = with_scheme(settings, name)?;
+            s.dt_s = dt_ms * 1e-3;
+            let steps = (t_end_s / s.dt_s).round() as usize;
+            let cpu_before = process_cpu_s();
+            let (summary, wall) = run_window(mesh, &s, steps)?;
+            let cpu = process_cpu_s() - cpu_before;
+            let last = summary.steps.last().ok_or("no step")?;
+            let solves: usize = summary.steps.iter().map(|r| r.nonlinear_iterations).sum();
+            let gmres: usize = summary.steps.iter().map(|r| r.linear_iterations).sum();
+            let unconverged = summary.steps.iter().filter(|r| !r.nonlinear_converged).count();
+            println!(
+                "time-accuracy {name} dt {dt_ms} ms: t = {:.4} s dp(11-16) {:.4} mmHg vmax {:.2} cm/s; {} steps, {solves} linear solves ({:.2} a step), {gmres} GMRES it ({:.1} a step), {} factorizations, {unconverged} unconverged steps, CPU {cpu:.1} s, wall {wall:.1} s, load {}",
+                last.time_s,
+                dp_mmhg(&summary, summary.steps.len() - 1),
+                last.max_velocity_cm_s,
+                summary.steps.len(),
+                solves as f64 / summary.steps.len() as f64,
+                gmres as f64 / summary.steps.len() as f64,
+                summary.timings.factorizations,
+                load_average()
+            );
+            if std::env::var_os("BENCH_VERBOSE").is_some() {
+                let series: Vec<String> = summary.steps.iter().map(|r| format!("{:.4}:{:.4}:{}", r.time_s, dp_mmhg(&summary, r.step - 1), r.nonlinear_iterations)).collect();
+                println!("    t:dp:solves {}", series.join(" "));
+            }
+        }
+    }
     Ok(())
 }
 
@@ -418,6 +485,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     if o.full {
         full(&mesh, &settings)?;
+    } else if let Some((schemes, dts_ms, t_end_s)) = &o.time_accuracy {
+        time_accuracy(&mesh, &settings, schemes, dts_ms, *t_end_s)?;
     } else if o.compare_schemes {
         compare_schemes(&mesh, &settings, &o)?;
     } else if o.steady {

@@ -28,6 +28,35 @@ pub enum RunMode {
     Steady,
 }
 
+/// How many Picard iterations (linear solves, each with the convection velocity of the
+/// last iterate) a transient time step makes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NonlinearIterations {
+    /// At most this many. 1 is the semi-implicit step: one solve with the extrapolated
+    /// convection velocity, no residual check; more stop once the residual has fallen by
+    /// `nonlinear_tolerance`. The step is never reported unconverged.
+    Fixed(usize),
+    /// Until an update changes the velocity and the pressure by less than
+    /// `nonlinear_tolerance` (relative 2-norms, each apart; see `solver::relative_change`),
+    /// at most `cap` solves; a step still changing at the cap is reported unconverged
+    /// (`StepResult::nonlinear_converged`).
+    Auto { cap: usize },
+}
+
+/// The auto loop's cap: on p2's published mesh, from rest to the first peak, generalized-alpha
+/// needs at most 3 solves a step at dt 1-2 ms (1.9 / 2.6 on average; README).
+pub const AUTO_NONLINEAR_CAP: usize = 6;
+
+impl NonlinearIterations {
+    /// The most linear solves a step may make.
+    pub fn max_iterations(&self) -> usize {
+        match *self {
+            NonlinearIterations::Fixed(n) => n,
+            NonlinearIterations::Auto { cap } => cap,
+        }
+    }
+}
+
 /// Aggregate size of the two-level preconditioner: on tubes of 9.7k-150k tets GMRES
 /// then needs 31-45 iterations a step against ILU(0)'s 49-283 (README, Measured).
 pub const TWO_LEVEL_AGGREGATE_NODES: usize = 256;
@@ -55,8 +84,9 @@ pub struct CaseSettings {
     /// mesh (Womersley test: it then dominates generalized-alpha's temporal error);
     /// false keeps only the flow and mesh scales, so the time error is the scheme's own.
     pub tau_includes_dt: bool,
-    /// Picard iterations per time step at most, and their relative residual target.
-    pub max_nonlinear_iterations: usize,
+    /// Picard iterations per transient step (None: the scheme's default, see
+    /// [`CaseSettings::nonlinear`]) and their relative target (residual or update).
+    pub nonlinear_iterations: Option<NonlinearIterations>,
     pub nonlinear_tolerance: f64,
     pub gmres_restart: usize,
     pub max_linear_iterations: usize,
@@ -100,9 +130,7 @@ impl CaseSettings {
             mode: RunMode::Transient,
             time_integration: TimeIntegration::BackwardEuler,
             tau_includes_dt: true,
-            // One linear solve per step (semi-implicit, see solver.rs): on p2 it follows
-            // Picard iterated to 1e-3 within 0.3% in dp, at a third of the time.
-            max_nonlinear_iterations: 1,
+            nonlinear_iterations: None,
             nonlinear_tolerance: 1e-3,
             // GMRES(30): on tubes of 9.7k-622k tets 4-10 % fewer iterations and 10-17 % less
             // CPU a step than GMRES(60) (shorter f32 rounds, each restarted from the f64
@@ -124,6 +152,20 @@ impl CaseSettings {
             steady_max_iterations: 60,
             steady_tolerance: 1e-4,
         }
+    }
+
+    /// The Picard iterations of a transient step. By default backward Euler makes one
+    /// linear solve (semi-implicit, see solver.rs): on p2 it follows Picard iterated to
+    /// 1e-3 within 0.3 % in dp, at a third of the time, its damping hiding the
+    /// extrapolation's oscillation. Generalized-alpha iterates to convergence: semi-implicit
+    /// it oscillates in p2's VSD jet at dt 1-2 ms (dp at the first peak -4.6 % at 1 ms,
+    /// +10.9 % at 2 ms against the 0.25 ms run; iterated -1.3 % and -0.4 %, within the
+    /// jet's own 0.1 mmHg fluctuation, as backward Euler; README).
+    pub fn nonlinear(&self) -> NonlinearIterations {
+        self.nonlinear_iterations.unwrap_or(match self.time_integration {
+            TimeIntegration::BackwardEuler => NonlinearIterations::Fixed(1),
+            TimeIntegration::GeneralizedAlpha { .. } => NonlinearIterations::Auto { cap: AUTO_NONLINEAR_CAP },
+        })
     }
 
     pub fn validate(&self) -> Result<(), CfdError> {
@@ -164,7 +206,7 @@ impl CaseSettings {
         if self.mode == RunMode::Transient && (self.cycles == 0 || !self.inflow.period_s().is_finite()) {
             return Err(CfdError::Settings("a transient run needs cycles >= 1 of a periodic waveform".into()));
         }
-        if self.max_nonlinear_iterations == 0 || self.gmres_restart == 0 || self.max_linear_iterations == 0 || self.preconditioner_max_age == 0 {
+        if self.nonlinear().max_iterations() == 0 || self.gmres_restart == 0 || self.max_linear_iterations == 0 || self.preconditioner_max_age == 0 {
             return Err(CfdError::Settings("iteration limits must be >= 1".into()));
         }
         Ok(())

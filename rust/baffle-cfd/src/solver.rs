@@ -33,9 +33,9 @@
 //! 60 iterations (1.6e-3; dp 6.31 mmHg, v_max 239 cm/s at that point).
 //!
 //! Transient: linear extrapolation 2 u_n - u_(n-1) is the initial guess of every step;
-//! with `max_nonlinear_iterations` = 1 (the default) the step is semi-implicit (one
-//! linear solve with the extrapolated convection velocity, no residual re-assembly
-//! afterwards). Accuracy, p2 from rest at t = 0 through peak flow (180 steps, bench
+//! with one Picard iteration (`NonlinearIterations::Fixed(1)`, backward Euler's default)
+//! the step is semi-implicit (one linear solve with the extrapolated convection velocity,
+//! no residual re-assembly afterwards). Accuracy, p2 from rest at t = 0 through peak flow (180 steps, bench
 //! `--compare-schemes --t0 0 --steps 180`): semi-implicit vs Picard iterated to 1e-3
 //! (2-4 iterations a step) differ by at most ~0.3% in dp(11-16) (e.g. 5.738 vs 5.755
 //! mmHg at t = 0.110 s; 7.364 vs 7.367 mmHg at peak flow, t = 0.165 s) and by < 0.1
@@ -120,6 +120,15 @@
 //! steps) makes 12 factorizations instead of 164 at 14.2 instead of 13.7 GMRES
 //! iterations a step, with the same dp and v_max to 4 digits.
 //!
+//! Sixth session (issue 14 item 4, 2026-12-03): generalized-alpha's default is the
+//! convergence-controlled Picard loop (`NonlinearIterations::Auto`, [`LoopControl`]):
+//! solves until the update changes velocity and pressure by less than 1e-3
+//! ([`relative_change`]), at most 6, the factors reused across them as across steps. On
+//! p2 from rest to the first peak (bench `--time-accuracy`) it removes the semi-implicit
+//! step's oscillation in the VSD jet: dp 7.272 instead of 7.030 mmHg at 1 ms with 1.9
+//! solves a step, 7.338 instead of 8.173 at 2 ms with 2.6 (7.283 at 0.5 ms, 7.367 at
+//! 0.25 ms: near the peak the jet's dp itself fluctuates by ~0.1 mmHg within a few ms).
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
@@ -132,7 +141,7 @@ use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKin
 use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome};
 use crate::mesh::{tri_key, Face, FlowMesh};
-use crate::settings::{CaseSettings, InflowProfile, RunMode};
+use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
 use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
@@ -166,6 +175,10 @@ pub struct StepResult {
     /// How many times the step was retried after a stalled linear solve (0: the first
     /// attempt was accepted); see [`RETRY_LADDER`].
     pub retries: usize,
+    /// False when the step's convergence-controlled Picard loop
+    /// ([`crate::NonlinearIterations::Auto`]) stopped at its cap with the iterate still
+    /// changing by more than the tolerance (always true for a fixed iteration count).
+    pub nonlinear_converged: bool,
 }
 
 impl StepResult {
@@ -213,6 +226,8 @@ struct Problem {
     outlets: Vec<OutletData>,
     /// order[new] = old node.
     order: Vec<u32>,
+    /// The diagonal of the mesh's bounding box (cm): the domain's length scale.
+    extent_cm: f64,
 }
 
 struct OutletData {
@@ -287,7 +302,14 @@ impl Problem {
         let pattern = BlockPattern::from_tets(n, &mesh.tets);
         let parts = partitions(&pattern, rayon::current_num_threads().max(1));
         let assembler = Assembler::new(&mesh.points_cm, mesh.tets, &pattern, parts.clone());
-        Ok(Problem { pattern, assembler, parts, faces, dirichlet, inlet_nodes, inlet_face, outlets, order })
+        let extent_cm = (0..3)
+            .map(|c| {
+                let (lo, hi) = mesh.points_cm.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[c]), hi.max(p[c])));
+                (hi - lo).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
+        Ok(Problem { pattern, assembler, parts, faces, dirichlet, inlet_nodes, inlet_face, outlets, order, extent_cm })
     }
 }
 
@@ -567,6 +589,59 @@ struct StepStats {
     /// Residual before the first solve, absolute, and the last relative check.
     initial_residual: f64,
     residual: f64,
+    /// False when a convergence-controlled loop stopped at its cap still changing.
+    converged: bool,
+}
+
+impl StepStats {
+    fn new() -> StepStats {
+        StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0, converged: true }
+    }
+}
+
+/// When a step's Picard (or Newton) loop stops.
+#[derive(Clone, Copy, Debug)]
+struct LoopControl {
+    /// Linear solves at most.
+    max_iterations: usize,
+    /// Residual (relative to the step's first) at which the loop stops before a solve.
+    residual_tol: f64,
+    /// Convergence-controlled loops: the relative update of velocity and pressure at
+    /// which the loop has converged; reaching `max_iterations` above it is reported.
+    update_tol: Option<f64>,
+    /// Assemble once more after the last allowed solve to check the residual.
+    check_last: bool,
+}
+
+impl LoopControl {
+    fn of(nonlinear: NonlinearIterations, tol: f64) -> LoopControl {
+        match nonlinear {
+            NonlinearIterations::Fixed(n) => LoopControl { max_iterations: n, residual_tol: tol, update_tol: None, check_last: n > 1 },
+            // No residual test: its reference (the extrapolated guess's residual) says
+            // little about how far the iterate still moves.
+            NonlinearIterations::Auto { cap } => LoopControl { max_iterations: cap, residual_tol: 0.0, update_tol: Some(tol), check_last: false },
+        }
+    }
+}
+
+/// How much an update dx changed the iterate x (after the update): the larger of
+/// ||du|| / ||u|| and ||dp|| / ||p - mean p|| (2-norms over the nodes; the pressure
+/// without its mean, which the outlet's level sets, not the flow). Where a field is
+/// smaller than sqrt(nodes) times its floor (`floors`: velocity cm/s, pressure dyn/cm^2;
+/// diastole, the start from rest), the change is measured against that instead.
+fn relative_change(dx: &[f64], x: &[f64], floors: [f64; 2]) -> f64 {
+    let (mut du2, mut u2, mut dp2, mut p2, mut p1) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (k, (d, v)) in dx.iter().zip(x).enumerate() {
+        if k % B == 3 {
+            (dp2, p2, p1) = (dp2 + d * d, p2 + v * v, p1 + v);
+        } else {
+            (du2, u2) = (du2 + d * d, u2 + v * v);
+        }
+    }
+    let nodes = (x.len() / B).max(1) as f64;
+    let p_dev2 = (p2 - p1 * p1 / nodes).max(0.0);
+    let ratio = |d2: f64, v2: f64, floor: f64| if d2 == 0.0 { 0.0 } else { (d2 / v2.max(nodes * floor * floor)).sqrt() };
+    ratio(du2, u2, floors[0]).max(ratio(dp2, p_dev2, floors[1]))
 }
 
 impl<'a> Solver<'a> {
@@ -588,6 +663,18 @@ impl<'a> Solver<'a> {
                 x[i as usize * B + c] = q_ml_s * unit[c];
             }
         }
+    }
+
+    /// [`relative_change`]'s floors, the scales of the flow the case drives: the mean
+    /// inflow velocity at peak flow U (cm/s), and the larger of its dynamic pressure rho U^2
+    /// and the Poiseuille drop 8 pi mu U L / A of the inlet's section A over the domain's
+    /// extent L (dyn/cm^2; the viscous scale where inertia is small).
+    fn change_floors(&self) -> [f64; 2] {
+        let (s, problem) = (self.settings, &self.problem);
+        let area_cm2 = problem.faces[problem.inlet_face].area_cm2;
+        let u_peak = s.inflow.peak().0.abs() / area_cm2;
+        let viscous = 8.0 * std::f64::consts::PI * s.viscosity_g_cm_s * u_peak * problem.extent_cm / area_cm2;
+        [u_peak, (s.density_g_cm3 * u_peak * u_peak).max(viscous)]
     }
 
     /// Backflow stabilization (Esmaily Moghadam et al. 2011): beta rho |min(a.n, 0)| on
@@ -641,17 +728,20 @@ impl<'a> Solver<'a> {
     /// the convection Jacobian (Newton). With `check_last` false the step ends right
     /// after the last allowed solve, without assembling again to check the residual
     /// (the semi-implicit transient: one solve per step); `residual` is then the
-    /// relative residual of that linear solve.
+    /// relative residual of that linear solve. A convergence-controlled loop
+    /// (`update_tol`) stops after a solve whose update is below the tolerance. (Stopping
+    /// before a solve whose update, predicted from the last one and the residual's
+    /// contraction, would be below it was tried: on p2 at dt 1 ms it stopped every step
+    /// after one solve and kept the semi-implicit step's oscillation, dp 7.030 mmHg.)
+    /// The factors are reused across the loop's solves as across steps ([`FactorsUse`]).
     #[allow(clippy::too_many_arguments)]
     fn step(
         &mut self,
         phys: &Physics,
         x: &mut [f64],
         x_old: &[f64],
-        max_iterations: usize,
-        tol: f64,
+        control: LoopControl,
         newton: bool,
-        check_last: bool,
         effort: Effort,
         step: usize,
         time_s: f64,
@@ -659,9 +749,10 @@ impl<'a> Solver<'a> {
         let n = x.len();
         let mut r = vec![0.0; n];
         let mut dx = vec![0.0; n];
-        let mut stats = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0 };
+        let mut stats = StepStats::new();
+        let max_iterations = control.max_iterations;
         for it in 0..=max_iterations {
-            if it == max_iterations && !check_last && it > 0 {
+            if it == max_iterations && !control.check_last && it > 0 {
                 break;
             }
             let t0 = Instant::now();
@@ -683,7 +774,7 @@ impl<'a> Solver<'a> {
                 stats.initial_residual = res;
             }
             stats.residual = if stats.initial_residual > 0.0 { res / stats.initial_residual } else { 0.0 };
-            if it == max_iterations || (it > 0 && stats.residual <= tol) || res == 0.0 {
+            if it == max_iterations || (it > 0 && stats.residual <= control.residual_tol) || res == 0.0 {
                 break;
             }
             let t1 = Instant::now();
@@ -718,8 +809,15 @@ impl<'a> Solver<'a> {
                 return Err(CfdError::LinearSolver { step, time_s, iterations: out.iterations, residual: out.relative_residual });
             }
             crate::sparse::axpy(1.0, &dx, x);
-            if !check_last && it + 1 == max_iterations {
+            if !control.check_last && it + 1 == max_iterations {
                 stats.residual = out.relative_residual;
+            }
+            if let Some(tol) = control.update_tol {
+                let change = relative_change(&dx, x, self.change_floors());
+                if change <= tol {
+                    break;
+                }
+                stats.converged = it + 1 < max_iterations;
             }
         }
         Ok(stats)
@@ -839,6 +937,7 @@ impl<'a> Solver<'a> {
             linear_iterations: stats.linear_iterations,
             residual: stats.residual,
             retries,
+            nonlinear_converged: stats.converged,
         })
     }
 
@@ -875,8 +974,8 @@ impl<'a> Solver<'a> {
         let alpha = s.time_integration.coefficients();
         // Time terms with the stage coefficient c; tau keeps the physical step.
         let phys = Physics { inv_dt_per_s: alpha.stage_inv_dt(sub_dt), ..self.physics(false, sub_dt) };
-        let semi_implicit = s.max_nonlinear_iterations == 1;
-        let mut total = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 0.0 };
+        let control = LoopControl::of(s.nonlinear(), s.nonlinear_tolerance);
+        let mut total = StepStats { residual: 0.0, ..StepStats::new() };
         let (mut prev, mut gap) = (x_prev.to_vec(), s.dt_s);
         for k in 1..=attempt.substeps {
             let t = time_s - s.dt_s + k as f64 * sub_dt;
@@ -892,11 +991,12 @@ impl<'a> Solver<'a> {
                     x[c] = alpha.stage(x_old[c], x[c]);
                 }
             }
-            let stats = self.step(&phys, x, &u_star, s.max_nonlinear_iterations, s.nonlinear_tolerance, false, !semi_implicit, attempt.effort, step, t)?;
+            let stats = self.step(&phys, x, &u_star, control, false, attempt.effort, step, t)?;
             crate::time_integration::finish(&alpha, &x_old, x, accel, sub_dt);
             total.nonlinear_iterations += stats.nonlinear_iterations;
             total.linear_iterations += stats.linear_iterations;
             total.residual = stats.residual;
+            total.converged &= stats.converged;
             (prev, gap) = (x_old, sub_dt);
         }
         Ok(total)
@@ -929,8 +1029,12 @@ impl<'a> Solver<'a> {
             let result = self.step_result(&x, step, time_s, q_in, &stats, retries)?;
             let retried = if retries > 0 { format!(" (retried: {})", RETRY_LADDER[retries].describe()) } else { String::new() };
             let msg = format!(
-                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={} gmres={}{retried}",
-                result.inflow_ml_s, result.max_velocity_cm_s / crate::vtu::CM_S_PER_M_S, stats.nonlinear_iterations, stats.linear_iterations
+                "step {step}/{n_steps} t={time_s:.3} s Q={:.2} mL/s vmax={:.3} m/s picard={}{} gmres={}{retried}",
+                result.inflow_ml_s,
+                result.max_velocity_cm_s / crate::vtu::CM_S_PER_M_S,
+                stats.nonlinear_iterations,
+                if stats.converged { "" } else { " (at the cap, not converged)" },
+                stats.linear_iterations
             );
             results.push(result);
             let view = StepView {
@@ -982,14 +1086,15 @@ impl<'a> Solver<'a> {
         let mut pseudo_dt = next_pseudo_dt(rel_of(&progress));
         let mut newton = rel_of(&progress).is_some_and(|rel| rel < s.steady_newton_below);
         let mut converged = false;
-        let mut stats = StepStats { nonlinear_iterations: 0, linear_iterations: 0, initial_residual: 0.0, residual: 1.0 };
+        let mut stats = StepStats::new();
         let mut cancelled_at = None;
         let mut last_iteration = first - 1;
         for it in first..=s.steady_max_iterations + 1 {
             let x_old = x.clone();
             let last = it > s.steady_max_iterations;
             let phys = self.physics(true, pseudo_dt);
-            let step_stats = self.step(&phys, &mut x, &x_old, usize::from(!last), 1.0, newton, false, Effort::Normal, it, t_peak)?;
+            let control = LoopControl { max_iterations: usize::from(!last), residual_tol: 1.0, update_tol: None, check_last: false };
+            let step_stats = self.step(&phys, &mut x, &x_old, control, newton, Effort::Normal, it, t_peak)?;
             last_iteration = it;
             let reference = progress.map_or(step_stats.initial_residual, |p| p.reference_residual);
             let rel = if reference > 0.0 { step_stats.initial_residual / reference } else { 0.0 };

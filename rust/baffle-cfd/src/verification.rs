@@ -2,7 +2,7 @@
 
 use std::f64::consts::PI;
 
-use crate::settings::{CaseSettings, Outlet, RunMode};
+use crate::settings::{CaseSettings, NonlinearIterations, Outlet, RunMode};
 use crate::solver::{simulate, Summary};
 use crate::time_integration::TimeIntegration;
 use crate::test_meshes::{tube, INLET, OUTLET, PLANE};
@@ -185,7 +185,7 @@ fn pulsatile_run_becomes_periodic_over_cycles() {
     let inflow = Waveform::Ejection { period_s: period_steps as f64 * 1e-3, q_mean_ml_s: 0.5 };
     let mut s = CaseSettings::new(INLET, inflow, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 4000.0 }]);
     s.cycles = 4;
-    s.max_nonlinear_iterations = 1;
+    s.nonlinear_iterations = Some(NonlinearIterations::Fixed(1));
     let summary = simulate(&mesh, &s, &mut |_, _| true).unwrap();
     assert_eq!(summary.steps.len(), 4 * period_steps);
     let dp: Vec<f64> = summary
@@ -302,6 +302,11 @@ fn womersley_solution_is_poiseuille_at_low_frequency() {
 /// over the second period (the first is discarded: zero-flux transients decay at
 /// ~16/s). Returns the fitted and the exact complex gradient amplitude.
 fn womersley_fit(per_period: usize, rings: usize, layers: usize, scheme: TimeIntegration, tau_includes_dt: bool) -> (C, C) {
+    womersley_fit_with(per_period, rings, layers, scheme, tau_includes_dt, NonlinearIterations::Fixed(1)).0
+}
+
+/// [`womersley_fit`] with the given Picard iterations; also returns the run's summary.
+fn womersley_fit_with(per_period: usize, rings: usize, layers: usize, scheme: TimeIntegration, tau_includes_dt: bool, nonlinear: NonlinearIterations) -> ((C, C), Summary) {
     let (rho, alpha, q0) = (1.06, 4.0, 0.2);
     let omega = alpha * alpha * MU / (rho * RADIUS_CM * RADIUS_CM);
     let period = 2.0 * PI / omega;
@@ -320,8 +325,7 @@ fn womersley_fit(per_period: usize, rings: usize, layers: usize, scheme: TimeInt
     s.linear_tolerance = 1e-8;
     s.time_integration = scheme;
     s.tau_includes_dt = tau_includes_dt;
-    // Semi-implicit: one solve per step with extrapolated convection velocity.
-    s.max_nonlinear_iterations = 1;
+    s.nonlinear_iterations = Some(nonlinear);
     let start = std::time::Instant::now();
     let summary = simulate(&mesh, &s, &mut |_, _| true).unwrap();
     let length = LENGTH_CM * (hi - lo) as f64 / layers as f64;
@@ -341,7 +345,7 @@ fn womersley_fit(per_period: usize, rings: usize, layers: usize, scheme: TimeInt
         summary.steps.len(),
         start.elapsed()
     );
-    (computed, exact)
+    ((computed, exact), summary)
 }
 
 #[test]
@@ -358,9 +362,13 @@ fn womersley_pressure_gradient_amplitude_and_phase() {
 /// |G(dt) - G(dt/2)| for dt = T/20, T/40, T/80 (self-convergence on one mesh: the
 /// spatial error cancels in the differences).
 fn womersley_differences(scheme: TimeIntegration, tau_includes_dt: bool) -> Vec<f64> {
-    let g: Vec<C> = [20, 40, 80, 160].map(|n| womersley_fit(n, 2, 6, scheme, tau_includes_dt).0).to_vec();
+    womersley_differences_with(&[20, 40, 80, 160], scheme, tau_includes_dt, NonlinearIterations::Fixed(1))
+}
+
+fn womersley_differences_with(per_period: &[usize], scheme: TimeIntegration, tau_includes_dt: bool, nonlinear: NonlinearIterations) -> Vec<f64> {
+    let g: Vec<C> = per_period.iter().map(|&n| womersley_fit_with(n, 2, 6, scheme, tau_includes_dt, nonlinear).0 .0).collect();
     let d: Vec<f64> = g.windows(2).map(|w| w[0].add(w[1].scale(-1.0)).abs()).collect();
-    println!("{scheme:?}, tau with dt {tau_includes_dt}: differences {d:?}, ratios {:?}", d.windows(2).map(|w| w[0] / w[1]).collect::<Vec<_>>());
+    println!("{scheme:?}, {nonlinear:?}, tau with dt {tau_includes_dt}: differences {d:?}, ratios {:?}", d.windows(2).map(|w| w[0] / w[1]).collect::<Vec<_>>());
     d
 }
 
@@ -443,4 +451,73 @@ fn a_step_that_fails_every_retry_says_what_was_tried_and_what_to_try() {
     assert!(msg.starts_with("time step 1 (t = 0.0010 s) failed on every retry"), "{msg}");
     assert!(msg.contains("the configured solve: linear solver failed") && msg.contains("on 4 sub-steps of dt/4"), "{msg}");
     assert!(msg.contains("Try a smaller time step"), "{msg}");
+}
+
+#[test]
+fn generalized_alpha_with_its_auto_loop_stays_second_order_on_womersley() {
+    // The scheme's default (the convergence-controlled Picard loop) against backward
+    // Euler's (one solve a step): G(T/20) - G(T/40) and G(T/40) - G(T/80) shrink 4x and 2x.
+    let ga = TimeIntegration::GeneralizedAlpha { rho_inf: 0.5 };
+    let auto = NonlinearIterations::Auto { cap: crate::AUTO_NONLINEAR_CAP };
+    let d_ga = womersley_differences_with(&[20, 40, 80], ga, false, auto);
+    let d_be = womersley_differences_with(&[20, 40, 80], TimeIntegration::BackwardEuler, false, NonlinearIterations::Fixed(1));
+    let order = |d: &[f64]| (d[0] / d[1]).log2();
+    assert!((order(&d_ga) - 2.0).abs() < 0.15, "generalized-alpha auto: differences {d_ga:?}");
+    assert!((order(&d_be) - 1.0).abs() < 0.15, "backward Euler: differences {d_be:?}");
+    assert!(d_ga[1] < 0.2 * d_be[1], "generalized-alpha {d_ga:?} vs backward Euler {d_be:?}");
+    let ((_, _), summary) = womersley_fit_with(40, 2, 6, ga, false, auto);
+    assert!(summary.steps.iter().all(|r| r.nonlinear_converged), "every step converged");
+}
+
+/// Generalized-alpha (its default: the auto loop) over one ejection of `q_mean_ml_s`
+/// through a short tube, 1 ms steps.
+fn auto_loop_run(q_mean_ml_s: f64, nonlinear: Option<NonlinearIterations>, tolerance: f64) -> Summary {
+    let mesh = tube(RADIUS_CM, 1.0, 3, 8, &[]);
+    let inflow = Waveform::Ejection { period_s: 0.01, q_mean_ml_s };
+    let mut s = CaseSettings::new(INLET, inflow, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 500.0 }]);
+    s.cycles = 1;
+    s.time_integration = TimeIntegration::GeneralizedAlpha { rho_inf: 0.5 };
+    s.nonlinear_iterations = nonlinear;
+    s.nonlinear_tolerance = tolerance;
+    simulate(&mesh, &s, &mut |_, _| true).unwrap()
+}
+
+#[test]
+fn auto_loop_stops_early_where_convection_is_negligible_and_iterates_where_it_is_not() {
+    // Stokes-like (Re ~0.1 in a 5 mm tube): the first solve is converged, the second
+    // only confirms it (its update is the first's linear-solve error), and the loop stops
+    // there, far below its cap (a third where the flow stops and the pressure is small).
+    let stokes = auto_loop_run(0.01, None, 1e-3);
+    let solves: Vec<usize> = stokes.steps.iter().map(|r| r.nonlinear_iterations).collect();
+    assert!(solves.iter().all(|&n| n <= 3) && solves.iter().filter(|&&n| n == 2).count() * 2 > solves.len(), "solves a step {solves:?}");
+    assert!(stokes.steps.iter().all(|r| r.nonlinear_converged));
+    // Re ~1,000 at the peak: the convection velocity moves, the loop iterates (below its cap)
+    // and lands where a fixed 6 iterations do.
+    let fast = auto_loop_run(20.0, None, 1e-3);
+    let solves: Vec<usize> = fast.steps.iter().map(|r| r.nonlinear_iterations).collect();
+    assert!(solves.iter().any(|&n| n >= 2) && solves.iter().all(|&n| n < crate::AUTO_NONLINEAR_CAP), "solves a step {solves:?}");
+    assert!(fast.steps.iter().all(|r| r.nonlinear_converged));
+    let iterated = auto_loop_run(20.0, Some(NonlinearIterations::Fixed(6)), 1e-9);
+    let p = |r: &crate::StepResult| r.face(INLET).unwrap().mean_pressure_dyn_cm2;
+    let scale = iterated.steps.iter().map(|r| p(r).abs()).fold(0.0, f64::max);
+    for (a, b) in fast.steps.iter().zip(&iterated.steps) {
+        assert!((p(a) - p(b)).abs() <= 5e-3 * scale, "step {}: {} vs {} (largest {scale})", a.step, p(a), p(b));
+    }
+}
+
+#[test]
+fn a_step_at_the_auto_loops_cap_is_reported_unconverged() {
+    // A tolerance no update reaches: every step stops at the cap of 2 solves, flagged;
+    // a fixed iteration count (the user's explicit choice) is never flagged.
+    let capped = auto_loop_run(20.0, Some(NonlinearIterations::Auto { cap: 2 }), 1e-14);
+    assert!(capped.steps.iter().all(|r| !r.nonlinear_converged && r.nonlinear_iterations == 2), "{:?}", capped.steps.iter().map(|r| (r.nonlinear_iterations, r.nonlinear_converged)).collect::<Vec<_>>());
+    let fixed = auto_loop_run(20.0, Some(NonlinearIterations::Fixed(2)), 1e-14);
+    assert!(fixed.steps.iter().all(|r| r.nonlinear_converged));
+    // The default for generalized-alpha is the auto loop, for backward Euler one solve.
+    let mut s = CaseSettings::new(INLET, Waveform::Ejection { period_s: 0.01, q_mean_ml_s: 1.0 }, vec![Outlet { face_id: OUTLET, resistance_dyn_s_cm5: 0.0 }]);
+    assert_eq!(s.nonlinear(), NonlinearIterations::Fixed(1));
+    s.time_integration = TimeIntegration::GeneralizedAlpha { rho_inf: 0.5 };
+    assert_eq!(s.nonlinear(), NonlinearIterations::Auto { cap: crate::AUTO_NONLINEAR_CAP });
+    s.nonlinear_iterations = Some(NonlinearIterations::Auto { cap: 0 });
+    assert!(s.validate().unwrap_err().to_string().contains("iteration limits"));
 }

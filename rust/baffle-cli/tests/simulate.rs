@@ -433,6 +433,9 @@ fn generalized_alpha_runs_stops_and_resumes_on_the_same_path() {
     run(&split, &["--steps", "12", "--resume"]);
     let s = summary(&straight);
     assert_eq!((s["inputs"]["time_integration"].as_str(), s["inputs"]["rho_inf"].as_f64()), (Some("generalized-alpha"), Some(0.3)), "{s}");
+    // Generalized-alpha's default Picard loop iterates to convergence, and says so.
+    assert_eq!(s["inputs"]["nonlinear_iterations"]["auto"]["cap"].as_u64(), Some(6), "{s}");
+    assert_eq!(s["unconverged_nonlinear_steps"].as_u64(), Some(0), "{s}");
     let ((_, a), (_, b)) = (csv(&straight), csv(&split));
     assert_eq!((a.len(), b.len()), (12, 12));
     for (ra, rb) in a.iter().zip(&b) {
@@ -485,5 +488,22 @@ fn a_period_of_a_fractional_number_of_steps_still_finishes_its_last_cycle() {
     assert!(!s["doubts"].as_array().unwrap().iter().any(|d| d.as_str().unwrap().contains("before its last cycle")), "{s}");
     let peak = s["peak_time_s"].as_f64().unwrap();
     assert!(peak > 2.0 * 0.0196 && peak <= 0.059, "peak at {peak} s is not in the third cycle");
+    std::fs::remove_dir_all(case.parent().unwrap()).ok();
+}
+
+#[test]
+fn steps_at_the_picard_cap_are_counted_and_make_the_result_doubtful() {
+    // A tolerance at round-off: steps of the auto loop stop at its cap (those whose
+    // residual reaches round-off first are rightly converged).
+    let inflow = r#"{ "q_mean_ml_s": 0.5, "period_s": 0.05 }"#;
+    let case = tube_case("picard-cap", 3, 8, &[], inflow, r#"{ "mode": "quick", "dt_s": 0.001, "nonlinear_iterations": "auto", "nonlinear_tolerance": 1e-14 }"#);
+    let out_dir = case.parent().unwrap().join("out");
+    let out = baffle(&["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = summary(&out_dir);
+    let steps = s["steps_done"].as_u64().unwrap();
+    let unconverged = s["unconverged_nonlinear_steps"].as_u64().unwrap();
+    assert!(unconverged > 0 && unconverged <= steps, "{s}");
+    assert!(s["doubts"].as_array().unwrap().iter().any(|d| d.as_str().unwrap().contains("Picard iteration cap")), "{s}");
     std::fs::remove_dir_all(case.parent().unwrap()).ok();
 }

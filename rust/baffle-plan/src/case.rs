@@ -2,7 +2,9 @@
 //! time stepping and output. Relative paths are relative to the case file.
 
 use baffle_cfd::hemodynamics::{hemodynamics, mean_arterial_pressure_mmhg, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, DYN_CM2_PER_MMHG};
-use baffle_cfd::{CaseSettings, Face, FlowMesh, InflowProfile, Outlet, RunMode, TimeIntegration, Waveform, DEFAULT_RHO_INF};
+use baffle_cfd::{
+    CaseSettings, Face, FlowMesh, InflowProfile, NonlinearIterations, Outlet, RunMode, TimeIntegration, Waveform, AUTO_NONLINEAR_CAP, DEFAULT_RHO_INF,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -141,8 +143,15 @@ pub struct TimeSpec {
     pub cycles: usize,
     /// Stop after this time step (default: cycles x period / dt).
     pub steps: Option<usize>,
-    /// Picard iterations per step (1: semi-implicit).
-    pub nonlinear_iterations: Option<usize>,
+    /// Picard iterations per step: a count (1: semi-implicit, one linear solve with the
+    /// extrapolated convection velocity) or "auto" (until the velocity and the pressure
+    /// change by less than `nonlinear_tolerance`, at most 6; a step at the cap is counted
+    /// in summary.json's `unconverged_nonlinear_steps`). Default: 1 for backward Euler,
+    /// "auto" for generalized-alpha.
+    pub nonlinear_iterations: Option<IterationsSpec>,
+    /// The auto loop's relative change of velocity and pressure (a fixed count's residual
+    /// reduction) at which a step's Picard iterations stop (default 1e-3).
+    pub nonlinear_tolerance: Option<f64>,
     pub linear_tolerance: Option<f64>,
     /// GMRES iterations per linear solve at most (default 600).
     pub max_linear_iterations: Option<usize>,
@@ -171,6 +180,7 @@ impl Default for TimeSpec {
             cycles: 4,
             steps: None,
             nonlinear_iterations: None,
+            nonlinear_tolerance: None,
             linear_tolerance: None,
             max_linear_iterations: None,
             preconditioner: None,
@@ -353,6 +363,25 @@ fn positive(name: &str, v: f64) -> Result<f64, String> {
 pub const QUICK_MODE: &str = "quick";
 
 /// The time integration scheme a case asks for; rho_inf only goes with generalized-alpha.
+/// `time.nonlinear_iterations`: a count or "auto".
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum IterationsSpec {
+    Count(usize),
+    Name(String),
+}
+
+impl IterationsSpec {
+    fn iterations(&self) -> Result<NonlinearIterations, String> {
+        match self {
+            IterationsSpec::Count(0) => Err("time.nonlinear_iterations is 0; a step needs at least 1 linear solve".into()),
+            IterationsSpec::Count(n) => Ok(NonlinearIterations::Fixed(*n)),
+            IterationsSpec::Name(name) if name == "auto" => Ok(NonlinearIterations::Auto { cap: AUTO_NONLINEAR_CAP }),
+            IterationsSpec::Name(other) => Err(format!("time.nonlinear_iterations '{other}': expected a count (1: semi-implicit) or \"auto\"")),
+        }
+    }
+}
+
 fn time_integration(t: &TimeSpec) -> Result<TimeIntegration, String> {
     match (t.time_integration.as_deref(), t.rho_inf) {
         (None | Some("backward-euler"), None) => Ok(TimeIntegration::BackwardEuler),
@@ -441,8 +470,9 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
     }
     s.dt_s = t.dt_s;
     s.cycles = t.cycles;
-    if let Some(n) = t.nonlinear_iterations {
-        s.max_nonlinear_iterations = n;
+    s.nonlinear_iterations = t.nonlinear_iterations.as_ref().map(IterationsSpec::iterations).transpose()?;
+    if let Some(v) = t.nonlinear_tolerance {
+        s.nonlinear_tolerance = v;
     }
     if let Some(v) = t.linear_tolerance {
         s.linear_tolerance = v;
@@ -492,6 +522,20 @@ mod tests {
     #[test]
     fn the_example_case_is_valid() {
         example_with("\"dt_s\": 0.001", "\"dt_s\": 0.001").unwrap();
+    }
+
+    #[test]
+    fn nonlinear_iterations_take_a_count_or_auto_and_default_by_scheme() {
+        let dt = "\"dt_s\": 0.001";
+        let with = |extra: &str| example_with(dt, &format!("{dt}, {extra}"));
+        assert_eq!(with("\"nonlinear_iterations\": 3").unwrap().0.nonlinear(), NonlinearIterations::Fixed(3));
+        let (auto, _) = with("\"nonlinear_iterations\": \"auto\", \"nonlinear_tolerance\": 1e-4").unwrap();
+        assert_eq!((auto.nonlinear(), auto.nonlinear_tolerance), (NonlinearIterations::Auto { cap: AUTO_NONLINEAR_CAP }, 1e-4));
+        assert_eq!(with("\"time_integration\": \"generalized-alpha\"").unwrap().0.nonlinear(), NonlinearIterations::Auto { cap: AUTO_NONLINEAR_CAP });
+        assert_eq!(with("\"time_integration\": \"generalized-alpha\", \"nonlinear_iterations\": 1").unwrap().0.nonlinear(), NonlinearIterations::Fixed(1));
+        assert_eq!(example_with(dt, dt).unwrap().0.nonlinear(), NonlinearIterations::Fixed(1));
+        assert!(with("\"nonlinear_iterations\": \"many\"").unwrap_err().contains("expected a count"));
+        assert!(with("\"nonlinear_iterations\": 0").unwrap_err().contains("at least 1"));
     }
 
     #[test]

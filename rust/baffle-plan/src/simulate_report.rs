@@ -18,6 +18,12 @@ pub enum Engine {
     Svmultiphysics,
 }
 
+/// Rows of checkpoints written before the flag existed: their steps made a fixed number
+/// of iterations, never reported unconverged.
+fn converged_by_default() -> bool {
+    true
+}
+
 /// One row of the time series (pressures in mmHg). NaN where an engine does not report
 /// a figure at that step (svMultiPhysics: residual, and velocity away from the peak).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -32,6 +38,9 @@ pub(crate) struct Row {
     /// Rungs of the solver's retry ladder this step needed (0: none).
     #[serde(default)]
     pub retries: usize,
+    /// False when the step's auto Picard loop stopped at its cap still changing.
+    #[serde(default = "converged_by_default")]
+    pub nonlinear_converged: bool,
     pub face_ids: Vec<i32>,
     pub face_names: Vec<String>,
     pub face_pressure_mmhg: Vec<f64>,
@@ -48,6 +57,7 @@ impl Row {
             max_velocity_m_s: r.max_velocity_cm_s / 100.0,
             residual: r.residual,
             retries: r.retries,
+            nonlinear_converged: r.nonlinear_converged,
             face_ids: r.faces.iter().map(|f| f.id).collect(),
             face_names: r.faces.iter().map(|f| f.name.clone()).collect(),
             face_pressure_mmhg: r.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),
@@ -194,6 +204,8 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
         // final cycle); quick: the steps to the first flow peak.
         "steps_planned": (!steady).then(|| if quick { case::first_peak_step(settings) } else { cycle_end_step(settings.cycles, flow.period_s, settings.dt_s) }),
         "retried_steps": rows.iter().filter(|r| r.retries > 0).count(),
+        // Steps whose auto Picard loop stopped at its cap (time.nonlinear_iterations "auto").
+        "unconverged_nonlinear_steps": rows.iter().filter(|r| !r.nonlinear_converged).count(),
         "last_step": last_step,
         "last_time_s": rows.last().map(|r| r.time_s),
         "peak_time_s": peak.map(|r| r.time_s),
@@ -219,6 +231,10 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
             "map_mmhg": flow.map_mmhg,
             "dt_s": settings.dt_s,
             "cycles": settings.cycles,
+            "nonlinear_iterations": (!steady).then(|| match settings.nonlinear() {
+                baffle_cfd::NonlinearIterations::Fixed(n) => serde_json::json!(n),
+                baffle_cfd::NonlinearIterations::Auto { cap } => serde_json::json!({ "auto": { "cap": cap, "tolerance": settings.nonlinear_tolerance } }),
+            }),
             "time_integration": (!steady).then(|| settings.time_integration.name()),
             "rho_inf": match settings.time_integration {
                 baffle_cfd::TimeIntegration::GeneralizedAlpha { rho_inf } if !steady => Some(rho_inf),

@@ -117,6 +117,7 @@ fn rows_of(summary: &SvmpSummary, report: &Report, output: &Output) -> Result<Ve
             max_velocity_m_s: peak_velocity_m_s.filter(|(s, _)| *s == step.step).map_or(f64::NAN, |(_, v)| v),
             residual: f64::NAN,
             retries: 0,
+            nonlinear_converged: true,
             face_ids: step.faces.iter().map(|f| f.id).collect(),
             face_names,
             face_pressure_mmhg: step.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),

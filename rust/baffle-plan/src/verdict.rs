@@ -91,6 +91,11 @@ pub fn run_doubts(summary: &Value) -> Vec<String> {
             "the solve did not converge".into()
         });
     }
+    if let Some(n) = number(summary, "/unconverged_nonlinear_steps").filter(|n| *n > 0.0) {
+        doubts.push(format!(
+            "{n:.0} time steps stopped at the Picard iteration cap with the velocity still changing (time.nonlinear_iterations \"auto\"): use a smaller time step"
+        ));
+    }
     // A quick run ends at the first flow peak by design: no cycles to settle.
     let quick = summary["mode"] == crate::case::QUICK_MODE;
     if !steady {
@@ -237,6 +242,17 @@ mod tests {
         s["periodicity_nrmsd"] = json!(1e-4);
         s["status"] = json!("stopped");
         assert!(run_doubts(&s)[0].starts_with("the CFD run stopped"));
+    }
+
+    #[test]
+    fn steps_whose_picard_loop_hit_its_cap_make_the_run_inconclusive() {
+        let mut s = json!({ "status": "completed", "mode": "quick", "converged": true, "last_step": 109, "steps_planned": 109,
+            "periodicity_nrmsd": null, "mass_imbalance": 1e-5, "message": null, "unconverged_nonlinear_steps": 0 });
+        assert!(run_doubts(&s).is_empty());
+        s["unconverged_nonlinear_steps"] = json!(3);
+        let v = Verdict::of(1.47, run_doubts(&s));
+        assert_eq!(v.key(), "inconclusive");
+        assert!(v.text(1.47).contains("3 time steps stopped at the Picard iteration cap"), "{}", v.text(1.47));
     }
 
     #[test]

@@ -339,7 +339,7 @@ fn solver_spec(
         density_g_cm3: settings.density_g_cm3,
         viscosity_g_cm_s: settings.viscosity_g_cm_s,
         backflow_stabilization: settings.backflow_stabilization,
-        max_nonlinear_iterations: settings.max_nonlinear_iterations.max(SVMP_MIN_NEWTON_ITERATIONS),
+        max_nonlinear_iterations: settings.nonlinear().max_iterations().max(SVMP_MIN_NEWTON_ITERATIONS),
         nonlinear_tolerance: settings.nonlinear_tolerance,
         linear_tolerance: settings.linear_tolerance,
         faces: mesh_files

@@ -116,7 +116,7 @@ fn solver_xml_states_every_setting_of_the_case() {
     let viscosity = eq.with_attr("Viscosity", "model", "Constant");
     assert_eq!(viscosity.f64_of("Value"), settings.viscosity_g_cm_s);
     assert_eq!(eq.f64_of("Backflow_stabilization_coefficient"), settings.backflow_stabilization);
-    assert_eq!(eq.f64_of("Max_iterations"), settings.max_nonlinear_iterations.max(baffle_svmp::export::SVMP_MIN_NEWTON_ITERATIONS) as f64);
+    assert_eq!(eq.f64_of("Max_iterations"), settings.nonlinear().max_iterations().max(baffle_svmp::export::SVMP_MIN_NEWTON_ITERATIONS) as f64);
     assert_eq!(eq.f64_of("Tolerance"), settings.nonlinear_tolerance);
     for kind in ["Spatial", "Boundary_integral"] {
         let out = eq.with_attr("Output", "type", kind);
