@@ -19,6 +19,9 @@ pub enum MeshError {
     /// The volume mesh violates an invariant (inverted tet, lost face, non-conforming surface...).
     #[error("invalid volume mesh: {0}")]
     InvalidMesh(String),
+    /// gmsh returned a tet too flat for the CFD solver (see `tetmesh::DEGENERATE_VOLUME_RATIO`).
+    #[error("invalid volume mesh: {0}")]
+    DegenerateTet(String),
     /// A file could not be read or written, or its content is not what is expected.
     #[error("{path}: {message}")]
     File { path: PathBuf, message: String },

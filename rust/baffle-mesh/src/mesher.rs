@@ -85,8 +85,23 @@ pub fn mesh_surface(
     let input = MeshInput::new(&boundary, &opts.interior_surfaces)?;
     let gmsh = find_gmsh(opts.gmsh_executable.as_deref())?;
     let work = WorkDir::create(opts.keep_temp)?;
-    let msh = run_in(&work.path, &input, opts, &gmsh, gmsh_time_limit(opts, expected_tets))?;
-    let mesh = assemble(&input, &msh)?;
+    let limit = gmsh_time_limit(opts, expected_tets);
+    let msh = run_in(&work.path, &input, opts, &gmsh, limit)?;
+    let mesh = match assemble(&input, &msh) {
+        // gmsh's own optimizer can leave a sliver (p1 with its inflow cap moved 2.5 mm: scaled
+        // Jacobian 3e-10); Netgen's optimizer removes slivers, so one more run with it.
+        Err(MeshError::DegenerateTet(first)) if !opts.optimize_netgen => {
+            let with_netgen = MeshOptions { optimize_netgen: true, ..opts.clone() };
+            let msh = run_in(&work.path, &input, &with_netgen, &gmsh, limit)?;
+            assemble(&input, &msh).map_err(|e| match e {
+                MeshError::DegenerateTet(second) => {
+                    MeshError::DegenerateTet(format!("{first}; again with Netgen's optimizer: {second}"))
+                }
+                e => e,
+            })?
+        }
+        result => result?,
+    };
     check_volume(&mesh, input.enclosed_volume_mm3)?;
     let report = quality_report(&mesh)
         .ok_or_else(|| MeshError::InvalidMesh("gmsh produced no tets".into()))?;
@@ -877,6 +892,48 @@ mod tests {
         let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
         assert!(err.contains("did not finish within"), "{err}");
         assert!(start.elapsed() < Duration::from_secs(10));
+    }
+
+    /// gmsh's output for `closed_tet`: the tet itself, or (`sliver`) split at a node
+    /// 1e-11 mm inside its base, whose tet on the base is flat (volume ~2e-12 mm^3).
+    fn closed_tet_msh(sliver: bool) -> String {
+        let (nodes, tets) = if sliver {
+            ("5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 0.3333333333 0.3333333333 1e-11\n", "5 4 2 1 1 1 2 3 5\n6 4 2 1 1 5 2 3 4\n7 4 2 1 1 1 5 3 4\n8 4 2 1 1 1 2 5 4\n")
+        } else {
+            ("4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n", "5 4 2 1 1 1 2 3 4\n")
+        };
+        let elements = if sliver { 8 } else { 5 };
+        format!(
+            "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n{nodes}$EndNodes\n$Elements\n{elements}\n\
+             1 2 2 2 2 1 3 2\n2 2 2 2 2 1 2 4\n3 2 2 2 2 1 4 3\n4 2 2 2 2 2 3 4\n{tets}$EndElements\n"
+        )
+    }
+
+    /// A fake gmsh writing `without` unless the script turns Netgen's optimizer on.
+    fn gmsh_by_optimizer(name: &str, without: &str, with_netgen: &str) -> PathBuf {
+        let print = |msh: &str| format!("printf '{}' > volume.msh", msh.replace('\n', "\\n"));
+        fake_gmsh(
+            name,
+            &format!("if grep -q 'OptimizeNetgen = 1' domain.geo; then {}; else {}; fi", print(with_netgen), print(without)),
+        )
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_sliver_from_gmsh_is_meshed_again_with_netgens_optimizer() {
+        let fake = gmsh_by_optimizer("sliver-then-good", &closed_tet_msh(true), &closed_tet_msh(false));
+        let opts = MeshOptions { gmsh_executable: Some(fake), ..Default::default() };
+        let (mesh, _) = mesh_surface(&closed_tet(), &opts).unwrap();
+        assert_eq!(mesh.tets.len(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_sliver_left_by_both_optimizers_is_named_with_its_place() {
+        let fake = gmsh_by_optimizer("sliver-twice", &closed_tet_msh(true), &closed_tet_msh(true));
+        let opts = MeshOptions { gmsh_executable: Some(fake), ..Default::default() };
+        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        assert!(err.contains("is degenerate") && err.contains("near (0.33, 0.33, 0.00) mm") && err.contains("again with Netgen"), "{err}");
     }
 
     #[cfg(unix)]

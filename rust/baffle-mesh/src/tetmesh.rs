@@ -26,6 +26,11 @@ pub struct FaceSet {
 
 /// The signed volume (mm^3) of tet (a, b, c, d); positive when (b-a, c-a, d-a)
 /// is right-handed, i.e. triangle a-b-c seen from d runs counter-clockwise (VTK and gmsh order).
+/// A tet whose volume is at most this fraction of its longest edge cubed is degenerate:
+/// the CFD solver's own criterion (`baffle_cfd::FlowMesh::validate`), so `baffle mesh`
+/// never writes a mesh the solver refuses.
+pub const DEGENERATE_VOLUME_RATIO: f64 = 1e-9;
+
 pub fn tet_signed_volume_mm3(p: &[Vec3; 4]) -> f64 {
     (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) / 6.0
 }
@@ -136,12 +141,19 @@ impl TetMesh {
     /// Every tet must have positive volume; the first offender is named.
     pub fn check_positive_volumes(&self) -> Result<(), MeshError> {
         for t in 0..self.tets.len() {
-            let v = tet_signed_volume_mm3(&self.tet_points(t));
-            if v.is_nan() || v <= 0.0 {
-                let kind = if v < 0.0 { "inverted" } else { "degenerate" };
-                return Err(MeshError::InvalidMesh(format!(
-                    "tet {t} {:?} is {kind}: signed volume {v:e} mm^3",
-                    self.tets[t]
+            let p = self.tet_points(t);
+            let v = tet_signed_volume_mm3(&p);
+            if v.is_nan() || v < 0.0 {
+                let kind = if v < 0.0 { "inverted" } else { "not finite" };
+                return Err(MeshError::InvalidMesh(format!("tet {t} {:?} is {kind}: signed volume {v:e} mm^3", self.tets[t])));
+            }
+            let longest_mm = (0..4).flat_map(|i| (i + 1..4).map(move |j| (i, j))).map(|(i, j)| (p[i] - p[j]).norm()).fold(0.0, f64::max);
+            if v <= DEGENERATE_VOLUME_RATIO * longest_mm.powi(3) {
+                let centre = p.iter().sum::<Vec3>() / 4.0;
+                return Err(MeshError::DegenerateTet(format!(
+                    "tet {t} {:?} near ({:.2}, {:.2}, {:.2}) mm is degenerate: volume {v:e} mm^3, longest edge {longest_mm:.3} mm \
+                     (the CFD solver refuses tets under {DEGENERATE_VOLUME_RATIO:e} of their longest edge cubed)",
+                    self.tets[t], centre.x, centre.y, centre.z
                 )));
             }
         }
@@ -229,6 +241,16 @@ fn check_unlabelled_faces_paired(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tet_flatter_than_the_solver_accepts_is_degenerate() {
+        let mut mesh = unit_tet();
+        mesh.points_mm[3] = Vec3::new(0.2, 0.2, 1e-9); // volume 1.7e-10 of the edge cubed
+        let err = mesh.check_positive_volumes().unwrap_err();
+        assert!(matches!(err, MeshError::DegenerateTet(_)) && err.to_string().contains("near ("), "{err}");
+        mesh.points_mm[3] = Vec3::new(0.2, 0.2, 1e-7); // 1.7e-8: thin, but the solver takes it
+        mesh.check_positive_volumes().unwrap();
+    }
 
     fn unit_tet() -> TetMesh {
         let points_mm = vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()];
