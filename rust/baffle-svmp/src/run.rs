@@ -164,11 +164,13 @@ pub fn run_case(
         .map_err(|e| SvmpError::io(&engine.mpiexec, format!("could not start: {e}")))?;
     let stdout = child.stdout.take().ok_or_else(|| SvmpError::io(&engine.mpiexec, "no stdout pipe"))?;
     let mut tracker = StepTracker::new(manifest.n_time_steps);
-    for line in BufReader::new(stdout).lines() {
+    let mut lines = BufReader::new(stdout).lines();
+    while let Some(line) = lines.next() {
         let line = line.map_err(|e| SvmpError::io(&log_path, e))?;
         writeln!(log, "{line}").map_err(|e| SvmpError::io(&log_path, e))?;
         if let Some((fraction, message)) = tracker.update(&line) {
             if !progress(fraction, &message) {
+                drain_into(lines, log);
                 stop(&mut child);
                 return Err(SvmpError::Cancelled { step: tracker.last_step });
             }
@@ -191,6 +193,18 @@ fn clear_results(results: &Path) -> Result<(), SvmpError> {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(SvmpError::io(results, format!("cannot clear: {e}"))),
         _ => Ok(()),
     }
+}
+
+/// Keep copying the engine's remaining output to its log in the background while it
+/// stops: an engine blocked writing to a full pipe cannot act on SIGTERM (the CLI test's
+/// stand-in then missed its 10 s grace). The thread ends when the last writer closes the
+/// pipe; it is not joined, as ranks killed with their launcher may hold it a while.
+fn drain_into<R: BufRead + Send + 'static>(lines: std::io::Lines<R>, mut log: std::fs::File) {
+    std::thread::spawn(move || {
+        for line in lines.map_while(Result::ok) {
+            let _ = writeln!(log, "{line}");
+        }
+    });
 }
 
 /// End a cancelled run: SIGTERM first, which mpiexec forwards to the ranks (killing the
