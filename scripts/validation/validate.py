@@ -226,14 +226,18 @@ def run_row(r: Runner, spec, patients, common):
     )
 
 
+def moved_caps(spec, inflow_fmt, outflow_fmt):
+    """The row's moved caps, each formatted with its value (none for the default extension)."""
+    return [
+        fmt_.format(spec[key])
+        for key, fmt_ in (("inflow_offset_mm", inflow_fmt), ("outflow_diameters", outflow_fmt))
+        if spec.get(key) is not None
+    ]
+
+
 def chain_suffix(spec):
     """The extension's directory suffix for a moved inflow or outflow cap ("" for the default)."""
-    parts = []
-    if spec.get("inflow_offset_mm") is not None:
-        parts.append(f"-in{spec['inflow_offset_mm']:+g}")
-    if spec.get("outflow_diameters") is not None:
-        parts.append(f"-out{spec['outflow_diameters']:g}d")
-    return "".join(parts)
+    return "".join(moved_caps(spec, "-in{:+g}", "-out{:g}d"))
 
 
 def chain_argv(spec):
@@ -391,12 +395,7 @@ def chain_markdown(rows):
 
 def variant_name(spec):
     """How a row's extension differs from the default (mid-LV centroid, STJ or 1 diameter)."""
-    parts = []
-    if spec.get("inflow_offset_mm") is not None:
-        parts.append(f"inflow cap {spec['inflow_offset_mm']:+g} mm")
-    if spec.get("outflow_diameters") is not None:
-        parts.append(f"outflow cap at {spec['outflow_diameters']:g} annulus diameters")
-    return ", ".join(parts) or "default"
+    return ", ".join(moved_caps(spec, "inflow cap {:+g} mm", "outflow cap at {:g} annulus diameters")) or "default"
 
 
 def gci_markdown(study):
