@@ -35,6 +35,7 @@
 //! are the designed domain's, bit-identical.
 
 use crate::caps::{close_with_caps, remesh_wall, zip_rings};
+use crate::polygon2d::{distance_to_polygon_mm, inside_polygon};
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
@@ -511,29 +512,6 @@ impl VsdFootprint {
         }
         inside_polygon(&self.polygon, (u, v)) || distance_to_polygon_mm(&self.polygon, (u, v)) <= VSD_FOOTPRINT_MARGIN_MM
     }
-}
-
-/// Even-odd test of `p` against the closed polygon `poly`.
-fn inside_polygon(poly: &[(f64, f64)], p: (f64, f64)) -> bool {
-    let mut inside = false;
-    for (i, &a) in poly.iter().enumerate() {
-        let b = poly[(i + 1) % poly.len()];
-        if (a.1 > p.1) != (b.1 > p.1) && p.0 < a.0 + (p.1 - a.1) / (b.1 - a.1) * (b.0 - a.0) {
-            inside = !inside;
-        }
-    }
-    inside
-}
-
-/// Distance (mm) from `p` to the closed polygon `poly`'s edges.
-fn distance_to_polygon_mm(poly: &[(f64, f64)], p: (f64, f64)) -> f64 {
-    let segment = |a: (f64, f64), b: (f64, f64)| {
-        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-        let length2 = dx * dx + dy * dy;
-        let t = if length2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / length2).clamp(0.0, 1.0) } else { 0.0 };
-        (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
-    };
-    (0..poly.len()).map(|i| segment(poly[i], poly[(i + 1) % poly.len()])).fold(f64::INFINITY, f64::min)
 }
 
 /// The plane through the LV blood pool's volume centroid, parallel to the VSD cap.

@@ -18,6 +18,7 @@ pub mod interfaces;
 pub mod clip;
 pub mod caps;
 mod planar_cap;
+mod polygon2d;
 pub mod separation;
 pub mod prepare;
 pub mod labelmap;

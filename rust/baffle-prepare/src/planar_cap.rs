@@ -11,6 +11,7 @@
 //! the inserted points are then smoothed. Rim vertices are the wall's and never move,
 //! so the cap still closes the wall.
 
+use crate::polygon2d::{distance_to_polygon_mm, inside_polygon};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::Vec3;
 use std::collections::HashMap;
@@ -73,7 +74,7 @@ fn lattice_inside(rim: &[(f64, f64)], edge_mm: f64) -> Vec<(f64, f64)> {
             let shift = if r % 2 == 1 { edge_mm / 2.0 } else { 0.0 };
             (0..=columns).map(move |c| (lo.0 + shift + c as f64 * edge_mm, lo.1 + r as f64 * row_step))
         })
-        .filter(|&p| inside(rim, p) && distance_to_polygon(rim, p) >= RIM_CLEARANCE * edge_mm)
+        .filter(|&p| inside_polygon(rim, p) && distance_to_polygon_mm(rim, p) >= RIM_CLEARANCE * edge_mm)
         .collect()
 }
 
@@ -81,29 +82,6 @@ fn bounds(points: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
     points.iter().fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
         ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
     })
-}
-
-/// Even-odd ray crossing.
-fn inside(polygon: &[(f64, f64)], p: (f64, f64)) -> bool {
-    let n = polygon.len();
-    (0..n).fold(false, |inside, i| {
-        let (a, b) = (polygon[i], polygon[(i + 1) % n]);
-        let crosses = (a.1 > p.1) != (b.1 > p.1) && p.0 < a.0 + (p.1 - a.1) / (b.1 - a.1) * (b.0 - a.0);
-        inside ^ crosses
-    })
-}
-
-fn distance_to_polygon(polygon: &[(f64, f64)], p: (f64, f64)) -> f64 {
-    let n = polygon.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (polygon[i], polygon[(i + 1) % n]);
-            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-            let length2 = dx * dx + dy * dy;
-            let t = if length2 > 0.0 { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / length2).clamp(0.0, 1.0) } else { 0.0 };
-            ((p.0 - a.0 - t * dx).powi(2) + (p.1 - a.1 - t * dy).powi(2)).sqrt()
-        })
-        .fold(f64::INFINITY, f64::min)
 }
 
 /// Twice the signed area of (a, b, c) in the plane.
