@@ -91,12 +91,13 @@ pub fn seam_on_wall(
     sample_count: usize,
     max_point_distance_mm: f64,
 ) -> Result<(ProjectedSeam, ImprintedSeam), DesignError> {
+    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
     let in_order = |ordered: &[Vec3]| {
-        let projected = project_ordered_seam(surface, bvh, labels, ordered, sample_count, max_point_distance_mm)?;
+        let projected = project_ordered_seam(projector, ordered, sample_count)?;
         let imprinted = imprint_seam(surface, &projected)?;
         Ok((projected, imprinted))
     };
-    check_suture_points(surface, bvh, labels, points, max_point_distance_mm)?;
+    check_suture_points(&projector, points)?;
     let by_angle = order_by_pca_angle(points);
     if is_rotation_or_reversal(points, &by_angle) {
         return in_order(&by_angle);
@@ -129,42 +130,28 @@ pub fn project_seam(
     sample_count: usize,
     max_point_distance_mm: f64,
 ) -> Result<ProjectedSeam, DesignError> {
-    check_suture_points(surface, bvh, labels, points, max_point_distance_mm)?;
-    project_ordered_seam(surface, bvh, labels, &order_by_pca_angle(points), sample_count, max_point_distance_mm)
+    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
+    check_suture_points(&projector, points)?;
+    project_ordered_seam(projector, &order_by_pca_angle(points), sample_count)
 }
 
-/// The suture points as given (numbered as the surgeon placed them): at least 4, each on
-/// the wall, distinct, enclosing an area.
-fn check_suture_points(
-    surface: &TriMesh,
-    bvh: &TriangleBvh,
-    labels: &FaceLabels,
-    points: &[Vec3],
-    max_point_distance_mm: f64,
-) -> Result<(), DesignError> {
+/// The suture points as given (numbered as the surgeon placed them): at least 4, each
+/// on the wall (within the projector's tolerance), distinct, enclosing an area.
+fn check_suture_points(projector: &WallProjector, points: &[Vec3]) -> Result<(), DesignError> {
     if points.len() < 4 {
         return Err(DesignError::SuturePoints(format!(
             "{} point(s) given; a closed seam needs at least 4",
             points.len()
         )));
     }
-    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
-    check_points_on_wall(&projector, points, max_point_distance_mm)?;
+    check_points_on_wall(projector, points)?;
     check_points_distinct(points)?;
     check_points_enclose(points)
 }
 
 /// Fit the closed spline through the checked suture points in loop order, resample it,
 /// project the samples onto the wall and trace the path between them.
-fn project_ordered_seam(
-    surface: &TriMesh,
-    bvh: &TriangleBvh,
-    labels: &FaceLabels,
-    points: &[Vec3],
-    sample_count: usize,
-    max_point_distance_mm: f64,
-) -> Result<ProjectedSeam, DesignError> {
-    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
+fn project_ordered_seam(projector: WallProjector, points: &[Vec3], sample_count: usize) -> Result<ProjectedSeam, DesignError> {
     let spline = ClosedSpline::fit(points).map_err(DesignError::SuturePoints)?;
     let samples = spline
         .resample_uniform_arclength(sample_count.max(16))
@@ -172,7 +159,7 @@ fn project_ordered_seam(
         .enumerate()
         .map(|(i, q)| projector.project(*q, i))
         .collect::<Result<Vec<_>, _>>()?;
-    let tracer = PathTracer { projector, neighbors: surface.triangle_neighbors(), wall: OnceCell::new() };
+    let tracer = PathTracer { projector, neighbors: projector.surface.triangle_neighbors(), wall: OnceCell::new() };
     let (path, samples_mm) = tracer.trace_closed(&samples)?;
     Ok(ProjectedSeam { ordered_points_mm: points.to_vec(), samples_mm, path })
 }
@@ -182,6 +169,7 @@ fn project_ordered_seam(
 /// it: the surgeon's points lie along the VSD rim, where the baffle is sewn, and the
 /// spline between two of them may bulge over the cap. Deeper inside, the points do
 /// not describe a seam on the wall and the sample is refused.
+#[derive(Clone, Copy)]
 struct WallProjector<'a> {
     surface: &'a TriMesh,
     bvh: &'a TriangleBvh,
@@ -448,8 +436,8 @@ fn check_points_enclose(points: &[Vec3]) -> Result<(), DesignError> {
 }
 
 /// Every suture point must lie on the RV wall (not a cap) within the tolerance.
-fn check_points_on_wall(projector: &WallProjector, points: &[Vec3], max_point_distance_mm: f64) -> Result<(), DesignError> {
-    let (surface, labels) = (projector.surface, projector.labels);
+fn check_points_on_wall(projector: &WallProjector, points: &[Vec3]) -> Result<(), DesignError> {
+    let (surface, labels, max_point_distance_mm) = (projector.surface, projector.labels, projector.max_rim_shift_mm);
     for (i, p) in points.iter().enumerate() {
         if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
             return Err(DesignError::SuturePoints(format!("point {} has a non-finite coordinate", i + 1)));
