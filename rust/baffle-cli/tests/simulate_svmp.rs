@@ -263,3 +263,85 @@ fn steady_runs_read_back_at_the_last_step() {
     let xml = std::fs::read_to_string(out_dir.join("svmultiphysics/solver.xml")).unwrap();
     assert!(xml.contains("<Number_of_time_steps> 100 </Number_of_time_steps>"), "{xml}");
 }
+
+/// Export the case without running it (no svMultiPhysics on PATH), then put `recorded`'s
+/// outputs where a run elsewhere leaves them, as if the directory came back from a cluster.
+fn exported_and_returned(case: &Path, out_dir: &Path, recorded: &Path, bin_name: &str) {
+    let bin = standin_bin(bin_name, &StandIn::default());
+    std::fs::remove_file(bin.join("svMultiPhysics")).unwrap();
+    assert!(!simulate_command(case, out_dir, &bin, &[]).env("PATH", &bin).output().unwrap().status.success());
+    let case_dir = out_dir.join("svmultiphysics");
+    let results = case_dir.join(baffle_svmp::CaseManifest::read(&case_dir).unwrap().results_dir);
+    std::fs::create_dir_all(&results).unwrap();
+    for entry in std::fs::read_dir(recorded).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, results.join(path.file_name().unwrap())).unwrap();
+    }
+}
+
+fn read_back(case: &Path, out_dir: &Path, extra: &[&str]) -> Output {
+    // No engine and no mpiexec anywhere on PATH: a read-back neither exports nor runs.
+    let empty = scratch("cli-readback-empty-bin");
+    simulate_command(case, out_dir, &empty, &["--read-back"]).args(extra).env("PATH", &empty).output().unwrap()
+}
+
+#[test]
+fn a_case_run_elsewhere_is_read_back_in_place() {
+    let (case, recorded_dir) = box_case("readback");
+    let out_dir = case.parent().unwrap().join("out");
+    exported_and_returned(&case, &out_dir, &recorded_dir, "cli-readback-bin");
+    // Not exported again: the solver file it would rewrite stays gone.
+    std::fs::remove_file(out_dir.join("svmultiphysics/solver.xml")).unwrap();
+    let out = read_back(&case, &out_dir, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!out_dir.join("svmultiphysics/solver.xml").exists());
+    let s = summary(&out_dir);
+    assert_eq!((s["engine"].as_str(), s["status"].as_str(), s["steps_done"].as_u64()), (Some("svmultiphysics"), Some("completed"), Some(STEPS as u64)));
+    let (_, rows) = csv(&out_dir);
+    let peak = &rows[PEAK_STEP - 1];
+    assert_eq!(s["dp_peak_mmhg"].as_f64(), Some(peak[11] - peak[12]));
+    let (p, _) = recorded(PEAK_STEP as f64 * 0.01);
+    assert_eq!(peak[11], as_recorded(p[column("plane_10")]) / DYN_CM2_PER_MMHG);
+    assert!(out_dir.join("peak.vtu").is_file());
+
+    let embedded = Command::new(env!("CARGO_BIN_EXE_baffle"))
+        .args(["simulate", case.to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--read-back"])
+        .output()
+        .unwrap();
+    let e = stderr(&embedded);
+    assert!(!embedded.status.success() && e.contains("--read-back reads an svMultiPhysics run"), "{e}");
+}
+
+#[test]
+fn a_returned_run_that_stopped_early_is_a_failure_not_a_result() {
+    let (case, recorded_dir) = box_case_recorded("readback-short", 20, PEAK_STEP);
+    let out_dir = case.parent().unwrap().join("out");
+    exported_and_returned(&case, &out_dir, &recorded_dir, "cli-readback-short-bin");
+    let out = read_back(&case, &out_dir, &[]);
+    assert!(!out.status.success());
+    let s = summary(&out_dir);
+    assert_eq!((s["status"].as_str(), s["converged"].as_bool()), (Some("failed"), Some(false)), "{s}");
+    assert!(s["message"].as_str().unwrap().contains(&format!("end at time step 20 of {STEPS}")), "{s}");
+}
+
+#[test]
+fn results_of_another_case_or_of_no_export_are_refused_by_name() {
+    let (case, recorded_dir) = box_case("readback-other");
+    let out_dir = case.parent().unwrap().join("out");
+    let e = stderr(&read_back(&case, &out_dir, &[]));
+    assert!(e.contains("baffle_case.json") && e.contains("--read-back reads a case exported to this --out"), "{e}");
+    assert!(!out_dir.join("summary.json").exists());
+
+    exported_and_returned(&case, &out_dir, &recorded_dir, "cli-readback-other-bin");
+    let text = std::fs::read_to_string(&case).unwrap();
+    for (from, to, what) in [
+        (format!("[{PLANE_1}, {PLANE_2}]"), format!("[{PLANE_2}, {PLANE_1}]"), "measurement planes"),
+        ("\"dt_s\": 0.01".to_string(), "\"dt_s\": 0.005".to_string(), "time step (s) 0.01"),
+        (format!("\"inlet\": {INLET},"), "\"inlet\": 4,".to_string(), "faces"),
+    ] {
+        let other = case.with_file_name(format!("other-{}.json", what.len()));
+        std::fs::write(&other, text.replace(&from, &to)).unwrap();
+        let e = stderr(&read_back(&other, &out_dir, &[]));
+        assert!(e.contains(&format!("the returned case has {what}")) && e.contains("exported from another case"), "{what}: {e}");
+    }
+}

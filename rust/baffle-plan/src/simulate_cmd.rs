@@ -72,6 +72,11 @@ pub struct SimulateArgs {
     /// run there with mpiexec; needs svmultiphysics or svMultiPhysics, and mpiexec, on PATH).
     #[arg(long, value_enum, default_value_t = Engine::Embedded)]
     pub(crate) engine: Engine,
+    /// With --engine svmultiphysics: read back the case already exported to
+    /// OUT/svmultiphysics/ and run elsewhere (a cluster; the directory copied back in
+    /// place), without exporting or running it again. It must be this case's export.
+    #[arg(long)]
+    pub(crate) read_back: bool,
     /// MPI processes of an svMultiPhysics run (default: the available cores).
     #[arg(long, value_parser = crate::case::at_least_one)]
     pub(crate) mpi_processes: Option<usize>,
@@ -271,11 +276,14 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     let output = Output { dir: &args.out, mesh: &mesh };
     let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
     let quick = case::is_quick(&case);
+    if args.read_back && args.engine != Engine::Svmultiphysics {
+        return Err("--read-back reads an svMultiPhysics run: give --engine svmultiphysics".into());
+    }
     if args.engine == Engine::Svmultiphysics {
         if quick {
             return Err("the quick estimate (time.mode \"quick\", --quick) runs on the embedded engine; give svMultiPhysics a transient or steady case".into());
         }
-        let svmp = SvmpRun { out: &args.out, mpi_processes: args.mpi_processes, resume: args.resume, steps: args.steps, vtu_every: args.vtu_every };
+        let svmp = SvmpRun { out: &args.out, mpi_processes: args.mpi_processes, resume: args.resume, steps: args.steps, vtu_every: args.vtu_every, read_back: args.read_back };
         return simulate_svmp::run(&svmp, &report, &output, start, progress);
     }
 

@@ -87,6 +87,12 @@ pub(crate) struct Ending {
     pub converged: bool,
 }
 
+impl Ending {
+    pub fn completed() -> Ending {
+        Ending { status: "completed", message: None, converged: true }
+    }
+}
+
 /// The one writer of timeseries.csv and summary.json, for both engines: what the case
 /// asked for, and which engine answered.
 pub(crate) struct Report<'a> {

@@ -3,7 +3,7 @@
 //! its outputs (`B_NS_*.txt`, the peak `result_*.vtu`) read back into the same rows, and
 //! so the same timeseries.csv and summary.json, as the embedded engine's.
 
-use crate::svmp_case::export_to;
+use crate::svmp_case::{check_returned_case, export_to};
 use crate::progress::Progress;
 use crate::simulate_report::{stop_on_signals, Ending, Output, Report, Row};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
@@ -24,25 +24,25 @@ pub struct SvmpRun<'a> {
     pub resume: bool,
     pub steps: Option<usize>,
     pub vtu_every: Option<usize>,
+    /// Read back a case exported to OUT/svmultiphysics/ and run elsewhere (no export, no run).
+    pub read_back: bool,
 }
 
 pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Instant, progress: &Progress) -> Result<(), String> {
     refuse_embedded_only_options(args)?;
     let case_dir = args.out.join(CASE_DIR);
-    let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    export_to(&case_dir, report.case, output.mesh, report.settings, processes)?;
-    let engine = find_engine().map_err(|e| {
-        format!("{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed", case_dir.display())
-    })?;
-    let stop = stop_on_signals()?;
-    let run = run_case(&engine, &case_dir, &mut |fraction, message| {
-        progress.report(fraction, "svMultiPhysics", message);
-        !stop.load(Ordering::SeqCst)
-    });
-    progress.finish(None);
-    let mut ending = ending_of(&run, stop.load(Ordering::SeqCst), &case_dir)?;
+    // A case run elsewhere and returned must be this case's export (its time steps known).
+    let (mut ending, exported_steps) = match args.read_back {
+        true => (Ending::completed(), Some(check_returned_case(&case_dir, report.case, output.mesh, report.settings)?.n_time_steps)),
+        false => (export_and_run(args, &case_dir, report, output, progress)?, None),
+    };
     let rows = match read_results(&case_dir) {
-        Ok(summary) => rows_of(&summary, report, output)?,
+        Ok(summary) => {
+            if let Some(ended_early) = exported_steps.and_then(|n| unfinished(&summary, n)) {
+                ending = ended_early;
+            }
+            rows_of(&summary, report, output)?
+        }
         Err(e) => {
             // Nothing to read back (a run stopped or failed early): say both, keep the case.
             // A completed run without readable results has failed.
@@ -59,6 +59,35 @@ pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Insta
         "completed" => Ok(()),
         _ => Err(ending.message.unwrap_or_default()),
     }
+}
+
+/// Export the case to `case_dir` and run svMultiPhysics there; how the run ended.
+fn export_and_run(args: &SvmpRun, case_dir: &Path, report: &Report, output: &Output, progress: &Progress) -> Result<Ending, String> {
+    let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    export_to(case_dir, report.case, output.mesh, report.settings, processes)?;
+    let engine = find_engine().map_err(|e| {
+        format!(
+            "{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed, bring the directory back there and read it with --read-back",
+            case_dir.display()
+        )
+    })?;
+    let stop = stop_on_signals()?;
+    let run = run_case(&engine, case_dir, &mut |fraction, message| {
+        progress.report(fraction, "svMultiPhysics", message);
+        !stop.load(Ordering::SeqCst)
+    });
+    progress.finish(None);
+    ending_of(&run, stop.load(Ordering::SeqCst), case_dir)
+}
+
+/// A returned run whose outputs stop before the last exported time step did not finish.
+fn unfinished(summary: &SvmpSummary, exported_steps: usize) -> Option<Ending> {
+    let last = summary.steps.last().map_or(0, |r| r.step);
+    (last < exported_steps).then(|| Ending {
+        status: "failed",
+        message: Some(format!("the returned outputs end at time step {last} of {exported_steps}: the run did not finish")),
+        converged: false,
+    })
 }
 
 /// Options that steer the embedded solver's own loop; svMultiPhysics takes its run from
@@ -82,7 +111,7 @@ fn ending_of<T>(run: &Result<T, SvmpError>, signalled: bool, case_dir: &Path) ->
         converged: false,
     };
     match run {
-        Ok(_) => Ok(Ending { status: "completed", message: None, converged: true }),
+        Ok(_) => Ok(Ending::completed()),
         Err(SvmpError::Cancelled { step }) => Ok(stopped(format!("at svMultiPhysics step {step}"))),
         Err(SvmpError::RunFailed { .. }) if signalled => Ok(stopped("while svMultiPhysics ran".into())),
         Err(e @ SvmpError::RunFailed { .. }) => Ok(Ending { status: "failed", message: Some(e.to_string()), converged: false }),

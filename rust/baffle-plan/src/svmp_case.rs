@@ -6,7 +6,7 @@ use crate::case;
 use baffle_cfd::{CaseSettings, FlowMesh};
 use baffle_core::Vec3;
 use baffle_mesh::{FaceSet, TetMesh};
-use baffle_svmp::{export_case, ExportOptions, ExportedCase};
+use baffle_svmp::{export_case, CaseManifest, ExportOptions, ExportedCase};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -37,6 +37,29 @@ pub(crate) fn export_to(
         _ => println!("inflow: constant (steady)"),
     }
     Ok(exported)
+}
+
+/// Whether a case directory returned from elsewhere (a cluster) was exported from this
+/// case: the same faces under the same names, the same measurement planes and time step.
+/// A mismatch names the first difference, so results of another case are never read as
+/// this one's (the node count is checked when the peak fields are read).
+pub(crate) fn check_returned_case(dir: &Path, case: &case::Case, mesh: &FlowMesh, settings: &CaseSettings) -> Result<CaseManifest, String> {
+    let manifest = CaseManifest::read(dir).map_err(|e| format!("{e}; --read-back reads a case exported to this --out (svmultiphysics/) and run elsewhere"))?;
+    let names = face_names(&case.faces, mesh);
+    let returned: BTreeMap<i32, String> = manifest.faces.iter().map(|f| (f.id, f.name.clone())).collect();
+    let differs = |what: &str, ours: String, theirs: String| {
+        Err(format!("{}: the returned case has {what} {theirs}, this case {ours}: it was exported from another case", dir.display()))
+    };
+    if returned != names {
+        return differs("faces", format!("{names:?}"), format!("{returned:?}"));
+    }
+    if manifest.measurement_face_ids != case.faces.planes {
+        return differs("measurement planes", format!("{:?}", case.faces.planes), format!("{:?}", manifest.measurement_face_ids));
+    }
+    if manifest.dt_s != settings.dt_s {
+        return differs("time step (s)", settings.dt_s.to_string(), manifest.dt_s.to_string());
+    }
+    Ok(manifest)
 }
 
 /// File-name-safe names by role: inflow, outlet_<id>, plane_<id>, wall_<id>.

@@ -407,6 +407,8 @@ fn readme_text(processes: usize) -> String {
          On a Slurm cluster: `sbatch --ntasks={processes} --time=24:00:00 --wrap 'NP=$SLURM_NTASKS ./{RUN_SCRIPT}'`\n\
          (other schedulers: run `./{RUN_SCRIPT}` with NP set to the allocated process count).\n\n\
          Results land in `{RESULTS_DIR}/` (B_NS_*.txt boundary integrals, result_*.vtu at peak flow);\n\
-         copy the whole directory back and baffle reads them with `{MANIFEST_FILE}`.\n"
+         copy the whole directory back in place (`OUT/svmultiphysics/` when `baffle simulate --engine svmultiphysics\n\
+         --out OUT` exported it) and read it with `baffle simulate CASE --engine svmultiphysics --out OUT --read-back`\n\
+         (it checks `{MANIFEST_FILE}` against the case).\n"
     )
 }
