@@ -35,6 +35,15 @@ def signed_volume(points, tris):
     return np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
 
 
+def surface_area(path):
+    """Area of a triangulated surface file, in its own units squared (cm2 for the paper's)."""
+    poly = read_vtp(path)
+    points = vtk_to_numpy(poly.GetPoints().GetData()).astype(float)
+    tris = triangles(poly)
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+
 def outward_mm(points_cm, tris):
     """Points in mm and triangles wound so that the enclosed volume is positive."""
     points = np.asarray(points_cm, dtype=float) * CM_TO_MM

@@ -214,7 +214,8 @@ def test_the_full_run_studies_every_domain_of_every_patient_and_only_filters():
     cycles = validate.row_specs("full", patients, only="cycles")
     assert sorted(r["patient"] for r in cycles) == patients and all(r["cycles"] == 4 and r["domain"] == "published" for r in cycles)
     chain = validate.row_specs("full", patients, only="chain")
-    assert len(base) + len(study) + len(cycles) + len(chain) == len(validate.row_specs("full", patients))
+    area = validate.row_specs("full", patients, only="area")
+    assert len(base) + len(study) + len(cycles) + len(chain) + len(area) == len(validate.row_specs("full", patients))
     assert validate.row_specs("quick", ["p2"], only="gci") == []
 
 
@@ -250,6 +251,48 @@ def test_the_chain_table_lists_only_chain_rows_and_names_failures():
     assert validate.chain_markdown([dict(row, study="gci")]) == ""
     # The main table leaves the chain rows to their own table.
     assert validate.markdown([failed]).count("\n") == 2
+
+
+def test_the_area_rows_design_on_the_papers_input_at_each_z_score():
+    import validate
+
+    area = validate.row_specs("full", ["p2", "p3"], only="area")
+    published_rows = [r for r in area if r["domain"] == "published"]
+    assert [r["patient"] for r in published_rows] == ["p3", "p2"] and all(r.get("z") is None for r in published_rows)
+    for p in ("p2", "p3"):
+        base = [r["z"] for r in area if r["patient"] == p and r["domain"] == "input" and r["boundary_mm"] == validate.DESIGN_BOUNDARY_MM]
+        assert base == list(validate.AREA_Z_SCORES)
+    fine = [(r["z"], r["boundary_mm"], r["interior_mm"]) for r in area if r["boundary_mm"] != validate.DESIGN_BOUNDARY_MM]
+    assert fine == [(z, h, h) for z in (0.0, 3.0) for h in validate.AREA_FINE_MM] and all(r["patient"] == "p3" for r in area if r["boundary_mm"] != 0.85)
+
+
+def area_row(z, baffle, dp, vmax, **kw):
+    return dict(dict(patient="p3", domain="input", study="area", z=z, mesh="0.85 mm boundary, 1.25 mm interior", boundary_mm=0.85, interior_mm=1.25,
+                     target_area_mm2=62.3, baffle_area_mm2=baffle, min_constrained_final_area_mm2=82.2, tets=55000, dp_mmhg=dp, dp_total_flux_mmhg=1.0,
+                     vmax_centerline_m_s=vmax, paper_baffle_area_mm2=403.1, paper_dp_mmhg=1.68, paper_vmax_m_s=1.14), **kw)
+
+
+def test_dp_at_the_papers_baffle_area_is_read_between_the_designs_that_bracket_it():
+    import validate
+
+    rows = [area_row(4.0, 438.2, 0.76, 1.40), area_row(0.0, 371.1, 4.63, 1.80), area_row(3.0, 400.9, 1.56, 1.50),
+            # Not on the base mesh, or failed: not interpolated.
+            area_row(3.0, 402.0, 9.0, 9.0, boundary_mm=0.6, interior_mm=0.6), dict(patient="p3", domain="input", study="area", z=2.0, error="infeasible")]
+    t = (403.1 - 400.9) / (438.2 - 400.9)
+    line = validate.at_paper_area(rows, "p3")
+    assert f"dp {1.56 + t * (0.76 - 1.56):.2f} mmHg" in line and f"{1.50 + t * (1.40 - 1.50):.2f} m/s" in line and "between z = 3 and 4" in line
+    assert validate.at_paper_area([r for r in rows if r.get("z") != 4.0], "p3") is None
+    table = validate.area_markdown(rows)
+    assert "| p3 | input | 0 | 0.85 mm boundary, 1.25 mm interior | 62.3 | 371.1 | 82.2 | 55,000 | 4.63 |" in table
+    assert "failed: infeasible" in table and line in table
+    assert validate.markdown(rows).count("\n") == 2, "the main table leaves the area rows out"
+
+
+def test_surface_area_of_a_file(tmp_path):
+    pts = np.array([[0, 0, 0], [2, 0, 0], [0, 3, 0], [0, 0, 1]], float)
+    path = tmp_path / "t.vtp"
+    published.write_vtp(path, pts, np.array([[0, 1, 2], [0, 1, 3]]), np.array([10, 10]))
+    assert published.surface_area(path) == pytest.approx(3.0 + 1.0)
 
 
 def test_lengths_without_a_path_keep_the_planes_own():

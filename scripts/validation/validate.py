@@ -5,6 +5,9 @@ Each row runs the chain of paper 2.5 with the `baffle` command:
              (its faces are the remeshed designed domain) -> `baffle extend`
   designed:  `baffle prepare` (segmentations) -> `baffle design` (the paper's suture
              points, its BSA) -> `baffle extend`
+  input:     `baffle design` on the paper's own design input (the published capped
+             ventricle and suture points) at an annulus z-score -> `baffle extend`
+             (--only area: dp against the baffle's size, to compare with Table 4's areas)
   (mesh study: `baffle extend --remesh-domain-edge-mm H` on either domain instead, so the
   whole boundary is at H)
 then `baffle mesh --interior-labels 11,16` -> `baffle simulate` (paper settings, from
@@ -100,6 +103,23 @@ def designed_domain(r: Runner, patient, info):
     return design / "domain.vtp", times
 
 
+def input_domain(r: Runner, patient, info, z):
+    """Our design on the paper's design input (published capped ventricle, its suture
+    points) at annulus z-score z: the baffle's size varies while the anatomy is the paper's."""
+    design = r.work / patient / "input" / f"z{z:+g}" / "design"
+    inputs = r.data / patient / "design_input"
+    argv = ["design", "--surface", inputs / "capped_ventricle.vtp", "--points", inputs / "suture_points.mrk.json", "--bsa", info["bsa_m2"], "--z-score", z, "--out", design]
+    return design / "domain.vtp", {"design": r.stage(design / "domain.vtp", argv)}
+
+
+def baffle_figures(r: Runner, spec, domain):
+    """The baffle's size: our design's report, or the published baffle file (cm2 -> mm2)."""
+    if spec["domain"] == "published":
+        return {"baffle_area_mm2": published.surface_area(r.data / spec["patient"] / "published_baffle.vtp") * 100.0}
+    report = json.loads((domain.parent / "report.json").read_text())
+    return {k: report[k] for k in ("target_area_mm2", "baffle_area_mm2", "min_constrained_final_area_mm2", "domain_volume_mm3")}
+
+
 def write_case(path: Path, info, profile, cardiac_index, steps, cycles=1):
     case = {
         "mesh": {"volume": "../mesh.vtu", "faces": "../mesh-faces.vtp", "format": "baffle", "units": "mm"},
@@ -133,6 +153,8 @@ def run_row(r: Runner, spec, patients, common):
     log(f"== {patient} {domain_kind} boundary {boundary} mm, interior {interior} mm, {spec['flow']} flow, {spec['profile']} inflow, {length}, extension {variant}")
     if domain_kind == "published":
         domain, times = published_domain(r, patient, boundary)
+    elif domain_kind == "input":
+        domain, times = input_domain(r, patient, info, spec["z"])
     else:
         domain, times = designed_domain(r, patient, info)
     # Beside the published domain, or beside the design's domain.vtp.
@@ -178,6 +200,9 @@ def run_row(r: Runner, spec, patients, common):
     return Row(
         patient=patient,
         domain=domain_kind,
+        z=spec.get("z"),
+        **baffle_figures(r, spec, domain),
+        paper_baffle_area_mm2=info["baffle_area_mm2"],
         mesh=f"{boundary} mm boundary, {interior} mm interior" + (f", {cycles} cycles" if cycles > 1 else "") + ("" if variant == "default" else f", {variant}"),
         variant=variant,
         cycles=cycles,
@@ -276,9 +301,28 @@ def chain_specs(patients):
     return rows
 
 
+# Annulus z-scores of the designs on the paper's design input (--only area); the finer
+# levels on the z = 0 and z = 3 designs of p3 (p3's Table 4 baffle lies near z = 3).
+AREA_Z_SCORES = (-1.0, 0.0, 1.0, 2.0, 3.0, 4.0)
+AREA_FINE_MM = (0.75, 0.6)
+
+
+def area_specs(patients):
+    """dp against the baffle's size on the paper's anatomy: the published domain as it is,
+    then our designs on its design input at each z-score (0.85 / 1.25 mm, first peak)."""
+    rows = []
+    for p in patients:
+        rows.append(spec(p, "published", study="area"))
+        rows += [spec(p, "input", z=z, study="area") for z in AREA_Z_SCORES]
+        if p == "p3":
+            rows += [spec(p, "input", z=z, boundary=h, interior=h, study="area") for z in (0.0, 3.0) for h in AREA_FINE_MM]
+    return rows
+
+
 def row_specs(mode, patients_wanted, only=None):
     """The rows of a run; `only` keeps the mesh study ("gci"), the four-cycle runs
-    ("cycles"), the moved extension caps ("chain") or the rest ("base")."""
+    ("cycles"), the moved extension caps ("chain"), the baffle sizes ("area") or the rest
+    ("base")."""
     rows = all_row_specs(mode, patients_wanted)
     if only == "base":
         return [r for r in rows if not r.get("study")]
@@ -315,6 +359,7 @@ def all_row_specs(mode, patients_wanted):
     if "p1" in ps:
         rows += study("p1", "published")
     rows += chain_specs([p for p in ("p2", "p3", "p1") if p in ps])
+    rows += area_specs([p for p in ("p3", "p2", "p1") if p in ps])
     return rows
 
 
@@ -327,8 +372,8 @@ def fmt(x, nd=2):
 def markdown(rows):
     head = "| patient | domain | mesh | flow | inflow | tets | dp (mmHg) | paper | dp total, flow-weighted | v_max centerline (m/s) | paper | v_max domain | centerline (mm) | wall time (s) |"
     out = [head, "|" + "---|" * (head.count("|") - 1)]
-    # The moved-cap rows have their own table (chain_markdown).
-    for r in (r for r in rows if r.get("study") != "chain"):
+    # The moved-cap rows and the baffle sizes have their own tables (chain_markdown, area_markdown).
+    for r in (r for r in rows if r.get("study") not in ("chain", "area")):
         if "error" in r:
             out.append(f"| {r['patient']} | {r['domain']} | {r.get('mesh', '')} | | | | failed: {r['error'].splitlines()[0]} | | | | | | | |")
             continue
@@ -393,6 +438,43 @@ def chain_markdown(rows):
     return "\n".join(out) + "\n" if len(out) > 2 else ""
 
 
+def area_markdown(rows):
+    """dp and v_max against the baffle's size (the "area" rows), the published baffle first,
+    and dp read at Table 4's baffle area between the two designs that bracket it."""
+    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | tets | dp static (mmHg) | dp total, flow-weighted "
+            "| v_max centerline (m/s) | paper: baffle (mm2) / dp / v_max |")
+    out = [head, "|" + "---|" * (head.count("|") - 1)]
+    area_rows = [r for r in rows if r.get("study") == "area"]
+    for r in area_rows:
+        if "error" in r:
+            out.append(f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r.get('mesh', '')} | failed: {r['error'].splitlines()[-1]} | | | | | | | |")
+            continue
+        out.append(
+            f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r['mesh']} | {fmt(r.get('target_area_mm2'), 1)} | {r['baffle_area_mm2']:.1f} | {fmt(r.get('min_constrained_final_area_mm2'), 1)} | "
+            f"{r['tets']:,} | {fmt(r['dp_mmhg'])} | {fmt(r['dp_total_flux_mmhg'])} | {fmt(r['vmax_centerline_m_s'])} | "
+            f"{r['paper_baffle_area_mm2']} / {fmt(r['paper_dp_mmhg'])} / {fmt(r['paper_vmax_m_s'])} |"
+        )
+    notes = [line for line in (at_paper_area(area_rows, p) for p in sorted({r["patient"] for r in area_rows})) if line]
+    return "\n".join(out) + "\n" + ("\n" + "\n".join(notes) + "\n" if notes else "") if area_rows else ""
+
+
+def at_paper_area(rows, patient):
+    """dp and v_max at Table 4's baffle area, linear between the two base-mesh designs whose
+    baffles bracket it (None when none do)."""
+    designs = sorted(
+        (r for r in rows if r["patient"] == patient and r["domain"] == "input" and "error" not in r and r["boundary_mm"] == DESIGN_BOUNDARY_MM and r["interior_mm"] == 1.25),
+        key=lambda r: r["baffle_area_mm2"],
+    )
+    for a, b in zip(designs, designs[1:]):
+        area = a["paper_baffle_area_mm2"]
+        if a["baffle_area_mm2"] <= area <= b["baffle_area_mm2"] and b["baffle_area_mm2"] > a["baffle_area_mm2"]:
+            t = (area - a["baffle_area_mm2"]) / (b["baffle_area_mm2"] - a["baffle_area_mm2"])
+            lerp = lambda k: a[k] + t * (b[k] - a[k])
+            return (f"- {patient}: at Table 4's baffle area ({area} mm2, between z = {a['z']:g} and {b['z']:g}): dp {lerp('dp_mmhg'):.2f} mmHg "
+                    f"(paper {fmt(a['paper_dp_mmhg'])}), v_max on the centerline {lerp('vmax_centerline_m_s'):.2f} m/s (paper {fmt(a['paper_vmax_m_s'])}).")
+    return None
+
+
 def variant_name(spec):
     """How a row's extension differs from the default (mid-LV centroid, STJ or 1 diameter)."""
     return ", ".join(moved_caps(spec, "inflow cap {:+g} mm", "outflow cap at {:g} annulus diameters")) or "default"
@@ -450,7 +532,8 @@ def main(argv=None):
     ap.add_argument("--baffle", type=Path, required=True)
     ap.add_argument("--patients", default="p1,p2,p3")
     ap.add_argument("--nice", type=int, default=5)
-    ap.add_argument("--only", choices=("gci", "cycles", "chain", "base"), help="run only the mesh-study rows, the four-cycle rows, the moved extension caps, or the others")
+    ap.add_argument("--only", choices=("gci", "cycles", "chain", "area", "base"),
+                    help="run only the mesh-study rows, the four-cycle rows, the moved extension caps, the baffle sizes, or the others")
     ap.add_argument("--tables-only", action="store_true", help="rebuild the tables from the stages already run; rows with a stage missing are left out")
     args = ap.parse_args(argv)
     meta = json.loads((args.data / "patients.json").read_text())
@@ -500,6 +583,7 @@ def write_outputs(out, rows):
         + "\n## dp with the VSD plane moved along the flow (negative: into the LV)\n\n" + shifted_markdown(rows, "vsd_plane_shifted")
         + "\n## dp with the aortic plane moved along the flow (positive: into the aorta)\n\n" + shifted_markdown(rows, "aortic_plane_shifted")
         + "\n## dp with the extension's inflow or outflow cap moved\n\n" + chain_markdown(rows)
+        + "\n## dp against the baffle's size on the paper's design input\n\n" + area_markdown(rows)
     )
     study = study_tables(rows)
     if study:
