@@ -283,7 +283,9 @@ def test_dp_at_the_papers_baffle_area_is_read_between_the_designs_that_bracket_i
     assert f"dp {1.56 + t * (0.76 - 1.56):.2f} mmHg" in line and f"{1.50 + t * (1.40 - 1.50):.2f} m/s" in line and "between z = 3 and 4" in line
     assert validate.at_paper_area([r for r in rows if r.get("z") != 4.0], "p3") is None
     table = validate.area_markdown(rows)
-    assert "| p3 | input | 0 | 0.85 mm boundary, 1.25 mm interior | 62.3 | 371.1 | 82.2 | 55,000 | 4.63 |" in table
+    assert "| p3 | input | 0 | 0.85 mm boundary, 1.25 mm interior | 62.3 | 371.1 | 82.2 | - | 55,000 | 4.63 |" in table
+    rows[1]["tunnel_sections"] = {"min_section_mm2": 70.04, "min_at_mm": 6.5, "mean_section_mm2": 90.0, "sections": 30, "of": 32}
+    assert "| 371.1 | 82.2 | 70.0, 6.5 (30 of 32) | 55,000 |" in validate.area_markdown(rows)
     assert "failed: infeasible" in table and line in table
     assert validate.markdown(rows).count("\n") == 2, "the main table leaves the area rows out"
 
@@ -322,3 +324,51 @@ def test_the_first_peak_dp_is_read_at_0164_s(tmp_path):
     lines = ["step,time_s,p_plane1_11_mmhg,p_plane2_16_mmhg"] + [f"{k},{k / 1000:.3f},{10 + k / 100},{5}" for k in range(1, 400)]
     (tmp_path / "timeseries.csv").write_text("\n".join(lines) + "\n")
     assert validate.first_peak_dp_mmhg(tmp_path) == pytest.approx(5 + 1.64)
+
+
+def cylinder_vtp(tmp_path, radius, resolution=256):
+    import vtk
+
+    src = vtk.vtkCylinderSource()
+    src.SetRadius(radius)
+    src.SetHeight(20.0)
+    src.SetResolution(resolution)
+    tri = vtk.vtkTriangleFilter()
+    tri.SetInputConnection(src.GetOutputPort())
+    tri.Update()
+    w = vtk.vtkXMLPolyDataWriter()
+    path = tmp_path / "cylinder.vtp"
+    w.SetFileName(str(path))
+    w.SetInputData(tri.GetOutput())
+    w.Write()
+    return path
+
+
+def test_sections_of_a_cylinder_are_its_disc_and_tilted_cuts_its_ellipse(tmp_path):
+    import sections
+
+    path = cylinder_vtp(tmp_path, 2.0)
+    disc = 2.0 ** 2 * np.pi * np.sinc(2.0 / 256)  # the 256-gon's area
+    along_axis = np.stack([np.zeros(9), np.linspace(-6, 6, 9), np.zeros(9)], axis=1)  # vtkCylinderSource's axis is y
+    areas = sections.section_areas(path, along_axis)
+    assert [s for s, _ in areas] == pytest.approx(np.linspace(0, 12, 9))
+    assert [a for _, a in areas] == pytest.approx([disc] * 9, rel=1e-3)
+    # A centerline tilted 30 degrees off the axis cuts ellipses of area disc / cos(30).
+    tilted = np.stack([np.linspace(-1, 1, 5) * np.tan(np.radians(30)), np.linspace(-1, 1, 5), np.zeros(5)], axis=1)
+    assert [a for _, a in sections.section_areas(path, tilted)] == pytest.approx([disc / np.cos(np.radians(30))] * 5, rel=2e-3)
+    # Off the lumen no loop encloses the point.
+    outside = along_axis + [5.0, 0.0, 0.0]
+    summary = sections.profile_summary(sections.section_areas(path, outside))
+    assert summary["sections"] == 0 and np.isnan(summary["min_section_mm2"])
+
+
+def test_the_smallest_enclosing_loop_is_the_section():
+    import sections
+
+    square = lambda h: np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]], float)
+    n = np.array([0.0, 0.0, 1.0])
+    assert sections.loop_area_mm2(square(1.0), n) == pytest.approx(4.0)
+    assert sections.encloses(square(1.0), np.zeros(3), n) and not sections.encloses(square(1.0) + [3, 0, 0], np.zeros(3), n)
+    summary = sections.profile_summary([(0.0, 5.0), (0.5, 3.0), (1.0, float("nan")), (1.5, 4.0)])
+    assert (summary["min_section_mm2"], summary["min_at_mm"], summary["sections"], summary["of"]) == (3.0, 0.5, 3, 4)
+    assert summary["mean_section_mm2"] == pytest.approx(4.0)

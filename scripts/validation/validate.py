@@ -32,6 +32,7 @@ import centerline_defs  # noqa: E402
 import gci  # noqa: E402
 import planes  # noqa: E402
 import published  # noqa: E402
+import sections  # noqa: E402
 
 FIRST_PEAK_STEPS = 170  # peak of the built-in waveform at t = 0.164 s (dt 1 ms)
 FIRST_PEAK_TIME_S = 0.164
@@ -195,6 +196,8 @@ def run_row(r: Runner, spec, patients, common):
     _, points, _, _, tris, labels = planes.load(fields, mesh_dir / "mesh-faces.vtp")
     path = planes.points_of(whole) if whole else None
     lengths = centerline_defs.lengths(path, (points, tris[labels == 11]), (points, tris[labels == 16]))
+    # The tunnel's sections along the flow centerline, re-cut by VTK (the baffle-size rows).
+    tunnel = sections.profile_summary(sections.section_areas(domain, planes.points_of(cl))) if spec.get("study") == "area" else None
     paper_dp = info["cfd_dp_peak_mmhg"] if spec["flow"] == "nominal" else None
     paper_v = info["cfd_centerline_vmax_m_s"] if spec["flow"] == "nominal" else None
     return Row(
@@ -203,6 +206,7 @@ def run_row(r: Runner, spec, patients, common):
         z=spec.get("z"),
         **baffle_figures(r, spec, domain),
         paper_baffle_area_mm2=info["baffle_area_mm2"],
+        tunnel_sections=tunnel,
         mesh=f"{boundary} mm boundary, {interior} mm interior" + (f", {cycles} cycles" if cycles > 1 else "") + ("" if variant == "default" else f", {variant}"),
         variant=variant,
         cycles=cycles,
@@ -441,21 +445,28 @@ def chain_markdown(rows):
 def area_markdown(rows):
     """dp and v_max against the baffle's size (the "area" rows), the published baffle first,
     and dp read at Table 4's baffle area between the two designs that bracket it."""
-    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | tets | dp static (mmHg) | dp total, flow-weighted "
+    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | smallest section on the flow centerline, VTK (mm2, at mm) "
+            "| tets | dp static (mmHg) | dp total, flow-weighted "
             "| v_max centerline (m/s) | paper: baffle (mm2) / dp / v_max |")
     out = [head, "|" + "---|" * (head.count("|") - 1)]
     area_rows = [r for r in rows if r.get("study") == "area"]
     for r in area_rows:
         if "error" in r:
-            out.append(f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r.get('mesh', '')} | failed: {r['error'].splitlines()[-1]} | | | | | | | |")
+            out.append(f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r.get('mesh', '')} | failed: {r['error'].splitlines()[-1]} | | | | | | | | |")
             continue
         out.append(
             f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r['mesh']} | {fmt(r.get('target_area_mm2'), 1)} | {r['baffle_area_mm2']:.1f} | {fmt(r.get('min_constrained_final_area_mm2'), 1)} | "
-            f"{r['tets']:,} | {fmt(r['dp_mmhg'])} | {fmt(r['dp_total_flux_mmhg'])} | {fmt(r['vmax_centerline_m_s'])} | "
+            f"{tunnel_cell(r.get('tunnel_sections'))} | {r['tets']:,} | {fmt(r['dp_mmhg'])} | {fmt(r['dp_total_flux_mmhg'])} | {fmt(r['vmax_centerline_m_s'])} | "
             f"{r['paper_baffle_area_mm2']} / {fmt(r['paper_dp_mmhg'])} / {fmt(r['paper_vmax_m_s'])} |"
         )
     notes = [line for line in (at_paper_area(area_rows, p) for p in sorted({r["patient"] for r in area_rows})) if line]
     return "\n".join(out) + "\n" + ("\n" + "\n".join(notes) + "\n" if notes else "") if area_rows else ""
+
+
+def tunnel_cell(t):
+    if not t or not t["sections"]:
+        return "-"
+    return f"{t['min_section_mm2']:.1f}, {t['min_at_mm']:.1f} ({t['sections']} of {t['of']})"
 
 
 def at_paper_area(rows, patient):
