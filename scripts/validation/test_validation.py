@@ -259,11 +259,12 @@ def test_the_area_rows_design_on_the_papers_input_at_each_z_score():
     area = validate.row_specs("full", ["p2", "p3"], only="area")
     published_rows = [r for r in area if r["domain"] == "published"]
     assert [r["patient"] for r in published_rows] == ["p3", "p2"] and all(r.get("z") is None for r in published_rows)
-    for p in ("p2", "p3"):
-        base = [r["z"] for r in area if r["patient"] == p and r["domain"] == "input" and r["boundary_mm"] == validate.DESIGN_BOUNDARY_MM]
-        assert base == list(validate.AREA_Z_SCORES)
-    fine = [(r["z"], r["boundary_mm"], r["interior_mm"]) for r in area if r["boundary_mm"] != validate.DESIGN_BOUNDARY_MM]
-    assert fine == [(z, h, h) for z in (0.0, 3.0) for h in validate.AREA_FINE_MM] and all(r["patient"] == "p3" for r in area if r["boundary_mm"] != 0.85)
+    base = lambda p: [r["z"] for r in area if r["patient"] == p and r["domain"] == "input" and r["boundary_mm"] == validate.DESIGN_BOUNDARY_MM]
+    assert base("p3") == list(validate.AREA_Z_SCORES)
+    assert base("p2") == [-1.0, -0.75, -0.5, -0.25, 0.0, 1.0, 2.0, 3.0, 4.0]
+    fine = lambda p: [(r["z"], r["boundary_mm"], r["interior_mm"]) for r in area if r["patient"] == p and r["boundary_mm"] != validate.DESIGN_BOUNDARY_MM]
+    assert fine("p3") == [(0.0, 0.75, 0.75), (0.0, 0.6, 0.6), (3.0, 0.75, 0.75), (3.0, 0.6, 0.6)]
+    assert fine("p2") == [(-1.0, 0.6, 0.6), (0.0, 0.6, 0.6)]
 
 
 def area_row(z, baffle, dp, vmax, **kw):

@@ -305,10 +305,13 @@ def chain_specs(patients):
     return rows
 
 
-# Annulus z-scores of the designs on the paper's design input (--only area); the finer
-# levels on the z = 0 and z = 3 designs of p3 (p3's Table 4 baffle lies near z = 3).
+# Annulus z-scores of the designs on the paper's design input (--only area). p2's dp
+# changes by 2.3 mmHg between z = -1 and 0 (measured), so that interval is sampled in
+# quarter steps. Finer meshes (boundary and interior) on some designs, per patient:
+# (z-scores, edge lengths); p3's Table 4 baffle lies near z = 3.
 AREA_Z_SCORES = (-1.0, 0.0, 1.0, 2.0, 3.0, 4.0)
-AREA_FINE_MM = (0.75, 0.6)
+AREA_Z_SCORES_BETWEEN = {"p2": (-0.75, -0.5, -0.25)}
+AREA_FINE = {"p3": ((0.0, 3.0), (0.75, 0.6)), "p2": ((-1.0, 0.0), (0.6,))}
 
 
 def area_specs(patients):
@@ -317,9 +320,9 @@ def area_specs(patients):
     rows = []
     for p in patients:
         rows.append(spec(p, "published", study="area"))
-        rows += [spec(p, "input", z=z, study="area") for z in AREA_Z_SCORES]
-        if p == "p3":
-            rows += [spec(p, "input", z=z, boundary=h, interior=h, study="area") for z in (0.0, 3.0) for h in AREA_FINE_MM]
+        rows += [spec(p, "input", z=z, study="area") for z in sorted(AREA_Z_SCORES + AREA_Z_SCORES_BETWEEN.get(p, ()))]
+        zs, levels = AREA_FINE.get(p, ((), ()))
+        rows += [spec(p, "input", z=z, boundary=h, interior=h, study="area") for z in zs for h in levels]
     return rows
 
 
