@@ -87,17 +87,23 @@ def load(peak_vtu, faces_vtp):
     return grid, points, pressure, velocity, gid[conn], labels
 
 
-def shifted_plane(grid, centroid, normal, offset_mm, radius_mm):
-    """plane_means on the cut of the volume by the plane through centroid + offset *
-    normal, kept within radius_mm of the shifted centroid (the cut of a curved domain
-    can reach other parts of it)."""
-    origin = np.asarray(centroid) + offset_mm * np.asarray(normal)
+def plane_cutter(data, origin, normal):
+    """A vtkCutter of `data` by the plane through `origin` with `normal` (not yet run)."""
     plane = vtk.vtkPlane()
     plane.SetOrigin(*origin)
     plane.SetNormal(*normal)
     cutter = vtk.vtkCutter()
     cutter.SetCutFunction(plane)
-    cutter.SetInputData(grid)
+    cutter.SetInputData(data)
+    return cutter
+
+
+def shifted_plane(grid, centroid, normal, offset_mm, radius_mm):
+    """plane_means on the cut of the volume by the plane through centroid + offset *
+    normal, kept within radius_mm of the shifted centroid (the cut of a curved domain
+    can reach other parts of it)."""
+    origin = np.asarray(centroid) + offset_mm * np.asarray(normal)
+    cutter = plane_cutter(grid, origin, normal)
     conn = vtk.vtkPolyDataConnectivityFilter()
     conn.SetInputConnection(cutter.GetOutputPort())
     conn.SetExtractionModeToClosestPointRegion()

@@ -12,6 +12,7 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
+import planes
 import published
 
 
@@ -42,12 +43,8 @@ def encloses(loop, point, normal):
 
 def cut_loops(surface, origin, normal):
     """The closed loops (point arrays) where the plane cuts the surface."""
-    plane = vtk.vtkPlane()
-    plane.SetOrigin(*origin)
-    plane.SetNormal(*normal)
-    cutter = vtk.vtkCutter()
-    cutter.SetInputData(surface)
-    cutter.SetCutFunction(plane)
+    # Held in a local: the connection alone does not keep the cutter alive in Python.
+    cutter = planes.plane_cutter(surface, origin, normal)
     stripper = vtk.vtkStripper()
     stripper.SetInputConnection(cutter.GetOutputPort())
     stripper.JoinContiguousSegmentsOn()
