@@ -288,6 +288,9 @@ def test_dp_at_the_papers_baffle_area_is_read_between_the_designs_that_bracket_i
     rows[1]["tunnel_sections"] = {"min_section_mm2": 70.04, "min_at_mm": 6.5, "mean_section_mm2": 90.0, "sections": 30, "of": 32}
     assert "| 371.1 | 82.2 | 70.0, 6.5 (30 of 32) | 55,000 |" in validate.area_markdown(rows)
     assert "failed: infeasible" in table and line in table
+    out_of_reach = dict(patient="p1", domain="input", study="area", z=3.0, error="baffle design failed (1)\nbaffle: error: could not reach the target area 139.3 mm2")
+    assert validate.infeasible_design(out_of_reach) and not validate.infeasible_design(rows[-1])
+    assert "| p1 | input | 3 |  | infeasible: baffle: error: could not reach the target area 139.3 mm2 |" in validate.area_markdown([out_of_reach])
     assert validate.markdown(rows).count("\n") == 2, "the main table leaves the area rows out"
 
 
