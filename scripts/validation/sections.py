@@ -77,8 +77,12 @@ def section_areas(surface_path, centerline_points):
     return out
 
 
-def profile_summary(areas):
-    """Smallest section (mm2) and where (mm along the centerline), mean and sections found."""
+def profile_summary(areas, trim_mm=0.0):
+    """Smallest section (mm2) and where (mm along the centerline), mean and sections found,
+    over the sections at least trim_mm from either end: a plane through the centerline's
+    end points is tilted against the measurement cap there and cuts it, not the tunnel."""
+    length = areas[-1][0] if areas else 0.0
+    areas = [(s, a) for s, a in areas if trim_mm <= s <= length - trim_mm]
     found = [(s, a) for s, a in areas if np.isfinite(a)]
     if not found:
         return {"min_section_mm2": float("nan"), "min_at_mm": float("nan"), "mean_section_mm2": float("nan"), "sections": 0, "of": len(areas)}

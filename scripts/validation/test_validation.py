@@ -376,3 +376,5 @@ def test_the_smallest_enclosing_loop_is_the_section():
     summary = sections.profile_summary([(0.0, 5.0), (0.5, 3.0), (1.0, float("nan")), (1.5, 4.0)])
     assert (summary["min_section_mm2"], summary["min_at_mm"], summary["sections"], summary["of"]) == (3.0, 0.5, 3, 4)
     assert summary["mean_section_mm2"] == pytest.approx(4.0)
+    trimmed = sections.profile_summary([(0.0, 1.0), (0.5, 3.0), (1.0, 4.0), (1.5, 2.0)], trim_mm=0.5)
+    assert (trimmed["min_section_mm2"], trimmed["min_at_mm"], trimmed["of"]) == (3.0, 0.5, 2)

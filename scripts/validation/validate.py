@@ -197,7 +197,7 @@ def run_row(r: Runner, spec, patients, common):
     path = planes.points_of(whole) if whole else None
     lengths = centerline_defs.lengths(path, (points, tris[labels == 11]), (points, tris[labels == 16]))
     # The tunnel's sections along the flow centerline, re-cut by VTK (the baffle-size rows).
-    tunnel = sections.profile_summary(sections.section_areas(domain, planes.points_of(cl))) if spec.get("study") == "area" else None
+    tunnel = sections.profile_summary(sections.section_areas(domain, planes.points_of(cl)), TUNNEL_TRIM_MM) if spec.get("study") == "area" else None
     paper_dp = info["cfd_dp_peak_mmhg"] if spec["flow"] == "nominal" else None
     paper_v = info["cfd_centerline_vmax_m_s"] if spec["flow"] == "nominal" else None
     return Row(
@@ -311,6 +311,8 @@ def chain_specs(patients):
 # (z-scores, edge lengths); p3's Table 4 baffle lies near z = 3.
 AREA_Z_SCORES = (-1.0, 0.0, 1.0, 2.0, 3.0, 4.0)
 AREA_Z_SCORES_BETWEEN = {"p2": (-0.75, -0.5, -0.25)}
+# The tunnel's VTK sections leave out 1 mm at either end (cuts of the caps, not the tunnel).
+TUNNEL_TRIM_MM = 1.0
 AREA_FINE = {"p3": ((0.0, 3.0), (0.75, 0.6)), "p2": ((-1.0, 0.0), (0.6,))}
 
 
@@ -448,7 +450,7 @@ def chain_markdown(rows):
 def area_markdown(rows):
     """dp and v_max against the baffle's size (the "area" rows), the published baffle first,
     and dp read at Table 4's baffle area between the two designs that bracket it."""
-    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | smallest section on the flow centerline, VTK (mm2, at mm) "
+    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | smallest section on the flow centerline, VTK, ends trimmed 1 mm (mm2, at mm) "
             "| tets | dp static (mmHg) | dp total, flow-weighted "
             "| v_max centerline (m/s) | paper: baffle (mm2) / dp / v_max |")
     out = [head, "|" + "---|" * (head.count("|") - 1)]
@@ -456,15 +458,19 @@ def area_markdown(rows):
     for r in area_rows:
         if "error" in r:
             why = "infeasible" if infeasible_design(r) else "failed"
-            out.append(f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r.get('mesh', '')} | {why}: {r['error'].splitlines()[-1]} | | | | | | | | |")
+            out.append(f"| {r['patient']} | {r['domain']} | {z_cell(r)} | {r.get('mesh', '')} | {why}: {r['error'].splitlines()[-1]} | | | | | | | | |")
             continue
         out.append(
-            f"| {r['patient']} | {r['domain']} | {fmt(r.get('z'), 0)} | {r['mesh']} | {fmt(r.get('target_area_mm2'), 1)} | {r['baffle_area_mm2']:.1f} | {fmt(r.get('min_constrained_final_area_mm2'), 1)} | "
+            f"| {r['patient']} | {r['domain']} | {z_cell(r)} | {r['mesh']} | {fmt(r.get('target_area_mm2'), 1)} | {r['baffle_area_mm2']:.1f} | {fmt(r.get('min_constrained_final_area_mm2'), 1)} | "
             f"{tunnel_cell(r.get('tunnel_sections'))} | {r['tets']:,} | {fmt(r['dp_mmhg'])} | {fmt(r['dp_total_flux_mmhg'])} | {fmt(r['vmax_centerline_m_s'])} | "
             f"{r['paper_baffle_area_mm2']} / {fmt(r['paper_dp_mmhg'])} / {fmt(r['paper_vmax_m_s'])} |"
         )
     notes = [line for line in (at_paper_area(area_rows, p) for p in sorted({r["patient"] for r in area_rows})) if line]
     return "\n".join(out) + "\n" + ("\n" + "\n".join(notes) + "\n" if notes else "") if area_rows else ""
+
+
+def z_cell(row):
+    return "-" if row.get("z") is None else f"{row['z']:g}"
 
 
 def infeasible_design(row):
