@@ -2,13 +2,14 @@
 # Regenerates the CFD rows of docs/validation.md (paper 2.5 chain on the published and
 # on our designed domains, p1-p3) with target/release/baffle; see
 # scripts/validation/validate.py for what each row runs.
-#   bash scripts/validate.sh [--quick|--smoke] [--out DIR] [--patients p1,p2,p3] [--only gci|cycles|chain|base] [--tables-only]
+#   bash scripts/validate.sh [--quick|--smoke] [--out DIR] [--patients p1,p2,p3] [--only gci|cycles|chain|area|base] [--tables-only]
 #   --smoke: p2 published, 1.25 mm, 20 time steps (about a minute; scripts/test.sh)
 #   --quick: published and designed domains of every patient to the first peak at 1.25 mm
 #   (default, full): plus inflow profile, fine interior mesh, elevated flow and the
 #   mesh study with GCI on every patient's published and designed domain, four cycles and the
-#   extension's inflow/outflow caps moved (--only gci: just the study, --only cycles: the
-#   four-cycle runs, --only chain: the moved caps, --only base: everything else)
+#   extension's inflow/outflow caps moved, and our designs on the paper's design input at
+#   z = -1..4 (--only gci: just the study, --only cycles: the four-cycle runs, --only chain:
+#   the moved caps, --only area: the baffle sizes, --only base: everything else)
 # A stage whose output exists under OUT/work is reused (delete OUT after changing the
 # code); --smoke always starts from an empty OUT. --tables-only rebuilds the tables from
 # the stages already run (rows with a stage missing are left out).
