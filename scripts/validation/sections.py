@@ -3,10 +3,12 @@ of `baffle`'s own section code (issue 13: compare our designed tunnel with the p
 one section by section).
 
 Each section is the cut of the closed surface (mm) by the plane normal to the centerline
-at one of its points (vtkCutter + vtkStripper); of the closed loops the cut makes, the
-section is the smallest one that encloses the centerline point (a plane through a bent
-lumen also cuts it elsewhere). Its area is the loop's vector area along the normal
-(Newell), which is exact for a planar polygon.
+(its chord over 1 mm each side) at one of its points (vtkCutter + vtkStripper); of the
+closed loops the cut makes, the section is the smallest one that encloses the centerline
+point (a plane through a bent lumen also cuts it elsewhere). Its area is the loop's vector
+area along the normal (Newell), exact for a planar polygon. A plane that crosses the VSD or
+aortic cap is not a section of the tunnel and is left out. `baffle centerline` measures the
+same sections by its own code (a raster of the cut): this is the independent check.
 """
 import numpy as np
 import vtk
@@ -16,9 +18,14 @@ import planes
 import published
 
 
-def tangents(points):
-    """Unit tangents of a polyline by central differences (one-sided at the ends)."""
-    t = np.gradient(points, axis=0)
+def tangents(points, half_width_mm=1.0):
+    """Unit tangents of a polyline: the chord over half_width_mm each side (shorter at the ends)."""
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    k = np.arange(len(points))
+    # At least the neighbours, however sparse the points.
+    before = np.minimum(np.searchsorted(s, s - half_width_mm, side="left"), np.maximum(k - 1, 0))
+    after = np.maximum(np.searchsorted(s, s + half_width_mm, side="right") - 1, np.minimum(k + 1, len(points) - 1))
+    t = points[after] - points[before]
     return t / np.linalg.norm(t, axis=1)[:, None]
 
 
@@ -64,13 +71,32 @@ def cut_loops(surface, origin, normal):
     return loops
 
 
-def section_areas(surface_path, centerline_points):
-    """(s_mm, area_mm2) at each centerline point; area NaN where no loop encloses it."""
+def cap_points(surface, labels):
+    """The points of each cap (ModelFaceID in labels) of the surface."""
+    points = vtk_to_numpy(surface.GetPoints().GetData()).astype(float)
+    tris = published.triangles(surface)
+    face_ids = vtk_to_numpy(surface.GetCellData().GetArray("ModelFaceID"))
+    return [points[np.unique(tris[face_ids == label])] for label in labels]
+
+
+def crosses(points, origin, normal):
+    d = (points - origin) @ normal
+    return len(d) > 0 and d.min() < 0 < d.max()
+
+
+def section_areas(surface_path, centerline_points, caps=(11, 16)):
+    """(s_mm, area_mm2) at each centerline point; NaN where no loop encloses it or where
+    the plane crosses one of the caps (the VSD and aortic planes lie oblique to the flow:
+    such a plane would measure the cap's cut, not the tunnel)."""
     surface = published.read_vtp(surface_path)
+    cap_sets = cap_points(surface, caps)
     pts = np.asarray(centerline_points, dtype=float)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
     out = []
     for point, normal, s_mm in zip(pts, tangents(pts), s):
+        if any(crosses(c, point, normal) for c in cap_sets):
+            out.append((float(s_mm), float("nan")))
+            continue
         around = [loop for loop in cut_loops(surface, point, normal) if encloses(loop, point, normal)]
         area = min((loop_area_mm2(loop, normal) for loop in around), default=float("nan"))
         out.append((float(s_mm), area))

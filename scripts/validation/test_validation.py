@@ -330,8 +330,10 @@ def test_the_first_peak_dp_is_read_at_0164_s(tmp_path):
     assert validate.first_peak_dp_mmhg(tmp_path) == pytest.approx(5 + 1.64)
 
 
-def cylinder_vtp(tmp_path, radius, resolution=256):
+def cylinder_vtp(tmp_path, radius, resolution=256, caps=True):
+    """A closed cylinder along y (height 20), its caps labelled 11 and 16 (or 2 with caps=False), wall 2."""
     import vtk
+    from vtk.util.numpy_support import numpy_to_vtk
 
     src = vtk.vtkCylinderSource()
     src.SetRadius(radius)
@@ -340,10 +342,16 @@ def cylinder_vtp(tmp_path, radius, resolution=256):
     tri = vtk.vtkTriangleFilter()
     tri.SetInputConnection(src.GetOutputPort())
     tri.Update()
+    poly = tri.GetOutput()
+    centres_y = np.array([np.mean([poly.GetPoint(poly.GetCell(c).GetPointId(k))[1] for k in range(3)]) for c in range(poly.GetNumberOfCells())])
+    labels = np.where(np.abs(centres_y + 10) < 1e-9, 11, np.where(np.abs(centres_y - 10) < 1e-9, 16, 2)) if caps else np.full(len(centres_y), 2)
+    arr = numpy_to_vtk(labels.astype(np.int32), deep=True)
+    arr.SetName("ModelFaceID")
+    poly.GetCellData().AddArray(arr)
     w = vtk.vtkXMLPolyDataWriter()
     path = tmp_path / "cylinder.vtp"
     w.SetFileName(str(path))
-    w.SetInputData(tri.GetOutput())
+    w.SetInputData(poly)
     w.Write()
     return path
 
@@ -351,7 +359,7 @@ def cylinder_vtp(tmp_path, radius, resolution=256):
 def test_sections_of_a_cylinder_are_its_disc_and_tilted_cuts_its_ellipse(tmp_path):
     import sections
 
-    path = cylinder_vtp(tmp_path, 2.0)
+    path = cylinder_vtp(tmp_path, 2.0, caps=False)
     disc = 2.0 ** 2 * np.pi * np.sinc(2.0 / 256)  # the 256-gon's area
     along_axis = np.stack([np.zeros(9), np.linspace(-6, 6, 9), np.zeros(9)], axis=1)  # vtkCylinderSource's axis is y
     areas = sections.section_areas(path, along_axis)
@@ -366,6 +374,20 @@ def test_sections_of_a_cylinder_are_its_disc_and_tilted_cuts_its_ellipse(tmp_pat
     assert summary["sections"] == 0 and np.isnan(summary["min_section_mm2"])
 
 
+def test_a_plane_crossing_a_cap_is_not_a_section(tmp_path):
+    import sections
+
+    path = cylinder_vtp(tmp_path, 2.0)
+    # Tilted 60 degrees, planes through points near the bottom cap (y = -10) cross it.
+    tilt = np.radians(60)
+    near_cap = np.stack([np.zeros(5), np.linspace(-9.8, -9.0, 5), np.zeros(5)], axis=1)
+    tilted = near_cap + np.stack([np.linspace(0, 1, 5) * np.tan(tilt) * 0.8, np.zeros(5), np.zeros(5)], axis=1)
+    assert all(np.isnan(a) for _, a in sections.section_areas(path, tilted))
+    # Normal to the axis, mid-cylinder: measured.
+    mid = np.stack([np.zeros(3), np.linspace(-1, 1, 3), np.zeros(3)], axis=1)
+    assert all(np.isfinite(a) for _, a in sections.section_areas(path, mid))
+
+
 def test_the_smallest_enclosing_loop_is_the_section():
     import sections
 
@@ -376,5 +398,4 @@ def test_the_smallest_enclosing_loop_is_the_section():
     summary = sections.profile_summary([(0.0, 5.0), (0.5, 3.0), (1.0, float("nan")), (1.5, 4.0)])
     assert (summary["min_section_mm2"], summary["min_at_mm"], summary["sections"], summary["of"]) == (3.0, 0.5, 3, 4)
     assert summary["mean_section_mm2"] == pytest.approx(4.0)
-    trimmed = sections.profile_summary([(0.0, 1.0), (0.5, 3.0), (1.0, 4.0), (1.5, 2.0)], trim_mm=0.5)
-    assert (trimmed["min_section_mm2"], trimmed["min_at_mm"], trimmed["of"]) == (3.0, 0.5, 2)
+

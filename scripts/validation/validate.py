@@ -197,7 +197,7 @@ def run_row(r: Runner, spec, patients, common):
     path = planes.points_of(whole) if whole else None
     lengths = centerline_defs.lengths(path, (points, tris[labels == 11]), (points, tris[labels == 16]))
     # The tunnel's sections along the flow centerline, re-cut by VTK (the baffle-size rows).
-    tunnel = sections.profile_summary(sections.section_areas(domain, planes.points_of(cl)), TUNNEL_TRIM_MM) if spec.get("study") == "area" else None
+    tunnel = sections.profile_summary(sections.section_areas(domain, planes.points_of(cl))) if spec.get("study") == "area" else None
     paper_dp = info["cfd_dp_peak_mmhg"] if spec["flow"] == "nominal" else None
     paper_v = info["cfd_centerline_vmax_m_s"] if spec["flow"] == "nominal" else None
     return Row(
@@ -311,8 +311,6 @@ def chain_specs(patients):
 # (z-scores, edge lengths); p3's Table 4 baffle lies near z = 3.
 AREA_Z_SCORES = (-1.0, 0.0, 1.0, 2.0, 3.0, 4.0)
 AREA_Z_SCORES_BETWEEN = {"p2": (-0.75, -0.5, -0.25)}
-# The tunnel's VTK sections leave out 1 mm at either end (cuts of the caps, not the tunnel).
-TUNNEL_TRIM_MM = 1.0
 AREA_FINE = {"p3": ((0.0, 3.0), (0.75, 0.6)), "p2": ((-1.0, 0.0), (0.6,))}
 
 
@@ -450,7 +448,7 @@ def chain_markdown(rows):
 def area_markdown(rows):
     """dp and v_max against the baffle's size (the "area" rows), the published baffle first,
     and dp read at Table 4's baffle area between the two designs that bracket it."""
-    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | smallest section on the flow centerline, VTK, ends trimmed 1 mm (mm2, at mm) "
+    head = ("| patient | domain | z | mesh | target (mm2) | baffle (mm2) | smallest constrained section (mm2) | smallest flow-normal section, VTK (mm2, at mm; planes crossing a cap left out) "
             "| tets | dp static (mmHg) | dp total, flow-weighted "
             "| v_max centerline (m/s) | paper: baffle (mm2) / dp / v_max |")
     out = [head, "|" + "---|" * (head.count("|") - 1)]

@@ -203,6 +203,11 @@ fn centerline_of_an_extended_domain_is_trimmed_at_its_interior_planes() {
     assert!((length - 9.0).abs() < 0.05, "length {length} between planes 9 mm apart");
     let z: Vec<f64> = doc["points_mm"].as_array().unwrap().iter().map(|p| p[2].as_f64().unwrap()).collect();
     assert!((z[0] - 4.0).abs() < 1e-9 && (z.last().unwrap() - 13.0).abs() < 1e-9, "{z:?}");
+    // Sections normal to the flow are the 48-gon's discs, the interior planes left out of the wall.
+    let disc = 0.5 * 48.0 * 4.0 * (2.0 * std::f64::consts::PI / 48.0).sin();
+    let sections: Vec<f64> = doc["section_area_mm2"].as_array().unwrap().iter().filter_map(|v| v.as_f64()).collect();
+    assert!(sections.len() + 2 >= z.len() && sections.iter().all(|a| (a / disc - 1.0).abs() < 0.02), "{sections:?} vs {disc}");
+    assert!((doc["min_section_mm2"].as_f64().unwrap() / disc - 1.0).abs() < 0.02 && doc["sections_measured"].as_u64() == Some(sections.len() as u64));
     // The planes inside the surface file itself, as `baffle extend` writes them: the same line.
     let discs = baffle_core::io::read_surface(&faces).unwrap();
     let mut merged = cylinder(2.0, 16.0, 32, 48);

@@ -128,6 +128,12 @@ fn phantom_plan_reports_the_stages_own_figures() {
     ];
     let flow_line = read_json(&out.join("centerline/centerline.json"));
     assert!(close(q["flow_centerline_length_mm"].as_f64().unwrap(), flow_line["length_mm"].as_f64().unwrap()));
+    // The tunnel's smallest flow-normal section: the centerline stage's, and a warning
+    // exactly when it is below the target.
+    let (section, target) = (q["min_flow_section_mm2"].as_f64().unwrap(), q["target_area_mm2"].as_f64().unwrap());
+    assert!(close(section, flow_line["min_section_mm2"].as_f64().unwrap()) && section > 0.2 * target && section < 5.0 * target, "{section} vs target {target}");
+    let warned = report["verdict"]["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("smallest section normal to the flow"));
+    assert_eq!(warned, section < target, "{section} vs target {target}: {}", report["verdict"]["warnings"]);
     assert_eq!(report["centerline"]["s_mm"].as_array().unwrap().len(), flow_line["s_mm"].as_array().unwrap().len());
     for (file, keys) in sources {
         for key in keys {

@@ -224,6 +224,49 @@ pub fn flow_centerline(lumen: &Lumen, opts: &CenterlineOptions) -> Result<FlowCe
     Ok(FlowCenterline { length_mm: *s_mm.last().unwrap_or(&0.0), points, radius_mm, s_mm, voxel_mm: h, inside_voxels, timings_ms: clock.laps })
 }
 
+/// Half-width of the chord that gives a section plane's normal (mm): the smoothed path's
+/// direction over about the tunnel's radius, not a point's local wobble.
+const SECTION_TANGENT_HALF_WIDTH_MM: f64 = 1.0;
+
+impl MeasurementPlane {
+    /// Whether the plane through `origin` normal to `normal` crosses this disc (its
+    /// corners on both sides).
+    fn is_crossed_by(&self, origin: Vec3, normal: Vec3) -> bool {
+        let sides = self.triangles.iter().flatten().map(|p| (p - origin).dot(&normal));
+        let (lo, hi) = sides.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| (lo.min(d), hi.max(d)));
+        lo < 0.0 && hi > 0.0
+    }
+}
+
+/// Sections of the tunnel normal to the flow: at each centerline point, the area (mm2) of
+/// the piece of the plane normal to the centerline inside `boundary` (the lumen's closed
+/// wall and end caps, interior planes left out) that holds the point. None where the
+/// plane crosses a measurement plane (near the VSD and aortic planes, which lie oblique to
+/// the flow, it would measure part of the LV or aorta with the tunnel) or finds no inside.
+/// The paper constrains sections normal to its PCHIP centerline between the cap centroids
+/// (2.4.2); these are the flow's own, and can be smaller (issue 13: 11-25% on p1-p3).
+pub fn flow_normal_sections(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<f64>> {
+    let s = arc_lengths(points);
+    (0..points.len())
+        .into_par_iter()
+        .map(|k| {
+            // The chord over the half-width each side, at least to the neighbours.
+            let before = s.iter().position(|&x| x >= s[k] - SECTION_TANGENT_HALF_WIDTH_MM).unwrap_or(k).min(k.saturating_sub(1));
+            let after = s.iter().rposition(|&x| x <= s[k] + SECTION_TANGENT_HALF_WIDTH_MM).unwrap_or(k).max((k + 1).min(points.len().saturating_sub(1)));
+            let tangent = (points[after] - points[before]).try_normalize(0.0)?;
+            if planes.iter().any(|p| p.is_crossed_by(points[k], tangent)) {
+                return None;
+            }
+            crate::rv_outflow::section_area(boundary, None, points[k], tangent)
+        })
+        .collect()
+}
+
+/// The smallest of the measured sections and its arc length (mm2, mm); None when none was measured.
+pub fn smallest_section(s_mm: &[f64], areas: &[Option<f64>]) -> Option<(f64, f64)> {
+    s_mm.iter().zip(areas).filter_map(|(&s, a)| Some(((*a)?, s))).min_by(|a, b| a.0.total_cmp(&b.0))
+}
+
 /// Wall time of each step (ms).
 struct Clock {
     last: std::time::Instant,

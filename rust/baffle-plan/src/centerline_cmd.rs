@@ -6,7 +6,7 @@
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use crate::progress::{Progress, Style};
-use baffle_core::flow_centerline::{flow_centerline, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
+use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::TriMesh;
 use clap::Args;
@@ -71,8 +71,16 @@ fn two(labels: &[i32], flag: &str) -> Result<[i32; 2], String> {
     <[i32; 2]>::try_from(labels).map_err(|_| format!("{flag}: give two labels (inflow,outflow), got {labels:?}"))
 }
 
-/// The centerline of `args`, and its profile when --results is given.
-pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>), String> {
+/// What `baffle centerline` measures: the centerline, the lumen's sections normal to it
+/// (mm2, None where none was found) and, with --results, the profile along it.
+pub struct Measured {
+    pub line: FlowCenterline,
+    pub sections_mm2: Vec<Option<f64>>,
+    pub profile: Option<Profile>,
+}
+
+/// The centerline of `args`, its flow-normal sections, and its profile when --results is given.
+pub fn compute(args: &CenterlineArgs) -> Result<Measured, String> {
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));
     }
@@ -94,25 +102,36 @@ pub fn compute(args: &CenterlineArgs) -> Result<(FlowCenterline, Option<Profile>
     let boundary = surface.with_labels(|l| !interior.contains(&l));
     let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;
+    let sections_mm2 = flow_normal_sections(&boundary, &line.points, &lumen.planes);
     let profile = match &args.results {
         Some(path) => Some(PeakFields::read(path)?.profile(&line.points)),
         None => None,
     };
-    Ok((line, profile))
+    Ok(Measured { line, sections_mm2, profile })
 }
 
-fn polydata(line: &FlowCenterline, profile: Option<&Profile>) -> PolyData {
-    let mut point_data = vec![DataArray::f64("s_mm", 1, line.s_mm.clone()), DataArray::f64("radius_mm", 1, line.radius_mm.clone())];
+fn nan_for_none(v: &[Option<f64>]) -> Vec<f64> {
+    v.iter().map(|x| x.unwrap_or(f64::NAN)).collect()
+}
+
+fn polydata(m: &Measured) -> PolyData {
+    let (line, profile) = (&m.line, m.profile.as_ref());
+    let mut point_data = vec![
+        DataArray::f64("s_mm", 1, line.s_mm.clone()),
+        DataArray::f64("radius_mm", 1, line.radius_mm.clone()),
+        DataArray::f64("section_area_mm2", 1, nan_for_none(&m.sections_mm2)),
+    ];
     if let Some(p) = profile {
-        let values = |v: &[Option<f64>]| v.iter().map(|x| x.unwrap_or(f64::NAN)).collect();
-        point_data.push(DataArray::f64("pressure_mmhg", 1, values(&p.pressure_mmhg)));
-        point_data.push(DataArray::f64("speed_m_s", 1, values(&p.speed_m_s)));
+        point_data.push(DataArray::f64("pressure_mmhg", 1, nan_for_none(&p.pressure_mmhg)));
+        point_data.push(DataArray::f64("speed_m_s", 1, nan_for_none(&p.speed_m_s)));
     }
     PolyData { points: line.points.clone(), lines: vec![(0..line.points.len() as u32).collect()], point_data, ..PolyData::default() }
 }
 
 /// The figures written to <stem>.json (also read back by the plan's report).
-fn summary(args: &CenterlineArgs, line: &FlowCenterline, profile: Option<&Profile>, wall_time_s: f64) -> serde_json::Value {
+fn summary(args: &CenterlineArgs, m: &Measured, wall_time_s: f64) -> serde_json::Value {
+    let (line, profile) = (&m.line, m.profile.as_ref());
+    let smallest = smallest_section(&line.s_mm, &m.sections_mm2);
     let (r_min, r_max) = line.radius_mm.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &r| (a.min(r), b.max(r)));
     let mut doc = json!({
         "surface": args.surface, "planes": args.planes, "ends": args.ends.as_ref().unwrap_or(&args.planes),
@@ -124,6 +143,10 @@ fn summary(args: &CenterlineArgs, line: &FlowCenterline, profile: Option<&Profil
         "wall_time_s": wall_time_s,
         "timings_ms": line.timings_ms.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "s_mm": line.s_mm, "radius_mm": line.radius_mm,
+        "section_area_mm2": m.sections_mm2,
+        "min_section_mm2": smallest.map(|x| x.0), "min_section_at_mm": smallest.map(|x| x.1),
+        "sections_measured": m.sections_mm2.iter().flatten().count(),
+        "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm; not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::flow_centerline::flow_normal_sections)",
         "points_mm": line.points.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
     });
     if let Some(p) = profile {
@@ -152,15 +175,19 @@ pub fn run_centerline(args: &CenterlineArgs) -> Result<(), String> {
 /// `baffle centerline`, its computation shown on `progress` (a stage of `baffle plan`, or the command).
 pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
-    let (line, profile) = progress.while_running("centerline", || compute(args))?;
+    let measured = progress.while_running("centerline", || compute(args))?;
     let wall_time_s = start.elapsed().as_secs_f64();
     let (vtp, json_path) = output_paths(&args.out);
     crate::files::create_parent_dir(&vtp)?;
-    write_vtp(&vtp, &polydata(&line, profile.as_ref())).map_err(|e| e.to_string())?;
-    let doc = summary(args, &line, profile.as_ref(), wall_time_s);
+    write_vtp(&vtp, &polydata(&measured)).map_err(|e| e.to_string())?;
+    let doc = summary(args, &measured, wall_time_s);
+    let (line, profile) = (&measured.line, &measured.profile);
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
     let (r_min, r_max) = (doc["radius_min_mm"].as_f64().unwrap_or(f64::NAN), doc["radius_max_mm"].as_f64().unwrap_or(f64::NAN));
     print!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
+    if let (Some(a), Some(at)) = (doc["min_section_mm2"].as_f64(), doc["min_section_at_mm"].as_f64()) {
+        print!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
+    }
     match &profile {
         Some(p) => println!("; v_max along it {:.3} m/s", p.v_max_m_s()),
         None => println!(),

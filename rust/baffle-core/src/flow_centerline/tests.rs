@@ -176,3 +176,88 @@ fn options_out_of_range_are_named_by_their_flag() {
         assert!(e.contains(needle), "{e}");
     }
 }
+
+/// The cap of `mesh` labelled `label` as a measurement plane.
+fn cap(mesh: &TriMesh, label: i32) -> MeasurementPlane {
+    MeasurementPlane::from_label(mesh, label).unwrap()
+}
+
+#[test]
+fn flow_normal_sections_of_a_tube_are_its_discs() {
+    // A quarter torus: sections normal to the bent centerline are the tube's discs (the
+    // 48-gon's area); a plane normal to the chord between the ends would cut ellipses.
+    let (bend, radius) = (10.0, 2.5);
+    let arc = |x: f64| {
+        let a = 0.5 * PI * x;
+        (Vec3::new(bend * a.cos(), 0.0, bend * a.sin()), Vec3::new(-a.sin(), 0.0, a.cos()))
+    };
+    let mesh = tube(arc, radius, 90, 48);
+    let line = flow_centerline(&Lumen::between_caps(&mesh, 11, 16).unwrap(), &CenterlineOptions::default()).unwrap();
+    let areas = flow_normal_sections(&mesh, &line.points, &[cap(&mesh, 11), cap(&mesh, 16)]);
+    let polygon = 0.5 * 48.0 * radius * radius * (2.0 * PI / 48.0).sin();
+    let measured = areas.iter().flatten().count();
+    assert!(measured + 2 >= areas.len(), "only {measured} of {} sections measured", areas.len());
+    for (k, a) in areas.iter().enumerate() {
+        if let Some(a) = a {
+            assert!((a / polygon - 1.0).abs() < 0.02, "point {k}: {a:.3} mm2 vs {polygon:.3}");
+        }
+    }
+    let (smallest, _) = smallest_section(&line.s_mm, &areas).unwrap();
+    assert!((smallest / polygon - 1.0).abs() < 0.02);
+    // A section missing in the middle is skipped, not zero.
+    let s = [0.0, 0.5, 1.0, 1.5];
+    assert_eq!(smallest_section(&s, &[Some(9.0), None, Some(4.0), Some(7.0)]), Some((4.0, 1.0)));
+    assert_eq!(smallest_section(&s, &[None; 4]), None);
+}
+
+#[test]
+fn sections_whose_plane_crosses_an_oblique_measurement_plane_are_left_out() {
+    // A straight tube whose end caps are cut 40 degrees off its axis: planes normal to the
+    // axis within a radius of the ends cross the caps and would measure beyond them.
+    let mut mesh = tube(|x| (Vec3::new(0.0, 0.0, 12.0 * x), Vec3::z()), 2.0, 48, 48);
+    let tilt = 40f64.to_radians().tan();
+    for p in mesh.points.iter_mut() {
+        if p.z < 1e-9 {
+            p.z = tilt * p.x;
+        } else if p.z > 12.0 - 1e-9 {
+            p.z = 12.0 + tilt * p.x;
+        }
+    }
+    let line = flow_centerline(&Lumen::between_caps(&mesh, 11, 16).unwrap(), &CenterlineOptions::default()).unwrap();
+    let planes = [cap(&mesh, 11), cap(&mesh, 16)];
+    let areas = flow_normal_sections(&mesh, &line.points, &planes);
+    let disc = 0.5 * 48.0 * 4.0 * (2.0 * PI / 48.0).sin();
+    for (p, a) in line.points.iter().zip(&areas) {
+        // The caps reach 2 tan(40) = 1.68 mm either side of z = 0 and z = 12.
+        let clear = p.z > 2.0 * tilt + 0.3 && p.z < 12.0 - 2.0 * tilt - 0.3;
+        match a {
+            Some(a) => assert!((a / disc - 1.0).abs() < 0.02 && p.z > 2.0 * tilt - 0.3 && p.z < 12.0 - 2.0 * tilt + 0.3, "{p:?}: {a}"),
+            None => assert!(!clear, "{p:?} is clear of the caps but was not measured"),
+        }
+    }
+    // Without the rule, the planes near the ends measure the cut-off discs.
+    let unguarded = flow_normal_sections(&mesh, &line.points, &[]);
+    assert!(unguarded.iter().flatten().any(|a| a / disc < 0.9));
+}
+
+#[test]
+fn a_narrowing_shows_in_the_flow_normal_sections_where_it_is() {
+    // A straight tube whose radius dips from 3 to 2 mm around its middle.
+    let length = 16.0;
+    let mut mesh = tube(|x| (Vec3::new(0.0, 0.0, length * x), Vec3::z()), 3.0, 64, 48);
+    let profile = |z: f64| 3.0 - (-((z - 8.0) / 2.0).powi(2)).exp();
+    for p in mesh.points.iter_mut() {
+        let r = p.x.hypot(p.y);
+        if r > 1e-9 {
+            let scale = profile(p.z) / 3.0;
+            p.x *= scale;
+            p.y *= scale;
+        }
+    }
+    let line = flow_centerline(&Lumen::between_caps(&mesh, 11, 16).unwrap(), &CenterlineOptions::default()).unwrap();
+    let areas = flow_normal_sections(&mesh, &line.points, &[cap(&mesh, 11), cap(&mesh, 16)]);
+    let (smallest, at) = smallest_section(&line.s_mm, &areas).unwrap();
+    let throat = 0.5 * 48.0 * 4.0 * (2.0 * PI / 48.0).sin();
+    assert!((smallest / throat - 1.0).abs() < 0.03, "{smallest} vs {throat}");
+    assert!((line.points[0].z + at - 8.0).abs() < 0.6, "throat at s = {at}, z0 = {}", line.points[0].z);
+}

@@ -133,6 +133,7 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
         row("target_area_mm2", "Target area", d("/target_area_mm2")?, "mm²", 1),
         row("centerline_length_mm", "Centerline length", d("/centerline_length_mm")?, "mm", 2),
         row("flow_centerline_length_mm", "Flow-domain centerline length", centerline.length_mm, "mm", 2),
+        row("min_flow_section_mm2", "Smallest tunnel section normal to the flow (flow-domain centerline)", centerline.min_section_mm2, "mm²", 1),
         row("baffle_area_mm2", "Baffle area", d("/baffle_area_mm2")?, "mm²", 1),
         row("baffle_triangles", "Baffle triangles", d("/baffle_triangles")?, "", 0),
         row("rv_volume_before_ml", "RV volume before the baffle (capped ventricle)", d("/rv_volume_before_ml")?, "mL", 2),
@@ -178,6 +179,10 @@ struct CenterlineProfile {
     vtp: std::path::PathBuf,
     line: baffle_core::io::PolyData,
     length_mm: f64,
+    /// The tunnel's smallest section normal to the flow and its arc length (mm2, mm; NaN
+    /// when none was measured).
+    min_section_mm2: f64,
+    min_section_at_mm: f64,
     s_mm: Vec<f64>,
     profile: Profile,
 }
@@ -192,9 +197,11 @@ fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile,
         Some((1, values)) => values.to_vec(),
         _ => return Err(format!("{}: no point array s_mm", vtp.display())),
     };
-    let length_mm = number(&read_json(&json_path)?, "/length_mm", &json_path)?;
+    let doc = read_json(&json_path)?;
+    let length_mm = number(&doc, "/length_mm", &json_path)?;
+    let (min_section_mm2, min_section_at_mm) = (optional_number(&doc, "/min_section_mm2"), optional_number(&doc, "/min_section_at_mm"));
     let profile = PeakFields::read(peak_path)?.profile(&line.points);
-    Ok(CenterlineProfile { vtp, line, length_mm, s_mm, profile })
+    Ok(CenterlineProfile { vtp, line, length_mm, min_section_mm2, min_section_at_mm, s_mm, profile })
 }
 
 impl CenterlineProfile {
@@ -218,6 +225,22 @@ impl CenterlineProfile {
         line.point_data.extend(arrays.into_iter().map(|(name, v)| baffle_core::io::DataArray::f64(name, 1, v)));
         baffle_core::io::write_vtp(&self.vtp, &line).map_err(|e| e.to_string())
     }
+}
+
+/// The tunnel narrower than the target where the flow crosses it: the design constrains
+/// sections normal to the paper's centerline (2.4.2), which runs oblique to the flow near
+/// the caps, so the flow's own sections can be smaller (issue 13: 11-25% on p1 and p3).
+fn flow_section_warning(line: &CenterlineProfile, target_mm2: f64) -> Option<String> {
+    (line.min_section_mm2 < target_mm2).then(|| {
+        format!(
+            "the tunnel's smallest section normal to the flow is {:.1} mm² at {:.1} mm from the VSD plane along the flow-domain centerline, {:.0} % below the target {:.1} mm²: \
+             the design makes the sections normal to the paper's centerline (between the cap centroids) at least the target, and that centerline runs oblique to the flow",
+            line.min_section_mm2,
+            line.min_section_at_mm,
+            100.0 * (1.0 - line.min_section_mm2 / target_mm2),
+            target_mm2
+        )
+    })
 }
 
 /// How the centerline's pressure drop compares with the plane-averaged dp, in report.json
@@ -617,6 +640,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     if !args.runs_mesh_study() {
         warnings.push("dp comes from one mesh (--single-mesh): its discretization error is not known; without --single-mesh the plan runs the three-level mesh study".into());
     }
+    warnings.extend(flow_section_warning(&flow_line, number(&design, "/target_area_mm2", &design_path)?));
     let cfd_domain = domain_summary(args, out, records)?;
     let dp_faces = if cfd_domain["extended"] == true {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
