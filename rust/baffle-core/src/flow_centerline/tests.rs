@@ -79,13 +79,18 @@ fn straight_cylinder_length_and_radius() {
     assert!(line.voxel_mm == 0.2 && line.inside_voxels > 1000);
 }
 
+/// A quarter circle of radius `bend` in the xz-plane: point and tangent at x in [0, 1].
+fn quarter_circle(bend: f64) -> impl Fn(f64) -> (Vec3, Vec3) {
+    move |x| {
+        let a = 0.5 * PI * x;
+        (Vec3::new(bend * a.cos(), 0.0, bend * a.sin()), Vec3::new(-a.sin(), 0.0, a.cos()))
+    }
+}
+
 #[test]
 fn quarter_torus_length_is_the_arc_length() {
     let (bend, radius) = (10.0, 2.5);
-    let arc = |x: f64| {
-        let a = 0.5 * PI * x;
-        (Vec3::new(bend * a.cos(), 0.0, bend * a.sin()), Vec3::new(-a.sin(), 0.0, a.cos()))
-    };
+    let arc = quarter_circle(bend);
     let mesh = tube(arc, radius, 60, 48);
     let lumen = Lumen::between_caps(&mesh, 11, 16).unwrap();
     let line = flow_centerline(&lumen, &CenterlineOptions::default()).unwrap();
@@ -187,10 +192,7 @@ fn flow_normal_sections_of_a_tube_are_its_discs() {
     // A quarter torus: sections normal to the bent centerline are the tube's discs (the
     // 48-gon's area); a plane normal to the chord between the ends would cut ellipses.
     let (bend, radius) = (10.0, 2.5);
-    let arc = |x: f64| {
-        let a = 0.5 * PI * x;
-        (Vec3::new(bend * a.cos(), 0.0, bend * a.sin()), Vec3::new(-a.sin(), 0.0, a.cos()))
-    };
+    let arc = quarter_circle(bend);
     let mesh = tube(arc, radius, 90, 48);
     let line = flow_centerline(&Lumen::between_caps(&mesh, 11, 16).unwrap(), &CenterlineOptions::default()).unwrap();
     let areas = flow_normal_sections(&mesh, &line.points, &[cap(&mesh, 11), cap(&mesh, 16)]);
