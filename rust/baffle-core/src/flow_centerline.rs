@@ -244,7 +244,7 @@ impl MeasurementPlane {
 /// plane crosses a measurement plane (near the VSD and aortic planes, which lie oblique to
 /// the flow, it would measure part of the LV or aorta with the tunnel) or finds no inside.
 /// The paper constrains sections normal to its PCHIP centerline between the cap centroids
-/// (2.4.2); these are the flow's own, and can be smaller (issue 13: 11-25% on p1-p3).
+/// (2.4.2); these are the flow's own, and can be smaller (issue 13: up to 25% on p3).
 pub fn flow_normal_sections(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<f64>> {
     let s = arc_lengths(points);
     (0..points.len())
