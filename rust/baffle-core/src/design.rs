@@ -117,6 +117,10 @@ pub struct DesignReport {
     pub rv_cost: RvCost,
     pub sections: Vec<SectionRecord>,
     pub timings: StepTimes,
+    /// With the flow-section rule only (`crate::flow_target`): the target applied to the
+    /// tunnel's sections normal to the flow, and the design rounds that met it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flow_sections: Option<crate::flow_target::FlowSections>,
 }
 
 /// Everything the design produces.
@@ -237,6 +241,7 @@ pub fn design(
         input_was_inward_wound,
         rv_cost: rv_cost(&surface, &bvh, &fitted.domain.mesh, &baffle),
         sections: sections.iter().map(SectionState::record).collect(),
+        flow_sections: None,
         timings: StepTimes {
             validate_ms,
             seam_ms,

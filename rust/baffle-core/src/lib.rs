@@ -33,6 +33,7 @@ pub mod outputs;
 pub mod compare;
 pub mod voxel;
 pub mod flow_centerline;
+pub mod flow_target;
 pub mod reference_data;
 pub mod template;
 pub mod rv_cost;

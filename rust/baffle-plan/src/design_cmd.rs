@@ -86,6 +86,13 @@ pub struct DesignArgs {
     /// --segmentations by `baffle plan` and `baffle sweep`.
     #[arg(long)]
     pub pulmonary: Option<PathBuf>,
+    /// Apply the target to the tunnel's sections normal to the flow too: the paper
+    /// constrains sections normal to its centerline between the cap centroids, which runs
+    /// oblique to the flow near the caps, so the flow's own sections can be smaller (up to
+    /// 25% on p3). The design is run again at a raised target until the smallest section
+    /// normal to the flow-domain centerline reaches the target (report.json flow_sections).
+    #[arg(long)]
+    pub flow_sections: bool,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     #[arg(long)]
     pub progress_tags: bool,
@@ -170,7 +177,7 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     let options = design_options(args)?;
     let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
-    let mut result = design(&surface, &points, &target, &options, progress).map_err(|e| match e {
+    let mut result = design_by_rule(args.flow_sections, &surface, &points, &target, &options, progress).map_err(|e| match e {
         // A fault of the surface file: say which file.
         DesignError::Surface(_) | DesignError::MissingLabel { .. } => match &args.surface {
             Some(path) => format!("{}: {e}", path.display()),
@@ -192,6 +199,9 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
         r.min_constrained_final_area_mm2,
         r.timings.total_ms
     );
+    if let Some(f) = &r.flow_sections {
+        println!("{}", flow_sections_line(f));
+    }
     println!("{}", rv_cost_line(&r.rv_cost));
     println!("{}", rv_outflow_line(&r.rv_cost.rv_outflow));
     if let Some(path) = &args.reference_baffle {
@@ -199,6 +209,32 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// The design, with the target applied to the flow-normal sections too when `flow_sections`
+/// (--flow-sections; `baffle_core::flow_target`), else the paper's sections only.
+pub fn design_by_rule(
+    flow_sections: bool,
+    surface: &TriMesh,
+    points: &[Vec3],
+    target: &TargetArea,
+    options: &DesignOptions,
+    progress: &mut dyn FnMut(f64, &str) -> bool,
+) -> Result<DesignResult, DesignError> {
+    match flow_sections {
+        true => baffle_core::flow_target::design_to_flow_target(surface, points, target, options, progress),
+        false => design(surface, points, target, options, progress),
+    }
+}
+
+/// The flow-section rule's outcome in one line.
+fn flow_sections_line(f: &baffle_core::flow_target::FlowSections) -> String {
+    let last = &f.rounds[f.rounds.len() - 1];
+    let outcome = if f.met { "meets" } else { "still below" };
+    format!(
+        "sections normal to the flow: smallest {:.1} mm2 at {:.1} mm from the VSD plane {outcome} the target {:.1} mm2 after {} design round(s), the last at {:.1} mm2",
+        last.min_flow_section_mm2, last.min_flow_section_at_mm, f.goal_area_mm2, f.rounds.len(), last.design_target_mm2
+    )
 }
 
 /// Surface, suture points (in the surface's frame) and the BSA that comes with the

@@ -16,12 +16,12 @@ use crate::plan_stages::{self, PlanArgs, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
 use crate::progress::{Progress, Style};
 use crate::report::svg_plot::{line_chart, with_note, Series};
-use crate::design_cmd::{design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignArgs, TargetArgs};
+use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignArgs, TargetArgs};
 use crate::verdict::{self, Verdict};
 use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::rv_outflow::NarrowedSection;
-use baffle_core::{design, DesignError, DesignReport, TargetArea};
+use baffle_core::{DesignError, DesignReport, TargetArea};
 use clap::Args;
 use serde_json::json;
 use std::fmt::Write;
@@ -199,7 +199,7 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
         let target_area_mm2 = target.area_mm2().unwrap_or(f64::NAN);
         let clock = Instant::now();
         let row_dir = args.design.out.join(folder_name(z_score, target_area_mm2));
-        let outcome = match design(&surface, &points, &target, &options, &mut |_, _| true) {
+        let outcome = match design_by_rule(args.design.flow_sections, &surface, &points, &target, &options, &mut |_, _| true) {
             Ok(mut result) => {
                 measure_rv_outflow(&surface, &mut result, pulmonary.as_deref())?;
                 write_design_outputs(&row_dir.join("design"), &result).map_err(|e| e.to_string())?;
@@ -590,6 +590,7 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use baffle_core::design;
     use baffle_core::rv_outflow::RvOutflow;
 
     fn rows() -> Vec<Row> {
