@@ -56,6 +56,19 @@ fn phantom_plan(out: &Path, run_args: &[&str], env: &[(&str, &str)]) -> Output {
     plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), out, run_args, env)
 }
 
+/// The coarse steady plan on the phantom with `extra` options, which must succeed: its
+/// folder and stdout; None where gmsh is missing (the test is skipped).
+fn successful_phantom_plan(name: &str, extra: &[&str]) -> Option<(PathBuf, String)> {
+    if skip_gmsh() {
+        return None;
+    }
+    let out = temp_dir(name);
+    let run = phantom_plan(&out, &[COARSE_STEADY, extra].concat(), &[]);
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    Some((out, stdout))
+}
+
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
 }
@@ -86,13 +99,7 @@ fn check_verdict(out: &Path, stdout: &str) -> String {
 
 #[test]
 fn phantom_plan_reports_the_stages_own_figures() {
-    if skip_gmsh() {
-        return;
-    }
-    let out = temp_dir("phantom");
-    let run = phantom_plan(&out, &[COARSE_STEADY, &["--progress-tags"]].concat(), &[]);
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    let Some((out, stdout)) = successful_phantom_plan("phantom", &["--progress-tags"]) else { return };
     for stage in ["design", "centerline", "mesh-nominal", "simulate-nominal"] {
         assert!(stdout.contains(&format!("plan: stage {stage} done in")), "no line for {stage}: {stdout}");
     }
@@ -168,18 +175,9 @@ fn phantom_plan_reports_the_stages_own_figures() {
     std::fs::remove_dir_all(out).ok();
 }
 
-/// report.html parses as XML, holds the pictures and plots, the table rows and the
-/// verdict, and refers to nothing outside itself: its pictures are PNG data URLs (or it
-/// says why there are none; under CI=true, where vtk is installed, they must be there).
 #[test]
 fn flow_sections_raise_the_design_until_the_flow_crosses_the_target() {
-    if skip_gmsh() {
-        return;
-    }
-    let out = temp_dir("phantom-flow-sections");
-    let run = phantom_plan(&out, &[COARSE_STEADY, &["--flow-sections"]].concat(), &[]);
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    let Some((out, stdout)) = successful_phantom_plan("phantom-flow-sections", &["--flow-sections"]) else { return };
     let design = read_json(&out.join("design/report.json"));
     let flow = &design["flow_sections"];
     let goal = flow["goal_area_mm2"].as_f64().unwrap();
@@ -195,6 +193,9 @@ fn flow_sections_raise_the_design_until_the_flow_crosses_the_target() {
     assert!(stdout.contains("sections normal to the flow: smallest"), "{stdout}");
 }
 
+/// report.html parses as XML, holds the pictures and plots, the table rows and the
+/// verdict, and refers to nothing outside itself: its pictures are PNG data URLs (or it
+/// says why there are none; under CI=true, where vtk is installed, they must be there).
 fn check_html(path: &Path) {
     let text = std::fs::read_to_string(path).unwrap();
     let options = roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() };
