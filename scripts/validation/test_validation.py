@@ -259,7 +259,8 @@ def test_the_area_rows_design_on_the_papers_input_at_each_z_score():
     area = validate.row_specs("full", ["p2", "p3"], only="area")
     published_rows = [r for r in area if r["domain"] == "published"]
     assert [r["patient"] for r in published_rows] == ["p3", "p2"] and all(r.get("z") is None for r in published_rows)
-    base = lambda p: [r["z"] for r in area if r["patient"] == p and r["domain"] == "input" and r["boundary_mm"] == validate.DESIGN_BOUNDARY_MM]
+    base = lambda p: [r["z"] for r in area if r["patient"] == p and r["domain"] == "input" and r["boundary_mm"] == validate.DESIGN_BOUNDARY_MM and not r.get("flow_sections")]
+    assert [(r["patient"], r["z"]) for r in area if r.get("flow_sections")] == [("p3", 0.0), ("p2", 0.0)]
     assert base("p3") == list(validate.AREA_Z_SCORES)
     assert base("p2") == [-1.0, -0.75, -0.5, -0.25, 0.0, 1.0, 2.0, 3.0, 4.0]
     fine = lambda p: [(r["z"], r["boundary_mm"], r["interior_mm"]) for r in area if r["patient"] == p and r["boundary_mm"] != validate.DESIGN_BOUNDARY_MM]
@@ -279,6 +280,8 @@ def test_dp_at_the_papers_baffle_area_is_read_between_the_designs_that_bracket_i
     rows = [area_row(4.0, 438.2, 0.76, 1.40), area_row(0.0, 371.1, 4.63, 1.80), area_row(3.0, 400.9, 1.56, 1.50),
             # Not on the base mesh, or failed: not interpolated.
             area_row(3.0, 402.0, 9.0, 9.0, boundary_mm=0.6, interior_mm=0.6), dict(patient="p3", domain="input", study="area", z=2.0, error="infeasible")]
+    # The flow-section design is not on the size curve.
+    rows.append(area_row(0.0, 402.0, 9.0, 9.0, flow_sections=True))
     t = (403.1 - 400.9) / (438.2 - 400.9)
     line = validate.at_paper_area(rows, "p3")
     assert f"dp {1.56 + t * (0.76 - 1.56):.2f} mmHg" in line and f"{1.50 + t * (1.40 - 1.50):.2f} m/s" in line and "between z = 3 and 4" in line
@@ -288,6 +291,7 @@ def test_dp_at_the_papers_baffle_area_is_read_between_the_designs_that_bracket_i
     rows[1]["tunnel_sections"] = {"min_section_mm2": 70.04, "min_at_mm": 6.5, "mean_section_mm2": 90.0, "sections": 30, "of": 32}
     assert "| 371.1 | 82.2 | 70.0, 6.5 (30 of 32) | 55,000 |" in validate.area_markdown(rows)
     assert "failed: infeasible" in table and line in table
+    assert "| p3 | input, --flow-sections | 0 |" in table
     out_of_reach = dict(patient="p1", domain="input", study="area", z=3.0, error="baffle design failed (1)\nbaffle: error: could not reach the target area 139.3 mm2")
     assert validate.infeasible_design(out_of_reach) and not validate.infeasible_design(rows[-1])
     assert "| p1 | input | 3 |  | infeasible: baffle: error: could not reach the target area 139.3 mm2 |" in validate.area_markdown([out_of_reach])

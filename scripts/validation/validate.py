@@ -104,12 +104,14 @@ def designed_domain(r: Runner, patient, info):
     return design / "domain.vtp", times
 
 
-def input_domain(r: Runner, patient, info, z):
+def input_domain(r: Runner, patient, info, z, flow_sections=False):
     """Our design on the paper's design input (published capped ventricle, its suture
-    points) at annulus z-score z: the baffle's size varies while the anatomy is the paper's."""
-    design = r.work / patient / "input" / f"z{z:+g}" / "design"
+    points) at annulus z-score z: the baffle's size varies while the anatomy is the paper's.
+    flow_sections: with `--flow-sections` (the target applied to the flow-normal sections too)."""
+    design = r.work / patient / "input" / (f"z{z:+g}" + ("-flow" if flow_sections else "")) / "design"
     inputs = r.data / patient / "design_input"
     argv = ["design", "--surface", inputs / "capped_ventricle.vtp", "--points", inputs / "suture_points.mrk.json", "--bsa", info["bsa_m2"], "--z-score", z, "--out", design]
+    argv += ["--flow-sections"] if flow_sections else []
     return design / "domain.vtp", {"design": r.stage(design / "domain.vtp", argv)}
 
 
@@ -155,7 +157,7 @@ def run_row(r: Runner, spec, patients, common):
     if domain_kind == "published":
         domain, times = published_domain(r, patient, boundary)
     elif domain_kind == "input":
-        domain, times = input_domain(r, patient, info, spec["z"])
+        domain, times = input_domain(r, patient, info, spec["z"], spec.get("flow_sections", False))
     else:
         domain, times = designed_domain(r, patient, info)
     # Beside the published domain, or beside the design's domain.vtp.
@@ -204,6 +206,7 @@ def run_row(r: Runner, spec, patients, common):
         patient=patient,
         domain=domain_kind,
         z=spec.get("z"),
+        flow_sections=spec.get("flow_sections", False),
         **baffle_figures(r, spec, domain),
         paper_baffle_area_mm2=info["baffle_area_mm2"],
         tunnel_sections=tunnel,
@@ -321,6 +324,8 @@ def area_specs(patients):
     for p in patients:
         rows.append(spec(p, "published", study="area"))
         rows += [spec(p, "input", z=z, study="area") for z in sorted(AREA_Z_SCORES + AREA_Z_SCORES_BETWEEN.get(p, ()))]
+        # The paper's target (z = 0) applied to the flow-normal sections too.
+        rows.append(spec(p, "input", z=0.0, flow_sections=True, study="area"))
         zs, levels = AREA_FINE.get(p, ((), ()))
         rows += [spec(p, "input", z=z, boundary=h, interior=h, study="area") for z in zs for h in levels]
     return rows
@@ -456,10 +461,10 @@ def area_markdown(rows):
     for r in area_rows:
         if "error" in r:
             why = "infeasible" if infeasible_design(r) else "failed"
-            out.append(f"| {r['patient']} | {r['domain']} | {z_cell(r)} | {r.get('mesh', '')} | {why}: {r['error'].splitlines()[-1]} | | | | | | | | |")
+            out.append(f"| {r['patient']} | {domain_cell(r)} | {z_cell(r)} | {r.get('mesh', '')} | {why}: {r['error'].splitlines()[-1]} | | | | | | | | |")
             continue
         out.append(
-            f"| {r['patient']} | {r['domain']} | {z_cell(r)} | {r['mesh']} | {fmt(r.get('target_area_mm2'), 1)} | {r['baffle_area_mm2']:.1f} | {fmt(r.get('min_constrained_final_area_mm2'), 1)} | "
+            f"| {r['patient']} | {domain_cell(r)} | {z_cell(r)} | {r['mesh']} | {fmt(r.get('target_area_mm2'), 1)} | {r['baffle_area_mm2']:.1f} | {fmt(r.get('min_constrained_final_area_mm2'), 1)} | "
             f"{tunnel_cell(r.get('tunnel_sections'))} | {r['tets']:,} | {fmt(r['dp_mmhg'])} | {fmt(r['dp_total_flux_mmhg'])} | {fmt(r['vmax_centerline_m_s'])} | "
             f"{r['paper_baffle_area_mm2']} / {fmt(r['paper_dp_mmhg'])} / {fmt(r['paper_vmax_m_s'])} |"
         )
@@ -469,6 +474,10 @@ def area_markdown(rows):
 
 def z_cell(row):
     return "-" if row.get("z") is None else f"{row['z']:g}"
+
+
+def domain_cell(row):
+    return row["domain"] + (", --flow-sections" if row.get("flow_sections") else "")
 
 
 def infeasible_design(row):
@@ -486,7 +495,8 @@ def at_paper_area(rows, patient):
     """dp and v_max at Table 4's baffle area, linear between the two base-mesh designs whose
     baffles bracket it (None when none do)."""
     designs = sorted(
-        (r for r in rows if r["patient"] == patient and r["domain"] == "input" and "error" not in r and r["boundary_mm"] == DESIGN_BOUNDARY_MM and r["interior_mm"] == 1.25),
+        (r for r in rows if r["patient"] == patient and r["domain"] == "input" and "error" not in r and not r.get("flow_sections")
+         and r["boundary_mm"] == DESIGN_BOUNDARY_MM and r["interior_mm"] == 1.25),
         key=lambda r: r["baffle_area_mm2"],
     )
     for a, b in zip(designs, designs[1:]):
