@@ -42,8 +42,7 @@ pub fn aspect_ratio(p: &[Vec3; 4]) -> f64 {
     if det < f64::MIN_POSITIVE {
         return DEGENERATE_RATIO;
     }
-    let longest_edge_mm = edge_vectors(p).iter().map(|v| v.norm()).fold(0.0, f64::max);
-    longest_edge_mm * twice_total_face_area(p) / (2.0 * 6f64.sqrt() * det)
+    longest_edge_mm(p) * twice_total_face_area(p) / (2.0 * 6f64.sqrt() * det)
 }
 
 /// Verdict's tet radius ratio (circumradius over 3 x inradius, 1 for a regular tet);
@@ -73,6 +72,11 @@ pub fn dihedral_range_deg(p: &[Vec3; 4]) -> (f64, f64) {
         }
     }
     range
+}
+
+/// The tet's longest edge (mm).
+pub fn longest_edge_mm(p: &[Vec3; 4]) -> f64 {
+    edge_vectors(p).iter().map(|v| v.norm()).fold(0.0, f64::max)
 }
 
 /// Edge vectors in Verdict's order: p1-p0, p2-p1, p0-p2, p3-p0, p3-p1, p3-p2.

@@ -24,13 +24,13 @@ pub struct FaceSet {
     pub interior: bool,
 }
 
-/// The signed volume (mm^3) of tet (a, b, c, d); positive when (b-a, c-a, d-a)
-/// is right-handed, i.e. triangle a-b-c seen from d runs counter-clockwise (VTK and gmsh order).
 /// A tet whose volume is at most this fraction of its longest edge cubed is degenerate:
 /// the CFD solver's own criterion (`baffle_cfd::FlowMesh::validate`), so `baffle mesh`
 /// never writes a mesh the solver refuses.
 pub const DEGENERATE_VOLUME_RATIO: f64 = 1e-9;
 
+/// The signed volume (mm^3) of tet (a, b, c, d); positive when (b-a, c-a, d-a)
+/// is right-handed, i.e. triangle a-b-c seen from d runs counter-clockwise (VTK and gmsh order).
 pub fn tet_signed_volume_mm3(p: &[Vec3; 4]) -> f64 {
     (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) / 6.0
 }
@@ -147,7 +147,7 @@ impl TetMesh {
                 let kind = if v < 0.0 { "inverted" } else { "not finite" };
                 return Err(MeshError::InvalidMesh(format!("tet {t} {:?} is {kind}: signed volume {v:e} mm^3", self.tets[t])));
             }
-            let longest_mm = (0..4).flat_map(|i| (i + 1..4).map(move |j| (i, j))).map(|(i, j)| (p[i] - p[j]).norm()).fold(0.0, f64::max);
+            let longest_mm = crate::quality::longest_edge_mm(&p);
             if v <= DEGENERATE_VOLUME_RATIO * longest_mm.powi(3) {
                 let centre = p.iter().sum::<Vec3>() / 4.0;
                 return Err(MeshError::DegenerateTet(format!(
