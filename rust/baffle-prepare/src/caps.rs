@@ -5,6 +5,7 @@
 
 use crate::clip::Clipped;
 use crate::planar_cap::refine_planar_cap;
+use crate::polygon2d::orient;
 use baffle_core::numerics::pca::Plane;
 use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
 use baffle_core::{TriMesh, Vec3};
@@ -13,10 +14,7 @@ use baffle_core::{TriMesh, Vec3};
 /// wound like the polygon.
 pub fn ear_clip(polygon: &[u32], uv: &[(f64, f64)]) -> Result<Vec<[u32; 3]>, String> {
     let p = |v: u32| uv[v as usize];
-    let cross = |a: u32, b: u32, c: u32| {
-        let (pa, pb, pc) = (p(a), p(b), p(c));
-        (pb.0 - pa.0) * (pc.1 - pa.1) - (pb.1 - pa.1) * (pc.0 - pa.0)
-    };
+    let cross = |a: u32, b: u32, c: u32| orient(p(a), p(b), p(c));
     let area2: f64 = (0..polygon.len()).map(|i| {
         let (a, b) = (p(polygon[i]), p(polygon[(i + 1) % polygon.len()]));
         a.0 * b.1 - b.0 * a.1

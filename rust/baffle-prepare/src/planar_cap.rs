@@ -11,7 +11,7 @@
 //! the inserted points are then smoothed. Rim vertices are the wall's and never move,
 //! so the cap still closes the wall.
 
-use crate::polygon2d::{distance_to_polygon_mm, inside_polygon};
+use crate::polygon2d::{distance_to_polygon_mm, inside_polygon, orient};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::Vec3;
 use std::collections::HashMap;
@@ -82,11 +82,6 @@ fn bounds(points: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
     points.iter().fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
         ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
     })
-}
-
-/// Twice the signed area of (a, b, c) in the plane.
-fn orient(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> f64 {
-    (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
 }
 
 /// Positive when `d` lies inside the circumcircle of the counter-clockwise (a, b, c).

@@ -1,5 +1,10 @@
-//! Closed polygons in a plane's (u, v) coordinates (mm): the cap outlines and the VSD
-//! footprint of the extension.
+//! Closed polygons in a plane's (u, v) coordinates (mm): the cap outlines (ear clipping,
+//! the planar caps) and the VSD footprint of the extension.
+
+/// Twice the signed area of (a, b, c): positive when they run counter-clockwise.
+pub(crate) fn orient(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> f64 {
+    (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)
+}
 
 /// Even-odd test of `p` against the closed polygon `poly`.
 pub(crate) fn inside_polygon(poly: &[(f64, f64)], p: (f64, f64)) -> bool {
