@@ -237,6 +237,10 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
 /// `baffle simulate` showing its progress on `progress` (a stage of `baffle plan`, or the whole command).
 pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
+    // Refused before the case and its mesh are read: nothing of them is needed to say so.
+    if args.read_back && args.engine != Engine::Svmultiphysics {
+        return Err("--read-back reads an svMultiPhysics run: give --engine svmultiphysics".into());
+    }
     let mut case = case::read_case(&args.case)?;
     if args.steady {
         case.time.mode = "steady".into();
@@ -276,9 +280,6 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     let output = Output { dir: &args.out, mesh: &mesh };
     let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
     let quick = case::is_quick(&case);
-    if args.read_back && args.engine != Engine::Svmultiphysics {
-        return Err("--read-back reads an svMultiPhysics run: give --engine svmultiphysics".into());
-    }
     if args.engine == Engine::Svmultiphysics {
         if quick {
             return Err("the quick estimate (time.mode \"quick\", --quick) runs on the embedded engine; give svMultiPhysics a transient or steady case".into());
