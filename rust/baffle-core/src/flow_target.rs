@@ -20,6 +20,13 @@ use serde::Serialize;
 pub const FLOW_TARGET_TOLERANCE: f64 = 0.005;
 /// Design rounds at most (p1-p3 and the phantom need at most two).
 pub const MAX_FLOW_TARGET_ROUNDS: usize = 6;
+/// The design target is never raised beyond this multiple of the requested area: a
+/// baffle whose paper sections are twice the target and whose flow still is not there
+/// does not bound the flow's narrowest section (p1-p3 needed at most 1.34x).
+pub const MAX_TARGET_RAISE: f64 = 2.0;
+/// Rounds stop when the flow's narrowest section grows by less than this fraction of the
+/// design target's raise: there the baffle does not bound it (p3 grew by 0.05).
+pub const MIN_SECTION_RESPONSE: f64 = 0.02;
 
 /// One design round: the target it was run at and the flow-normal section it gave.
 #[derive(Clone, Debug, Serialize)]
@@ -30,12 +37,15 @@ pub struct FlowRound {
     pub min_flow_section_at_mm: f64,
 }
 
-/// What the rule did: the requested area, whether the last round met it, every round.
+/// What the rule did: the requested area, whether the last round met it, every round,
+/// and why it stopped short when it did.
 #[derive(Clone, Debug, Serialize)]
 pub struct FlowSections {
     pub goal_area_mm2: f64,
     pub met: bool,
     pub rounds: Vec<FlowRound>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped_because: Option<String>,
 }
 
 /// The smallest section of a designed domain normal to its flow-domain centerline (between
@@ -80,15 +90,38 @@ pub fn design_to_flow_target(
         let (section, at) = smallest_flow_section(&result.domain, options.labels).map_err(|e| DesignError::numerical("flow-normal sections", e))?;
         rounds.push(FlowRound { design_target_mm2: result.report.target_area_mm2, min_flow_section_mm2: section, min_flow_section_at_mm: at });
         let met = section >= goal_mm2 * (1.0 - FLOW_TARGET_TOLERANCE);
-        if met || rounds.len() == MAX_FLOW_TARGET_ROUNDS {
+        let next = next_target(&rounds, goal_mm2, result.report.min_constrained_final_area_mm2);
+        let stopped_because = if met { None } else { why_stop(&rounds, goal_mm2, next) };
+        if met || stopped_because.is_some() {
             if rounds.len() > 1 {
                 result.report.target = format!("{}, raised to {:.1} mm2 so that the sections normal to the flow reach it", target.describe(), result.report.target_area_mm2);
             }
-            result.report.flow_sections = Some(FlowSections { goal_area_mm2: goal_mm2, met, rounds });
+            result.report.flow_sections = Some(FlowSections { goal_area_mm2: goal_mm2, met, rounds, stopped_because });
             return Ok(result);
         }
-        design_target = TargetArea::AreaMm2(next_target(&rounds, goal_mm2, result.report.min_constrained_final_area_mm2));
+        design_target = TargetArea::AreaMm2(next);
     }
+}
+
+/// Why no further round is run though the target is not met (None: run one).
+fn why_stop(rounds: &[FlowRound], goal_mm2: f64, next_mm2: f64) -> Option<String> {
+    let last = &rounds[rounds.len() - 1];
+    let shortfall = format!("the smallest section normal to the flow is {:.1} mm2 against the target {goal_mm2:.1} mm2", last.min_flow_section_mm2);
+    if rounds.len() == MAX_FLOW_TARGET_ROUNDS {
+        return Some(format!("{shortfall} after {MAX_FLOW_TARGET_ROUNDS} design rounds"));
+    }
+    if let [.., before, last] = rounds {
+        let response = (last.min_flow_section_mm2 - before.min_flow_section_mm2) / (last.design_target_mm2 - before.design_target_mm2);
+        if response < MIN_SECTION_RESPONSE {
+            return Some(format!(
+                "{shortfall}, {:.1} mm from the VSD plane, and it widened by {:.3} mm2 per mm2 of the design target's raise: the baffle does not bound it there",
+                last.min_flow_section_at_mm, response
+            ));
+        }
+    }
+    (next_mm2 > MAX_TARGET_RAISE * goal_mm2).then(|| {
+        format!("{shortfall}; reaching it would take a design target above {MAX_TARGET_RAISE} times the requested area ({next_mm2:.1} mm2): the baffle does not bound it")
+    })
 }
 
 /// A raised round's infeasibility, said in terms of the requested target: the seam cannot
@@ -141,6 +174,20 @@ mod tests {
         // The first round's error (no raise yet) is the design's own.
         let first = DesignError::Seam("crosses itself".into());
         assert_eq!(raised(first.clone(), 84.9, &[]), first);
+    }
+
+    #[test]
+    fn rounds_stop_where_the_flow_section_does_not_follow_the_target() {
+        let round = |t, m| FlowRound { design_target_mm2: t, min_flow_section_mm2: m, min_flow_section_at_mm: 1.5 };
+        // p3's rounds (0.05 mm2 per mm2): a further round is run.
+        assert_eq!(why_stop(&[round(62.3, 61.45), round(83.3, 62.0)], 62.3, 89.0), None);
+        // Under 0.02 mm2 per mm2: stopped, with where and how little.
+        let why = why_stop(&[round(62.3, 50.0), round(80.0, 50.2)], 62.3, 160.0).unwrap();
+        assert!(why.contains("50.2 mm2 against the target 62.3") && why.contains("1.5 mm from the VSD plane") && why.contains("does not bound it"), "{why}");
+        // The next raise past twice the target stops it too, and so does the last round.
+        assert!(why_stop(&[round(62.3, 50.0)], 62.3, 130.0).unwrap().contains("above 2 times the requested area"));
+        let rounds: Vec<FlowRound> = (0..MAX_FLOW_TARGET_ROUNDS).map(|k| round(62.3 + k as f64, 50.0 + k as f64)).collect();
+        assert!(why_stop(&rounds, 62.3, 70.0).unwrap().contains(&format!("after {MAX_FLOW_TARGET_ROUNDS} design rounds")));
     }
 
     #[test]

@@ -231,8 +231,9 @@ pub fn design_by_rule(
 fn flow_sections_line(f: &baffle_core::flow_target::FlowSections) -> String {
     let last = &f.rounds[f.rounds.len() - 1];
     let outcome = if f.met { "meets" } else { "still below" };
+    let stopped = f.stopped_because.as_ref().map_or(String::new(), |why| format!(" (stopped: {why})"));
     format!(
-        "sections normal to the flow: smallest {:.1} mm2 at {:.1} mm from the VSD plane {outcome} the target {:.1} mm2 after {} design round(s), the last at {:.1} mm2",
+        "sections normal to the flow: smallest {:.1} mm2 at {:.1} mm from the VSD plane {outcome} the target {:.1} mm2 after {} design round(s), the last at {:.1} mm2{stopped}",
         last.min_flow_section_mm2, last.min_flow_section_at_mm, f.goal_area_mm2, f.rounds.len(), last.design_target_mm2
     )
 }
