@@ -17,6 +17,7 @@ pub mod target;
 pub mod phantom;
 pub mod phantom_family;
 pub mod caps;
+pub mod self_check;
 pub mod remesh;
 pub mod seam;
 pub mod partition;
