@@ -39,7 +39,9 @@ pub unsafe extern "C" fn baffle_design(
         let target = options.target()?;
         let core_options = options.design_options()?;
         let mut report = |fraction: f64, stage: &str| call_progress(progress, user_data, fraction, stage);
-        let result = design(&surface.mesh, &points, &target, &core_options, &mut report).map_err(design_error)?;
+        let designed = design(&surface.mesh, &points, &target, &core_options, &mut report).map_err(design_error)?;
+        // Checked by a second method before the caller sees it (report.json `checks`).
+        let result = baffle_verify::checked_design(designed).map_err(design_error)?;
         *out = BaffleResult::boxed(result)?;
         Ok(())
     })

@@ -2,7 +2,7 @@
 //! progress/cancel callback and the time each step took.
 
 use crate::amplitudes::{arc_displacement, ArcDisplacement};
-use crate::caps::cap_flatness;
+use crate::caps::{project_caps_onto_planes, CapProjection};
 use crate::centerline::{build_centerline, CapFrame, Centerline};
 use crate::envelope::regularize_amplitudes;
 use crate::error::DesignError;
@@ -112,11 +112,16 @@ pub struct DesignReport {
     pub min_constrained_final_area_mm2: f64,
     pub correction_rounds: usize,
     pub input_was_inward_wound: bool,
+    /// The VSD and aortic caps as found and projected onto their planes.
+    pub caps: Vec<CapProjection>,
     /// RV volume before and after the baffle (`rv_volume_before_ml`, ... at the top level).
     #[serde(flatten)]
     pub rv_cost: RvCost,
     pub sections: Vec<SectionRecord>,
     pub timings: StepTimes,
+    /// The checks of the result by a second method (`baffle_verify::design_checks`),
+    /// filled in by the front end that ran them; empty when none ran.
+    pub checks: Vec<crate::self_check::SelfCheck>,
     /// With the flow-section rule only (`crate::flow_target`): the target applied to the
     /// tunnel's sections normal to the flow, and the design rounds that met it.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -162,7 +167,7 @@ pub fn design(
     clock.stage(0.0, "validate")?;
     options.validate()?;
     let target_area_mm2 = target.area_mm2().map_err(DesignError::Target)?;
-    let (surface, input_was_inward_wound) = validated_surface(surface, &labels)?;
+    let ValidatedSurface { surface, input_was_inward_wound, caps } = validated_surface(surface, &labels)?;
     let validate_ms = clock.lap();
 
     clock.stage(0.05, "seam")?;
@@ -239,9 +244,11 @@ pub fn design(
         min_constrained_final_area_mm2: sections.iter().filter(|s| s.is_checked()).filter_map(|s| s.final_area_mm2).fold(f64::INFINITY, f64::min),
         correction_rounds: fitted.rounds,
         input_was_inward_wound,
+        caps,
         rv_cost: rv_cost(&surface, &bvh, &fitted.domain.mesh, &baffle),
         sections: sections.iter().map(SectionState::record).collect(),
         flow_sections: None,
+        checks: Vec::new(),
         timings: StepTimes {
             validate_ms,
             seam_ms,
@@ -306,8 +313,9 @@ impl<'a> Clock<'a> {
 const MAX_COORDINATE_MM: f64 = 1.0e5;
 
 /// The input must be a closed manifold with the three labels; an inward-wound
-/// surface (as SimVascular writes them) is reversed.
-fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh, bool), DesignError> {
+/// surface (as SimVascular writes them) is reversed, and each cap is projected onto its
+/// plane once it is shown to be a cap the method can use (`caps::CapFlatness`).
+fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<ValidatedSurface, DesignError> {
     if surface.face_ids.len() != surface.triangles.len() {
         return Err(DesignError::Surface(format!(
             "{} labels for {} triangles",
@@ -350,18 +358,21 @@ fn validated_surface(surface: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh,
             rep.inconsistently_wound_edges
         )));
     }
-    for (label, name) in [(labels.vsd_cap, "VSD"), (labels.aortic_cap, "aortic-annulus")] {
-        match cap_flatness(surface, label) {
-            Some(flat) if !flat.is_planar() => return Err(DesignError::Surface(flat.describe(name))),
-            _ => {}
-        }
+    let inward = surface.signed_volume_mm3() < 0.0;
+    let mut outward = surface.clone();
+    if inward {
+        outward.triangles.iter_mut().for_each(|t| t.swap(1, 2));
     }
-    if surface.signed_volume_mm3() < 0.0 {
-        let mut flipped = surface.clone();
-        flipped.triangles.iter_mut().for_each(|t| t.swap(1, 2));
-        return Ok((flipped, true));
-    }
-    Ok((surface.clone(), false))
+    let caps = [(labels.vsd_cap, "VSD"), (labels.aortic_cap, "aortic-annulus")];
+    let (flat, projections) = project_caps_onto_planes(&outward, &caps).map_err(DesignError::Surface)?;
+    Ok(ValidatedSurface { surface: flat, input_was_inward_wound: inward, caps: projections })
+}
+
+/// The input as the design uses it: outward, its caps on their planes.
+struct ValidatedSurface {
+    surface: TriMesh,
+    input_was_inward_wound: bool,
+    caps: Vec<CapProjection>,
 }
 
 /// The three labels must be present, and no other: a stray label is a face the design

@@ -1,6 +1,9 @@
 //! Perturbations of a valid surface for robustness tests and the fuzz harness: a
 //! patch of wall pushed out (a bump, as a hypertrophied trabecula or a segmentation
-//! leak would), noise, flipped triangles. Each keeps the triangles' connectivity.
+//! leak would), noise, flipped triangles; and what real acquisitions do to an ideal
+//! anatomy: a cap bent out of its plane (drawn with a plane tool on a segmentation, or
+//! cut from a surface of 0.3-0.5 mm triangles), the scene in another pose, a smoothed
+//! or a subdivided wall. Each but `subdivide` keeps the triangles' connectivity.
 
 pub use crate::numerics::random::SplitMix64;
 use crate::mesh::{TriMesh, Vec3};
@@ -42,6 +45,94 @@ pub fn flip_triangle(mesh: &TriMesh, t: usize) -> TriMesh {
     out
 }
 
+/// The cap labelled `label` bent out of its plane by a smooth bump of height
+/// `fraction_of_diameter` times its equivalent diameter, along its outward normal; the
+/// rim stays where it is. The bump follows the distance to the rim d as h (d/d_max)(2 -
+/// d/d_max): zero at the rim, `h` at the point farthest from it.
+pub fn bend_cap(mesh: &TriMesh, label: i32, fraction_of_diameter: f64) -> TriMesh {
+    let Some((_, normal, area_mm2)) = mesh.label_centroid_normal(label) else { return mesh.clone() };
+    let height_mm = fraction_of_diameter * 2.0 * (area_mm2 / std::f64::consts::PI).sqrt();
+    let (mut on_cap, mut on_other) = (vec![false; mesh.points.len()], vec![false; mesh.points.len()]);
+    for (tri, &f) in mesh.triangles.iter().zip(&mesh.face_ids) {
+        let marks = if f == label { &mut on_cap } else { &mut on_other };
+        tri.iter().for_each(|&v| marks[v as usize] = true);
+    }
+    let rim: Vec<Vec3> = (0..mesh.points.len()).filter(|&v| on_cap[v] && on_other[v]).map(|v| mesh.points[v]).collect();
+    let rim_distance = |p: &Vec3| rim.iter().map(|r| (r - p).norm()).fold(f64::INFINITY, f64::min);
+    let inner: Vec<(usize, f64)> = (0..mesh.points.len()).filter(|&v| on_cap[v] && !on_other[v]).map(|v| (v, rim_distance(&mesh.points[v]))).collect();
+    let d_max = inner.iter().map(|&(_, d)| d).fold(0.0, f64::max);
+    let mut out = mesh.clone();
+    for (v, d) in inner {
+        let x = d / d_max.max(1e-300);
+        out.points[v] += normal * height_mm * x * (2.0 - x);
+    }
+    out
+}
+
+/// The whole scene moved rigidly: rotated by `angle_rad` about the unit `axis` through
+/// the origin, then translated by `translation_mm`.
+pub fn rigid_motion(mesh: &TriMesh, axis: Vec3, angle_rad: f64, translation_mm: Vec3) -> TriMesh {
+    let mut out = mesh.clone();
+    out.points.iter_mut().for_each(|p| *p = rigid_motion_point(*p, axis, angle_rad, translation_mm));
+    out
+}
+
+/// One point moved as [`rigid_motion`] moves the surface.
+pub fn rigid_motion_point(p: Vec3, axis: Vec3, angle_rad: f64, translation_mm: Vec3) -> Vec3 {
+    let rotation = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle_rad);
+    rotation * p + translation_mm
+}
+
+/// The wall smoothed as a segmentation tool smooths it: `iterations` Taubin rounds
+/// (lambda 0.5, mu -0.53: smoothing without the shrinkage of plain Laplacian rounds) on
+/// the vertices whose triangles are all `wall_label`, so the caps and their rims stay.
+pub fn smooth_wall(mesh: &TriMesh, iterations: usize, wall_label: i32) -> TriMesh {
+    let (_, wall_only) = vertex_normals_and_wall(mesh, wall_label);
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); mesh.points.len()];
+    for tri in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            neighbours[a as usize].push(b);
+            neighbours[b as usize].push(a);
+        }
+    }
+    neighbours.iter_mut().for_each(|n| {
+        n.sort_unstable();
+        n.dedup();
+    });
+    let mut out = mesh.clone();
+    for _ in 0..iterations {
+        for factor in [0.5, -0.53] {
+            let before = out.points.clone();
+            for v in (0..before.len()).filter(|&v| wall_only[v] && !neighbours[v].is_empty()) {
+                let mean = neighbours[v].iter().fold(Vec3::zeros(), |s, &u| s + before[u as usize]) / neighbours[v].len() as f64;
+                out.points[v] = before[v] + factor * (mean - before[v]);
+            }
+        }
+    }
+    out
+}
+
+/// Every triangle split into four at its edges' midpoints (labels kept): the same
+/// surface with edges half as long, as a finer acquisition or export would give it.
+pub fn subdivide(mesh: &TriMesh) -> TriMesh {
+    let mut points = mesh.points.clone();
+    let mut midpoint: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    let mut mid = |a: u32, b: u32, points: &mut Vec<Vec3>| {
+        *midpoint.entry(crate::mesh::edge_key(a, b)).or_insert_with(|| {
+            points.push(0.5 * (points[a as usize] + points[b as usize]));
+            (points.len() - 1) as u32
+        })
+    };
+    let (mut triangles, mut face_ids) = (Vec::new(), Vec::new());
+    for (&[a, b, c], &f) in mesh.triangles.iter().zip(&mesh.face_ids) {
+        let (ab, bc, ca) = (mid(a, b, &mut points), mid(b, c, &mut points), mid(c, a, &mut points));
+        triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        face_ids.extend([f; 4]);
+    }
+    TriMesh::new(points, triangles, face_ids)
+}
+
 fn vertex_normals_and_wall(mesh: &TriMesh, wall_label: i32) -> (Vec<Vec3>, Vec<bool>) {
     let mut normals = vec![Vec3::zeros(); mesh.points.len()];
     let mut wall_only = vec![true; mesh.points.len()];
@@ -77,5 +168,31 @@ mod tests {
         let (a, b) = (jitter(&surface, 0.1, 7), jitter(&surface, 0.1, 7));
         assert_eq!(a.points, b.points);
         assert!(surface.points.iter().zip(&a.points).all(|(p, q)| (p - q).amax() <= 0.1 + 1e-12));
+    }
+
+    #[test]
+    fn a_bent_cap_keeps_its_rim_and_rises_by_its_fraction_of_the_diameter() {
+        let surface = phantom_default().surface;
+        let (_, normal, area) = surface.label_centroid_normal(11).unwrap();
+        let bent = bend_cap(&surface, 11, 0.02);
+        let rise = surface.points.iter().zip(&bent.points).map(|(a, b)| (b - a).dot(&normal)).fold(0.0, f64::max);
+        let diameter = 2.0 * (area / std::f64::consts::PI).sqrt();
+        assert!(rise > 0.015 * diameter && rise <= 0.02 * diameter + 1e-9, "{rise} of {diameter}");
+        let off_cap: std::collections::HashSet<u32> = surface.triangles.iter().zip(&surface.face_ids).filter(|(_, &f)| f != 11).flat_map(|(t, _)| *t).collect();
+        assert!(off_cap.iter().all(|&v| surface.points[v as usize] == bent.points[v as usize]), "rim and wall fixed");
+    }
+
+    #[test]
+    fn rigid_motion_keeps_shape_and_subdivision_keeps_the_surface() {
+        let surface = phantom_default().surface;
+        let moved = rigid_motion(&surface, Vec3::new(1.0, 2.0, 3.0), 0.7, Vec3::new(40.0, -120.0, 900.0));
+        assert!((moved.signed_volume_mm3() / surface.signed_volume_mm3() - 1.0).abs() < 1e-9);
+        assert!((moved.area_mm2() / surface.area_mm2() - 1.0).abs() < 1e-9);
+        let fine = subdivide(&surface);
+        assert_eq!(fine.triangles.len(), 4 * surface.triangles.len());
+        assert!((fine.signed_volume_mm3() / surface.signed_volume_mm3() - 1.0).abs() < 1e-12);
+        assert!(crate::mesh::manifold_report(&fine).is_closed_manifold());
+        let smooth = smooth_wall(&surface, 5, 2);
+        assert!((smooth.signed_volume_mm3() / surface.signed_volume_mm3() - 1.0).abs() < 0.05);
     }
 }

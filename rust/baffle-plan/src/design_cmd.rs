@@ -212,7 +212,8 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
 }
 
 /// The design, with the target applied to the flow-normal sections too when `flow_sections`
-/// (--flow-sections; `baffle_core::flow_target`), else the paper's sections only.
+/// (--flow-sections; `baffle_core::flow_target`), else the paper's sections only; checked
+/// by `baffle_verify::design_checks` (report.json `checks`) before anything is written.
 pub fn design_by_rule(
     flow_sections: bool,
     surface: &TriMesh,
@@ -221,10 +222,11 @@ pub fn design_by_rule(
     options: &DesignOptions,
     progress: &mut dyn FnMut(f64, &str) -> bool,
 ) -> Result<DesignResult, DesignError> {
-    match flow_sections {
+    let result = match flow_sections {
         true => baffle_core::flow_target::design_to_flow_target(surface, points, target, options, progress),
         false => design(surface, points, target, options, progress),
-    }
+    }?;
+    baffle_verify::checked_design(result)
 }
 
 /// The flow-section rule's outcome in one line.

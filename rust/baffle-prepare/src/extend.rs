@@ -40,7 +40,7 @@ use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
 use crate::prepare::{cap_report, everywhere, lap_timer, union_within, validate, CapReport, PrepareOptions};
-use baffle_core::caps::{cap_flatness, CapFlatness};
+use baffle_core::caps::{cap_flatness, project_caps_onto_planes, CapFlatness, CapProjection};
 use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
@@ -196,15 +196,20 @@ pub struct ExtendReport {
     pub inflow_cap: CapReport,
     pub outflow_cap: CapReport,
     pub mid_lv_plane: MidLvPlaneReport,
-    /// Largest distance of a designed VSD / aortic cap point from its plane (mm).
+    /// Largest distance of a designed VSD / aortic cap point from its plane as given, before
+    /// the projection (mm).
     pub vsd_cap_off_plane_mm: f64,
     pub aortic_cap_off_plane_mm: f64,
+    /// The designed caps as given, and their projection onto their planes (the designed
+    /// part of the extended domain carries the projected caps).
+    pub cap_projections: Vec<CapProjection>,
     pub stj: StjReport,
     pub remesh_edge_mm: f64,
     pub timings: ExtendTimings,
 }
 
-/// The extended domain: designed domain first (unchanged), then the LV and aortic parts.
+/// The extended domain: designed domain first (unchanged but for its caps, projected onto
+/// their planes), then the LV and aortic parts.
 #[derive(Clone, Debug)]
 pub struct Extended {
     pub surface: TriMesh,
@@ -229,6 +234,10 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let mut lap = lap_timer();
     let l = &options.labels;
     check_domain(domain)?;
+    // The method needs each cap's rim and plane, not micrometre planarity (`CapFlatness`).
+    let caps = [(l.vsd_cap, "VSD"), (l.aortic_cap, "aortic-annulus")];
+    let (flattened, cap_projections) = project_caps_onto_planes(domain, &caps).map_err(|e| PrepareError::geometry("designed domain", e))?;
+    let domain = &flattened;
     let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
     let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
     let centroid_plane = lv_centroid_plane(&pools.lv, &vsd.plane)?;
@@ -299,13 +308,19 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
             ),
             other_lv_rv_contact: lv_part.other_contact().map(|w| format!("{w}: left out of the LV part, which takes the RV only over the VSD, so it is wall in the extended domain")),
         },
-        vsd_cap_off_plane_mm: vsd.off_plane_mm,
-        aortic_cap_off_plane_mm: annulus.off_plane_mm,
+        vsd_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.vsd_cap, vsd.off_plane_mm),
+        aortic_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.aortic_cap, annulus.off_plane_mm),
+        cap_projections,
         stj: stj_report,
         remesh_edge_mm: edge_mm,
         timings: ExtendTimings { planes_ms, union_ms, extensions_ms, checks_ms: lap() },
     };
     Ok(Extended { surface, report })
+}
+
+/// How far the cap labelled `label` was off its plane before the projection.
+fn off_plane_as_given_mm(projections: &[CapProjection], label: i32, after_mm: f64) -> f64 {
+    projections.iter().find(|p| p.label == label).map_or(after_mm, |p| p.off_plane_mm)
 }
 
 /// The moves of the mid-LV plane from the LV centroid to try, in order (mm along the VSD normal).

@@ -1,13 +1,16 @@
-//! Independent re-measurement of baffle designs, for tests.
+//! Independent re-measurement of baffle designs: for tests, and for the design's checks
+//! of its own output ([`design_checks`]).
 //!
 //! Uses only the `TriMesh` data type from `baffle-core`: every measurement here
 //! (plane sections, enclosed volume, edge use, winding) is computed with its own
 //! code, so a test that compares these numbers with what the design reports
 //! checks the construction with a second implementation.
 
+mod design_checks;
 mod slice;
 mod topology;
 
+pub use design_checks::{checked_design, design_checks};
 pub use slice::{contour_area_mm2, section_area_nearest, slice_by_plane, Contour};
 pub use topology::{edge_usage_counts, is_consistently_oriented, signed_volume_mm3};
 

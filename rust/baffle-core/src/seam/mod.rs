@@ -65,18 +65,32 @@ fn is_rotation_or_reversal(given: &[Vec3], ordered: &[Vec3]) -> bool {
     (0..n).all(|k| step(k) == 1) || (0..n).all(|k| step(k) == n - 1)
 }
 
-/// Order points by their angle around the centroid in their best-fit plane.
+/// Order points by their angle around the centroid in their best-fit plane, starting at
+/// the surgeon's first point and running toward whichever of its two neighbours was
+/// placed first. The plane's axes are a fit's (their signs follow the scanner frame), so
+/// the angle alone would start the loop, and the seam's samples, at a point that depends
+/// on how the scene lies; the numbering does not.
 pub fn order_by_pca_angle(points: &[Vec3]) -> Vec<Vec3> {
     let plane = best_fit_plane(points);
-    let mut keyed: Vec<(f64, Vec3)> = points
+    let mut keyed: Vec<(f64, usize)> = points
         .iter()
-        .map(|p| {
+        .enumerate()
+        .map(|(i, p)| {
             let (u, v) = plane.project_2d(p);
-            (v.atan2(u), *p)
+            (v.atan2(u), i)
         })
         .collect();
-    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
-    keyed.into_iter().map(|(_, p)| p).collect()
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut order: Vec<usize> = keyed.into_iter().map(|(_, i)| i).collect();
+    let n = order.len();
+    if n > 2 {
+        let first = order.iter().position(|&i| i == 0).unwrap_or(0);
+        order.rotate_left(first);
+        if order[n - 1] < order[1] {
+            order[1..].reverse();
+        }
+    }
+    order.into_iter().map(|i| points[i]).collect()
 }
 
 /// The seam on the wall, projected and inserted as an edge loop: with the points in the

@@ -1,0 +1,102 @@
+//! Anatomies as acquisitions give them, not as ideal phantoms: each case (the phantom and
+//! p1-p3's design inputs) with both caps bent out of their planes (rim fixed) until they
+//! lie 0.5-3 % of their diameters off their fitted planes, the whole scene moved rigidly, the wall smoothed,
+//! subdivided and noisy. Every member must design, with every checked section
+//! re-measured at or above the target by `baffle-verify`'s own slicer, or be refused by a
+//! named reason the member justifies. The rigid motion's change of the design is printed:
+//! the seam no longer depends on the frame, the paper's per-coordinate PCHIP centerline
+//! still does (docs/validation.md, "Not yet done").
+
+mod common;
+#[path = "common/family.rs"]
+mod family;
+
+use baffle_core::perturb::{bend_cap, jitter, rigid_motion, rigid_motion_point, smooth_wall, subdivide};
+use baffle_core::phantom::phantom_default;
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, TriMesh, Vec3};
+
+struct Case {
+    name: String,
+    surface: TriMesh,
+    points: Vec<Vec3>,
+    target: TargetArea,
+}
+
+fn cases() -> Vec<Case> {
+    let p = phantom_default();
+    let mut cases = vec![Case { name: "phantom".into(), surface: p.surface, points: p.suture_points_mm, target: TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 } }];
+    let Some(data) = common::data_dir() else { return cases };
+    let table: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(data.join("patients.json")).unwrap()).unwrap();
+    for patient in ["p1", "p2", "p3"] {
+        let dir = data.join(patient).join("design_input");
+        let surface = baffle_core::io::read_surface(&dir.join("capped_ventricle.vtp")).unwrap();
+        let points = baffle_core::io::read_points(&dir.join("suture_points.mrk.json")).unwrap().to_frame(baffle_core::io::CoordinateSystem::Lps);
+        let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64().unwrap();
+        cases.push(Case { name: patient.into(), surface, points, target: TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
+    }
+    cases
+}
+
+/// A pose no scanner frame shares with the data: 37 degrees about an oblique axis, then far off.
+const AXIS: [f64; 3] = [0.3, -0.5, 0.8];
+const ANGLE_RAD: f64 = 0.65;
+const SHIFT_MM: [f64; 3] = [35.0, -180.0, 1200.0];
+
+fn members(case: &Case) -> Vec<(String, TriMesh, Vec<Vec3>)> {
+    let mut out = Vec::new();
+    // Bumps of 1-5.5 % of the diameter leave the caps 0.5-3 % of it off their fitted planes.
+    for fraction in [0.01, 0.03, 0.055] {
+        let bent = bend_cap(&bend_cap(&case.surface, 11, fraction), 16, fraction);
+        out.push((format!("caps bent {:.1} %", 100.0 * fraction), bent, case.points.clone()));
+    }
+    let (axis, shift) = (Vec3::from(AXIS), Vec3::from(SHIFT_MM));
+    let moved_points = case.points.iter().map(|&p| rigid_motion_point(p, axis, ANGLE_RAD, shift)).collect();
+    out.push(("rigid motion".into(), rigid_motion(&case.surface, axis, ANGLE_RAD, shift), moved_points));
+    out.push(("wall smoothed (3 Taubin rounds)".into(), smooth_wall(&case.surface, 3, 2), case.points.clone()));
+    out.push(("subdivided".into(), subdivide(&case.surface), case.points.clone()));
+    out.push(("noise 0.05 mm".into(), jitter(&case.surface, 0.05, 11), case.points.clone()));
+    out
+}
+
+fn run(surface: &TriMesh, points: &[Vec3], target: &TargetArea) -> Result<DesignResult, DesignError> {
+    design(surface, points, target, &DesignOptions::default(), &mut |_, _| true)
+}
+
+#[test]
+fn every_realistic_member_designs_verified_or_is_refused_by_name() {
+    let (mut designed, mut refused, mut problems) = (0, Vec::new(), Vec::new());
+    for case in cases() {
+        let base = run(&case.surface, &case.points, &case.target).unwrap_or_else(|e| panic!("{}: {e}", case.name));
+        for (what, surface, points) in members(&case) {
+            let name = format!("{} {what}", case.name);
+            match run(&surface, &points, &case.target) {
+                Ok(result) => match family::verified_smallest_section_mm2(&result) {
+                    Ok(smallest) => {
+                        designed += 1;
+                        let off: Vec<String> = result.report.caps.iter().map(|c| format!("{} {:.3} mm ({:.2} % of its diameter; limit {:.3} mm)", c.name, c.off_plane_mm, 50.0 * c.off_plane_mm / (c.area_before_mm2 / std::f64::consts::PI).sqrt(), c.limit_mm)).collect();
+                        println!("{name}: baffle {:.1} mm2, smallest re-measured {smallest:.2} mm2 (target {:.2}); caps off plane {}", result.report.baffle_area_mm2, result.report.target_area_mm2, off.join(", "));
+                        if what == "rigid motion" {
+                            // Reported, not yet held to 0.5 %: the paper's centerline is a PCHIP per
+                            // scanner coordinate, which turns with the frame (docs/validation.md).
+                            let (r, b) = (&result.report, &base.report);
+                            let change = |a: f64, b: f64| 100.0 * (a / b - 1.0);
+                            println!(
+                                "  {name} against unmoved: baffle {:+.2} %, smallest section {:+.2} %",
+                                change(r.baffle_area_mm2, b.baffle_area_mm2),
+                                change(r.min_constrained_final_area_mm2, b.min_constrained_final_area_mm2)
+                            );
+                        }
+                    }
+                    Err(why) => problems.push(format!("{name}: designed but {why}")),
+                },
+                // Caps up to 3 % off plane must design: the acceptance patient's are at 1.5 %.
+                Err(e) if what.starts_with("caps bent") => problems.push(format!("{name}: {e}")),
+                Err(e @ (DesignError::Infeasible { .. } | DesignError::Seam(_))) => refused.push(format!("{name}: {e}")),
+                Err(e) => problems.push(format!("{name}: unexplained refusal: {e}")),
+            }
+        }
+    }
+    println!("realism family: {designed} designed and verified, {} refused by name, {} problems", refused.len(), problems.len());
+    refused.iter().for_each(|r| println!("  refused: {r}"));
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
