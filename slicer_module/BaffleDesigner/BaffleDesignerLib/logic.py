@@ -16,7 +16,9 @@ and output nodes are node references ("BaffleDesigner*"). One scene can therefor
 several candidate baffles, one per closed curve.
 """
 
+import contextlib
 import math
+import threading
 import time
 from dataclasses import dataclass, fields
 from typing import Callable, Dict, List, Optional, Tuple
@@ -28,6 +30,10 @@ from vtkmodules.util import numpy_support
 
 from BaffleDesignerLib import environment, process
 
+MODULE_NAME = "BaffleDesigner"
+BAFFLE_PLANNER = "BafflePlanner"  # SlicerHeart's module: its parameter node names the curve
+PARAM_INPUT_CURVE = "InputCurve"  # the parameter node reference, as BafflePlanner names it
+PARAM_VENTRICLE = "Ventricle"
 ATTRIBUTE_PREFIX = "BaffleDesigner."
 CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
 ROLE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Role"
@@ -82,6 +88,10 @@ SECTION_COLUMNS = (
 
 class BaffleDesignerError(RuntimeError):
     """An error to show the user; str() carries the library's message where there is one."""
+
+
+class DesignCancelled(BaffleDesignerError):
+    """The design was cancelled (Cancel, or a progress callback that returned False)."""
 
 
 def library():
@@ -175,8 +185,9 @@ class DesignParameters:
         return {"annulus_diameter_mm": self.annulus_diameter_mm}
 
     def write(self, node) -> None:
-        for f in fields(self):
-            node.SetAttribute(ATTRIBUTE_PREFIX + f.name, str(getattr(self, f.name)))
+        with batched_modify(node):
+            for f in fields(self):
+                node.SetAttribute(ATTRIBUTE_PREFIX + f.name, str(getattr(self, f.name)))
 
     @classmethod
     def read(cls, node) -> "DesignParameters":
@@ -203,6 +214,32 @@ def require_executable(executable: Optional[str]) -> None:
         raise BaffleDesignerError(f"the baffle command line program {executable} is not an executable file")
 
 
+@contextlib.contextmanager
+def batched_modify(node):
+    """Hold back the node's ModifiedEvent until the block ends: one event for all the
+    attribute and reference writes in it. BafflePlanner's logic rebuilds its baffle on
+    every ModifiedEvent of its curve, and a design writes some 25 attributes there."""
+    was_modifying = node.StartModify()
+    try:
+        yield node
+    finally:
+        node.EndModify(was_modifying)
+
+
+def defined_points_key(curve) -> tuple:
+    """The defined control points of the curve (world), as a comparable value. In place
+    mode Slicer moves a preview point (PositionPreview) on every mouse move, firing
+    PointModifiedEvent; the design ignores preview points, so such events change nothing."""
+    key = []
+    for i in range(curve.GetNumberOfControlPoints()):
+        if curve.GetNthControlPointPositionStatus(i) != curve.PositionDefined:
+            continue
+        position = [0.0, 0.0, 0.0]
+        curve.GetNthControlPointPositionWorld(i, position)
+        key.append(tuple(position))
+    return tuple(key)
+
+
 def read_written_file(reader, path: str):
     """The output of a VTK reader for `path`, a file a child process was to write."""
     import os
@@ -226,6 +263,118 @@ class CandidateJob(process.PolledJob):
         self.executable = executable
         self.work_dir = work_dir
         self.env = env
+
+
+class DesignJob:
+    """One candidate's design without blocking the GUI: the inputs are read at start()
+    (MRML, on the caller's thread), baffle.design runs on a worker thread (the ctypes
+    call releases the GIL, so the event loop keeps running), and poll(), called from the
+    caller's timer, writes the outputs once it is done. `progress` / `stage` follow the
+    library's progress callback; cancel() makes that callback return False, which the
+    library honours at its next report. `state` is process.RUNNING / COMPLETED / FAILED /
+    CANCELLED, `error` the BaffleDesignerError of a failed or cancelled one."""
+
+    def __init__(self, logic, curve, allow_prepare: bool = False, progress=None, parameters=None, ventricle=None):
+        self.logic = logic
+        self.given_parameters = parameters
+        self.ventricle = ventricle
+        self.curve = curve
+        self.curve_id = curve.GetID() if curve is not None else None
+        self.allow_prepare = allow_prepare
+        self.user_progress = progress  # called from wait() on the caller's thread
+        self.progress = 0.0
+        self.stage = "design"
+        self.state = ""
+        self.message = ""
+        self.result = None
+        self.error: Optional[BaffleDesignerError] = None
+        self.points_key: tuple = ()
+        self._cancel = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._outcome = None
+        self._parameters = None
+        self._started = 0.0
+        # Time spent on the caller's (GUI) thread: reading the inputs, writing the outputs.
+        self.gui_ms = 0.0
+
+    def start(self) -> "DesignJob":
+        self._started = time.perf_counter()
+        self.state = process.RUNNING
+        try:
+            self._parameters, points, mesh = self.logic._design_inputs(
+                self.curve, self.allow_prepare, self.user_progress, self.given_parameters, self.ventricle)
+        except BaffleDesignerError as error:
+            self._end_with(error)
+            return self
+        finally:
+            self.gui_ms += 1000.0 * (time.perf_counter() - self._started)
+        self.points_key = defined_points_key(self.curve)
+        name = self.curve.GetName()
+        self._thread = threading.Thread(target=self._work, args=(name, self._parameters, points, mesh), daemon=True)
+        self._thread.start()
+        return self
+
+    def _report(self, fraction, stage) -> bool:
+        self.progress, self.stage = float(fraction), stage
+        return not self._cancel.is_set()
+
+    def _work(self, name, parameters, points, mesh) -> None:
+        try:
+            self._outcome = self.logic._run_library(name, parameters, points, mesh, self._report)
+        except BaffleDesignerError as error:
+            self._outcome = error
+        except Exception as error:  # a bug must end the job, not leave it running forever
+            self._outcome = BaffleDesignerError(f"design failed: {type(error).__name__}: {error}")
+
+    @property
+    def running(self) -> bool:
+        return self.state == process.RUNNING
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def poll(self) -> str:
+        """RUNNING while the library works; then the outputs are written here (once)."""
+        if self.state != process.RUNNING or self._thread is None or self._thread.is_alive():
+            return self.state
+        outcome, self._outcome = self._outcome, None
+        curve = self.logic.scene.GetNodeByID(self.curve_id) if self.curve_id else None
+        if curve is None or curve is not self.curve:
+            return self._finish(process.CANCELLED, "the candidate's curve was removed during the design")
+        if isinstance(outcome, BaffleDesignerError):
+            return self._end_with(outcome)
+        if self._cancel.is_set():
+            return self._end_with(DesignCancelled("design cancelled"))
+        writing = time.perf_counter()
+        elapsed_ms = 1000.0 * (writing - self._started)
+        self.logic._finish_design(curve, outcome, self._parameters, elapsed_ms, self.ventricle)
+        self.gui_ms += 1000.0 * (time.perf_counter() - writing)
+        self.result = outcome
+        return self._finish(process.COMPLETED, f"{curve.GetName()}: designed in {elapsed_ms:.0f} ms")
+
+    def _end_with(self, error: BaffleDesignerError) -> str:
+        self.error = error
+        if self.curve is not None and not isinstance(error, DesignCancelled):
+            valid = self._parameters if self._parameters is not None else None
+            self.logic._record_failure(self.curve, error, valid)
+        return self._finish(process.CANCELLED if isinstance(error, DesignCancelled) else process.FAILED, str(error))
+
+    def _finish(self, state: str, message: str) -> str:
+        self.state, self.message = state, message
+        if self.error is None and state == process.CANCELLED:
+            self.error = DesignCancelled(message)
+        return state
+
+    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.02) -> str:
+        """Poll until the design has ended, reporting progress to the caller's callback."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() == process.RUNNING:
+            if self.user_progress is not None and self.user_progress(self.progress, self.stage) is False:
+                self.cancel()
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"design still running after {timeout} s")
+            self._thread.join(poll_interval)
+        return self.state
 
 
 def _vtk_double_array(name: str, values) -> vtk.vtkDoubleArray:
@@ -329,6 +478,8 @@ class BaffleDesignerLogic:
         self._observations: Dict[str, List[Tuple[object, int]]] = {}
         self._pending: Dict[str, float] = {}
         self._dragging: set = set()  # IDs of curves with a control point being dragged
+        # The defined points last seen of each auto-updating curve (defined_points_key).
+        self._points_keys: Dict[str, tuple] = {}
         self.design_count = 0
         # The latest patch template of each candidate (curve ID -> baffle.Template).
         self._templates: Dict[str, object] = {}
@@ -340,21 +491,77 @@ class BaffleDesignerLogic:
         self.child_env: Optional[dict] = None
         self.work_root: Optional[str] = None
 
+    # ---- the parameter node: what the panel shows, saved with the scene ------------------
+
+    def parameterNode(self):
+        """The module's parameter node: the singleton vtkMRMLScriptedModuleNode that
+        Slicer's ScriptedLoadableModuleLogic.getParameterNode() returns too (tag and
+        ModuleName "BaffleDesigner"); created when the scene has none. slicer-core has no
+        parameterNodeWrapper, so this is the plain node with named references."""
+        node = self.scene.GetSingletonNode(MODULE_NAME, "vtkMRMLScriptedModuleNode")
+        if node is None:
+            node = self.scene.CreateNodeByClass("vtkMRMLScriptedModuleNode")
+            node.UnRegister(None)
+            node.SetSingletonTag(MODULE_NAME)
+            node.SetName(self.scene.GenerateUniqueName(MODULE_NAME))
+            node.SetAttribute("ModuleName", MODULE_NAME)
+            node = self.scene.AddNode(node)
+        return node
+
+    def bafflePlannerCurve(self):
+        """The closed curve SlicerHeart's BafflePlanner works on (its parameter node's
+        InputCurve), or None."""
+        collection = self.scene.GetNodesByClass("vtkMRMLScriptedModuleNode")
+        for i in range(collection.GetNumberOfItems()):
+            node = collection.GetItemAsObject(i)
+            if node.GetAttribute("ModuleName") == BAFFLE_PLANNER or node.GetSingletonTag() == BAFFLE_PLANNER:
+                curve = node.GetNodeReference(PARAM_INPUT_CURVE)
+                if curve is not None and curve.IsA("vtkMRMLMarkupsClosedCurveNode"):
+                    return curve
+        return None
+
+    def defaultInputCurve(self):
+        """The curve to show: the parameter node's, else BafflePlanner's InputCurve."""
+        curve = self.parameterNode().GetNodeReference(PARAM_INPUT_CURVE)
+        return curve if curve is not None else self.bafflePlannerCurve()
+
+    def setInputCurve(self, curve) -> None:
+        self.parameterNode().SetNodeReferenceID(PARAM_INPUT_CURVE, curve.GetID() if curve is not None else None)
+
+    def inputVentricle(self):
+        return self.parameterNode().GetNodeReference(PARAM_VENTRICLE)
+
+    def setInputVentricle(self, node) -> None:
+        self.parameterNode().SetNodeReferenceID(PARAM_VENTRICLE, node.GetID() if node is not None else None)
+
+    def isOutputNode(self, node) -> bool:
+        """Whether the node is one of this module's outputs (never a ventricle to offer)."""
+        return node is not None and bool(node.GetAttribute(ROLE_ATTRIBUTE))
+
     # ---- inputs and parameters -------------------------------------------------------
 
     def setSurfaceNode(self, curve, surface_node) -> None:
+        """The candidate's ventricle; no write (no ModifiedEvent) when it is already that."""
         self._check_curve(curve)
-        curve.SetNodeReferenceID(REF_SURFACE, surface_node.GetID() if surface_node else None)
-        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+        surface_id = surface_node.GetID() if surface_node else None
+        if curve.GetNodeReferenceID(REF_SURFACE) == surface_id and curve.GetAttribute(CANDIDATE_ATTRIBUTE) == "1":
+            return
+        with batched_modify(curve):
+            curve.SetNodeReferenceID(REF_SURFACE, surface_id)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
 
     def surfaceNode(self, curve):
         return curve.GetNodeReference(REF_SURFACE)
 
     def setParameters(self, curve, parameters: DesignParameters) -> None:
+        """Store the parameters on the candidate: one ModifiedEvent, none when unchanged."""
         self._check_curve(curve)
         parameters.validate()
-        parameters.write(curve)
-        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+        if curve.GetAttribute(CANDIDATE_ATTRIBUTE) == "1" and DesignParameters.read(curve) == parameters:
+            return
+        with batched_modify(curve):
+            parameters.write(curve)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
 
     def parameters(self, curve) -> DesignParameters:
         return DesignParameters.read(curve)
@@ -475,63 +682,98 @@ class BaffleDesignerLogic:
     # ---- design ----------------------------------------------------------------------
 
     def design(self, curve, progress=None, allow_prepare: bool = True) -> "baffle.DesignResult":
-        """Design the candidate of `curve` and update its output nodes. On failure the
-        previous outputs stay, the curve's Status/Error attributes say why, and
-        BaffleDesignerError carries the library's message. A segmentation ventricle is
-        prepared first when needed (see ventricleModel)."""
+        """Design the candidate of `curve` and update its output nodes, waiting for it
+        (scripts, tests; the widget uses startDesign). On failure the previous outputs
+        stay, the curve's Status/Error attributes say why, and BaffleDesignerError carries
+        the library's message. A segmentation ventricle is prepared first when needed (see
+        ventricleModel). progress(fraction, stage) is called on this thread; returning
+        False cancels."""
+        job = self.startDesign(curve, allow_prepare=allow_prepare, progress=progress)
+        job.wait()
+        if job.state != process.COMPLETED:
+            raise job.error
+        return job.result
+
+    def startDesign(self, curve, allow_prepare: bool = False, progress=None,
+                    parameters: Optional[DesignParameters] = None, ventricle=None) -> "DesignJob":
+        """Start designing the candidate: its inputs are read now, the library runs on a
+        worker thread, and the outputs are written by the job's poll() on the caller's
+        thread (MRML is not thread-safe). `parameters` (default: the curve's) and a
+        ventricle model node (default: the curve's) are stored on the curve with the
+        outputs, in the same one ModifiedEvent. Raises nothing: a failure is the job's state."""
+        return DesignJob(self, curve, allow_prepare, progress, parameters, ventricle).start()
+
+    def _design_inputs(self, curve, allow_prepare, progress, parameters=None, ventricle=None):
+        """(parameters, suture points, the ventricle as a baffle mesh), read on the GUI thread."""
         self._check_curve(curve)
-        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
-        started = time.perf_counter()
+        parameters = self.parameters(curve) if parameters is None else parameters
+        parameters.validate()
+        points = self.suturePointsWorld(curve)
+        _, vtk_adapters = library()
+        model = ventricle if ventricle is not None else self.ventricleModel(curve, allow_prepare, progress)
+        surface = self.surfacePolyDataWorld(model)
         try:
-            parameters = self.parameters(curve)
-            points = self.suturePointsWorld(curve)
-            baffle, vtk_adapters = library()
-            model = self.ventricleModel(curve, allow_prepare, progress)
-            surface = self.surfacePolyDataWorld(model)
-            try:
-                mesh = vtk_adapters.polydata_to_mesh(surface)
-            except ValueError as error:
-                raise BaffleDesignerError(f"{model.GetName()}: {error}") from error
-            try:
-                result = baffle.design(
-                    mesh.points, mesh.triangles, mesh.labels, points, progress=progress, **parameters.design_kwargs()
-                )
-            except baffle.Cancelled as error:
-                raise BaffleDesignerError(f"design cancelled: {error}") from error
-            except baffle.BaffleError as error:
-                # The largest target this suture line admits, when the target is out of reach.
-                largest = getattr(error, "max_feasible_area_mm2", None)
-                curve.SetAttribute(ATTRIBUTE_PREFIX + "MaxFeasibleAreaMm2", "" if largest is None else f"{largest:.1f}")
-                raise BaffleDesignerError(f"design failed: {error}") from error
-        except BaffleDesignerError as error:
+            mesh = vtk_adapters.polydata_to_mesh(surface)
+        except ValueError as error:
+            raise BaffleDesignerError(f"{model.GetName()}: {error}") from error
+        return parameters, points, mesh
+
+    @staticmethod
+    def _run_library(curve_name, parameters, points, mesh, progress):
+        """baffle.design on the inputs: a pure function of them, safe off the GUI thread."""
+        baffle, _ = library()
+        try:
+            return baffle.design(mesh.points, mesh.triangles, mesh.labels, points, progress=progress,
+                                 **parameters.design_kwargs())
+        except baffle.Cancelled as error:
+            raise DesignCancelled(f"design cancelled: {error}") from error
+        except baffle.BaffleError as error:
+            failure = BaffleDesignerError(f"design failed: {error}")
+            # The largest target this suture line admits, when the target is out of reach.
+            failure.max_feasible_area_mm2 = getattr(error, "max_feasible_area_mm2", None)
+            raise failure from error
+
+    @staticmethod
+    def _record_failure(curve, error, parameters: Optional[DesignParameters] = None) -> None:
+        largest = getattr(error, "max_feasible_area_mm2", None)
+        with batched_modify(curve):
+            if parameters is not None:
+                parameters.write(curve)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+            curve.SetAttribute(ATTRIBUTE_PREFIX + "MaxFeasibleAreaMm2", "" if largest is None else f"{largest:.1f}")
             curve.SetAttribute(ATTRIBUTE_PREFIX + "Status", "failed")
             curve.SetAttribute(ATTRIBUTE_PREFIX + "Error", str(error))
-            raise
-        self._write_outputs(curve, result, parameters)
-        if curve.GetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus") == "completed":
-            # Its results describe the previous geometry; kept, but marked.
-            curve.SetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus", "outdated")
-        elapsed_ms = 1000.0 * (time.perf_counter() - started)
-        report = result.report
-        for name, value in (
-            ("Status", "designed"),
-            ("Error", ""),
-            ("MaxFeasibleAreaMm2", ""),
-            ("TargetAreaMm2", report["target_area_mm2"]),
-            ("TargetDescription", report["target"]),
-            ("BaffleAreaMm2", report["baffle_area_mm2"]),
-            ("MinSectionAreaMm2", report["min_constrained_final_area_mm2"]),
-            ("ConstrainedSections", report["constrained_sections"]),
-            ("CenterlineLengthMm", report["centerline_length_mm"]),
-            ("RvVolumeBeforeMl", f"{report['rv_volume_before_ml']:.3f}"),
-            ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
-            ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
-            *rv_outflow_attributes(report),
-            ("DesignTimeMs", f"{elapsed_ms:.0f}"),
-        ):
-            curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
+
+    def _finish_design(self, curve, result, parameters, elapsed_ms, ventricle=None) -> None:
+        """The outputs and figures of a finished design onto the scene, one ModifiedEvent on the curve."""
+        with batched_modify(curve):
+            if ventricle is not None:
+                curve.SetNodeReferenceID(REF_SURFACE, ventricle.GetID())
+            parameters.write(curve)  # what it was designed with (the same unless the GUI passed others)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+            self._write_outputs(curve, result, parameters)
+            if curve.GetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus") == "completed":
+                # Its results describe the previous geometry; kept, but marked.
+                curve.SetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus", "outdated")
+            report = result.report
+            for name, value in (
+                ("Status", "designed"),
+                ("Error", ""),
+                ("MaxFeasibleAreaMm2", ""),
+                ("TargetAreaMm2", report["target_area_mm2"]),
+                ("TargetDescription", report["target"]),
+                ("BaffleAreaMm2", report["baffle_area_mm2"]),
+                ("MinSectionAreaMm2", report["min_constrained_final_area_mm2"]),
+                ("ConstrainedSections", report["constrained_sections"]),
+                ("CenterlineLengthMm", report["centerline_length_mm"]),
+                ("RvVolumeBeforeMl", f"{report['rv_volume_before_ml']:.3f}"),
+                ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
+                ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
+                *rv_outflow_attributes(report),
+                ("DesignTimeMs", f"{elapsed_ms:.0f}"),
+            ):
+                curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
         self.design_count += 1
-        return result
 
     def _output_node(self, curve, role: str, class_name: str, suffix: str):
         node = curve.GetNodeReference(role)
@@ -699,20 +941,21 @@ class BaffleDesignerLogic:
             )
         except baffle.BaffleError as error:
             raise BaffleDesignerError(f"{curve.GetName()}: template failed: {error}") from error
-        polydata = vtk_adapters.mesh_to_polydata(template.flat)
-        polydata.GetCellData().AddArray(_vtk_double_array("area_ratio", template.area_ratio))
-        node = self._model(curve, REF_FLAT_TEMPLATE, "flat template", polydata, (0.85, 0.25, 0.2))
-        node.SetAttribute(ATTRIBUTE_PREFIX + "DomainMTime", str(domain_node.GetPolyData().GetMTime()))
-        f = template.report["flattening"]
-        for name, value in (
-            ("TemplateMethod", method),
-            ("TemplateSeamLengthMm", f"{f['seam_length_3d_mm']:.2f}"),
-            ("TemplatePerimeterErrorPct", f"{100 * f['perimeter_error']:.2g}"),
-            ("TemplateAreaChangeMedianPct", f"{100 * f['area_distortion_median']:.1f}"),
-            ("TemplateAreaChangeMaxPct", f"{100 * f['area_distortion_max']:.1f}"),
-            ("TemplateAngleChangeMaxDeg", f"{f['angle_distortion_max_deg']:.1f}"),
-        ):
-            curve.SetAttribute(ATTRIBUTE_PREFIX + name, value)
+        with batched_modify(curve):
+            polydata = vtk_adapters.mesh_to_polydata(template.flat)
+            polydata.GetCellData().AddArray(_vtk_double_array("area_ratio", template.area_ratio))
+            node = self._model(curve, REF_FLAT_TEMPLATE, "flat template", polydata, (0.85, 0.25, 0.2))
+            node.SetAttribute(ATTRIBUTE_PREFIX + "DomainMTime", str(domain_node.GetPolyData().GetMTime()))
+            f = template.report["flattening"]
+            for name, value in (
+                ("TemplateMethod", method),
+                ("TemplateSeamLengthMm", f"{f['seam_length_3d_mm']:.2f}"),
+                ("TemplatePerimeterErrorPct", f"{100 * f['perimeter_error']:.2g}"),
+                ("TemplateAreaChangeMedianPct", f"{100 * f['area_distortion_median']:.1f}"),
+                ("TemplateAreaChangeMaxPct", f"{100 * f['area_distortion_max']:.1f}"),
+                ("TemplateAngleChangeMaxDeg", f"{f['angle_distortion_max_deg']:.1f}"),
+            ):
+                curve.SetAttribute(ATTRIBUTE_PREFIX + name, value)
         self._templates[curve.GetID()] = template
         return template
 
@@ -744,11 +987,13 @@ class BaffleDesignerLogic:
     # ---- auto-update ------------------------------------------------------------------
 
     def setAutoUpdate(self, curve, enabled: bool) -> None:
-        """Observe the curve's control points: an add, a remove, a move from a script and
-        the end of a drag mark the candidate pending; processPendingUpdates() designs it
-        once it has been quiet for debounce_seconds. Moves during a drag do not: Slicer
-        fires PointModifiedEvent on every mouse move, and a design would block the GUI
-        whenever the surgeon paused mid-drag."""
+        """Observe the curve's control points: a change of its defined points (an add, a
+        remove, a move from a script, the end of a drag) marks the candidate pending;
+        processPendingUpdates() designs it once it has been quiet for debounce_seconds.
+        Moves during a drag do not: Slicer fires PointModifiedEvent on every mouse move,
+        and a design would start whenever the surgeon paused mid-drag. Nor do preview
+        points: in place mode Slicer moves one on every mouse move, with no drag events,
+        and the design ignores it (defined_points_key)."""
         self._check_curve(curve)
         curve_id = curve.GetID()
         for node, tag in self._observations.pop(curve_id, []):
@@ -757,21 +1002,43 @@ class BaffleDesignerLogic:
         self._dragging.discard(curve_id)
         curve.SetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate", "1" if enabled else "0")
         if not enabled:
+            self._points_keys.pop(curve_id, None)
             return
+        self._points_keys[curve_id] = defined_points_key(curve)
         handlers = (
             (curve.PointModifiedEvent, self._on_curve_changed),
             (curve.PointAddedEvent, self._on_curve_changed),
             (curve.PointRemovedEvent, self._on_curve_changed),
+            (curve.PointPositionDefinedEvent, self._on_curve_changed),
+            (curve.PointPositionUndefinedEvent, self._on_curve_changed),
             (curve.PointStartInteractionEvent, self._on_drag_start),
             (curve.PointEndInteractionEvent, self._on_drag_end),
         )
         self._observations[curve_id] = [(curve, curve.AddObserver(event, handler)) for event, handler in handlers]
 
+    def rearmAutoUpdates(self) -> List[str]:
+        """Observe again every candidate saved with auto-update on (a reopened scene keeps
+        the attribute, not the observers). Returns their IDs."""
+        armed = []
+        for curve in self.candidates():
+            if curve.GetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate") == "1" and not self.isAutoUpdating(curve):
+                self.setAutoUpdate(curve, True)
+                armed.append(curve.GetID())
+        return armed
+
     def isAutoUpdating(self, curve) -> bool:
         return curve.GetID() in self._observations
 
+    def _points_changed(self, curve) -> bool:
+        """True (and remembered) when the defined points differ from the last ones seen."""
+        key = defined_points_key(curve)
+        if self._points_keys.get(curve.GetID()) == key:
+            return False
+        self._points_keys[curve.GetID()] = key
+        return True
+
     def _on_curve_changed(self, curve, _event=None) -> None:
-        if curve.GetID() not in self._dragging:
+        if curve.GetID() not in self._dragging and self._points_changed(curve):
             self.requestUpdate(curve)
 
     def _on_drag_start(self, curve, _event=None) -> None:
@@ -780,7 +1047,8 @@ class BaffleDesignerLogic:
 
     def _on_drag_end(self, curve, _event=None) -> None:
         self._dragging.discard(curve.GetID())
-        self.requestUpdate(curve)
+        if self._points_changed(curve):
+            self.requestUpdate(curve)
 
     def requestUpdate(self, curve) -> None:
         """Mark the candidate for a debounced redesign (point drags, parameter edits)."""
@@ -791,28 +1059,37 @@ class BaffleDesignerLogic:
     def pendingUpdates(self) -> List[str]:
         return list(self._pending)
 
-    def processPendingUpdates(self, now: Optional[float] = None, force: bool = False) -> Dict[str, Optional[str]]:
-        """Design every pending candidate that has been quiet for debounce_seconds (all
-        of them with force). Returns {curve ID: None or the error message}; errors are
-        also left on the curve (Status/Error attributes), never raised, so a point
-        dragged off the wall just leaves the last good baffle in place."""
+    def takeReadyUpdate(self, now: Optional[float] = None, force: bool = False):
+        """The next pending candidate that has been quiet for debounce_seconds (any with
+        force), no longer pending; None when there is none."""
         now = time.monotonic() if now is None else now
-        done = {}
         for curve_id, changed in list(self._pending.items()):
             if not force and now - changed < self.debounce_seconds:
                 continue
             del self._pending[curve_id]
             curve = self.scene.GetNodeByID(curve_id)
+            if curve is not None:
+                return curve
+        return None
+
+    def processPendingUpdates(self, now: Optional[float] = None, force: bool = False) -> Dict[str, Optional[str]]:
+        """Design every pending candidate that has been quiet for debounce_seconds (all
+        of them with force), waiting for each (the widget starts DesignJobs instead).
+        Returns {curve ID: None or the error message}; errors are also left on the curve
+        (Status/Error attributes), never raised, so a point dragged off the wall just
+        leaves the last good baffle in place."""
+        done = {}
+        while True:
+            curve = self.takeReadyUpdate(now, force)
             if curve is None:
-                continue
+                return done
             try:
                 self.design(curve, allow_prepare=False)  # live: never a prepare run
-                done[curve_id] = None
+                done[curve.GetID()] = None
             except BaffleDesignerError as error:
-                done[curve_id] = str(error)
+                done[curve.GetID()] = str(error)
             if self.onAutoUpdated is not None:
-                self.onAutoUpdated(curve, done[curve_id])
-        return done
+                self.onAutoUpdated(curve, done[curve.GetID()])
 
     def cleanup(self) -> None:
         """Remove all observers (module widget cleanup / scene close)."""
@@ -822,6 +1099,7 @@ class BaffleDesignerLogic:
         self._observations.clear()
         self._pending.clear()
         self._dragging.clear()
+        self._points_keys.clear()
 
     # ---- candidates ---------------------------------------------------------------------
 

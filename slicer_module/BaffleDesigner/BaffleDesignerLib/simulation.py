@@ -264,33 +264,34 @@ def store_results(logic, curve, results: SimulationResults, out_dir: str, outdat
     """The checked results onto the candidate: summary table, peak fields model, time
     series table and chart (node references on the curve), the verdict (attributes).
     `outdated`: the candidate was redesigned while it ran."""
-    summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
-    summary_node.SetAndObserveTable(_summary_table(results))
-    summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
+    with bdlogic.batched_modify(curve):  # one ModifiedEvent on the curve (BafflePlanner observes it)
+        summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
+        summary_node.SetAndObserveTable(_summary_table(results))
+        summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
 
-    fields_node = logic._output_node(curve, bdlogic.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
-    fields_node.SetAndObserveMesh(results.fields)
-    display = fields_node.GetDisplayNode()
-    if display is not None:
-        display.SetActiveScalar("speed_m_s", vtk.vtkAssignAttribute.POINT_DATA)
-        display.SetAndObserveColorNodeID("vtkMRMLColorTableNodeFileViridis.txt")
-        display.SetScalarVisibility(True)
-        display.SetOpacity(0.5)
+        fields_node = logic._output_node(curve, bdlogic.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
+        fields_node.SetAndObserveMesh(results.fields)
+        display = fields_node.GetDisplayNode()
+        if display is not None:
+            display.SetActiveScalar("speed_m_s", vtk.vtkAssignAttribute.POINT_DATA)
+            display.SetAndObserveColorNodeID("vtkMRMLColorTableNodeFileViridis.txt")
+            display.SetScalarVisibility(True)
+            display.SetOpacity(0.5)
 
-    series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
-    series_node.SetAndObserveTable(_series_table(results))
-    _write_series_chart(logic, curve, series_node, results)
+        series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
+        series_node.SetAndObserveTable(_series_table(results))
+        _write_series_chart(logic, curve, series_node, results)
 
-    for name, value in (
-        ("SimulationStatus", "outdated" if outdated else "completed"),
-        ("SimulationDpMmhg", results.dp_mmhg),
-        ("SimulationMaxVelocityMS", results.max_velocity_m_s),
-        ("SimulationVerdict", results.verdict),
-        ("SimulationMode", results.mode),  # the GUI's words
-        ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
-        ("SimulationDir", out_dir),
-    ):
-        curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
+        for name, value in (
+            ("SimulationStatus", "outdated" if outdated else "completed"),
+            ("SimulationDpMmhg", results.dp_mmhg),
+            ("SimulationMaxVelocityMS", results.max_velocity_m_s),
+            ("SimulationVerdict", results.verdict),
+            ("SimulationMode", results.mode),  # the GUI's words
+            ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
+            ("SimulationDir", out_dir),
+        ):
+            curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
 
 
 CHART_TITLES = {"quick": "from rest to the first flow peak", "steady": "steady solve at peak flow", "pulsatile": "pulsatile run"}

@@ -1,0 +1,142 @@
+"""BaffleDesigner in the scene a SlicerHeart user has: BafflePlanner's 'BC' closed curve,
+its parameter node and its logic, which rebuilds its baffle on every ModifiedEvent of the
+curve (baffle_planner_standin.py, after SlicerHeart's public BafflePlanner.py). On
+slicer-core's real MRML classes, without Qt."""
+
+import time
+
+import pytest
+import vtk
+
+from baffle_planner_standin import BafflePlannerLogic
+from BaffleDesignerLib import logic as bdlogic
+from BaffleDesignerLib import process
+from conftest import phantom_candidate
+
+
+def planner_on(scene, curve):
+    """BafflePlanner's logic working on `curve`, auto-updating its 'BaffleModel'."""
+    planner = BafflePlannerLogic(scene)
+    planner.setInputCurveNode(curve)
+    baffle_model = scene.AddNewNodeByClass("vtkMRMLModelNode", "Baffle")
+    planner.setOutputBaffleModelNode(baffle_model)
+    assert curve.GetAttribute("AutoUpdate") == "true" and planner.rebuilds > 0
+    assert baffle_model.GetPolyData().GetNumberOfPoints() > 0  # its soap bubble
+    planner.rebuilds = planner.modified_reactions = 0
+    return planner
+
+
+def count_modified(node):
+    counter = {"n": 0}
+    tag = node.AddObserver(vtk.vtkCommand.ModifiedEvent, lambda *_: counter.__setitem__("n", counter["n"] + 1))
+    return counter, tag
+
+
+def test_one_design_is_one_modified_event_and_one_baffle_planner_reaction(phantom_scene):
+    scene, logic, _, curve = phantom_scene
+    planner = planner_on(scene, curve)
+    counter, tag = count_modified(curve)
+    logic.design(curve)
+    curve.RemoveObserver(tag)
+    assert curve.GetAttribute("BaffleDesigner.Status") == "designed"
+    assert counter["n"] == 1, f"{counter['n']} ModifiedEvents of the curve for one design"
+    assert planner.modified_reactions == 1
+    # BafflePlanner's own answer to one ModifiedEvent: setOutputBaffleModelNode ->
+    # updatePointPlaceMode rebuilds, then it rebuilds again (its code, not ours).
+    assert planner.rebuilds == 2
+    # Storing parameters is one event too.
+    counter, tag = count_modified(curve)
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="area", target_area_mm2=60.0))
+    curve.RemoveObserver(tag)
+    assert counter["n"] == 1
+
+
+def test_a_failed_design_is_one_modified_event(phantom_scene):
+    scene, logic, _, curve = phantom_scene
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="area", target_area_mm2=1e6))
+    counter, tag = count_modified(curve)
+    with pytest.raises(bdlogic.BaffleDesignerError):
+        logic.design(curve)
+    curve.RemoveObserver(tag)
+    assert curve.GetAttribute("BaffleDesigner.Status") == "failed" and counter["n"] == 1
+
+
+def add_preview_point(curve, position):
+    """Place mode as Slicer's markups widget does it: a preview control point that follows
+    the mouse (PositionPreview), moved on every mouse move with no interaction events."""
+    index = curve.AddControlPointWorld(vtk.vtkVector3d(*position))
+    curve.SetNthControlPointPositionWorld(index, *position, curve.PositionPreview)
+    return index
+
+
+def test_moving_a_preview_point_requests_no_design(phantom_scene):
+    scene, logic, _, curve = phantom_scene
+    logic.setAutoUpdate(curve, True)
+    a = curve.GetNthControlPointPositionWorld(0)
+    index = add_preview_point(curve, [a[0] + 5, a[1], a[2]])
+    assert curve.GetNthControlPointPositionStatus(index) == curve.PositionPreview
+    logic._pending.clear()  # whatever the add asked for; the moves are the question
+    for step in range(20):
+        curve.SetNthControlPointPositionWorld(index, a[0] + 5 + step, a[1] + step, a[2], curve.PositionPreview)
+    assert logic.pendingUpdates() == []
+    assert logic.processPendingUpdates(force=True) == {} and logic.design_count == 0
+    # Placing it (the click) is a change of the defined points: that redesigns.
+    curve.SetNthControlPointPositionWorld(index, a[0] + 1, a[1], a[2])
+    assert logic.pendingUpdates() == [curve.GetID()]
+    logic.cleanup()
+
+
+def test_auto_update_is_rearmed_in_a_reopened_scene(phantom_scene):
+    scene, logic, _, curve = phantom_scene
+    logic.setAutoUpdate(curve, True)
+    logic.cleanup()  # the scene is closed and read back: the attribute stays, observers do not
+    again = bdlogic.BaffleDesignerLogic(scene)
+    assert not again.isAutoUpdating(curve)
+    assert again.rearmAutoUpdates() == [curve.GetID()]
+    a = curve.GetNthControlPointPositionWorld(2)
+    curve.SetNthControlPointPositionWorld(2, a[0] + 0.5, a[1], a[2])
+    assert again.pendingUpdates() == [curve.GetID()]
+    again.cleanup()
+
+
+def test_the_design_runs_off_the_calling_thread_and_can_be_cancelled(phantom_scene):
+    scene, logic, _, curve = phantom_scene
+    first = logic.design(curve)
+    area = curve.GetAttribute("BaffleDesigner.BaffleAreaMm2")
+    baffle_id = curve.GetNodeReferenceID(bdlogic.REF_BAFFLE)
+    started = time.perf_counter()
+    job = logic.startDesign(curve)
+    returned_s = time.perf_counter() - started
+    assert job.state == process.RUNNING and job._thread.is_alive()
+    job.cancel()
+    assert job.wait(timeout=60) == process.CANCELLED, job.message
+    assert curve.GetAttribute("BaffleDesigner.BaffleAreaMm2") == area  # the last good baffle stays
+    assert curve.GetNodeReferenceID(bdlogic.REF_BAFFLE) == baffle_id
+    assert curve.GetAttribute("BaffleDesigner.Status") == "designed"
+    assert returned_s < 0.5 * float(curve.GetAttribute("BaffleDesigner.DesignTimeMs")) / 1000.0 + 0.05
+    assert first.report["baffle_area_mm2"] > 0
+
+
+def test_a_design_whose_curve_was_removed_writes_nothing(phantom_scene):
+    scene, logic, _, curve = phantom_scene
+    models_before = scene.GetNumberOfNodesByClass("vtkMRMLModelNode")
+    job = logic.startDesign(curve)
+    scene.RemoveNode(curve)
+    assert job.wait(timeout=60) == process.CANCELLED
+    assert "removed" in job.message
+    assert scene.GetNumberOfNodesByClass("vtkMRMLModelNode") == models_before
+
+
+def test_the_parameter_node_defaults_to_baffle_planners_input_curve(scene):
+    _, logic, _, curve = phantom_candidate(scene)
+    other = scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "another curve")
+    assert logic.defaultInputCurve() is None
+    planner = BafflePlannerLogic(scene)
+    planner.setInputCurveNode(curve)
+    assert planner.getParameterNode().GetNodeReference("InputCurve") is curve
+    assert logic.bafflePlannerCurve() is curve and logic.defaultInputCurve() is curve
+    logic.setInputCurve(other)  # the user's choice wins, and is the parameter node's
+    assert logic.defaultInputCurve() is other
+    node = logic.parameterNode()
+    assert node.GetAttribute("ModuleName") == "BaffleDesigner" and node.GetSingletonTag() == "BaffleDesigner"
+    assert node.GetNodeReference("InputCurve") is other
