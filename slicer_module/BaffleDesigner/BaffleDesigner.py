@@ -46,7 +46,11 @@ target, outputs (baffle, domain, centerline, sections, area table and chart) and
 kept on the curve node, so one scene can hold several candidates to compare.
 """
         self.parent.acknowledgementText = """
-Built on SlicerHeart's BafflePlanner conventions; geometry by the baffle library (Rust, C ABI).
+The method is that of Martinez et al., "Semi-Automated Generation and Hemodynamic Assessment of
+Surgical Baffle Geometry for Biventricular Repair". The suture curve and scene conventions are
+SlicerHeart's BafflePlanner (Lasso, Pinter et al., "Modeling Tool for Rapid Virtual Planning of
+the Intracardiac Baffle in Double Outlet Right Ventricle", Ann Thorac Surg). Geometry by the
+baffle library (Rust, C ABI), shipped with this extension.
 """
 
 
