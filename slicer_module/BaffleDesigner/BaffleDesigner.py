@@ -251,6 +251,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.abandonRun()
         if self.logic is not None:
             self.logic.cleanup()
+            self.logic.removeSceneObservers()
 
     def onReload(self):
         """Reload BaffleDesignerLib too (Slicer's reload re-runs only BaffleDesigner.py),

@@ -61,6 +61,14 @@ REF_SIM_CHART = "BaffleDesignerSimulationChart"
 REF_SIM_SERIES_DP = "BaffleDesignerSeriesPressureDifference"
 REF_SIM_SERIES_FLOW = "BaffleDesignerSeriesInflow"
 
+# The roles of a candidate's outputs: they go with their curve.
+OUTPUT_ROLES = (
+    REF_BAFFLE, REF_DOMAIN, REF_CENTERLINE, REF_SECTIONS, REF_TABLE, REF_CHART, REF_SERIES_FINAL, REF_SERIES_RAW,
+    REF_SERIES_TARGET, REF_PREPARED, REF_FLAT_TEMPLATE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_SIM_SUMMARY,
+    REF_SIM_FIELDS, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
+)
+FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
+
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
 # "quick": pulsatile from rest to the first flow peak (`baffle simulate --quick`; within
 # 0.6 % of the 4-cycle peak dp on p2 and p3's extended domains), the default;
@@ -263,6 +271,15 @@ class CandidateJob(process.PolledJob):
         self.executable = executable
         self.work_dir = work_dir
         self.env = env
+
+    def curve_removed(self) -> bool:
+        """Whether the candidate's curve has left the scene (its results have nowhere to go)."""
+        return self.logic.scene.GetNodeByID(self.curve.GetID()) is not self.curve
+
+    def stop_for_removed_curve(self) -> str:
+        """Cancel the running process and end the job: the curve was removed meanwhile."""
+        self.cancel_process(3.0)
+        return self.finish(process.CANCELLED, f"{self.curve.GetName()} was removed: the run was stopped, nothing loaded")
 
 
 class DesignJob:
@@ -490,6 +507,13 @@ class BaffleDesignerLogic:
         self.executable: Optional[str] = None
         self.child_env: Optional[dict] = None
         self.work_root: Optional[str] = None
+        # A removed candidate takes its outputs along: their IDs are taken while the curve
+        # is still in the scene (its references resolve), removed once it has gone.
+        self._leaving: Dict[str, List[str]] = {}
+        self._scene_tags = [
+            scene.AddObserver(scene.NodeAboutToBeRemovedEvent, self._on_node_about_to_be_removed),
+            scene.AddObserver(scene.NodeRemovedEvent, self._on_node_removed),
+        ]
 
     # ---- the parameter node: what the panel shows, saved with the scene ------------------
 
@@ -787,7 +811,69 @@ class BaffleDesignerLogic:
             if hasattr(node, "CreateDefaultDisplayNodes"):
                 node.CreateDefaultDisplayNodes()
             curve.SetNodeReferenceID(role, node.GetID())
+            self._into_folder(curve, node)
         return node
+
+    # ---- a candidate's outputs: one subject hierarchy folder, removed with the curve --------
+
+    def candidateFolder(self, curve, create: bool = True) -> int:
+        """The subject hierarchy folder of the candidate's outputs (item ID; 0 when there
+        is none and not create), found by its attribute naming the curve."""
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        children = vtk.vtkIdList()
+        sh.GetItemChildren(sh.GetSceneItemID(), children)
+        for i in range(children.GetNumberOfIds()):
+            item = children.GetId(i)
+            if sh.GetItemAttribute(item, FOLDER_ATTRIBUTE) == curve.GetID():
+                return item
+        if not create:
+            return 0
+        folder = sh.CreateFolderItem(sh.GetSceneItemID(), f"{curve.GetName()} BaffleDesigner")
+        sh.SetItemAttribute(folder, FOLDER_ATTRIBUTE, curve.GetID())
+        return folder
+
+    def _into_folder(self, curve, node) -> None:
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        folder = self.candidateFolder(curve)
+        item = sh.GetItemByDataNode(node)
+        if item:
+            sh.SetItemParent(item, folder)
+        else:  # Slicer's subject hierarchy logic makes the item; a bare MRML scene does not
+            sh.CreateItem(folder, node)
+
+    def _on_node_about_to_be_removed(self, scene, _event) -> None:
+        # No call data in a plain Python observer: check the candidates still in the scene.
+        if scene.IsClosing() or scene.IsBatchProcessing():
+            return
+        for curve in self.candidates():
+            if curve.GetID() not in self._leaving:
+                self._leaving[curve.GetID()] = [curve.GetNodeReferenceID(role) for role in OUTPUT_ROLES
+                                                if curve.GetNodeReferenceID(role)]
+
+    def _on_node_removed(self, scene, _event) -> None:
+        if scene.IsClosing() or scene.IsBatchProcessing():
+            self._leaving.clear()
+            return
+        leaving, self._leaving = self._leaving, {}
+        for curve_id, output_ids in leaving.items():
+            if scene.GetNodeByID(curve_id) is not None:
+                continue  # still there: another node was removed
+            for node_id in output_ids:
+                node = scene.GetNodeByID(node_id)
+                if node is not None:
+                    scene.RemoveNode(node)
+            sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(scene)
+            children = vtk.vtkIdList()
+            sh.GetItemChildren(sh.GetSceneItemID(), children)
+            for i in range(children.GetNumberOfIds()):
+                if sh.GetItemAttribute(children.GetId(i), FOLDER_ATTRIBUTE) == curve_id:
+                    sh.RemoveItem(children.GetId(i), True, True)
+                    break
+
+    def removeSceneObservers(self) -> None:
+        for tag in self._scene_tags:
+            self.scene.RemoveObserver(tag)
+        self._scene_tags = []
 
     def _model(self, curve, role, suffix, polydata, color, opacity=1.0):
         node = self._output_node(curve, role, "vtkMRMLModelNode", suffix)

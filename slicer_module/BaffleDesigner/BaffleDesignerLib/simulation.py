@@ -374,6 +374,8 @@ class SimulationJob(bdlogic.CandidateJob):
 
     def poll(self) -> str:
         """Advance the chain; call it from the GUI thread (it changes the scene at the end)."""
+        if self.running and self.curve_removed():
+            return self.stop_for_removed_curve()
         if not self.running or self.run.running:
             return self.state
         run = self.run

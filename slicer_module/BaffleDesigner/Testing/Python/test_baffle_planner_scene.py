@@ -140,3 +140,37 @@ def test_the_parameter_node_defaults_to_baffle_planners_input_curve(scene):
     node = logic.parameterNode()
     assert node.GetAttribute("ModuleName") == "BaffleDesigner" and node.GetSingletonTag() == "BaffleDesigner"
     assert node.GetNodeReference("InputCurve") is other
+
+
+def test_a_candidates_outputs_are_in_its_folder_and_leave_with_its_curve(phantom_scene):
+    import slicer
+
+    scene, logic, model, curve = phantom_scene
+    logic.design(curve)
+    sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(scene)
+    folder = logic.candidateFolder(curve, create=False)
+    assert folder and sh.GetItemName(folder) == "phantom BC BaffleDesigner"
+    outputs = [curve.GetNodeReference(role) for role in bdlogic.OUTPUT_ROLES if curve.GetNodeReference(role)]
+    assert len(outputs) >= 8
+    assert all(sh.GetItemParent(sh.GetItemByDataNode(node)) == folder for node in outputs)
+    ids = [node.GetID() for node in outputs]
+    scene.RemoveNode(curve)
+    assert [node_id for node_id in ids if scene.GetNodeByID(node_id) is not None] == []
+    assert scene.GetNodeByID(model.GetID()) is model  # the ventricle is an input: it stays
+    assert logic.candidateFolder(curve, create=False) == 0
+
+
+def test_a_simulation_whose_curve_was_removed_loads_nothing(phantom_scene, tmp_path):
+    import stat
+
+    scene, logic, _, curve = phantom_scene
+    logic.design(curve)
+    slow = tmp_path / "baffle"
+    slow.write_text("#!/bin/sh\nsleep 30\n")
+    slow.chmod(slow.stat().st_mode | stat.S_IEXEC)
+    job = logic.startSimulation(curve, str(slow), str(tmp_path / "work"))
+    assert job.poll() == process.RUNNING
+    scene.RemoveNode(curve)
+    assert job.poll() == process.CANCELLED and "removed" in job.message
+    assert job.run.wait(timeout=10) == process.CANCELLED
+    assert scene.GetNodesByClass("vtkMRMLTableNode").GetNumberOfItems() == 0

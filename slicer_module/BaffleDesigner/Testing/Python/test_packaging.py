@@ -104,3 +104,19 @@ def test_a_packaged_module_without_a_working_package_fails_its_self_test(install
                           capture_output=True, text=True, timeout=120)
     assert "SKIPPED 0 FAILED 1" in done.stdout, done.stdout + done.stderr[-3000:]
     assert "packaged extension" in done.stderr and str(broken / "baffle") in done.stderr
+
+
+def test_the_python_wheel_is_tagged_for_any_python_3_on_this_platform(tmp_path):
+    """The package loads libbaffle with ctypes: no CPython ABI, so py3-none-<platform>
+    (marking it as having extension modules alone gave cp3X-cp3X)."""
+    import zipfile
+
+    library = os.environ.get("BAFFLE_LIBRARY") or str(REPO / "target" / "release" / "libbaffle.so")
+    env = dict(os.environ, BAFFLE_LIBRARY=library, BAFFLE_BUILD_QUIET="1")
+    done = subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation",
+                           "-w", str(tmp_path), str(REPO / "python")], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    (wheel,) = tmp_path.glob("baffle-*.whl")
+    name, version, python_tag, abi_tag, platform_tag = wheel.stem.split("-")
+    assert (python_tag, abi_tag) == ("py3", "none") and platform_tag != "any", wheel.name
+    assert "baffle/" + Path(library).name in zipfile.ZipFile(wheel).namelist()
