@@ -65,12 +65,23 @@ LIB_MODULES = ("environment", "process", "logic", "prepare", "simulation", "repo
 CHECKING = "checking the baffle program ..."
 
 
-def childEnvironment():
+SETTING_PROGRAM = "BaffleDesigner/ProgramPath"
+SETTING_GMSH = "BaffleDesigner/GmshPath"
+
+
+def childEnvironment(gmsh=None):
     """The environment for `baffle` child processes: Slicer's startup environment, without
     the launcher's PYTHONHOME/PYTHONPATH/LD_LIBRARY_PATH (a system python3 aborts under
     Slicer's Python settings), and BAFFLE_PYTHON naming the Python found the way Slicer
-    runs it (PythonSlicer), which `baffle mesh` runs the gmsh wheel with."""
-    return bdenvironment.child_environment(slicer.util.startupEnvironment())
+    runs it (PythonSlicer), which `baffle mesh` runs the gmsh wheel with. `gmsh`: the
+    settings panel's gmsh path (default: the saved setting), given to `baffle mesh` as
+    BAFFLE_GMSH."""
+    env = bdenvironment.child_environment(slicer.util.startupEnvironment())
+    if gmsh is None:
+        gmsh = slicer.app.userSettings().value(SETTING_GMSH, "") or ""
+    if gmsh:
+        env["BAFFLE_GMSH"] = gmsh
+    return env
 
 
 class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
@@ -140,21 +151,16 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.flattenButton.connect("clicked(bool)", self.onFlatten)
         self.ui.saveTemplateButton.connect("clicked(bool)", self.onSaveTemplate)
 
-        self.executable = bdprocess.find_baffle_executable()
-        self.logic.executable = self.executable
-        self.logic.child_env = childEnvironment()
         self.logic.work_root = slicer.app.temporaryPath
-        # First-run check: the package now, the program's subcommands on a background
-        # thread (`baffle ... --help` must not hold up the module panel).
-        self.packageProblem = bdenvironment.package_problem()
-        env = self.logic.child_env
-        self.probe = bdprocess.SubcommandProbe(self.executable, bdenvironment.SUBCOMMANDS,
-                                               checks={"gmsh": lambda: bdenvironment.gmsh_availability(env)}).start()
         self.probeTimer = qt.QTimer()
         self.probeTimer.setInterval(100)
         self.probeTimer.connect("timeout()", self.onProbeTimer)
-        self.probeTimer.start()
-        self.showRequirements()
+        settings = slicer.app.userSettings()
+        self.ui.programPathLineEdit.text = settings.value(SETTING_PROGRAM, "") or ""
+        self.ui.gmshPathLineEdit.text = settings.value(SETTING_GMSH, "") or ""
+        self.ui.applySettingsButton.connect("clicked(bool)", self.onApplySettings)
+        self.ui.installGmshButton.connect("clicked(bool)", self.onInstallGmsh)
+        self.checkRequirements()
         self.ui.cancelButton.enabled = False
         self.ui.progressBar.setRange(0, 1000)
 
@@ -180,6 +186,45 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.logic.rearmAutoUpdates()
         self.initializeFromParameterNode()
         self.updateGUIFromCurve()
+
+    def checkRequirements(self):
+        """The first-run check with the paths of the settings panel (read now, not once
+        at start-up): the package here, the program's subcommands and gmsh on a
+        background thread (`baffle ... --help` must not hold up the module panel)."""
+        self.executable = self.ui.programPathLineEdit.text.strip() or bdprocess.find_baffle_executable()
+        self.logic.executable = self.executable
+        self.logic.child_env = childEnvironment(self.ui.gmshPathLineEdit.text.strip())
+        self.packageProblem = bdenvironment.package_problem()
+        self.simulateReason = self.volumeMeshReason = CHECKING
+        env = self.logic.child_env
+        self.probe = bdprocess.SubcommandProbe(self.executable, bdenvironment.SUBCOMMANDS,
+                                               checks={"gmsh": lambda: bdenvironment.gmsh_availability(env)}).start()
+        self.probeTimer.start()
+        self.showRequirements()
+
+    def onApplySettings(self):
+        settings = slicer.app.userSettings()
+        settings.setValue(SETTING_PROGRAM, self.ui.programPathLineEdit.text.strip())
+        settings.setValue(SETTING_GMSH, self.ui.gmshPathLineEdit.text.strip())
+        self.checkRequirements()
+        self.updateGUIFromCurve()
+
+    def onInstallGmsh(self):
+        """pip-install the gmsh wheel into Slicer's Python, after asking."""
+        python = bdenvironment.python_interpreter(self.logic.child_env)
+        if not slicer.util.confirmOkCancelDisplay(
+            f"Install the gmsh Python wheel (about 60 MB, from PyPI) into Slicer's Python ({python})? "
+            "Volume mesh and Simulate run it through `baffle mesh`.", windowTitle="Install gmsh"):
+            self.setStatus("gmsh was not installed.")
+            return
+        try:
+            with slicer.util.WaitCursor():
+                slicer.util.pip_install("gmsh")
+        except Exception as error:  # pip's failure, whatever its type, is the user's to read
+            self.showError("Installing gmsh failed", str(error))
+            return
+        self.setStatus("gmsh installed; checking again ...")
+        self.checkRequirements()
 
     def onProbeTimer(self):
         """The subcommand check has ended: enable what the program offers, say what is missing."""
@@ -440,7 +485,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                 ventricle = None
             if self.logic.needsPrepare(self.curve):
                 self.runDir = self.workDirectory(PREPARE)
-                job = self.logic.startPrepare(self.curve, self.executable, self.runDir, env=childEnvironment())
+                job = self.logic.startPrepare(self.curve, self.executable, self.runDir, env=self.logic.child_env)
                 self.startRun(PREPARE, job)
                 return
         except (bdlogic.BaffleDesignerError, OSError) as error:
@@ -645,7 +690,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.runDir = self.workDirectory(VOLUME_MESH)
             edge_mm = self.ui.meshEdgeLengthSpinBox.value
             command = self.logic.volumeMeshCommand(self.curve, self.executable, self.runDir, edge_mm)
-            self.startRun(VOLUME_MESH, bdprocess.CliProcess(command, env=childEnvironment()).start())
+            self.startRun(VOLUME_MESH, bdprocess.CliProcess(command, env=self.logic.child_env).start())
         except (bdlogic.BaffleDesignerError, OSError) as error:
             self.showError("Volume mesh failed", str(error))
 
@@ -655,7 +700,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         try:
             self.logic.setParameters(self.curve, self.parametersFromGUI())
             self.runDir = self.workDirectory(SIMULATION)
-            job = self.logic.startSimulation(self.curve, self.executable, self.runDir, env=childEnvironment())
+            job = self.logic.startSimulation(self.curve, self.executable, self.runDir, env=self.logic.child_env)
             self.startRun(SIMULATION, job)
         except (bdlogic.BaffleDesignerError, OSError) as error:
             self.showError("Simulation could not start", str(error))

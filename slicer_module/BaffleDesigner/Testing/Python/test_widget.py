@@ -614,3 +614,37 @@ def test_the_self_test_is_a_clear_skip_without_the_package():
     assert done.returncode == 0, done.stderr[-3000:]
     assert "SKIPPED 1 FAILED 0" in done.stdout, done.stdout + done.stderr[-3000:]
     assert "baffle package" in done.stdout
+
+
+def test_the_settings_panel_sets_the_program_and_gmsh_and_install_asks_first(module, tmp_path, monkeypatch):
+    """Paths from the panel, not only from environment variables read once (a Finder-started
+    Slicer on macOS has no Homebrew PATH); Install gmsh asks before running pip."""
+    slicer.mrmlScene.Clear(0)
+    w = harness.make_module_widget(module)
+    settings = app.userSettings()
+    try:
+        assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+        w.ui.programPathLineEdit.text = str(tmp_path / "no-such-baffle")
+        w.ui.gmshPathLineEdit.text = str(tmp_path / "no-such-gmsh")
+        w.ui.applySettingsButton.click()
+        assert settings.value("BaffleDesigner/GmshPath") == str(tmp_path / "no-such-gmsh")
+        assert w.executable == str(tmp_path / "no-such-baffle") and w.logic.child_env["BAFFLE_GMSH"].endswith("no-such-gmsh")
+        assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+        assert "no-such-baffle" in w.ui.requirementsLabel.text and "no-such-gmsh" in w.ui.requirementsLabel.text
+        asked, installed = [], []
+        monkeypatch.setattr(slicer.util, "confirmOkCancelDisplay", lambda text, **kw: asked.append(text) or False)
+        monkeypatch.setattr(slicer.util, "pip_install", lambda requirement, **kw: installed.append(requirement))
+        w.ui.installGmshButton.click()
+        assert len(asked) == 1 and "gmsh" in asked[0] and installed == []  # declined: nothing installed
+        monkeypatch.setattr(slicer.util, "confirmOkCancelDisplay", lambda text, **kw: True)
+        w.ui.installGmshButton.click()
+        assert installed == ["gmsh"]
+        w.ui.programPathLineEdit.text = w.ui.gmshPathLineEdit.text = ""
+        w.ui.applySettingsButton.click()
+        assert w.executable and "no-such" not in w.executable
+        assert w.logic.child_env.get("BAFFLE_GMSH") == os.environ.get("BAFFLE_GMSH")
+    finally:
+        settings.remove("BaffleDesigner/ProgramPath")
+        settings.remove("BaffleDesigner/GmshPath")
+        harness.process_events_for(30, until=lambda: w.probe.done)
+        harness.unload_module(module)
