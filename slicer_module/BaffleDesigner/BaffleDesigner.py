@@ -406,6 +406,11 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def onSurfaceSelected(self, node):
         if self._closing:
             return
+        if self.logic.isOutputNode(node):
+            # The selector offers every model, this module's outputs too (it has no exclude
+            # filter); one of them is never the ventricle, so the candidate keeps its own.
+            self.setStatus(f"{node.GetName()} is a BaffleDesigner output, not a ventricle; the candidate keeps its ventricle.", error=True)
+            return
         self.updateSegmentChoices(node)
         self.logic.setInputVentricle(node)
         if self._updatingGUI or self.curve is None:
@@ -629,6 +634,11 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
 
     def onCompare(self):
         reason = self.simulateReason
+        for curve in self.logic.candidates():  # BafflePlanner's baffle beside ours, where both exist
+            try:
+                self.logic.compareWithBafflePlanner(curve)
+            except bdlogic.BaffleDesignerError:
+                pass  # not designed, or no BafflePlanner baffle: the columns stay empty
         table = self.logic.updateCompareTable(f"not simulated: {reason}" if reason else "not simulated")
         slicer.app.layoutManager().setLayout(slicer.vtkMRMLLayoutNode.SlicerLayoutFourUpTableView)
         self.showTable(table)

@@ -34,6 +34,7 @@ MODULE_NAME = "BaffleDesigner"
 BAFFLE_PLANNER = "BafflePlanner"  # SlicerHeart's module: its parameter node names the curve
 PARAM_INPUT_CURVE = "InputCurve"  # the parameter node reference, as BafflePlanner names it
 PARAM_VENTRICLE = "Ventricle"
+BAFFLE_PLANNER_MODEL_REF = "BaffleModel"  # BafflePlanner's baffle, referenced by its curve
 ATTRIBUTE_PREFIX = "BaffleDesigner."
 CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
 ROLE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Role"
@@ -433,6 +434,28 @@ def rv_outflow_line(attribute):
         f"{attribute('RvOutflowMostNarrowedBeforeMm2')} -> {after} mm2 "
         f"({100.0 * float(attribute('RvOutflowMostNarrowedAfterOverBefore')):.0f} % left)"
     )
+
+
+def _surface_area(polydata) -> float:
+    triangles = vtk.vtkTriangleFilter()
+    triangles.SetInputData(polydata)
+    mass = vtk.vtkMassProperties()
+    mass.SetInputConnection(triangles.GetOutputPort())
+    mass.Update()
+    return float(mass.GetSurfaceArea())
+
+
+def _distances_to(source, target) -> np.ndarray:
+    """Distance (mm) from every point of `source` to the surface `target`."""
+    locator = vtk.vtkCellLocator()
+    locator.SetDataSet(target)
+    locator.BuildLocator()
+    closest, cell, sub, dist2 = [0.0, 0.0, 0.0], vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
+    out = np.empty(source.GetNumberOfPoints())
+    for i in range(source.GetNumberOfPoints()):
+        locator.FindClosestPoint(source.GetPoint(i), closest, cell, sub, dist2)
+        out[i] = math.sqrt(float(dist2))
+    return out
 
 
 def polygon_area(loop: np.ndarray) -> float:
@@ -1187,6 +1210,33 @@ class BaffleDesignerLogic:
         self._dragging.clear()
         self._points_keys.clear()
 
+    # ---- BafflePlanner's baffle beside ours ------------------------------------------------
+
+    def compareWithBafflePlanner(self, curve) -> Dict[str, float]:
+        """Our designed baffle against BafflePlanner's on the same curve (its 'BaffleModel'
+        reference): both areas (mm2) and the distance from each surface to the other
+        (mean and largest over the points of both, mm). Stored as curve attributes
+        (BafflePlanner*) for the comparison table."""
+        ours = curve.GetNodeReference(REF_BAFFLE)
+        theirs = curve.GetNodeReference(BAFFLE_PLANNER_MODEL_REF)
+        if ours is None or ours.GetPolyData() is None or ours.GetPolyData().GetNumberOfCells() == 0:
+            raise BaffleDesignerError(f"{curve.GetName()}: design the baffle first")
+        if theirs is None or theirs.GetPolyData() is None or theirs.GetPolyData().GetNumberOfCells() == 0:
+            raise BaffleDesignerError(f"{curve.GetName()}: BafflePlanner has no baffle model on this curve (reference 'BaffleModel')")
+        a, b = ours.GetPolyData(), theirs.GetPolyData()
+        to_a, to_b = _distances_to(a, b), _distances_to(b, a)
+        both = np.concatenate([to_a, to_b])
+        figures = {
+            "BafflePlannerAreaMm2": _surface_area(b),
+            "BaffleDesignerAreaMm2": _surface_area(a),
+            "BafflePlannerMeanDistanceMm": float(both.mean()),
+            "BafflePlannerMaxDistanceMm": float(both.max()),
+        }
+        with batched_modify(curve):
+            for name, value in figures.items():
+                curve.SetAttribute(ATTRIBUTE_PREFIX + name, f"{value:.3f}")
+        return figures
+
     # ---- candidates ---------------------------------------------------------------------
 
     def candidates(self) -> list:
@@ -1231,6 +1281,8 @@ class BaffleDesignerLogic:
             "Constrained sections": "ConstrainedSections",
             "Max feasible area": "MaxFeasibleAreaMm2",  # set when the target is out of reach
             "RV after": "RvVolumeAfterMl",  # the capped ventricle's volume outside the pathway
+            "BafflePlanner area": "BafflePlannerAreaMm2",  # compareWithBafflePlanner
+            "Distance to BafflePlanner": "BafflePlannerMeanDistanceMm",
             "dp": "SimulationDpMmhg",
             "v_max": "SimulationMaxVelocityMS",
         }
@@ -1250,7 +1302,8 @@ class BaffleDesignerLogic:
         table.AddColumn(status_column)
         table.AddColumn(simulation_column)
         node.SetAndObserveTable(table)
-        for column in ("Target area", "Baffle area", "Min section area", "Max feasible area"):
+        node.SetColumnUnitLabel("Distance to BafflePlanner", "mm")
+        for column in ("Target area", "Baffle area", "Min section area", "Max feasible area", "BafflePlanner area"):
             node.SetColumnUnitLabel(column, "mm2")
         node.SetColumnUnitLabel("RV after", "mL")
         node.SetColumnUnitLabel("dp", "mmHg")

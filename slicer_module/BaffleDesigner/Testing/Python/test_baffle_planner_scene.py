@@ -174,3 +174,26 @@ def test_a_simulation_whose_curve_was_removed_loads_nothing(phantom_scene, tmp_p
     assert job.poll() == process.CANCELLED and "removed" in job.message
     assert job.run.wait(timeout=10) == process.CANCELLED
     assert scene.GetNodesByClass("vtkMRMLTableNode").GetNumberOfItems() == 0
+
+
+def test_the_comparison_with_baffle_planners_own_baffle(phantom_scene):
+    from conftest import column
+
+    scene, logic, _, curve = phantom_scene
+    planner = planner_on(scene, curve)
+    with pytest.raises(bdlogic.BaffleDesignerError, match="design the baffle first"):
+        logic.compareWithBafflePlanner(curve)
+    logic.design(curve)
+    figures = logic.compareWithBafflePlanner(curve)
+    ours = float(curve.GetAttribute("BaffleDesigner.BaffleAreaMm2"))
+    # The same surface measured twice (library, VTK): the areas agree to rounding.
+    assert figures["BaffleDesignerAreaMm2"] == pytest.approx(ours, rel=1e-3)
+    assert figures["BafflePlannerAreaMm2"] > 0
+    assert 0 < figures["BafflePlannerMeanDistanceMm"] <= figures["BafflePlannerMaxDistanceMm"] < float("inf")
+    table = logic.updateCompareTable()
+    assert column(table, "BafflePlanner area")[0] == pytest.approx(figures["BafflePlannerAreaMm2"], abs=1e-3)
+    assert column(table, "Distance to BafflePlanner")[0] == pytest.approx(figures["BafflePlannerMeanDistanceMm"], abs=1e-3)
+    # Both rim on the same suture curve: BafflePlanner's soap bubble meets ours there.
+    baffle_planner_model = curve.GetNodeReference("BaffleModel").GetPolyData()
+    rim = bdlogic._distances_to(baffle_planner_model, curve.GetNodeReference(bdlogic.REF_BAFFLE).GetPolyData())
+    assert planner.rebuilds >= 2 and rim.min() < 1.0

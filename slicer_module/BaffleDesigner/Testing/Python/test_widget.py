@@ -648,3 +648,13 @@ def test_the_settings_panel_sets_the_program_and_gmsh_and_install_asks_first(mod
         settings.remove("BaffleDesigner/GmshPath")
         harness.process_events_for(30, until=lambda: w.probe.done)
         harness.unload_module(module)
+
+
+def test_an_output_model_is_never_taken_for_the_ventricle(widget):
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    baffle = curve.GetNodeReference(bdlogic().REF_BAFFLE)
+    w.ui.surfaceSelector.setCurrentNode(baffle)
+    assert w.logic.surfaceNode(curve) is model and "not a ventricle" in w.ui.statusLabel.text
+    assert w.logic.inputVentricle() is model
