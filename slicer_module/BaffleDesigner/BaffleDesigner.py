@@ -6,6 +6,7 @@ suite in Testing/Python drives headless with slicer-core."""
 import json
 import logging
 import os
+import shutil
 import tempfile
 import time
 
@@ -772,6 +773,22 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.reportPrepareEnd(run, state)
         else:
             self.reportVolumeMeshEnd(run, state)
+        self.cleanWorkDirectory(self.runDir, state)
+
+    def cleanWorkDirectory(self, folder, state):
+        """A finished run's work folder: its volume mesh (tens of MB) and surfaces are in
+        the scene now or no longer wanted, so they go; a completed simulation keeps its
+        results/ (the SimulationDir attribute names it); a failed run keeps everything,
+        for the program's log, and the status says where."""
+        if not folder or not os.path.isdir(folder) or state == bdprocess.FAILED:
+            return
+        if state == bdprocess.COMPLETED and self.runKind == SIMULATION:
+            for name in os.listdir(folder):
+                path = os.path.join(folder, name)
+                if name != "results" and os.path.isfile(path):
+                    os.remove(path)
+            return
+        shutil.rmtree(folder, ignore_errors=True)
 
     def endRun(self):
         self.processTimer.stop()

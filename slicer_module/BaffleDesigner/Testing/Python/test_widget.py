@@ -368,6 +368,8 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     assert summary is not None and summary.GetNumberOfRows() > 0
     assert any(v.GetTableNodeID() == summary.GetID() for v in slicer.util.getNodesByClass("vtkMRMLTableViewNode"))
     dp = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
+    work = Path(curve.GetAttribute("BaffleDesigner.SimulationDir")).parent
+    assert not (work / "volume.vtu").exists() and (work / "results" / "summary.json").exists()  # cleaned, results kept
 
     w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("pulsatile")  # long enough to cancel
     w.ui.simulateButton.click()
@@ -375,6 +377,7 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     w.ui.cancelButton.click()
     wait_run(w, 90)
     assert "cancelled" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    assert not os.path.exists(w.runDir)  # a cancelled run's work folder is removed
     assert curve.GetAttribute("BaffleDesigner.SimulationDpMmhg") == dp  # the steady results stay
     assert not w.processTimer.active and w.ui.simulateButton.enabled
 
