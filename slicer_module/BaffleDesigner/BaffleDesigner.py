@@ -62,7 +62,7 @@ SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 PREPARE = "prepare"
 # The BaffleDesignerLib modules in import order (each imports only those before it), for reload.
-LIB_MODULES = ("environment", "process", "logic", "prepare", "simulation", "report")
+LIB_MODULES = ("environment", "process", "logic", "rims", "prepare", "simulation", "report")
 CHECKING = "checking the baffle program ..."
 
 
@@ -131,6 +131,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
 
         self.ui.curveSelector.connect("currentNodeChanged(vtkMRMLNode*)", self.onCurveSelected)
         self.ui.surfaceSelector.connect("currentNodeChanged(vtkMRMLNode*)", self.onSurfaceSelected)
+        for selector in (self.ui.vsdRimSelector, self.ui.aorticRimSelector):
+            selector.connect("currentNodeChanged(vtkMRMLNode*)", self.onRimSelected)
         for comboBox in self.segmentComboBoxes():
             comboBox.connect("currentTextChanged(QString)", self.onParametersChanged)
         self.ui.targetModeComboBox.connect("currentIndexChanged(int)", self.onParametersChanged)
@@ -168,6 +170,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.StartCloseEvent, self.onSceneStartClose)
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.EndImportEvent, self.onSceneEndImport)
         self.updateSegmentChoices(self.ui.surfaceSelector.currentNode())
+        self.updateRimChoices(self.ui.surfaceSelector.currentNode())
         self.initializeFromParameterNode()
         self.onCurveSelected(self.ui.curveSelector.currentNode())
 
@@ -395,6 +398,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             if surface is not None:
                 self.ui.surfaceSelector.setCurrentNode(surface)
             self.updateSegmentChoices(self.ui.surfaceSelector.currentNode())
+            self.updateRimChoices(self.ui.surfaceSelector.currentNode())
+            self.ui.vsdRimSelector.setCurrentNode(curve.GetNodeReference(bdlogic.REF_VSD_RIM))
+            self.ui.aorticRimSelector.setCurrentNode(curve.GetNodeReference(bdlogic.REF_AORTIC_RIM))
             for comboBox, name in zip(self.segmentComboBoxes(), (parameters.lv_segment, parameters.rv_segment, parameters.aorta_segment)):
                 comboBox.setEditText(name)
             self.ui.autoUpdateCheckBox.checked = self.logic.isAutoUpdating(curve)
@@ -413,10 +419,23 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.setStatus(f"{node.GetName()} is a BaffleDesigner output, not a ventricle; the candidate keeps its ventricle.", error=True)
             return
         self.updateSegmentChoices(node)
+        self.updateRimChoices(node)
         self.logic.setInputVentricle(node)
         if self._updatingGUI or self.curve is None:
             return
         self.logic.setSurfaceNode(self.curve, node)
+        self.requestAutoUpdate()
+
+    def updateRimChoices(self, node):
+        """The rim selectors are for a plain RV model (no caps) only."""
+        plain = node is not None and node.IsA("vtkMRMLModelNode") and self.logic.needsRims(node)
+        for widget in (self.ui.vsdRimSelector, self.ui.aorticRimSelector, self.ui.vsdRimLabel, self.ui.aorticRimLabel):
+            widget.visible = plain
+
+    def onRimSelected(self, *_):
+        if self._closing or self._updatingGUI or self.curve is None:
+            return
+        self.logic.setRims(self.curve, self.ui.vsdRimSelector.currentNode(), self.ui.aorticRimSelector.currentNode())
         self.requestAutoUpdate()
 
     def onParametersChanged(self, *_):
@@ -484,7 +503,12 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         try:
             parameters = self.parametersFromGUI()
             parameters.validate()
-            if ventricle is None or not ventricle.IsA("vtkMRMLModelNode"):
+            if ventricle is not None and ventricle.IsA("vtkMRMLModelNode") and self.logic.needsRims(ventricle):
+                # A plain RV model: capped at the rims the curve names (made once, then reused).
+                self.logic.setSurfaceNode(self.curve, ventricle)
+                self.logic.setRims(self.curve, self.ui.vsdRimSelector.currentNode(), self.ui.aorticRimSelector.currentNode())
+                ventricle = None
+            elif ventricle is None or not ventricle.IsA("vtkMRMLModelNode"):
                 # A segmentation: the prepare step reads it and the segment names from the curve.
                 self.logic.setSurfaceNode(self.curve, ventricle)
                 self.logic.setParameters(self.curve, parameters)

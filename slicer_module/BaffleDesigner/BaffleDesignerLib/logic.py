@@ -53,6 +53,10 @@ REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
 REF_PREPARED = "BaffleDesignerPreparedVentricle"  # capped ventricle made from a segmentation
 REF_FLAT_TEMPLATE = "BaffleDesignerFlatTemplate"  # the baffle flattened at true scale
 REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
+# A plain RV model (no ModelFaceID, as BafflePlanner's) with the rims the user marks on it.
+REF_VSD_RIM = "BaffleDesignerVsdRim"
+REF_AORTIC_RIM = "BaffleDesignerAorticRim"
+REF_RIM_CAPPED = "BaffleDesignerRimCappedVentricle"  # the capped ventricle made from them
 REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
 # Simulation results (BaffleDesignerLib.simulation).
 REF_SIM_SUMMARY = "BaffleDesignerSimulationSummary"
@@ -65,7 +69,7 @@ REF_SIM_SERIES_FLOW = "BaffleDesignerSeriesInflow"
 # The roles of a candidate's outputs: they go with their curve.
 OUTPUT_ROLES = (
     REF_BAFFLE, REF_DOMAIN, REF_CENTERLINE, REF_SECTIONS, REF_TABLE, REF_CHART, REF_SERIES_FINAL, REF_SERIES_RAW,
-    REF_SERIES_TARGET, REF_PREPARED, REF_FLAT_TEMPLATE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_SIM_SUMMARY,
+    REF_SERIES_TARGET, REF_PREPARED, REF_RIM_CAPPED, REF_FLAT_TEMPLATE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_SIM_SUMMARY,
     REF_SIM_FIELDS, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
 )
 FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
@@ -233,6 +237,21 @@ def batched_modify(node):
         yield node
     finally:
         node.EndModify(was_modifying)
+
+
+def singleton_parameter_node(scene, module_name: str):
+    """A module's parameter node as ScriptedLoadableModuleLogic.getParameterNode() keeps it:
+    the singleton vtkMRMLScriptedModuleNode tagged and attributed (ModuleName) with the
+    module's name; created when the scene has none."""
+    node = scene.GetSingletonNode(module_name, "vtkMRMLScriptedModuleNode")
+    if node is None:
+        node = scene.CreateNodeByClass("vtkMRMLScriptedModuleNode")
+        node.UnRegister(None)
+        node.SetSingletonTag(module_name)
+        node.SetName(scene.GenerateUniqueName(module_name))
+        node.SetAttribute("ModuleName", module_name)
+        node = scene.AddNode(node)
+    return node
 
 
 def defined_points_key(curve) -> tuple:
@@ -545,15 +564,7 @@ class BaffleDesignerLogic:
         Slicer's ScriptedLoadableModuleLogic.getParameterNode() returns too (tag and
         ModuleName "BaffleDesigner"); created when the scene has none. slicer-core has no
         parameterNodeWrapper, so this is the plain node with named references."""
-        node = self.scene.GetSingletonNode(MODULE_NAME, "vtkMRMLScriptedModuleNode")
-        if node is None:
-            node = self.scene.CreateNodeByClass("vtkMRMLScriptedModuleNode")
-            node.UnRegister(None)
-            node.SetSingletonTag(MODULE_NAME)
-            node.SetName(self.scene.GenerateUniqueName(MODULE_NAME))
-            node.SetAttribute("ModuleName", MODULE_NAME)
-            node = self.scene.AddNode(node)
-        return node
+        return singleton_parameter_node(self.scene, MODULE_NAME)
 
     def bafflePlannerCurve(self):
         """The closed curve SlicerHeart's BafflePlanner works on (its parameter node's
@@ -626,13 +637,7 @@ class BaffleDesignerLogic:
     @staticmethod
     def suturePointsWorld(curve) -> np.ndarray:
         """Defined control points of the curve in world coordinates (RAS), (n, 3)."""
-        points = []
-        for i in range(curve.GetNumberOfControlPoints()):
-            if curve.GetNthControlPointPositionStatus(i) != curve.PositionDefined:
-                continue
-            position = [0.0, 0.0, 0.0]
-            curve.GetNthControlPointPositionWorld(i, position)
-            points.append(position)
+        points = defined_points_key(curve)
         if len(points) < 3:
             raise BaffleDesignerError(
                 f"{curve.GetName()}: {len(points)} defined suture points; place at least 3 (BafflePlanner uses 12-15)"
@@ -687,6 +692,8 @@ class BaffleDesignerLogic:
         ventricle prepared from the selected segmentation (prepared now when it is missing
         or outdated and allow_prepare; else an error saying to prepare it)."""
         surface = self.surfaceNode(curve)
+        if surface is not None and surface.IsA("vtkMRMLModelNode") and self.needsRims(surface):
+            return self.rimCappedVentricle(curve)
         if surface is None or not surface.IsA("vtkMRMLSegmentationNode"):
             return surface
         prepared = self.preparedVentricle(curve)
@@ -699,8 +706,74 @@ class BaffleDesignerLogic:
             )
         return self.prepareVentricle(curve, progress=progress)
 
+    # ---- a plain RV model and its rims (BaffleDesignerLib.rims) ---------------------------
+
     @staticmethod
-    def surfacePolyDataWorld(surface_node) -> vtk.vtkPolyData:
+    def needsRims(model) -> bool:
+        """A model with a surface but no caps: BafflePlanner's plain RV model (no ModelFaceID),
+        or a segment's surface exported with the wall label alone."""
+        polydata = model.GetPolyData()
+        if polydata is None or polydata.GetNumberOfPoints() == 0:
+            return False
+        labels = polydata.GetCellData().GetArray("ModelFaceID")
+        if labels is None:
+            return True
+        present = set(np.unique(numpy_support.vtk_to_numpy(labels)).astype(int).tolist())
+        return not ({11, 16} & present)
+
+    def setRims(self, curve, vsd_rim, aortic_rim) -> None:
+        """The closed curves the user marked around the VSD and the aortic annulus on the
+        plain RV model; no write when unchanged."""
+        self._check_curve(curve)
+        wanted = {REF_VSD_RIM: vsd_rim.GetID() if vsd_rim else None, REF_AORTIC_RIM: aortic_rim.GetID() if aortic_rim else None}
+        if all(curve.GetNodeReferenceID(role) == node_id for role, node_id in wanted.items()):
+            return
+        with batched_modify(curve):
+            for role, node_id in wanted.items():
+                curve.SetNodeReferenceID(role, node_id)
+
+    def rimCappedVentricle(self, curve):
+        """The capped ventricle cut from the candidate's plain RV model at its two rims (made
+        now when missing or when the model, its transform or a rim changed)."""
+        from BaffleDesignerLib import rims
+
+        model = self.surfaceNode(curve)
+        vsd, aortic = curve.GetNodeReference(REF_VSD_RIM), curve.GetNodeReference(REF_AORTIC_RIM)
+        if vsd is None or aortic is None:
+            raise BaffleDesignerError(
+                f"{model.GetName()}: a plain RV model (no ModelFaceID): mark the VSD rim and the aortic-annulus rim "
+                "on it as closed curves and select them, or select the capped ventricle or a segmentation instead")
+        surface = self.worldPolyData(model)
+        key = repr((model.GetID(), surface.GetNumberOfPoints(), float(np.asarray(surface.GetBounds()).sum()),
+                    model.GetPolyData().GetMTime(), defined_points_key(vsd), defined_points_key(aortic)))
+        node = curve.GetNodeReference(REF_RIM_CAPPED)
+        if node is not None and node.GetAttribute(ATTRIBUTE_PREFIX + "MadeFrom") == key:
+            return node
+        capped = rims.capped_ventricle(surface, [
+            ("VSD", rims.VSD_CAP, np.asarray(defined_points_key(vsd))),
+            ("aortic-annulus", rims.AORTIC_CAP, np.asarray(defined_points_key(aortic))),
+        ])
+        node = self._model(curve, REF_RIM_CAPPED, "capped ventricle (rims)", capped, (0.9, 0.6, 0.6), opacity=0.4)
+        node.SetAttribute(ATTRIBUTE_PREFIX + "MadeFrom", key)
+        return node
+
+    @staticmethod
+    def worldPolyData(model_node) -> vtk.vtkPolyData:
+        """A model's surface in world coordinates (through its parent transforms)."""
+        polydata = model_node.GetPolyData()
+        parent = model_node.GetParentTransformNode()
+        if parent is None:
+            return polydata
+        to_world = vtk.vtkGeneralTransform()
+        slicer.vtkMRMLTransformNode.GetTransformBetweenNodes(parent, None, to_world)
+        transformer = vtk.vtkTransformPolyDataFilter()
+        transformer.SetTransform(to_world)
+        transformer.SetInputData(polydata)
+        transformer.Update()
+        return transformer.GetOutput()
+
+    @classmethod
+    def surfacePolyDataWorld(cls, surface_node) -> vtk.vtkPolyData:
         """The ventricle model's surface in world coordinates."""
         if surface_node is None:
             raise BaffleDesignerError("select the ventricle (a model node with ModelFaceID, or a segmentation)")
@@ -715,16 +788,7 @@ class BaffleDesignerLogic:
                 f"{surface_node.GetName()}: no {vtk_adapters.LABEL_ARRAY} cell array; the capped ventricle needs "
                 "labels 2 (RV wall), 11 (VSD cap) and 16 (aortic-annulus cap)"
             )
-        parent = surface_node.GetParentTransformNode()
-        if parent is None:
-            return polydata
-        to_world = vtk.vtkGeneralTransform()
-        slicer.vtkMRMLTransformNode.GetTransformBetweenNodes(parent, None, to_world)
-        transformer = vtk.vtkTransformPolyDataFilter()
-        transformer.SetTransform(to_world)
-        transformer.SetInputData(polydata)
-        transformer.Update()
-        return transformer.GetOutput()
+        return cls.worldPolyData(surface_node)
 
     # ---- design ----------------------------------------------------------------------
 

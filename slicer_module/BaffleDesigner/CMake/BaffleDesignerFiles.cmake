@@ -8,6 +8,7 @@ set(BAFFLE_DESIGNER_PYTHON_SCRIPTS
   BaffleDesignerLib/prepare.py
   BaffleDesignerLib/process.py
   BaffleDesignerLib/report.py
+  BaffleDesignerLib/rims.py
   BaffleDesignerLib/simulation.py
   )
 set(BAFFLE_DESIGNER_PYTHON_RESOURCES

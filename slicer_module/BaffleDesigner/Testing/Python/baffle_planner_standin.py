@@ -42,15 +42,9 @@ class BafflePlannerLogic:
     # ---- parameter node (ScriptedLoadableModuleLogic.getParameterNode) -------------------
 
     def getParameterNode(self):
-        node = self.scene.GetSingletonNode(MODULE_NAME, "vtkMRMLScriptedModuleNode")
-        if node is None:
-            node = self.scene.CreateNodeByClass("vtkMRMLScriptedModuleNode")
-            node.UnRegister(None)
-            node.SetSingletonTag(MODULE_NAME)
-            node.SetName(self.scene.GenerateUniqueName(MODULE_NAME))
-            node.SetAttribute("ModuleName", MODULE_NAME)
-            node = self.scene.AddNode(node)
-        return node
+        from BaffleDesignerLib.logic import singleton_parameter_node  # Slicer's base does the same
+
+        return singleton_parameter_node(self.scene, MODULE_NAME)
 
     # ---- inputs ----------------------------------------------------------------------------
 

@@ -661,3 +661,46 @@ def test_an_output_model_is_never_taken_for_the_ventricle(widget):
     w.ui.surfaceSelector.setCurrentNode(baffle)
     assert w.logic.surfaceNode(curve) is model and "not a ventricle" in w.ui.statusLabel.text
     assert w.logic.inputVentricle() is model
+
+
+def test_baffle_planners_bc_curve_and_plain_rv_model_design_through_the_module(module):
+    """BafflePlanner's 'BC' curve (its InputCurve) and a plain RV model without ModelFaceID:
+    the user marks the two rims as closed curves and picks them; Design caps the model there."""
+    from baffle_planner_standin import BafflePlannerLogic
+    from plain_rv import plain_phantom
+
+    slicer.mrmlScene.Clear(0)
+    plain, vsd_rim, aortic_rim, points, bsa, _ = plain_phantom()
+    model = slicer.modules.models.logic().AddModel(plain)
+    model.SetName("RV")
+    curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "BC")
+    for p in points:
+        curve.AddControlPointWorld(*[float(x) for x in p])
+    planner = BafflePlannerLogic()
+    planner.setInputCurveNode(curve)
+    rims_curves = []
+    for name, rim in (("VSD rim", vsd_rim), ("aortic rim", aortic_rim)):
+        rim_curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)
+        for p in rim:
+            rim_curve.AddControlPointWorld(*[float(x) for x in p])
+        rims_curves.append(rim_curve)
+    w = harness.make_module_widget(module)
+    try:
+        harness.process_events_for(10, until=lambda: w.probe.done)
+        assert w.curve is curve
+        w.ui.surfaceSelector.setCurrentNode(model)
+        assert w.ui.vsdRimSelector.visible and w.ui.aorticRimSelector.visible
+        w.ui.bsaSpinBox.value = bsa
+        w.ui.designButton.click()
+        wait_design(w)
+        assert curve.GetAttribute("BaffleDesigner.Status") == "failed" and "mark the VSD rim" in w.ui.statusLabel.text
+        w.ui.vsdRimSelector.setCurrentNode(rims_curves[0])
+        w.ui.aorticRimSelector.setCurrentNode(rims_curves[1])
+        w.ui.designButton.click()
+        wait_design(w)
+        assert curve.GetAttribute("BaffleDesigner.Status") == "designed", w.ui.statusLabel.text
+        assert curve.GetNodeReference(bdlogic().REF_RIM_CAPPED) is not None
+        assert w.logic.surfaceNode(curve) is model and not w.logic.candidates()[1:]  # the rims are no candidates
+    finally:
+        harness.unload_module(module)
+        slicer.mrmlScene.Clear(0)
