@@ -65,12 +65,13 @@ REF_SIM_SERIES_TABLE = "BaffleDesignerSimulationTimeSeries"
 REF_SIM_CHART = "BaffleDesignerSimulationChart"
 REF_SIM_SERIES_DP = "BaffleDesignerSeriesPressureDifference"
 REF_SIM_SERIES_FLOW = "BaffleDesignerSeriesInflow"
+REF_SIM_SECTION = "BaffleDesignerSimulationSection"  # the peak fields on a cross-section
 
 # The roles of a candidate's outputs: they go with their curve.
 OUTPUT_ROLES = (
     REF_BAFFLE, REF_DOMAIN, REF_CENTERLINE, REF_SECTIONS, REF_TABLE, REF_CHART, REF_SERIES_FINAL, REF_SERIES_RAW,
     REF_SERIES_TARGET, REF_PREPARED, REF_RIM_CAPPED, REF_FLAT_TEMPLATE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_SIM_SUMMARY,
-    REF_SIM_FIELDS, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
+    REF_SIM_FIELDS, REF_SIM_SECTION, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
 )
 FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
 
