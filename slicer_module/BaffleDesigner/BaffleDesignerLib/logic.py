@@ -74,6 +74,7 @@ OUTPUT_ROLES = (
     REF_SIM_FIELDS, REF_SIM_SECTION, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
 )
 FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
+FOLDER_SUFFIX = " BaffleDesigner"  # the folder is named after the curve
 
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
 # "quick": pulsatile from rest to the first flow peak (`baffle simulate --quick`; within
@@ -553,6 +554,7 @@ class BaffleDesignerLogic:
         # A removed candidate takes its outputs along: their IDs are taken while the curve
         # is still in the scene (its references resolve), removed once it has gone.
         self._leaving: Dict[str, List[str]] = {}
+        self._name_tags: Dict[str, Tuple[object, int]] = {}  # curve ID -> (curve, observer tag)
         self._scene_tags = [
             scene.AddObserver(scene.NodeAboutToBeRemovedEvent, self._on_node_about_to_be_removed),
             scene.AddObserver(scene.NodeRemovedEvent, self._on_node_removed),
@@ -900,7 +902,28 @@ class BaffleDesignerLogic:
                 node.CreateDefaultDisplayNodes()
             curve.SetNodeReferenceID(role, node.GetID())
             self._into_folder(curve, node)
+            self._follow_name(curve)
         return node
+
+    def _follow_name(self, curve) -> None:
+        """Observe the curve's renaming (once per curve): its outputs and folder follow."""
+        if curve.GetID() not in self._name_tags:
+            self._name_tags[curve.GetID()] = (curve, curve.AddObserver(vtk.vtkCommand.ModifiedEvent, self._on_curve_modified))
+
+    def _on_curve_modified(self, curve, _event=None) -> None:
+        folder = self.candidateFolder(curve, create=False)
+        if not folder:
+            return
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        old = sh.GetItemName(folder)[: -len(FOLDER_SUFFIX)]
+        new = curve.GetName()
+        if old == new:
+            return
+        sh.SetItemName(folder, new + FOLDER_SUFFIX)
+        for role in OUTPUT_ROLES:
+            node = curve.GetNodeReference(role)
+            if node is not None and node.GetName().startswith(old + " "):
+                node.SetName(new + node.GetName()[len(old):])
 
     # ---- a candidate's outputs: one subject hierarchy folder, removed with the curve --------
 
@@ -916,7 +939,7 @@ class BaffleDesignerLogic:
                 return item
         if not create:
             return 0
-        folder = sh.CreateFolderItem(sh.GetSceneItemID(), f"{curve.GetName()} BaffleDesigner")
+        folder = sh.CreateFolderItem(sh.GetSceneItemID(), curve.GetName() + FOLDER_SUFFIX)
         sh.SetItemAttribute(folder, FOLDER_ATTRIBUTE, curve.GetID())
         return folder
 
@@ -962,6 +985,9 @@ class BaffleDesignerLogic:
         for tag in self._scene_tags:
             self.scene.RemoveObserver(tag)
         self._scene_tags = []
+        for curve, tag in self._name_tags.values():
+            curve.RemoveObserver(tag)
+        self._name_tags.clear()
 
     def _model(self, curve, role, suffix, polydata, color, opacity=1.0):
         node = self._output_node(curve, role, "vtkMRMLModelNode", suffix)
@@ -1195,6 +1221,7 @@ class BaffleDesignerLogic:
         the attribute, not the observers). Returns their IDs."""
         armed = []
         for curve in self.candidates():
+            self._follow_name(curve)
             if curve.GetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate") == "1" and not self.isAutoUpdating(curve):
                 self.setAutoUpdate(curve, True)
                 armed.append(curve.GetID())

@@ -197,3 +197,20 @@ def test_the_comparison_with_baffle_planners_own_baffle(phantom_scene):
     baffle_planner_model = curve.GetNodeReference("BaffleModel").GetPolyData()
     rim = bdlogic._distances_to(baffle_planner_model, curve.GetNodeReference(bdlogic.REF_BAFFLE).GetPolyData())
     assert planner.rebuilds >= 2 and rim.min() < 1.0
+
+
+def test_renaming_the_curve_renames_its_outputs_and_folder(phantom_scene):
+    import slicer
+
+    scene, logic, _, curve = phantom_scene
+    logic.design(curve)
+    baffle = curve.GetNodeReference(bdlogic.REF_BAFFLE)
+    assert baffle.GetName() == "phantom BC baffle"
+    curve.SetName("candidate A")
+    assert baffle.GetName() == "candidate A baffle"
+    assert curve.GetNodeReference(bdlogic.REF_TABLE).GetName() == "candidate A sections"
+    sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(scene)
+    assert sh.GetItemName(logic.candidateFolder(curve, create=False)) == "candidate A BaffleDesigner"
+    baffle.SetName("my own name")  # a name the user gave stays
+    curve.SetName("candidate B")
+    assert baffle.GetName() == "my own name"
