@@ -704,7 +704,12 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             image.toolTip = picture.path
             layout.addWidget(image)
             layout.addWidget(self._wrappedLabel(picture.caption))
-        self.setStatus(f"Plan {folder}: {len(report.pictures)} pictures loaded.")
+        try:
+            geometry = self.logic.loadPlanGeometry(folder)
+        except bdlogic.BaffleDesignerError as error:
+            geometry = []
+            logging.info("BaffleDesigner: %s", error)
+        self.setStatus(f"Plan {folder}: {len(report.pictures)} pictures and {len(geometry)} surfaces loaded.")
 
     def _wrappedLabel(self, text):
         label = qt.QLabel(text)

@@ -76,6 +76,15 @@ OUTPUT_ROLES = (
 FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
 FOLDER_SUFFIX = " BaffleDesigner"  # the folder is named after the curve
 
+# What a `baffle plan --out DIR` run leaves that the scene can show: (file under DIR, name).
+PLAN_GEOMETRY = (
+    ("prepare/capped_ventricle.vtp", "capped ventricle"),
+    ("design/domain.vtp", "domain"),
+    ("design/baffle.vtp", "baffle"),
+    ("extend/extended.vtp", "extended domain"),
+    ("centerline/centerline.vtp", "flow centerline"),
+)
+
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
 # "quick": pulsatile from rest to the first flow peak (`baffle simulate --quick`; within
 # 0.6 % of the 4-cycle peak dp on p2 and p3's extended domains), the default;
@@ -1328,6 +1337,43 @@ class BaffleDesignerLogic:
             for name, value in figures.items():
                 curve.SetAttribute(ATTRIBUTE_PREFIX + name, f"{value:.3f}")
         return figures
+
+    # ---- a `baffle plan` run's geometry -------------------------------------------------
+
+    def loadPlanGeometry(self, folder: str) -> list:
+        """The surfaces a `baffle plan --out folder` run wrote (PLAN_GEOMETRY: the capped
+        ventricle it prepared, the domain and baffle it designed, the extended domain, the
+        flow centerline), as model nodes in one subject hierarchy folder named after the run.
+        The files are read as Slicer reads model files (LPS unless the file says RAS), so a
+        plan run on surfaces Slicer exported lands on them. Errors when there is none."""
+        import os
+
+        found = [(relative, name) for relative, name in PLAN_GEOMETRY if os.path.isfile(os.path.join(folder, relative))]
+        if not found:
+            raise BaffleDesignerError(
+                f"{folder}: no plan geometry (looked for {', '.join(relative for relative, _ in PLAN_GEOMETRY)})")
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        run = os.path.basename(os.path.normpath(folder))
+        parent = sh.CreateFolderItem(sh.GetSceneItemID(), f"plan {run}")
+        nodes = []
+        for relative, name in found:
+            path = os.path.join(folder, relative)
+            node = self.scene.AddNewNodeByClass("vtkMRMLModelNode", f"plan {run} {name}")
+            storage = self.scene.AddNewNodeByClass("vtkMRMLModelStorageNode")
+            storage.SetFileName(path)
+            node.SetAndObserveStorageNodeID(storage.GetID())
+            if not storage.ReadData(node):
+                self.scene.RemoveNode(node)
+                self.scene.RemoveNode(storage)
+                raise BaffleDesignerError(f"{path}: could not be read as a model")
+            node.CreateDefaultDisplayNodes()
+            item = sh.GetItemByDataNode(node)
+            if item:
+                sh.SetItemParent(item, parent)
+            else:
+                sh.CreateItem(parent, node)
+            nodes.append(node)
+        return nodes
 
     # ---- candidates ---------------------------------------------------------------------
 

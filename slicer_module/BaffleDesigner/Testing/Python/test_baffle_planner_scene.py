@@ -214,3 +214,26 @@ def test_renaming_the_curve_renames_its_outputs_and_folder(phantom_scene):
     baffle.SetName("my own name")  # a name the user gave stays
     curve.SetName("candidate B")
     assert baffle.GetName() == "my own name"
+
+
+def test_a_plan_runs_geometry_loads_as_slicer_reads_model_files(phantom_scene, tmp_path):
+    import numpy as np
+    import slicer
+
+    scene, logic, model, curve = phantom_scene
+    logic.design(curve)
+    (tmp_path / "run" / "design").mkdir(parents=True)
+    writer = vtk.vtkXMLPolyDataWriter()
+    writer.SetInputData(curve.GetNodeReference(bdlogic.REF_DOMAIN).GetPolyData())
+    writer.SetFileName(str(tmp_path / "run" / "design" / "domain.vtp"))  # no frame in the file: LPS
+    assert writer.Write()
+    with pytest.raises(bdlogic.BaffleDesignerError, match="no plan geometry"):
+        logic.loadPlanGeometry(str(tmp_path))
+    (node,) = logic.loadPlanGeometry(str(tmp_path / "run"))
+    assert node.GetName() == "plan run domain"
+    ours = curve.GetNodeReference(bdlogic.REF_DOMAIN).GetPolyData().GetBounds()
+    theirs = node.GetPolyData().GetBounds()
+    # LPS -> RAS: x and y flip, z stays.
+    np.testing.assert_allclose(theirs, (-ours[1], -ours[0], -ours[3], -ours[2], ours[4], ours[5]), atol=1e-9)
+    sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(scene)
+    assert sh.GetItemName(sh.GetItemParent(sh.GetItemByDataNode(node))) == "plan run"
