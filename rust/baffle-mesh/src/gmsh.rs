@@ -28,6 +28,14 @@ impl GmshCommand {
     pub fn command(&self) -> Command {
         let mut c = Command::new(&self.program);
         c.args(&self.prefix_args);
+        // gmsh is a console program: started from a `baffle` that has no console (the
+        // Slicer module starts it with CREATE_NO_WINDOW) it would open a console window.
+        #[cfg(windows)]
+        {
+            use std::os::windows::process::CommandExt;
+            const CREATE_NO_WINDOW: u32 = 0x0800_0000;
+            c.creation_flags(CREATE_NO_WINDOW);
+        }
         c
     }
 
