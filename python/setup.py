@@ -70,18 +70,33 @@ class BuildWithLibrary(build_py):
         shutil.copy2(library, destination)
 
 
+try:  # setuptools >= 70.1 has its own; before that it is the wheel package's
+    from setuptools.command.bdist_wheel import bdist_wheel
+except ImportError:
+    from wheel.bdist_wheel import bdist_wheel
+
+
 class BinaryDistribution(Distribution):
-    """The wheel holds a native library, so it is tagged for this platform."""
+    """The wheel holds a native library, so it goes to the platform's site-packages."""
 
     def has_ext_modules(self):
         return True
+
+
+class PlatformWheel(bdist_wheel):
+    """Tagged py3-none-<platform>: the library is platform code, but it is loaded with
+    ctypes, so any CPython 3 takes the wheel (has_ext_modules alone tags it cp3X-cp3X)."""
+
+    def get_tag(self):
+        _, _, platform = super().get_tag()
+        return "py3", "none", platform
 
 
 # Build outside the source tree (pip builds in place): the repository ignores /target.
 BUILD_BASE = REPO / "target" / "python-build" if (REPO / "Cargo.toml").exists() else HERE / "build"
 
 setup(
-    cmdclass={"build_py": BuildWithLibrary},
+    cmdclass={"build_py": BuildWithLibrary, "bdist_wheel": PlatformWheel},
     distclass=BinaryDistribution,
     options={"build": {"build_base": str(BUILD_BASE)}, "bdist_wheel": {"bdist_dir": str(BUILD_BASE / "bdist")}},
 )

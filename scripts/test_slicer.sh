@@ -9,7 +9,9 @@
 # virtual environment ($BAFFLE_SLICER_VENV, default target/slicer-venv) that sees the
 # system packages (numpy, pytest) but keeps its vtk away from the interpreter the other
 # test suites use. The baffle package is taken from ./python with the freshly built
-# libbaffle (BAFFLE_LIBRARY) and the baffle executable (BAFFLE_EXECUTABLE).
+# libbaffle (BAFFLE_LIBRARY) and the baffle executable (BAFFLE_EXECUTABLE); test_packaging.py
+# also installs the extension's package layout (CMake, cargo already built here) and runs
+# the installed module without them.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -30,8 +32,9 @@ if ! "$venv/bin/python" -c "import slicer; slicer.vtkMRMLScene" >/dev/null 2>&1;
   step "pip install slicer-core (about 45 MB, plus its pinned vtk, about 150 MB)"
   "$venv/bin/python" -m pip install --quiet slicer-core
 fi
-if ! "$venv/bin/python" -c "import pytest, numpy" >/dev/null 2>&1; then
-  "$venv/bin/python" -m pip install --quiet pytest numpy
+# wheel: test_packaging.py builds the Python package's wheel without build isolation.
+if ! "$venv/bin/python" -c "import pytest, numpy, wheel" >/dev/null 2>&1; then
+  "$venv/bin/python" -m pip install --quiet pytest numpy wheel
 fi
 # 6.12.0 loses a reference on every Signal.emit from Python (True/False are freed and the
 # interpreter aborts); 6.9.3 does not.

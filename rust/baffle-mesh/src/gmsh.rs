@@ -1,7 +1,7 @@
 //! Finding gmsh and running it as a child process with a time limit.
 //!
 //! Lookup order: the caller's path, then `$BAFFLE_GMSH`, then `gmsh` on `PATH`, then the
-//! Python module of the PyPI wheel (`python3 -c "import gmsh ..."`), which covers a wheel
+//! Python module of the PyPI wheel (`$BAFFLE_PYTHON` or `python3 -c "import gmsh ..."`), which covers a wheel
 //! whose launcher script is not on `PATH` or whose `#!/usr/bin/env python` finds no `python`.
 
 use crate::error::MeshError;
@@ -28,6 +28,14 @@ impl GmshCommand {
     pub fn command(&self) -> Command {
         let mut c = Command::new(&self.program);
         c.args(&self.prefix_args);
+        // gmsh is a console program: started from a `baffle` that has no console (the
+        // Slicer module starts it with CREATE_NO_WINDOW) it would open a console window.
+        #[cfg(windows)]
+        {
+            use std::os::windows::process::CommandExt;
+            const CREATE_NO_WINDOW: u32 = 0x0800_0000;
+            c.creation_flags(CREATE_NO_WINDOW);
+        }
         c
     }
 
@@ -112,9 +120,13 @@ fn path_gmsh() -> Option<GmshCommand> {
         .map(plain)
 }
 
+/// The interpreter of the wheel: `$BAFFLE_PYTHON` (the report's pictures take the same; a
+/// caller such as the Slicer module names the Python it runs, which on Windows is not
+/// `python3`), else `python3`.
 fn python_gmsh() -> Option<GmshCommand> {
+    let python = std::env::var_os("BAFFLE_PYTHON").filter(|v| !v.is_empty());
     Some(GmshCommand {
-        program: PathBuf::from("python3"),
+        program: python.map(PathBuf::from).unwrap_or_else(|| PathBuf::from("python3")),
         prefix_args: vec!["-c".into(), PYTHON_GMSH.into()],
     })
 }

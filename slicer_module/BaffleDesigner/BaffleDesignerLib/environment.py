@@ -7,6 +7,7 @@ import importlib
 import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
@@ -16,6 +17,30 @@ SUBCOMMANDS = {
     "mesh": "Volume mesh (baffle mesh)",
     "simulate": "Simulate (baffle simulate)",
 }
+
+
+# The scripted module's folder: the extension's package installs the `baffle` package
+# (with libbaffle and the program in its bin/) beside BaffleDesigner.py, where Slicer's
+# Python finds it (the scripted modules' folder is on sys.path).
+MODULE_DIR = Path(__file__).resolve().parents[1]
+
+
+def packaged_package_dir(module_dir: Path = MODULE_DIR) -> Optional[Path]:
+    """The `baffle` package the extension installed beside the module, or None (a
+    developer build or a source tree, where it comes from pip or PYTHONPATH)."""
+    candidate = module_dir / "baffle"
+    return candidate if (candidate / "__init__.py").is_file() else None
+
+
+def executable_name(os_name: str = os.name) -> str:
+    return "baffle.exe" if os_name == "nt" else "baffle"
+
+
+def packaged_executable(module_dir: Path = MODULE_DIR) -> Optional[Path]:
+    """The `baffle` program the extension installed (baffle/bin/), or None."""
+    package = packaged_package_dir(module_dir)
+    candidate = package / "bin" / executable_name() if package else None
+    return candidate if candidate is not None and candidate.is_file() else None
 
 
 def source_python_package() -> Optional[Path]:
@@ -47,20 +72,55 @@ def package_problem() -> str:
     return ""
 
 
+def python_interpreter(env: Optional[dict] = None, executable: Optional[str] = None, os_name: str = os.name) -> str:
+    """The Python that `baffle mesh` runs the gmsh wheel with (it reads $BAFFLE_PYTHON),
+    found the way Slicer runs Python: $BAFFLE_PYTHON; else Slicer's PythonSlicer (beside
+    this interpreter, or on PATH), which is Slicer's own Python with its packages, so
+    slicer.util.pip_install("gmsh") is enough; else this interpreter when it is a plain
+    Python (not the Slicer application binary); else python3 (python on Windows, where
+    python3 is the Store's stub)."""
+    env = dict(os.environ if env is None else env)
+    if env.get("BAFFLE_PYTHON"):
+        return env["BAFFLE_PYTHON"]
+    executable = sys.executable if executable is None else executable
+    suffix = ".exe" if os_name == "nt" else ""
+    if executable:
+        beside = Path(executable).parent / f"PythonSlicer{suffix}"
+        if beside.is_file():
+            return str(beside)
+    on_path = shutil.which("PythonSlicer", path=env.get("PATH", os.defpath))
+    if on_path:
+        return on_path
+    if executable and Path(executable).name.lower().startswith("python"):
+        return executable
+    return "python" if os_name == "nt" else "python3"
+
+
+def child_environment(base: Optional[dict] = None) -> dict:
+    """`base` (default: this process's environment) with BAFFLE_PYTHON set to
+    python_interpreter(), so that `baffle mesh` and the gmsh check use the same Python."""
+    env = dict(os.environ if base is None else base)
+    env["BAFFLE_PYTHON"] = python_interpreter(env)
+    return env
+
+
 def gmsh_availability(env: Optional[dict] = None, timeout: float = 20.0) -> Tuple[bool, str]:
     """Whether `baffle mesh`, started with `env`, finds a working gmsh, looked up in its
-    order (baffle-mesh, gmsh.rs): $BAFFLE_GMSH, else `gmsh` on PATH, else python3 with
-    the gmsh wheel. (True, "") or (False, what to do)."""
+    order (baffle-mesh, gmsh.rs): $BAFFLE_GMSH, else `gmsh` on PATH, else the gmsh wheel
+    in python_interpreter(env) ($BAFFLE_PYTHON, which baffle mesh reads too). (True, "")
+    or (False, what to do)."""
+    from BaffleDesignerLib import process  # it imports this module
+
     env = dict(os.environ if env is None else env)
     if env.get("BAFFLE_GMSH"):
         candidates = [[env["BAFFLE_GMSH"], "--version"]]
     else:
         on_path = shutil.which("gmsh", path=env.get("PATH", os.defpath))
-        candidates = ([[on_path, "--version"]] if on_path else []) + [["python3", "-c", "import gmsh"]]
+        candidates = ([[on_path, "--version"]] if on_path else []) + [[python_interpreter(env), "-c", "import gmsh"]]
     tried = []
     for command in candidates:
         try:
-            done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=timeout, check=False)
+            done = process.run_captured(command, env=env, timeout=timeout)
         except (OSError, subprocess.TimeoutExpired) as error:
             tried.append(f"{command[0]}: {error}")
             continue

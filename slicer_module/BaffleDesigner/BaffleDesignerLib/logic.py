@@ -16,7 +16,9 @@ and output nodes are node references ("BaffleDesigner*"). One scene can therefor
 several candidate baffles, one per closed curve.
 """
 
+import contextlib
 import math
+import threading
 import time
 from dataclasses import dataclass, fields
 from typing import Callable, Dict, List, Optional, Tuple
@@ -28,6 +30,11 @@ from vtkmodules.util import numpy_support
 
 from BaffleDesignerLib import environment, process
 
+MODULE_NAME = "BaffleDesigner"
+BAFFLE_PLANNER = "BafflePlanner"  # SlicerHeart's module: its parameter node names the curve
+PARAM_INPUT_CURVE = "InputCurve"  # the parameter node reference, as BafflePlanner names it
+PARAM_VENTRICLE = "Ventricle"
+BAFFLE_PLANNER_MODEL_REF = "BaffleModel"  # BafflePlanner's baffle, referenced by its curve
 ATTRIBUTE_PREFIX = "BaffleDesigner."
 CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
 ROLE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Role"
@@ -46,6 +53,10 @@ REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
 REF_PREPARED = "BaffleDesignerPreparedVentricle"  # capped ventricle made from a segmentation
 REF_FLAT_TEMPLATE = "BaffleDesignerFlatTemplate"  # the baffle flattened at true scale
 REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
+# A plain RV model (no ModelFaceID, as BafflePlanner's) with the rims the user marks on it.
+REF_VSD_RIM = "BaffleDesignerVsdRim"
+REF_AORTIC_RIM = "BaffleDesignerAorticRim"
+REF_RIM_CAPPED = "BaffleDesignerRimCappedVentricle"  # the capped ventricle made from them
 REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
 # Simulation results (BaffleDesignerLib.simulation).
 REF_SIM_SUMMARY = "BaffleDesignerSimulationSummary"
@@ -54,6 +65,25 @@ REF_SIM_SERIES_TABLE = "BaffleDesignerSimulationTimeSeries"
 REF_SIM_CHART = "BaffleDesignerSimulationChart"
 REF_SIM_SERIES_DP = "BaffleDesignerSeriesPressureDifference"
 REF_SIM_SERIES_FLOW = "BaffleDesignerSeriesInflow"
+REF_SIM_SECTION = "BaffleDesignerSimulationSection"  # the peak fields on a cross-section
+
+# The roles of a candidate's outputs: they go with their curve.
+OUTPUT_ROLES = (
+    REF_BAFFLE, REF_DOMAIN, REF_CENTERLINE, REF_SECTIONS, REF_TABLE, REF_CHART, REF_SERIES_FINAL, REF_SERIES_RAW,
+    REF_SERIES_TARGET, REF_PREPARED, REF_RIM_CAPPED, REF_FLAT_TEMPLATE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_SIM_SUMMARY,
+    REF_SIM_FIELDS, REF_SIM_SECTION, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
+)
+FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
+FOLDER_SUFFIX = " BaffleDesigner"  # the folder is named after the curve
+
+# What a `baffle plan --out DIR` run leaves that the scene can show: (file under DIR, name).
+PLAN_GEOMETRY = (
+    ("prepare/capped_ventricle.vtp", "capped ventricle"),
+    ("design/domain.vtp", "domain"),
+    ("design/baffle.vtp", "baffle"),
+    ("extend/extended.vtp", "extended domain"),
+    ("centerline/centerline.vtp", "flow centerline"),
+)
 
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
 # "quick": pulsatile from rest to the first flow peak (`baffle simulate --quick`; within
@@ -82,6 +112,10 @@ SECTION_COLUMNS = (
 
 class BaffleDesignerError(RuntimeError):
     """An error to show the user; str() carries the library's message where there is one."""
+
+
+class DesignCancelled(BaffleDesignerError):
+    """The design was cancelled (Cancel, or a progress callback that returned False)."""
 
 
 def library():
@@ -175,8 +209,9 @@ class DesignParameters:
         return {"annulus_diameter_mm": self.annulus_diameter_mm}
 
     def write(self, node) -> None:
-        for f in fields(self):
-            node.SetAttribute(ATTRIBUTE_PREFIX + f.name, str(getattr(self, f.name)))
+        with batched_modify(node):
+            for f in fields(self):
+                node.SetAttribute(ATTRIBUTE_PREFIX + f.name, str(getattr(self, f.name)))
 
     @classmethod
     def read(cls, node) -> "DesignParameters":
@@ -203,6 +238,47 @@ def require_executable(executable: Optional[str]) -> None:
         raise BaffleDesignerError(f"the baffle command line program {executable} is not an executable file")
 
 
+@contextlib.contextmanager
+def batched_modify(node):
+    """Hold back the node's ModifiedEvent until the block ends: one event for all the
+    attribute and reference writes in it. BafflePlanner's logic rebuilds its baffle on
+    every ModifiedEvent of its curve, and a design writes some 25 attributes there."""
+    was_modifying = node.StartModify()
+    try:
+        yield node
+    finally:
+        node.EndModify(was_modifying)
+
+
+def singleton_parameter_node(scene, module_name: str):
+    """A module's parameter node as ScriptedLoadableModuleLogic.getParameterNode() keeps it:
+    the singleton vtkMRMLScriptedModuleNode tagged and attributed (ModuleName) with the
+    module's name; created when the scene has none."""
+    node = scene.GetSingletonNode(module_name, "vtkMRMLScriptedModuleNode")
+    if node is None:
+        node = scene.CreateNodeByClass("vtkMRMLScriptedModuleNode")
+        node.UnRegister(None)
+        node.SetSingletonTag(module_name)
+        node.SetName(scene.GenerateUniqueName(module_name))
+        node.SetAttribute("ModuleName", module_name)
+        node = scene.AddNode(node)
+    return node
+
+
+def defined_points_key(curve) -> tuple:
+    """The defined control points of the curve (world), as a comparable value. In place
+    mode Slicer moves a preview point (PositionPreview) on every mouse move, firing
+    PointModifiedEvent; the design ignores preview points, so such events change nothing."""
+    key = []
+    for i in range(curve.GetNumberOfControlPoints()):
+        if curve.GetNthControlPointPositionStatus(i) != curve.PositionDefined:
+            continue
+        position = [0.0, 0.0, 0.0]
+        curve.GetNthControlPointPositionWorld(i, position)
+        key.append(tuple(position))
+    return tuple(key)
+
+
 def read_written_file(reader, path: str):
     """The output of a VTK reader for `path`, a file a child process was to write."""
     import os
@@ -226,6 +302,127 @@ class CandidateJob(process.PolledJob):
         self.executable = executable
         self.work_dir = work_dir
         self.env = env
+
+    def curve_removed(self) -> bool:
+        """Whether the candidate's curve has left the scene (its results have nowhere to go)."""
+        return self.logic.scene.GetNodeByID(self.curve.GetID()) is not self.curve
+
+    def stop_for_removed_curve(self) -> str:
+        """Cancel the running process and end the job: the curve was removed meanwhile."""
+        self.cancel_process(3.0)
+        return self.finish(process.CANCELLED, f"{self.curve.GetName()} was removed: the run was stopped, nothing loaded")
+
+
+class DesignJob:
+    """One candidate's design without blocking the GUI: the inputs are read at start()
+    (MRML, on the caller's thread), baffle.design runs on a worker thread (the ctypes
+    call releases the GIL, so the event loop keeps running), and poll(), called from the
+    caller's timer, writes the outputs once it is done. `progress` / `stage` follow the
+    library's progress callback; cancel() makes that callback return False, which the
+    library honours at its next report. `state` is process.RUNNING / COMPLETED / FAILED /
+    CANCELLED, `error` the BaffleDesignerError of a failed or cancelled one."""
+
+    def __init__(self, logic, curve, allow_prepare: bool = False, progress=None, parameters=None, ventricle=None):
+        self.logic = logic
+        self.given_parameters = parameters
+        self.ventricle = ventricle
+        self.curve = curve
+        self.curve_id = curve.GetID() if curve is not None else None
+        self.allow_prepare = allow_prepare
+        self.user_progress = progress  # called from wait() on the caller's thread
+        self.progress = 0.0
+        self.stage = "design"
+        self.state = ""
+        self.message = ""
+        self.result = None
+        self.error: Optional[BaffleDesignerError] = None
+        self.points_key: tuple = ()
+        self._cancel = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._outcome = None
+        self._parameters = None
+        self._started = 0.0
+        # Time spent on the caller's (GUI) thread: reading the inputs, writing the outputs.
+        self.gui_ms = 0.0
+
+    def start(self) -> "DesignJob":
+        self._started = time.perf_counter()
+        self.state = process.RUNNING
+        try:
+            self._parameters, points, mesh = self.logic._design_inputs(
+                self.curve, self.allow_prepare, self.user_progress, self.given_parameters, self.ventricle)
+        except BaffleDesignerError as error:
+            self._end_with(error)
+            return self
+        finally:
+            self.gui_ms += 1000.0 * (time.perf_counter() - self._started)
+        self.points_key = defined_points_key(self.curve)
+        name = self.curve.GetName()
+        self._thread = threading.Thread(target=self._work, args=(name, self._parameters, points, mesh), daemon=True)
+        self._thread.start()
+        return self
+
+    def _report(self, fraction, stage) -> bool:
+        self.progress, self.stage = float(fraction), stage
+        return not self._cancel.is_set()
+
+    def _work(self, name, parameters, points, mesh) -> None:
+        try:
+            self._outcome = self.logic._run_library(name, parameters, points, mesh, self._report)
+        except BaffleDesignerError as error:
+            self._outcome = error
+        except Exception as error:  # a bug must end the job, not leave it running forever
+            self._outcome = BaffleDesignerError(f"design failed: {type(error).__name__}: {error}")
+
+    @property
+    def running(self) -> bool:
+        return self.state == process.RUNNING
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def poll(self) -> str:
+        """RUNNING while the library works; then the outputs are written here (once)."""
+        if self.state != process.RUNNING or self._thread is None or self._thread.is_alive():
+            return self.state
+        outcome, self._outcome = self._outcome, None
+        curve = self.logic.scene.GetNodeByID(self.curve_id) if self.curve_id else None
+        if curve is None or curve is not self.curve:
+            return self._finish(process.CANCELLED, "the candidate's curve was removed during the design")
+        if isinstance(outcome, BaffleDesignerError):
+            return self._end_with(outcome)
+        if self._cancel.is_set():
+            return self._end_with(DesignCancelled("design cancelled"))
+        writing = time.perf_counter()
+        elapsed_ms = 1000.0 * (writing - self._started)
+        self.logic._finish_design(curve, outcome, self._parameters, elapsed_ms, self.ventricle)
+        self.gui_ms += 1000.0 * (time.perf_counter() - writing)
+        self.result = outcome
+        return self._finish(process.COMPLETED, f"{curve.GetName()}: designed in {elapsed_ms:.0f} ms")
+
+    def _end_with(self, error: BaffleDesignerError) -> str:
+        self.error = error
+        if self.curve is not None and not isinstance(error, DesignCancelled):
+            valid = self._parameters if self._parameters is not None else None
+            self.logic._record_failure(self.curve, error, valid)
+        return self._finish(process.CANCELLED if isinstance(error, DesignCancelled) else process.FAILED, str(error))
+
+    def _finish(self, state: str, message: str) -> str:
+        self.state, self.message = state, message
+        if self.error is None and state == process.CANCELLED:
+            self.error = DesignCancelled(message)
+        return state
+
+    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.02) -> str:
+        """Poll until the design has ended, reporting progress to the caller's callback."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() == process.RUNNING:
+            if self.user_progress is not None and self.user_progress(self.progress, self.stage) is False:
+                self.cancel()
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"design still running after {timeout} s")
+            self._thread.join(poll_interval)
+        return self.state
 
 
 def _vtk_double_array(name: str, values) -> vtk.vtkDoubleArray:
@@ -267,6 +464,28 @@ def rv_outflow_line(attribute):
         f"{attribute('RvOutflowMostNarrowedBeforeMm2')} -> {after} mm2 "
         f"({100.0 * float(attribute('RvOutflowMostNarrowedAfterOverBefore')):.0f} % left)"
     )
+
+
+def _surface_area(polydata) -> float:
+    triangles = vtk.vtkTriangleFilter()
+    triangles.SetInputData(polydata)
+    mass = vtk.vtkMassProperties()
+    mass.SetInputConnection(triangles.GetOutputPort())
+    mass.Update()
+    return float(mass.GetSurfaceArea())
+
+
+def _distances_to(source, target) -> np.ndarray:
+    """Distance (mm) from every point of `source` to the surface `target`."""
+    locator = vtk.vtkCellLocator()
+    locator.SetDataSet(target)
+    locator.BuildLocator()
+    closest, cell, sub, dist2 = [0.0, 0.0, 0.0], vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
+    out = np.empty(source.GetNumberOfPoints())
+    for i in range(source.GetNumberOfPoints()):
+        locator.FindClosestPoint(source.GetPoint(i), closest, cell, sub, dist2)
+        out[i] = math.sqrt(float(dist2))
+    return out
 
 
 def polygon_area(loop: np.ndarray) -> float:
@@ -329,6 +548,8 @@ class BaffleDesignerLogic:
         self._observations: Dict[str, List[Tuple[object, int]]] = {}
         self._pending: Dict[str, float] = {}
         self._dragging: set = set()  # IDs of curves with a control point being dragged
+        # The defined points last seen of each auto-updating curve (defined_points_key).
+        self._points_keys: Dict[str, tuple] = {}
         self.design_count = 0
         # The latest patch template of each candidate (curve ID -> baffle.Template).
         self._templates: Dict[str, object] = {}
@@ -339,22 +560,78 @@ class BaffleDesignerLogic:
         self.executable: Optional[str] = None
         self.child_env: Optional[dict] = None
         self.work_root: Optional[str] = None
+        # A removed candidate takes its outputs along: their IDs are taken while the curve
+        # is still in the scene (its references resolve), removed once it has gone.
+        self._leaving: Dict[str, List[str]] = {}
+        self._name_tags: Dict[str, Tuple[object, int]] = {}  # curve ID -> (curve, observer tag)
+        self._scene_tags = [
+            scene.AddObserver(scene.NodeAboutToBeRemovedEvent, self._on_node_about_to_be_removed),
+            scene.AddObserver(scene.NodeRemovedEvent, self._on_node_removed),
+        ]
+
+    # ---- the parameter node: what the panel shows, saved with the scene ------------------
+
+    def parameterNode(self):
+        """The module's parameter node: the singleton vtkMRMLScriptedModuleNode that
+        Slicer's ScriptedLoadableModuleLogic.getParameterNode() returns too (tag and
+        ModuleName "BaffleDesigner"); created when the scene has none. slicer-core has no
+        parameterNodeWrapper, so this is the plain node with named references."""
+        return singleton_parameter_node(self.scene, MODULE_NAME)
+
+    def bafflePlannerCurve(self):
+        """The closed curve SlicerHeart's BafflePlanner works on (its parameter node's
+        InputCurve), or None."""
+        collection = self.scene.GetNodesByClass("vtkMRMLScriptedModuleNode")
+        for i in range(collection.GetNumberOfItems()):
+            node = collection.GetItemAsObject(i)
+            if node.GetAttribute("ModuleName") == BAFFLE_PLANNER or node.GetSingletonTag() == BAFFLE_PLANNER:
+                curve = node.GetNodeReference(PARAM_INPUT_CURVE)
+                if curve is not None and curve.IsA("vtkMRMLMarkupsClosedCurveNode"):
+                    return curve
+        return None
+
+    def defaultInputCurve(self):
+        """The curve to show: the parameter node's, else BafflePlanner's InputCurve."""
+        curve = self.parameterNode().GetNodeReference(PARAM_INPUT_CURVE)
+        return curve if curve is not None else self.bafflePlannerCurve()
+
+    def setInputCurve(self, curve) -> None:
+        self.parameterNode().SetNodeReferenceID(PARAM_INPUT_CURVE, curve.GetID() if curve is not None else None)
+
+    def inputVentricle(self):
+        return self.parameterNode().GetNodeReference(PARAM_VENTRICLE)
+
+    def setInputVentricle(self, node) -> None:
+        self.parameterNode().SetNodeReferenceID(PARAM_VENTRICLE, node.GetID() if node is not None else None)
+
+    def isOutputNode(self, node) -> bool:
+        """Whether the node is one of this module's outputs (never a ventricle to offer)."""
+        return node is not None and bool(node.GetAttribute(ROLE_ATTRIBUTE))
 
     # ---- inputs and parameters -------------------------------------------------------
 
     def setSurfaceNode(self, curve, surface_node) -> None:
+        """The candidate's ventricle; no write (no ModifiedEvent) when it is already that."""
         self._check_curve(curve)
-        curve.SetNodeReferenceID(REF_SURFACE, surface_node.GetID() if surface_node else None)
-        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+        surface_id = surface_node.GetID() if surface_node else None
+        if curve.GetNodeReferenceID(REF_SURFACE) == surface_id and curve.GetAttribute(CANDIDATE_ATTRIBUTE) == "1":
+            return
+        with batched_modify(curve):
+            curve.SetNodeReferenceID(REF_SURFACE, surface_id)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
 
     def surfaceNode(self, curve):
         return curve.GetNodeReference(REF_SURFACE)
 
     def setParameters(self, curve, parameters: DesignParameters) -> None:
+        """Store the parameters on the candidate: one ModifiedEvent, none when unchanged."""
         self._check_curve(curve)
         parameters.validate()
-        parameters.write(curve)
-        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+        if curve.GetAttribute(CANDIDATE_ATTRIBUTE) == "1" and DesignParameters.read(curve) == parameters:
+            return
+        with batched_modify(curve):
+            parameters.write(curve)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
 
     def parameters(self, curve) -> DesignParameters:
         return DesignParameters.read(curve)
@@ -372,13 +649,7 @@ class BaffleDesignerLogic:
     @staticmethod
     def suturePointsWorld(curve) -> np.ndarray:
         """Defined control points of the curve in world coordinates (RAS), (n, 3)."""
-        points = []
-        for i in range(curve.GetNumberOfControlPoints()):
-            if curve.GetNthControlPointPositionStatus(i) != curve.PositionDefined:
-                continue
-            position = [0.0, 0.0, 0.0]
-            curve.GetNthControlPointPositionWorld(i, position)
-            points.append(position)
+        points = defined_points_key(curve)
         if len(points) < 3:
             raise BaffleDesignerError(
                 f"{curve.GetName()}: {len(points)} defined suture points; place at least 3 (BafflePlanner uses 12-15)"
@@ -433,6 +704,8 @@ class BaffleDesignerLogic:
         ventricle prepared from the selected segmentation (prepared now when it is missing
         or outdated and allow_prepare; else an error saying to prepare it)."""
         surface = self.surfaceNode(curve)
+        if surface is not None and surface.IsA("vtkMRMLModelNode") and self.needsRims(surface):
+            return self.rimCappedVentricle(curve)
         if surface is None or not surface.IsA("vtkMRMLSegmentationNode"):
             return surface
         prepared = self.preparedVentricle(curve)
@@ -445,8 +718,74 @@ class BaffleDesignerLogic:
             )
         return self.prepareVentricle(curve, progress=progress)
 
+    # ---- a plain RV model and its rims (BaffleDesignerLib.rims) ---------------------------
+
     @staticmethod
-    def surfacePolyDataWorld(surface_node) -> vtk.vtkPolyData:
+    def needsRims(model) -> bool:
+        """A model with a surface but no caps: BafflePlanner's plain RV model (no ModelFaceID),
+        or a segment's surface exported with the wall label alone."""
+        polydata = model.GetPolyData()
+        if polydata is None or polydata.GetNumberOfPoints() == 0:
+            return False
+        labels = polydata.GetCellData().GetArray("ModelFaceID")
+        if labels is None:
+            return True
+        present = set(np.unique(numpy_support.vtk_to_numpy(labels)).astype(int).tolist())
+        return not ({11, 16} & present)
+
+    def setRims(self, curve, vsd_rim, aortic_rim) -> None:
+        """The closed curves the user marked around the VSD and the aortic annulus on the
+        plain RV model; no write when unchanged."""
+        self._check_curve(curve)
+        wanted = {REF_VSD_RIM: vsd_rim.GetID() if vsd_rim else None, REF_AORTIC_RIM: aortic_rim.GetID() if aortic_rim else None}
+        if all(curve.GetNodeReferenceID(role) == node_id for role, node_id in wanted.items()):
+            return
+        with batched_modify(curve):
+            for role, node_id in wanted.items():
+                curve.SetNodeReferenceID(role, node_id)
+
+    def rimCappedVentricle(self, curve):
+        """The capped ventricle cut from the candidate's plain RV model at its two rims (made
+        now when missing or when the model, its transform or a rim changed)."""
+        from BaffleDesignerLib import rims
+
+        model = self.surfaceNode(curve)
+        vsd, aortic = curve.GetNodeReference(REF_VSD_RIM), curve.GetNodeReference(REF_AORTIC_RIM)
+        if vsd is None or aortic is None:
+            raise BaffleDesignerError(
+                f"{model.GetName()}: a plain RV model (no ModelFaceID): mark the VSD rim and the aortic-annulus rim "
+                "on it as closed curves and select them, or select the capped ventricle or a segmentation instead")
+        surface = self.worldPolyData(model)
+        key = repr((model.GetID(), surface.GetNumberOfPoints(), float(np.asarray(surface.GetBounds()).sum()),
+                    model.GetPolyData().GetMTime(), defined_points_key(vsd), defined_points_key(aortic)))
+        node = curve.GetNodeReference(REF_RIM_CAPPED)
+        if node is not None and node.GetAttribute(ATTRIBUTE_PREFIX + "MadeFrom") == key:
+            return node
+        capped = rims.capped_ventricle(surface, [
+            ("VSD", rims.VSD_CAP, np.asarray(defined_points_key(vsd))),
+            ("aortic-annulus", rims.AORTIC_CAP, np.asarray(defined_points_key(aortic))),
+        ])
+        node = self._model(curve, REF_RIM_CAPPED, "capped ventricle (rims)", capped, (0.9, 0.6, 0.6), opacity=0.4)
+        node.SetAttribute(ATTRIBUTE_PREFIX + "MadeFrom", key)
+        return node
+
+    @staticmethod
+    def worldPolyData(model_node) -> vtk.vtkPolyData:
+        """A model's surface in world coordinates (through its parent transforms)."""
+        polydata = model_node.GetPolyData()
+        parent = model_node.GetParentTransformNode()
+        if parent is None:
+            return polydata
+        to_world = vtk.vtkGeneralTransform()
+        slicer.vtkMRMLTransformNode.GetTransformBetweenNodes(parent, None, to_world)
+        transformer = vtk.vtkTransformPolyDataFilter()
+        transformer.SetTransform(to_world)
+        transformer.SetInputData(polydata)
+        transformer.Update()
+        return transformer.GetOutput()
+
+    @classmethod
+    def surfacePolyDataWorld(cls, surface_node) -> vtk.vtkPolyData:
         """The ventricle model's surface in world coordinates."""
         if surface_node is None:
             raise BaffleDesignerError("select the ventricle (a model node with ModelFaceID, or a segmentation)")
@@ -461,77 +800,103 @@ class BaffleDesignerLogic:
                 f"{surface_node.GetName()}: no {vtk_adapters.LABEL_ARRAY} cell array; the capped ventricle needs "
                 "labels 2 (RV wall), 11 (VSD cap) and 16 (aortic-annulus cap)"
             )
-        parent = surface_node.GetParentTransformNode()
-        if parent is None:
-            return polydata
-        to_world = vtk.vtkGeneralTransform()
-        slicer.vtkMRMLTransformNode.GetTransformBetweenNodes(parent, None, to_world)
-        transformer = vtk.vtkTransformPolyDataFilter()
-        transformer.SetTransform(to_world)
-        transformer.SetInputData(polydata)
-        transformer.Update()
-        return transformer.GetOutput()
+        return cls.worldPolyData(surface_node)
 
     # ---- design ----------------------------------------------------------------------
 
     def design(self, curve, progress=None, allow_prepare: bool = True) -> "baffle.DesignResult":
-        """Design the candidate of `curve` and update its output nodes. On failure the
-        previous outputs stay, the curve's Status/Error attributes say why, and
-        BaffleDesignerError carries the library's message. A segmentation ventricle is
-        prepared first when needed (see ventricleModel)."""
+        """Design the candidate of `curve` and update its output nodes, waiting for it
+        (scripts, tests; the widget uses startDesign). On failure the previous outputs
+        stay, the curve's Status/Error attributes say why, and BaffleDesignerError carries
+        the library's message. A segmentation ventricle is prepared first when needed (see
+        ventricleModel). progress(fraction, stage) is called on this thread; returning
+        False cancels."""
+        job = self.startDesign(curve, allow_prepare=allow_prepare, progress=progress)
+        job.wait()
+        if job.state != process.COMPLETED:
+            raise job.error
+        return job.result
+
+    def startDesign(self, curve, allow_prepare: bool = False, progress=None,
+                    parameters: Optional[DesignParameters] = None, ventricle=None) -> "DesignJob":
+        """Start designing the candidate: its inputs are read now, the library runs on a
+        worker thread, and the outputs are written by the job's poll() on the caller's
+        thread (MRML is not thread-safe). `parameters` (default: the curve's) and a
+        ventricle model node (default: the curve's) are stored on the curve with the
+        outputs, in the same one ModifiedEvent. Raises nothing: a failure is the job's state."""
+        return DesignJob(self, curve, allow_prepare, progress, parameters, ventricle).start()
+
+    def _design_inputs(self, curve, allow_prepare, progress, parameters=None, ventricle=None):
+        """(parameters, suture points, the ventricle as a baffle mesh), read on the GUI thread."""
         self._check_curve(curve)
-        curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
-        started = time.perf_counter()
+        parameters = self.parameters(curve) if parameters is None else parameters
+        parameters.validate()
+        points = self.suturePointsWorld(curve)
+        _, vtk_adapters = library()
+        model = ventricle if ventricle is not None else self.ventricleModel(curve, allow_prepare, progress)
+        surface = self.surfacePolyDataWorld(model)
         try:
-            parameters = self.parameters(curve)
-            points = self.suturePointsWorld(curve)
-            baffle, vtk_adapters = library()
-            model = self.ventricleModel(curve, allow_prepare, progress)
-            surface = self.surfacePolyDataWorld(model)
-            try:
-                mesh = vtk_adapters.polydata_to_mesh(surface)
-            except ValueError as error:
-                raise BaffleDesignerError(f"{model.GetName()}: {error}") from error
-            try:
-                result = baffle.design(
-                    mesh.points, mesh.triangles, mesh.labels, points, progress=progress, **parameters.design_kwargs()
-                )
-            except baffle.Cancelled as error:
-                raise BaffleDesignerError(f"design cancelled: {error}") from error
-            except baffle.BaffleError as error:
-                # The largest target this suture line admits, when the target is out of reach.
-                largest = getattr(error, "max_feasible_area_mm2", None)
-                curve.SetAttribute(ATTRIBUTE_PREFIX + "MaxFeasibleAreaMm2", "" if largest is None else f"{largest:.1f}")
-                raise BaffleDesignerError(f"design failed: {error}") from error
-        except BaffleDesignerError as error:
+            mesh = vtk_adapters.polydata_to_mesh(surface)
+        except ValueError as error:
+            raise BaffleDesignerError(f"{model.GetName()}: {error}") from error
+        return parameters, points, mesh
+
+    @staticmethod
+    def _run_library(curve_name, parameters, points, mesh, progress):
+        """baffle.design on the inputs: a pure function of them, safe off the GUI thread."""
+        baffle, _ = library()
+        try:
+            return baffle.design(mesh.points, mesh.triangles, mesh.labels, points, progress=progress,
+                                 **parameters.design_kwargs())
+        except baffle.Cancelled as error:
+            raise DesignCancelled(f"design cancelled: {error}") from error
+        except baffle.BaffleError as error:
+            failure = BaffleDesignerError(f"design failed: {error}")
+            # The largest target this suture line admits, when the target is out of reach.
+            failure.max_feasible_area_mm2 = getattr(error, "max_feasible_area_mm2", None)
+            raise failure from error
+
+    @staticmethod
+    def _record_failure(curve, error, parameters: Optional[DesignParameters] = None) -> None:
+        largest = getattr(error, "max_feasible_area_mm2", None)
+        with batched_modify(curve):
+            if parameters is not None:
+                parameters.write(curve)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+            curve.SetAttribute(ATTRIBUTE_PREFIX + "MaxFeasibleAreaMm2", "" if largest is None else f"{largest:.1f}")
             curve.SetAttribute(ATTRIBUTE_PREFIX + "Status", "failed")
             curve.SetAttribute(ATTRIBUTE_PREFIX + "Error", str(error))
-            raise
-        self._write_outputs(curve, result, parameters)
-        if curve.GetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus") == "completed":
-            # Its results describe the previous geometry; kept, but marked.
-            curve.SetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus", "outdated")
-        elapsed_ms = 1000.0 * (time.perf_counter() - started)
-        report = result.report
-        for name, value in (
-            ("Status", "designed"),
-            ("Error", ""),
-            ("MaxFeasibleAreaMm2", ""),
-            ("TargetAreaMm2", report["target_area_mm2"]),
-            ("TargetDescription", report["target"]),
-            ("BaffleAreaMm2", report["baffle_area_mm2"]),
-            ("MinSectionAreaMm2", report["min_constrained_final_area_mm2"]),
-            ("ConstrainedSections", report["constrained_sections"]),
-            ("CenterlineLengthMm", report["centerline_length_mm"]),
-            ("RvVolumeBeforeMl", f"{report['rv_volume_before_ml']:.3f}"),
-            ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
-            ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
-            *rv_outflow_attributes(report),
-            ("DesignTimeMs", f"{elapsed_ms:.0f}"),
-        ):
-            curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
+
+    def _finish_design(self, curve, result, parameters, elapsed_ms, ventricle=None) -> None:
+        """The outputs and figures of a finished design onto the scene, one ModifiedEvent on the curve."""
+        with batched_modify(curve):
+            if ventricle is not None:
+                curve.SetNodeReferenceID(REF_SURFACE, ventricle.GetID())
+            parameters.write(curve)  # what it was designed with (the same unless the GUI passed others)
+            curve.SetAttribute(CANDIDATE_ATTRIBUTE, "1")
+            self._write_outputs(curve, result, parameters)
+            if curve.GetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus") == "completed":
+                # Its results describe the previous geometry; kept, but marked.
+                curve.SetAttribute(ATTRIBUTE_PREFIX + "SimulationStatus", "outdated")
+            report = result.report
+            for name, value in (
+                ("Status", "designed"),
+                ("Error", ""),
+                ("MaxFeasibleAreaMm2", ""),
+                ("TargetAreaMm2", report["target_area_mm2"]),
+                ("TargetDescription", report["target"]),
+                ("BaffleAreaMm2", report["baffle_area_mm2"]),
+                ("MinSectionAreaMm2", report["min_constrained_final_area_mm2"]),
+                ("ConstrainedSections", report["constrained_sections"]),
+                ("CenterlineLengthMm", report["centerline_length_mm"]),
+                ("RvVolumeBeforeMl", f"{report['rv_volume_before_ml']:.3f}"),
+                ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
+                ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
+                *rv_outflow_attributes(report),
+                ("DesignTimeMs", f"{elapsed_ms:.0f}"),
+            ):
+                curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
         self.design_count += 1
-        return result
 
     def _output_node(self, curve, role: str, class_name: str, suffix: str):
         node = curve.GetNodeReference(role)
@@ -545,7 +910,93 @@ class BaffleDesignerLogic:
             if hasattr(node, "CreateDefaultDisplayNodes"):
                 node.CreateDefaultDisplayNodes()
             curve.SetNodeReferenceID(role, node.GetID())
+            self._into_folder(curve, node)
+            self._follow_name(curve)
         return node
+
+    def _follow_name(self, curve) -> None:
+        """Observe the curve's renaming (once per curve): its outputs and folder follow."""
+        if curve.GetID() not in self._name_tags:
+            self._name_tags[curve.GetID()] = (curve, curve.AddObserver(vtk.vtkCommand.ModifiedEvent, self._on_curve_modified))
+
+    def _on_curve_modified(self, curve, _event=None) -> None:
+        folder = self.candidateFolder(curve, create=False)
+        if not folder:
+            return
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        old = sh.GetItemName(folder)[: -len(FOLDER_SUFFIX)]
+        new = curve.GetName()
+        if old == new:
+            return
+        sh.SetItemName(folder, new + FOLDER_SUFFIX)
+        for role in OUTPUT_ROLES:
+            node = curve.GetNodeReference(role)
+            if node is not None and node.GetName().startswith(old + " "):
+                node.SetName(new + node.GetName()[len(old):])
+
+    # ---- a candidate's outputs: one subject hierarchy folder, removed with the curve --------
+
+    def candidateFolder(self, curve, create: bool = True) -> int:
+        """The subject hierarchy folder of the candidate's outputs (item ID; 0 when there
+        is none and not create), found by its attribute naming the curve."""
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        children = vtk.vtkIdList()
+        sh.GetItemChildren(sh.GetSceneItemID(), children)
+        for i in range(children.GetNumberOfIds()):
+            item = children.GetId(i)
+            if sh.GetItemAttribute(item, FOLDER_ATTRIBUTE) == curve.GetID():
+                return item
+        if not create:
+            return 0
+        folder = sh.CreateFolderItem(sh.GetSceneItemID(), curve.GetName() + FOLDER_SUFFIX)
+        sh.SetItemAttribute(folder, FOLDER_ATTRIBUTE, curve.GetID())
+        return folder
+
+    def _into_folder(self, curve, node) -> None:
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        folder = self.candidateFolder(curve)
+        item = sh.GetItemByDataNode(node)
+        if item:
+            sh.SetItemParent(item, folder)
+        else:  # Slicer's subject hierarchy logic makes the item; a bare MRML scene does not
+            sh.CreateItem(folder, node)
+
+    def _on_node_about_to_be_removed(self, scene, _event) -> None:
+        # No call data in a plain Python observer: check the candidates still in the scene.
+        if scene.IsClosing() or scene.IsBatchProcessing():
+            return
+        for curve in self.candidates():
+            if curve.GetID() not in self._leaving:
+                self._leaving[curve.GetID()] = [curve.GetNodeReferenceID(role) for role in OUTPUT_ROLES
+                                                if curve.GetNodeReferenceID(role)]
+
+    def _on_node_removed(self, scene, _event) -> None:
+        if scene.IsClosing() or scene.IsBatchProcessing():
+            self._leaving.clear()
+            return
+        leaving, self._leaving = self._leaving, {}
+        for curve_id, output_ids in leaving.items():
+            if scene.GetNodeByID(curve_id) is not None:
+                continue  # still there: another node was removed
+            for node_id in output_ids:
+                node = scene.GetNodeByID(node_id)
+                if node is not None:
+                    scene.RemoveNode(node)
+            sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(scene)
+            children = vtk.vtkIdList()
+            sh.GetItemChildren(sh.GetSceneItemID(), children)
+            for i in range(children.GetNumberOfIds()):
+                if sh.GetItemAttribute(children.GetId(i), FOLDER_ATTRIBUTE) == curve_id:
+                    sh.RemoveItem(children.GetId(i), True, True)
+                    break
+
+    def removeSceneObservers(self) -> None:
+        for tag in self._scene_tags:
+            self.scene.RemoveObserver(tag)
+        self._scene_tags = []
+        for curve, tag in self._name_tags.values():
+            curve.RemoveObserver(tag)
+        self._name_tags.clear()
 
     def _model(self, curve, role, suffix, polydata, color, opacity=1.0):
         node = self._output_node(curve, role, "vtkMRMLModelNode", suffix)
@@ -699,20 +1150,21 @@ class BaffleDesignerLogic:
             )
         except baffle.BaffleError as error:
             raise BaffleDesignerError(f"{curve.GetName()}: template failed: {error}") from error
-        polydata = vtk_adapters.mesh_to_polydata(template.flat)
-        polydata.GetCellData().AddArray(_vtk_double_array("area_ratio", template.area_ratio))
-        node = self._model(curve, REF_FLAT_TEMPLATE, "flat template", polydata, (0.85, 0.25, 0.2))
-        node.SetAttribute(ATTRIBUTE_PREFIX + "DomainMTime", str(domain_node.GetPolyData().GetMTime()))
-        f = template.report["flattening"]
-        for name, value in (
-            ("TemplateMethod", method),
-            ("TemplateSeamLengthMm", f"{f['seam_length_3d_mm']:.2f}"),
-            ("TemplatePerimeterErrorPct", f"{100 * f['perimeter_error']:.2g}"),
-            ("TemplateAreaChangeMedianPct", f"{100 * f['area_distortion_median']:.1f}"),
-            ("TemplateAreaChangeMaxPct", f"{100 * f['area_distortion_max']:.1f}"),
-            ("TemplateAngleChangeMaxDeg", f"{f['angle_distortion_max_deg']:.1f}"),
-        ):
-            curve.SetAttribute(ATTRIBUTE_PREFIX + name, value)
+        with batched_modify(curve):
+            polydata = vtk_adapters.mesh_to_polydata(template.flat)
+            polydata.GetCellData().AddArray(_vtk_double_array("area_ratio", template.area_ratio))
+            node = self._model(curve, REF_FLAT_TEMPLATE, "flat template", polydata, (0.85, 0.25, 0.2))
+            node.SetAttribute(ATTRIBUTE_PREFIX + "DomainMTime", str(domain_node.GetPolyData().GetMTime()))
+            f = template.report["flattening"]
+            for name, value in (
+                ("TemplateMethod", method),
+                ("TemplateSeamLengthMm", f"{f['seam_length_3d_mm']:.2f}"),
+                ("TemplatePerimeterErrorPct", f"{100 * f['perimeter_error']:.2g}"),
+                ("TemplateAreaChangeMedianPct", f"{100 * f['area_distortion_median']:.1f}"),
+                ("TemplateAreaChangeMaxPct", f"{100 * f['area_distortion_max']:.1f}"),
+                ("TemplateAngleChangeMaxDeg", f"{f['angle_distortion_max_deg']:.1f}"),
+            ):
+                curve.SetAttribute(ATTRIBUTE_PREFIX + name, value)
         self._templates[curve.GetID()] = template
         return template
 
@@ -744,11 +1196,13 @@ class BaffleDesignerLogic:
     # ---- auto-update ------------------------------------------------------------------
 
     def setAutoUpdate(self, curve, enabled: bool) -> None:
-        """Observe the curve's control points: an add, a remove, a move from a script and
-        the end of a drag mark the candidate pending; processPendingUpdates() designs it
-        once it has been quiet for debounce_seconds. Moves during a drag do not: Slicer
-        fires PointModifiedEvent on every mouse move, and a design would block the GUI
-        whenever the surgeon paused mid-drag."""
+        """Observe the curve's control points: a change of its defined points (an add, a
+        remove, a move from a script, the end of a drag) marks the candidate pending;
+        processPendingUpdates() designs it once it has been quiet for debounce_seconds.
+        Moves during a drag do not: Slicer fires PointModifiedEvent on every mouse move,
+        and a design would start whenever the surgeon paused mid-drag. Nor do preview
+        points: in place mode Slicer moves one on every mouse move, with no drag events,
+        and the design ignores it (defined_points_key)."""
         self._check_curve(curve)
         curve_id = curve.GetID()
         for node, tag in self._observations.pop(curve_id, []):
@@ -757,21 +1211,44 @@ class BaffleDesignerLogic:
         self._dragging.discard(curve_id)
         curve.SetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate", "1" if enabled else "0")
         if not enabled:
+            self._points_keys.pop(curve_id, None)
             return
+        self._points_keys[curve_id] = defined_points_key(curve)
         handlers = (
             (curve.PointModifiedEvent, self._on_curve_changed),
             (curve.PointAddedEvent, self._on_curve_changed),
             (curve.PointRemovedEvent, self._on_curve_changed),
+            (curve.PointPositionDefinedEvent, self._on_curve_changed),
+            (curve.PointPositionUndefinedEvent, self._on_curve_changed),
             (curve.PointStartInteractionEvent, self._on_drag_start),
             (curve.PointEndInteractionEvent, self._on_drag_end),
         )
         self._observations[curve_id] = [(curve, curve.AddObserver(event, handler)) for event, handler in handlers]
 
+    def rearmAutoUpdates(self) -> List[str]:
+        """Observe again every candidate saved with auto-update on (a reopened scene keeps
+        the attribute, not the observers). Returns their IDs."""
+        armed = []
+        for curve in self.candidates():
+            self._follow_name(curve)
+            if curve.GetAttribute(ATTRIBUTE_PREFIX + "AutoUpdate") == "1" and not self.isAutoUpdating(curve):
+                self.setAutoUpdate(curve, True)
+                armed.append(curve.GetID())
+        return armed
+
     def isAutoUpdating(self, curve) -> bool:
         return curve.GetID() in self._observations
 
+    def _points_changed(self, curve) -> bool:
+        """True (and remembered) when the defined points differ from the last ones seen."""
+        key = defined_points_key(curve)
+        if self._points_keys.get(curve.GetID()) == key:
+            return False
+        self._points_keys[curve.GetID()] = key
+        return True
+
     def _on_curve_changed(self, curve, _event=None) -> None:
-        if curve.GetID() not in self._dragging:
+        if curve.GetID() not in self._dragging and self._points_changed(curve):
             self.requestUpdate(curve)
 
     def _on_drag_start(self, curve, _event=None) -> None:
@@ -780,7 +1257,8 @@ class BaffleDesignerLogic:
 
     def _on_drag_end(self, curve, _event=None) -> None:
         self._dragging.discard(curve.GetID())
-        self.requestUpdate(curve)
+        if self._points_changed(curve):
+            self.requestUpdate(curve)
 
     def requestUpdate(self, curve) -> None:
         """Mark the candidate for a debounced redesign (point drags, parameter edits)."""
@@ -791,28 +1269,37 @@ class BaffleDesignerLogic:
     def pendingUpdates(self) -> List[str]:
         return list(self._pending)
 
-    def processPendingUpdates(self, now: Optional[float] = None, force: bool = False) -> Dict[str, Optional[str]]:
-        """Design every pending candidate that has been quiet for debounce_seconds (all
-        of them with force). Returns {curve ID: None or the error message}; errors are
-        also left on the curve (Status/Error attributes), never raised, so a point
-        dragged off the wall just leaves the last good baffle in place."""
+    def takeReadyUpdate(self, now: Optional[float] = None, force: bool = False):
+        """The next pending candidate that has been quiet for debounce_seconds (any with
+        force), no longer pending; None when there is none."""
         now = time.monotonic() if now is None else now
-        done = {}
         for curve_id, changed in list(self._pending.items()):
             if not force and now - changed < self.debounce_seconds:
                 continue
             del self._pending[curve_id]
             curve = self.scene.GetNodeByID(curve_id)
+            if curve is not None:
+                return curve
+        return None
+
+    def processPendingUpdates(self, now: Optional[float] = None, force: bool = False) -> Dict[str, Optional[str]]:
+        """Design every pending candidate that has been quiet for debounce_seconds (all
+        of them with force), waiting for each (the widget starts DesignJobs instead).
+        Returns {curve ID: None or the error message}; errors are also left on the curve
+        (Status/Error attributes), never raised, so a point dragged off the wall just
+        leaves the last good baffle in place."""
+        done = {}
+        while True:
+            curve = self.takeReadyUpdate(now, force)
             if curve is None:
-                continue
+                return done
             try:
                 self.design(curve, allow_prepare=False)  # live: never a prepare run
-                done[curve_id] = None
+                done[curve.GetID()] = None
             except BaffleDesignerError as error:
-                done[curve_id] = str(error)
+                done[curve.GetID()] = str(error)
             if self.onAutoUpdated is not None:
-                self.onAutoUpdated(curve, done[curve_id])
-        return done
+                self.onAutoUpdated(curve, done[curve.GetID()])
 
     def cleanup(self) -> None:
         """Remove all observers (module widget cleanup / scene close)."""
@@ -822,6 +1309,71 @@ class BaffleDesignerLogic:
         self._observations.clear()
         self._pending.clear()
         self._dragging.clear()
+        self._points_keys.clear()
+
+    # ---- BafflePlanner's baffle beside ours ------------------------------------------------
+
+    def compareWithBafflePlanner(self, curve) -> Dict[str, float]:
+        """Our designed baffle against BafflePlanner's on the same curve (its 'BaffleModel'
+        reference): both areas (mm2) and the distance from each surface to the other
+        (mean and largest over the points of both, mm). Stored as curve attributes
+        (BafflePlanner*) for the comparison table."""
+        ours = curve.GetNodeReference(REF_BAFFLE)
+        theirs = curve.GetNodeReference(BAFFLE_PLANNER_MODEL_REF)
+        if ours is None or ours.GetPolyData() is None or ours.GetPolyData().GetNumberOfCells() == 0:
+            raise BaffleDesignerError(f"{curve.GetName()}: design the baffle first")
+        if theirs is None or theirs.GetPolyData() is None or theirs.GetPolyData().GetNumberOfCells() == 0:
+            raise BaffleDesignerError(f"{curve.GetName()}: BafflePlanner has no baffle model on this curve (reference 'BaffleModel')")
+        a, b = ours.GetPolyData(), theirs.GetPolyData()
+        to_a, to_b = _distances_to(a, b), _distances_to(b, a)
+        both = np.concatenate([to_a, to_b])
+        figures = {
+            "BafflePlannerAreaMm2": _surface_area(b),
+            "BaffleDesignerAreaMm2": _surface_area(a),
+            "BafflePlannerMeanDistanceMm": float(both.mean()),
+            "BafflePlannerMaxDistanceMm": float(both.max()),
+        }
+        with batched_modify(curve):
+            for name, value in figures.items():
+                curve.SetAttribute(ATTRIBUTE_PREFIX + name, f"{value:.3f}")
+        return figures
+
+    # ---- a `baffle plan` run's geometry -------------------------------------------------
+
+    def loadPlanGeometry(self, folder: str) -> list:
+        """The surfaces a `baffle plan --out folder` run wrote (PLAN_GEOMETRY: the capped
+        ventricle it prepared, the domain and baffle it designed, the extended domain, the
+        flow centerline), as model nodes in one subject hierarchy folder named after the run.
+        The files are read as Slicer reads model files (LPS unless the file says RAS), so a
+        plan run on surfaces Slicer exported lands on them. Errors when there is none."""
+        import os
+
+        found = [(relative, name) for relative, name in PLAN_GEOMETRY if os.path.isfile(os.path.join(folder, relative))]
+        if not found:
+            raise BaffleDesignerError(
+                f"{folder}: no plan geometry (looked for {', '.join(relative for relative, _ in PLAN_GEOMETRY)})")
+        sh = slicer.vtkMRMLSubjectHierarchyNode.GetSubjectHierarchyNode(self.scene)
+        run = os.path.basename(os.path.normpath(folder))
+        parent = sh.CreateFolderItem(sh.GetSceneItemID(), f"plan {run}")
+        nodes = []
+        for relative, name in found:
+            path = os.path.join(folder, relative)
+            node = self.scene.AddNewNodeByClass("vtkMRMLModelNode", f"plan {run} {name}")
+            storage = self.scene.AddNewNodeByClass("vtkMRMLModelStorageNode")
+            storage.SetFileName(path)
+            node.SetAndObserveStorageNodeID(storage.GetID())
+            if not storage.ReadData(node):
+                self.scene.RemoveNode(node)
+                self.scene.RemoveNode(storage)
+                raise BaffleDesignerError(f"{path}: could not be read as a model")
+            node.CreateDefaultDisplayNodes()
+            item = sh.GetItemByDataNode(node)
+            if item:
+                sh.SetItemParent(item, parent)
+            else:
+                sh.CreateItem(parent, node)
+            nodes.append(node)
+        return nodes
 
     # ---- candidates ---------------------------------------------------------------------
 
@@ -867,6 +1419,8 @@ class BaffleDesignerLogic:
             "Constrained sections": "ConstrainedSections",
             "Max feasible area": "MaxFeasibleAreaMm2",  # set when the target is out of reach
             "RV after": "RvVolumeAfterMl",  # the capped ventricle's volume outside the pathway
+            "BafflePlanner area": "BafflePlannerAreaMm2",  # compareWithBafflePlanner
+            "Distance to BafflePlanner": "BafflePlannerMeanDistanceMm",
             "dp": "SimulationDpMmhg",
             "v_max": "SimulationMaxVelocityMS",
         }
@@ -886,7 +1440,8 @@ class BaffleDesignerLogic:
         table.AddColumn(status_column)
         table.AddColumn(simulation_column)
         node.SetAndObserveTable(table)
-        for column in ("Target area", "Baffle area", "Min section area", "Max feasible area"):
+        node.SetColumnUnitLabel("Distance to BafflePlanner", "mm")
+        for column in ("Target area", "Baffle area", "Min section area", "Max feasible area", "BafflePlanner area"):
             node.SetColumnUnitLabel(column, "mm2")
         node.SetColumnUnitLabel("RV after", "mL")
         node.SetColumnUnitLabel("dp", "mmHg")

@@ -252,6 +252,8 @@ class PrepareJob(bdlogic.CandidateJob):
 
     def poll(self) -> str:
         """Advance; call it from the GUI thread (it changes the scene at the end)."""
+        if self.running and self.curve_removed():
+            return self.stop_for_removed_curve()
         if not self.running or self.run.running:
             return self.state
         if self.run.state == process.CANCELLED:

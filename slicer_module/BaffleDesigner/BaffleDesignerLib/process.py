@@ -13,22 +13,60 @@ import time
 from pathlib import Path
 from typing import List, Optional, Tuple
 
+from BaffleDesignerLib import environment
+
 _TAG = re.compile(r"<(filter-[a-z]+)>(.*?)</\1>")
 
 RUNNING, COMPLETED, FAILED, CANCELLED = "running", "completed", "failed", "cancelled"
 
+# Windows process creation flags (subprocess has them only on Windows).
+CREATE_NEW_PROCESS_GROUP = 0x00000200
+CREATE_NO_WINDOW = 0x08000000
+# The platform the children run on; a module constant so that tests can ask for Windows'.
+OS_NAME = os.name
+
+
+def child_options(os_name: Optional[str] = None) -> dict:
+    """Popen arguments for every child process: output decoded as UTF-8 (what the Rust
+    program writes; the locale codec of a Windows Slicer is not, and a non-ASCII temp
+    path would then end the reader thread and leave the child blocked on a full pipe),
+    undecodable bytes replaced, never raised; no console window on Windows (as
+    slicer.util.launchConsoleProcess does); and a process group of its own, so that
+    cancel ends its children too (gmsh under `baffle mesh`)."""
+    options = {"encoding": "utf-8", "errors": "replace", "stdin": subprocess.DEVNULL}
+    if (os_name or OS_NAME) == "nt":
+        options["creationflags"] = CREATE_NO_WINDOW | CREATE_NEW_PROCESS_GROUP
+    else:
+        options["start_new_session"] = True
+    return options
+
+
+def tree_kill_command(pid: int) -> List[str]:
+    """Windows: end the process and every process it started (taskkill /T), forcibly (/F:
+    console programs ignore the polite close)."""
+    return ["taskkill", "/PID", str(pid), "/T", "/F"]
+
+
+def run_captured(command: List[str], env: Optional[dict] = None, timeout: float = 20.0) -> subprocess.CompletedProcess:
+    """A short child run with its output captured, under child_options()."""
+    return subprocess.run([str(c) for c in command], env=env, capture_output=True, timeout=timeout, check=False,
+                          **child_options())
+
 
 def find_baffle_executable() -> Optional[str]:
-    """$BAFFLE_EXECUTABLE, else `baffle` on PATH, else a development tree's cargo build
+    """$BAFFLE_EXECUTABLE, else the packaged extension's program (baffle/bin beside the
+    module), else `baffle` on PATH, else a development tree's cargo build
     (slicer_module/BaffleDesigner/BaffleDesignerLib -> ../../../target/release/baffle)."""
     given = os.environ.get("BAFFLE_EXECUTABLE")
     if given:
         return given
+    packaged = environment.packaged_executable()
+    if packaged is not None:
+        return str(packaged)
     on_path = shutil.which("baffle")
     if on_path:
         return on_path
-    name = "baffle.exe" if os.name == "nt" else "baffle"
-    built = Path(__file__).resolve().parents[3] / "target" / "release" / name
+    built = Path(__file__).resolve().parents[3] / "target" / "release" / environment.executable_name()
     return str(built) if built.exists() else None
 
 
@@ -37,9 +75,7 @@ def subcommand_availability(executable: Optional[str], subcommand: str, timeout:
     if not executable:
         return False, "the baffle command line program was not found (set BAFFLE_EXECUTABLE or put baffle on PATH)"
     try:
-        done = subprocess.run(
-            [executable, subcommand, "--help"], capture_output=True, text=True, timeout=timeout, check=False
-        )
+        done = run_captured([executable, subcommand, "--help"], timeout=timeout)
     except (OSError, subprocess.TimeoutExpired) as error:
         return False, f"{executable} {subcommand} --help: {error}"
     if done.returncode == 0:
@@ -118,15 +154,8 @@ class CliProcess:
             raise RuntimeError("already started")
         self.started_at = time.monotonic()
         self._process = subprocess.Popen(
-            self.command,
-            cwd=self.cwd,
-            env=self.env,
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            bufsize=1,
-            start_new_session=(os.name != "nt"),  # its own process group: cancel ends its children too
+            self.command, cwd=self.cwd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=1,
+            **child_options(),
         )
         self.state = RUNNING
         self._threads = [
@@ -164,7 +193,7 @@ class CliProcess:
         code = self._process.wait()
         if self._cancel_requested:
             # Children the program started (gmsh under `baffle mesh`) go with it.
-            self._signal(signal.SIGKILL if os.name != "nt" else None)
+            self._signal(signal.SIGKILL if OS_NAME != "nt" else None)
         for thread in self._threads:
             thread.join()
         with self._lock:
@@ -188,23 +217,24 @@ class CliProcess:
         if self._process is None or self.state != RUNNING:
             return
         self._cancel_requested = True
-        self._signal(signal.SIGTERM if os.name != "nt" else None)
+        self._signal(signal.SIGTERM if OS_NAME != "nt" else None)
 
         def kill_later():
             try:
                 self._process.wait(timeout=kill_after)
             except subprocess.TimeoutExpired:
-                self._signal(signal.SIGKILL if os.name != "nt" else None)
+                self._signal(signal.SIGKILL if OS_NAME != "nt" else None)
 
         threading.Thread(target=kill_later, daemon=True).start()
 
     def _signal(self, sig) -> None:
+        """sig to the child's process group; None (Windows): end its process tree."""
         try:
             if sig is None:
-                self._process.kill()
+                run_captured(tree_kill_command(self._process.pid), timeout=10.0)
             else:
                 os.killpg(self._process.pid, sig)
-        except (ProcessLookupError, PermissionError):
+        except (ProcessLookupError, PermissionError, OSError, subprocess.TimeoutExpired):
             pass
 
     def wait(self, timeout: Optional[float] = None) -> str:

@@ -260,37 +260,77 @@ def _series_table(results: SimulationResults) -> vtk.vtkTable:
     return table
 
 
+def _show_speed(display, opacity: float) -> None:
+    if display is None:
+        return
+    display.SetActiveScalar("speed_m_s", vtk.vtkAssignAttribute.POINT_DATA)
+    display.SetAndObserveColorNodeID("vtkMRMLColorTableNodeFileViridis.txt")
+    display.SetScalarVisibility(True)
+    display.SetOpacity(opacity)
+
+
+def speed_section(fields: vtk.vtkUnstructuredGrid, centerline_node) -> Optional[vtk.vtkPolyData]:
+    """The peak-flow fields on the cross-section at the middle of the centerline (plane
+    normal to it there): the speed inside the pathway, which the wall (no slip: zero
+    speed) hides on the outer surface. None without a centerline of 3 or more points."""
+    if centerline_node is None or centerline_node.GetNumberOfControlPoints() < 3:
+        return None
+    count = centerline_node.GetNumberOfControlPoints()
+    middle = count // 2
+    at = lambda i: np.asarray(centerline_node.GetNthControlPointPositionWorld(i))
+    tangent = at(middle + 1) - at(middle - 1)
+    if not np.linalg.norm(tangent) > 0:
+        return None
+    plane = vtk.vtkPlane()
+    plane.SetOrigin(*at(middle))
+    plane.SetNormal(*(tangent / np.linalg.norm(tangent)))
+    cutter = vtk.vtkCutter()
+    cutter.SetInputData(fields)
+    cutter.SetCutFunction(plane)
+    nearest = vtk.vtkPolyDataConnectivityFilter()  # the pathway's section, not another crossing
+    nearest.SetInputConnection(cutter.GetOutputPort())
+    nearest.SetExtractionModeToClosestPointRegion()
+    nearest.SetClosestPoint(*at(middle))
+    nearest.Update()
+    section = nearest.GetOutput()
+    return section if section.GetNumberOfCells() > 0 else None
+
+
 def store_results(logic, curve, results: SimulationResults, out_dir: str, outdated: bool = False) -> None:
     """The checked results onto the candidate: summary table, peak fields model, time
     series table and chart (node references on the curve), the verdict (attributes).
     `outdated`: the candidate was redesigned while it ran."""
-    summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
-    summary_node.SetAndObserveTable(_summary_table(results))
-    summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
+    with bdlogic.batched_modify(curve):  # one ModifiedEvent on the curve (BafflePlanner observes it)
+        summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
+        summary_node.SetAndObserveTable(_summary_table(results))
+        summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
 
-    fields_node = logic._output_node(curve, bdlogic.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
-    fields_node.SetAndObserveMesh(results.fields)
-    display = fields_node.GetDisplayNode()
-    if display is not None:
-        display.SetActiveScalar("speed_m_s", vtk.vtkAssignAttribute.POINT_DATA)
-        display.SetAndObserveColorNodeID("vtkMRMLColorTableNodeFileViridis.txt")
-        display.SetScalarVisibility(True)
-        display.SetOpacity(0.5)
+        fields_node = logic._output_node(curve, bdlogic.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
+        fields_node.SetAndObserveMesh(results.fields)
+        _show_speed(fields_node.GetDisplayNode(), opacity=0.5)
+        display = fields_node.GetDisplayNode()
+        if display is not None:
+            display.SetVisibility2D(True)  # the slice views cut the volume: speed inside, not only at the wall
+        section = speed_section(results.fields, curve.GetNodeReference(bdlogic.REF_CENTERLINE))
+        if section is not None:
+            section_node = logic._output_node(curve, bdlogic.REF_SIM_SECTION, "vtkMRMLModelNode", "peak flow section")
+            section_node.SetAndObservePolyData(section)
+            _show_speed(section_node.GetDisplayNode(), opacity=1.0)
 
-    series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
-    series_node.SetAndObserveTable(_series_table(results))
-    _write_series_chart(logic, curve, series_node, results)
+        series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
+        series_node.SetAndObserveTable(_series_table(results))
+        _write_series_chart(logic, curve, series_node, results)
 
-    for name, value in (
-        ("SimulationStatus", "outdated" if outdated else "completed"),
-        ("SimulationDpMmhg", results.dp_mmhg),
-        ("SimulationMaxVelocityMS", results.max_velocity_m_s),
-        ("SimulationVerdict", results.verdict),
-        ("SimulationMode", results.mode),  # the GUI's words
-        ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
-        ("SimulationDir", out_dir),
-    ):
-        curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
+        for name, value in (
+            ("SimulationStatus", "outdated" if outdated else "completed"),
+            ("SimulationDpMmhg", results.dp_mmhg),
+            ("SimulationMaxVelocityMS", results.max_velocity_m_s),
+            ("SimulationVerdict", results.verdict),
+            ("SimulationMode", results.mode),  # the GUI's words
+            ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
+            ("SimulationDir", out_dir),
+        ):
+            curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
 
 
 CHART_TITLES = {"quick": "from rest to the first flow peak", "steady": "steady solve at peak flow", "pulsatile": "pulsatile run"}
@@ -373,6 +413,8 @@ class SimulationJob(bdlogic.CandidateJob):
 
     def poll(self) -> str:
         """Advance the chain; call it from the GUI thread (it changes the scene at the end)."""
+        if self.running and self.curve_removed():
+            return self.stop_for_removed_curve()
         if not self.running or self.run.running:
             return self.state
         run = self.run

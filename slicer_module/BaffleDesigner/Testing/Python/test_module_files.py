@@ -28,11 +28,13 @@ def test_widget_names_mirror_the_ui_file():
 def test_cmake_lists_every_module_file():
     cmake = (MODULE_DIR / "CMakeLists.txt").read_text()
     assert "slicerMacroBuildScriptedModule" in cmake and "WITH_GENERIC_TESTS" in cmake
-    assert "slicer_add_python_unittest" in cmake
+    assert "slicer_add_python_unittest" in cmake and "baffle_designer_add_native(" in cmake
+    files = (MODULE_DIR / "CMake" / "BaffleDesignerFiles.cmake").read_text()
     for path in sorted((MODULE_DIR / "BaffleDesignerLib").glob("*.py")):
-        assert "${MODULE_NAME}Lib/" + path.name in cmake, path.name
+        assert "BaffleDesignerLib/" + path.name in files, path.name
     extension = (MODULE_DIR.parent / "CMakeLists.txt").read_text()
     assert "add_subdirectory(BaffleDesigner)" in extension and 'EXTENSION_CATEGORY "Cardiac"' in extension
+    assert 'EXTENSION_DEPENDS "SlicerHeart"' in extension
 
 
 def test_icon_is_a_128_pixel_drawing():

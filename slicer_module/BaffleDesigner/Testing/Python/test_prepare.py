@@ -113,7 +113,7 @@ def test_redesign_and_drag_reuse_the_prepared_ventricle(prepared):
     logic.setAutoUpdate(curve, True)
     p = [0.0] * 3
     curve.GetNthControlPointPositionWorld(3, p)
-    curve.SetNthControlPointPositionWorld(3, *p)
+    curve.SetNthControlPointPositionWorld(3, p[0] + 0.2, p[1], p[2])  # a move (one to the same place is none)
     assert logic.processPendingUpdates(force=True) == {curve.GetID(): None}
     logic.setAutoUpdate(curve, False)
     assert logic.prepare_count == 1 and curve.GetNodeReference(bdlogic.REF_PREPARED) is node

@@ -167,6 +167,25 @@ def test_peak_fields_node_has_the_mesh_and_the_arrays_in_scene_units(simulated):
     assert np.all(np.isfinite(pressure)) and pressure.max() - pressure.min() > 0
     display = fields_node.GetDisplayNode()
     assert display.GetActiveScalarName() == "speed_m_s" and display.GetScalarVisibility()
+    assert display.GetVisibility2D()  # the slice views cut through the fields
+
+
+def test_the_fields_on_a_section_show_the_speed_inside(simulated):
+    """The outer surface is the wall, where the speed is zero (no slip): the section at the
+    middle of the centerline shows the flow itself."""
+    scene, logic, curve, job, _ = simulated
+    section = curve.GetNodeReference(bdlogic.REF_SIM_SECTION)
+    assert section is not None and section.GetPolyData().GetNumberOfCells() > 10
+    speed = numpy_support.vtk_to_numpy(section.GetPolyData().GetPointData().GetArray("speed_m_s"))
+    wall_speed = numpy_support.vtk_to_numpy(curve.GetNodeReference(bdlogic.REF_SIM_FIELDS).GetMesh().GetPointData().GetArray("speed_m_s"))
+    assert speed.max() > 0.5 * wall_speed.max() and speed.max() <= wall_speed.max() + 1e-9
+    display = section.GetDisplayNode()
+    assert display.GetActiveScalarName() == "speed_m_s" and display.GetOpacity() == 1.0
+    # It is the pathway's section through the centerline's middle point.
+    centerline = curve.GetNodeReference(bdlogic.REF_CENTERLINE)
+    middle = np.asarray(centerline.GetNthControlPointPositionWorld(centerline.GetNumberOfControlPoints() // 2))
+    points = numpy_support.vtk_to_numpy(section.GetPolyData().GetPoints().GetData())
+    assert np.all(points.min(axis=0) - 1e-6 <= middle) and np.all(middle <= points.max(axis=0) + 1e-6)
 
 
 def test_time_series_table_and_chart(simulated):

@@ -70,7 +70,13 @@ def design_in_widget(w, model, curve, bsa):
     w.ui.targetModeComboBox.currentIndex = 0
     w.ui.bsaSpinBox.value = bsa
     w.ui.designButton.click()
+    wait_design(w)
     assert curve.GetAttribute("BaffleDesigner.Status") == "designed", w.ui.statusLabel.text
+
+
+def wait_design(w, seconds=120):
+    """Let the design timer run until the design (on its worker thread) has been written."""
+    assert harness.process_events_for(seconds, until=lambda: w.designJob is None), "the design never ended"
 
 
 def require_cfd(w):
@@ -239,12 +245,13 @@ def test_first_run_check_finds_a_missing_gmsh(module, monkeypatch, tmp_path):
 def test_design_on_p2_shows_table_and_chart_and_repaints_progress(widget):
     w = widget
     model, curve = p2_candidate()
-    calls = app.process_events_calls
     seen = []
     w.ui.progressBar.connect("valueChanged(int)", seen.append)
     design_in_widget(w, model, curve, 0.37)
-    assert app.process_events_calls - calls > 3  # the progress callback let the bar repaint
-    assert len(set(seen)) > 3 and w.ui.progressBar.value == 0 and w.ui.progressBar.format == ""
+    # The design timer (50 ms) shows the worker's progress; p2 may design within one tick.
+    if float(curve.GetAttribute("BaffleDesigner.DesignTimeMs")) > 150:
+        assert len(set(seen)) >= 2
+    assert w.ui.progressBar.value == 0 and w.ui.progressBar.format == ""
     assert "target" in w.ui.statusLabel.text and "baffle" in w.ui.statusLabel.text
 
     views = app.layoutManager().viewClasses()
@@ -337,7 +344,9 @@ def test_the_debounce_timer_designs_when_it_fires(widget):
     curve.SetNthControlPointPositionWorld(3, *[0.8 * a[i] + 0.2 * b[i] for i in range(3)])
     w.updateTimer.stop()
     w.onUpdateTimer()  # fires at once, well before debounce_seconds of quiet
-    assert w.logic.design_count == count + 1 and not w.logic.pendingUpdates()
+    assert w.designJob is not None and not w.logic.pendingUpdates()
+    wait_design(w)
+    assert w.logic.design_count == count + 1
 
 
 # ---- separate processes: simulate, cancel, scene close ------------------------------------
@@ -359,6 +368,8 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     assert summary is not None and summary.GetNumberOfRows() > 0
     assert any(v.GetTableNodeID() == summary.GetID() for v in slicer.util.getNodesByClass("vtkMRMLTableViewNode"))
     dp = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
+    work = Path(curve.GetAttribute("BaffleDesigner.SimulationDir")).parent
+    assert not (work / "volume.vtu").exists() and (work / "results" / "summary.json").exists()  # cleaned, results kept
 
     w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("pulsatile")  # long enough to cancel
     w.ui.simulateButton.click()
@@ -366,6 +377,7 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     w.ui.cancelButton.click()
     wait_run(w, 90)
     assert "cancelled" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    assert not os.path.exists(w.runDir)  # a cancelled run's work folder is removed
     assert curve.GetAttribute("BaffleDesigner.SimulationDpMmhg") == dp  # the steady results stay
     assert not w.processTimer.active and w.ui.simulateButton.enabled
 
@@ -462,3 +474,233 @@ def test_self_test_finds_the_data_from_a_build_tree_only_by_BAFFLE_DATA_DIR(modu
     test = sys.modules["BaffleDesigner"].BaffleDesignerTest()
     with pytest.raises(AssertionError, match="BAFFLE_DATA_DIR"):
         test._patientFolder("design_input")
+
+
+# ---- the view keeps drawing; placing points; BafflePlanner's scene ------------------------
+
+
+def test_the_view_keeps_drawing_during_a_design(widget):
+    """A 20 ms timer stands for the views' rendering: during a p2 design (its library part
+    on the worker thread) the event loop keeps serving it; the longest gap is the writing
+    of the outputs on the GUI thread at the end."""
+    w = widget
+    model, curve = p2_candidate()
+    w.ui.surfaceSelector.setCurrentNode(model)
+    w.ui.curveSelector.setCurrentNode(curve)
+    ticks = []
+    render = qt.QTimer()
+    render.setInterval(20)
+    render.connect("timeout()", lambda: ticks.append(time.perf_counter()))
+    render.start()
+    harness.process_events_for(0.2)
+    started = time.perf_counter()
+    w.ui.designButton.click()
+    clicked = time.perf_counter() - started
+    wait_design(w)
+    harness.process_events_for(0.1)
+    render.stop()
+    during = [t for t in ticks if t >= started]
+    gaps_ms = [1000 * (b - a) for a, b in zip(during, during[1:])]
+    design_ms = float(curve.GetAttribute("BaffleDesigner.DesignTimeMs"))
+    print(f"design {design_ms:.0f} ms; GUI thread {w.lastDesignGuiMs:.0f} ms; click returned after {1000 * clicked:.0f} ms; "
+          f"{len(gaps_ms)} ticks, longest gap {max(gaps_ms):.0f} ms")
+    assert curve.GetAttribute("BaffleDesigner.Status") == "designed"
+    assert len(during) >= 2
+    # The GUI thread's share (inputs, then the outputs and the layout) is what can stall
+    # a view; 250 ms leaves room for a loaded machine and is far below a design that
+    # blocks (0.7-2.6 s of CPU on the patients in the issue).
+    assert w.lastDesignGuiMs < 250 and max(gaps_ms) < 250, (w.lastDesignGuiMs, gaps_ms)
+
+
+def test_cancel_stops_a_running_design(widget):
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    area = curve.GetAttribute("BaffleDesigner.BaffleAreaMm2")
+    w.ui.bsaSpinBox.value = 0.45
+    w.ui.designButton.click()
+    assert w.designJob is not None and w.ui.cancelButton.enabled and not w.ui.designButton.enabled
+    w.ui.cancelButton.click()
+    wait_design(w)
+    assert "cancelled" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    assert curve.GetAttribute("BaffleDesigner.BaffleAreaMm2") == area and w.ui.designButton.enabled
+
+
+def test_placing_points_causes_no_design(widget):
+    """Place mode: Slicer moves a preview point on every mouse move, no drag events."""
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    w.ui.autoUpdateCheckBox.checked = True
+    harness.process_events_for(1.0, until=lambda: w.designJob is None and not w.logic.pendingUpdates())
+    wait_design(w)
+    count = w.logic.design_count
+    a = curve.GetNthControlPointPositionWorld(0)
+    index = curve.AddControlPointWorld(vtk_vector(a[0] + 3, a[1], a[2]))
+    curve.SetNthControlPointPositionWorld(index, a[0] + 3, a[1], a[2], curve.PositionPreview)
+    harness.process_events_for(1.0)
+    wait_design(w)
+    count = w.logic.design_count  # whatever adding the preview point did
+    for step in range(10):  # mouse moves with pauses past the debounce
+        curve.SetNthControlPointPositionWorld(index, a[0] + 3 + step, a[1], a[2], curve.PositionPreview)
+        harness.process_events_for(0.4)
+    assert w.designJob is None and w.logic.design_count == count and not w.logic.pendingUpdates()
+
+
+def vtk_vector(x, y, z):
+    import vtk
+
+    return vtk.vtkVector3d(x, y, z)
+
+
+def test_baffle_planners_curve_is_the_default_and_one_design_is_one_rebuild(module):
+    """A scene as a SlicerHeart user has it: BafflePlanner's 'BC' curve (its parameter
+    node's InputCurve, auto-updating its 'Baffle' model) and another closed curve first
+    in the scene; the module opens on BafflePlanner's curve, and one design makes
+    BafflePlanner answer one ModifiedEvent."""
+    from baffle_planner_standin import BafflePlannerLogic
+
+    slicer.mrmlScene.Clear(0)
+    model, _ = p2_candidate()
+    slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "an older curve")
+    _, points = p2_inputs()
+    curve = slicer.util.loadMarkups(str(points))
+    curve.SetName("BC")
+    planner = BafflePlannerLogic()
+    planner.setInputCurveNode(curve)
+    planner.setOutputBaffleModelNode(slicer.mrmlScene.AddNewNodeByClass("vtkMRMLModelNode", "Baffle"))
+    w = harness.make_module_widget(module)
+    try:
+        harness.process_events_for(10, until=lambda: w.probe.done)
+        assert w.curve is curve and w.ui.curveSelector.currentNode() is curve
+        w.ui.surfaceSelector.setCurrentNode(model)
+        planner.rebuilds = planner.modified_reactions = 0
+        w.ui.designButton.click()
+        wait_design(w)
+        assert curve.GetAttribute("BaffleDesigner.Status") == "designed", w.ui.statusLabel.text
+        assert planner.modified_reactions == 1, planner.modified_reactions
+        assert w.logic.parameterNode().GetNodeReference("InputCurve") is curve
+    finally:
+        harness.unload_module(module)
+        slicer.mrmlScene.Clear(0)
+
+
+def test_a_reopened_scene_auto_updates_again(widget):
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    w.ui.autoUpdateCheckBox.checked = True
+    wait_design(w)
+    w.logic.cleanup()  # as after reading the scene back: the attribute is saved, observers are not
+    slicer.mrmlScene.InvokeEvent(slicer.mrmlScene.EndImportEvent)
+    assert w.logic.isAutoUpdating(curve)
+
+
+SELF_TEST_WITHOUT_BAFFLE = """
+import sys, unittest
+sys.modules["baffle"] = None  # a developer build whose Python has no baffle package
+import slicer_harness as harness
+harness.install()
+import slicer
+harness.load_scripted_module(sys.argv[1])
+result = unittest.TextTestRunner(verbosity=2).run(unittest.TestSuite([sys.modules["BaffleDesigner"].BaffleDesignerTest("runTest")]))
+print("SKIPPED", len(result.skipped), "FAILED", len(result.failures) + len(result.errors))
+for _, reason in result.skipped:
+    print("REASON", reason)
+"""
+
+
+def test_the_self_test_is_a_clear_skip_without_the_package():
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+    done = subprocess.run([sys.executable, "-c", SELF_TEST_WITHOUT_BAFFLE, str(SCRIPT)], cwd=Path(__file__).parent,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "SKIPPED 1 FAILED 0" in done.stdout, done.stdout + done.stderr[-3000:]
+    assert "baffle package" in done.stdout
+
+
+def test_the_settings_panel_sets_the_program_and_gmsh_and_install_asks_first(module, tmp_path, monkeypatch):
+    """Paths from the panel, not only from environment variables read once (a Finder-started
+    Slicer on macOS has no Homebrew PATH); Install gmsh asks before running pip."""
+    slicer.mrmlScene.Clear(0)
+    w = harness.make_module_widget(module)
+    settings = app.userSettings()
+    try:
+        assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+        w.ui.programPathLineEdit.text = str(tmp_path / "no-such-baffle")
+        w.ui.gmshPathLineEdit.text = str(tmp_path / "no-such-gmsh")
+        w.ui.applySettingsButton.click()
+        assert settings.value("BaffleDesigner/GmshPath") == str(tmp_path / "no-such-gmsh")
+        assert w.executable == str(tmp_path / "no-such-baffle") and w.logic.child_env["BAFFLE_GMSH"].endswith("no-such-gmsh")
+        assert harness.process_events_for(30, until=lambda: w.probe.done and not w.probeTimer.active)
+        assert "no-such-baffle" in w.ui.requirementsLabel.text and "no-such-gmsh" in w.ui.requirementsLabel.text
+        asked, installed = [], []
+        monkeypatch.setattr(slicer.util, "confirmOkCancelDisplay", lambda text, **kw: asked.append(text) or False)
+        monkeypatch.setattr(slicer.util, "pip_install", lambda requirement, **kw: installed.append(requirement))
+        w.ui.installGmshButton.click()
+        assert len(asked) == 1 and "gmsh" in asked[0] and installed == []  # declined: nothing installed
+        monkeypatch.setattr(slicer.util, "confirmOkCancelDisplay", lambda text, **kw: True)
+        w.ui.installGmshButton.click()
+        assert installed == ["gmsh"]
+        w.ui.programPathLineEdit.text = w.ui.gmshPathLineEdit.text = ""
+        w.ui.applySettingsButton.click()
+        assert w.executable and "no-such" not in w.executable
+        assert w.logic.child_env.get("BAFFLE_GMSH") == os.environ.get("BAFFLE_GMSH")
+    finally:
+        settings.remove("BaffleDesigner/ProgramPath")
+        settings.remove("BaffleDesigner/GmshPath")
+        harness.process_events_for(30, until=lambda: w.probe.done)
+        harness.unload_module(module)
+
+
+def test_an_output_model_is_never_taken_for_the_ventricle(widget):
+    w = widget
+    model, curve = p2_candidate()
+    design_in_widget(w, model, curve, 0.37)
+    baffle = curve.GetNodeReference(bdlogic().REF_BAFFLE)
+    w.ui.surfaceSelector.setCurrentNode(baffle)
+    assert w.logic.surfaceNode(curve) is model and "not a ventricle" in w.ui.statusLabel.text
+    assert w.logic.inputVentricle() is model
+
+
+def test_baffle_planners_bc_curve_and_plain_rv_model_design_through_the_module(module):
+    """BafflePlanner's 'BC' curve (its InputCurve) and a plain RV model without ModelFaceID:
+    the user marks the two rims as closed curves and picks them; Design caps the model there."""
+    from baffle_planner_standin import BafflePlannerLogic
+    from plain_rv import plain_phantom
+
+    slicer.mrmlScene.Clear(0)
+    plain, vsd_rim, aortic_rim, points, bsa, _ = plain_phantom()
+    model = slicer.modules.models.logic().AddModel(plain)
+    model.SetName("RV")
+    curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", "BC")
+    for p in points:
+        curve.AddControlPointWorld(*[float(x) for x in p])
+    planner = BafflePlannerLogic()
+    planner.setInputCurveNode(curve)
+    rims_curves = []
+    for name, rim in (("VSD rim", vsd_rim), ("aortic rim", aortic_rim)):
+        rim_curve = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)
+        for p in rim:
+            rim_curve.AddControlPointWorld(*[float(x) for x in p])
+        rims_curves.append(rim_curve)
+    w = harness.make_module_widget(module)
+    try:
+        harness.process_events_for(10, until=lambda: w.probe.done)
+        assert w.curve is curve
+        w.ui.surfaceSelector.setCurrentNode(model)
+        assert w.ui.vsdRimSelector.visible and w.ui.aorticRimSelector.visible
+        w.ui.bsaSpinBox.value = bsa
+        w.ui.designButton.click()
+        wait_design(w)
+        assert curve.GetAttribute("BaffleDesigner.Status") == "failed" and "mark the VSD rim" in w.ui.statusLabel.text
+        w.ui.vsdRimSelector.setCurrentNode(rims_curves[0])
+        w.ui.aorticRimSelector.setCurrentNode(rims_curves[1])
+        w.ui.designButton.click()
+        wait_design(w)
+        assert curve.GetAttribute("BaffleDesigner.Status") == "designed", w.ui.statusLabel.text
+        assert curve.GetNodeReference(bdlogic().REF_RIM_CAPPED) is not None
+        assert w.logic.surfaceNode(curve) is model and not w.logic.candidates()[1:]  # the rims are no candidates
+    finally:
+        harness.unload_module(module)
+        slicer.mrmlScene.Clear(0)
