@@ -1,5 +1,6 @@
 //! The whole of paper section 2.2.2: blood pools in, capped ventricle out.
 
+use crate::cap_checks::{prepared_cap_checks, BridgedGap};
 use crate::caps::{close_with_caps, remesh_wall};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
@@ -8,6 +9,7 @@ use crate::separation::{min_distance_mm, separate_by_moves, separate_openings, C
 use crate::union_surface::{union_surface, SmoothingOptions};
 use crate::voxelize::{close_mask, voxelize, Grid};
 use baffle_core::mesh::manifold_report;
+use baffle_core::self_check::SelfCheck;
 use baffle_core::spatial::{Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use rayon::prelude::*;
@@ -95,6 +97,8 @@ pub struct PrepareReport {
     pub aortic_cap: CapReport,
     /// How far apart the two openings are, and how far their cuts were moved to keep them so.
     pub separation: CutSeparation,
+    /// The caps re-measured against the openings traced on the segmentations (all passed).
+    pub checks: Vec<SelfCheck>,
     pub timings: PrepareTimings,
 }
 
@@ -141,6 +145,11 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
     check_result(&capped)?;
     // The gap as the result has it (the remesh resamples the rims).
     separation.rim_gap_mm = cap_gap_mm(&capped, l.vsd_cap, l.aortic_cap);
+    let gap = BridgedGap { voxel_mm: options.voxel_mm, closing_radius_mm: options.closing_radius_mm };
+    let checks = prepared_cap_checks(&capped, pools, &rv_bvh, (l.vsd_cap, l.aortic_cap), &separation, gap);
+    if let Some(failed) = checks.iter().find(|c| !c.passed) {
+        return Err(PrepareError::SelfCheck { check: failed.describe(), summary: separation.summary() });
+    }
     timings.caps_ms = lap();
     timings.total_ms = start.elapsed().as_secs_f64() * 1e3;
 
@@ -154,6 +163,7 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
         vsd_cap: cap_report(&capped, l.vsd_cap)?,
         aortic_cap: cap_report(&capped, l.aortic_cap)?,
         separation,
+        checks,
         timings,
     };
     Ok((capped, report))

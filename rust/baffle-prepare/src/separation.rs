@@ -13,7 +13,7 @@
 
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::interfaces::{InterfaceLoop, Structure};
-use baffle_core::numerics::pca::Plane;
+use baffle_core::numerics::pca::{polygon_vector_area, Plane};
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 
@@ -128,30 +128,40 @@ pub fn separate_openings(
 ) -> Result<Separated, String> {
     let interface_loops_gap_mm = min_distance_mm(&loops[0].points_mm, &loops[1].points_mm);
     let away = loops.map(|lp| outward_normal(&lp.plane, rv_center));
-    let attempt = |&(vsd_mm, aortic_mm): &(f64, f64)| -> Result<Attempt, String> {
+    // Err((true, why)): clean, but a moved cut closes more than its opening.
+    let attempt = |&(vsd_mm, aortic_mm): &(f64, f64)| -> Result<Attempt, (bool, String)> {
         let shift = [vsd_mm, aortic_mm];
         let planes = [0, 1].map(|k| Plane { centroid: loops[k].plane.centroid + shift[k] * away[k], ..loops[k].plane });
         let moved: [Vec<Vec3>; 2] = [0, 1].map(|k| loops[k].points_mm.iter().map(|p| p + shift[k] * away[k]).collect());
         let names = ["VSD", "aortic annulus"];
         let cuts = [0, 1].map(|k| Cut { name: names[k], plane: planes[k], loop_mm: &moved[k] });
-        let clipped = clip_between(union, &cuts, snap_mm)?;
+        let clipped = clip_between(union, &cuts, snap_mm).map_err(|e| (false, e))?;
         let rim = |k: usize| -> Vec<Vec3> { clipped.rims[k].iter().map(|&v| clipped.mesh.points[v as usize]).collect() };
         if let Some((k, (d, p))) = [0, 1].map(|k| (k, farthest_off_mm(&rim(k), beyond[k]))).into_iter().find(|(_, off)| off.0 > RIM_OFF_POOL_MM) {
-            return Err(format!(
+            return Err((false, format!(
                 "the {} cut runs {d:.2} mm off the {} near ({:.1}, {:.1}, {:.1}), over another pool (at most {RIM_OFF_POOL_MM} mm)",
                 names[k], ["LV", "aorta"][k], p.x, p.y, p.z
-            ));
+            )));
+        }
+        if let Some(k) = [0, 1].into_iter().find(|&k| shift[k] > 0.0 && wider_than_its_opening(&rim(k), loops[k], clearance_mm)) {
+            let (area, opening) = (polygon_vector_area(&rim(k)).norm(), polygon_vector_area(&loops[k].points_mm).norm());
+            return Err((true, format!(
+                "the {} cut moved {:.1} mm {} closes {area:.1} mm2 there, more than the {opening:.1} mm2 opening and its rim band of {clearance_mm:.2} mm: \
+                 the cap would close {} wall as if it were the opening",
+                names[k], shift[k], ["into the LV", "up the aorta"][k], ["LV", "aortic"][k]
+            )));
         }
         let rim_gap_mm = min_distance_mm(&rim(0), &rim(1));
         Ok(Attempt { clipped, planes, rim_gap_mm })
     };
     let mut first_error = None;
+    let mut widened: (usize, Option<String>) = (0, None);
     let mut closest: Option<(f64, (f64, f64))> = None;
     // A few cut pairs at a time in parallel, judged in order: the first accepted is the
     // same as a sequential search's.
     let batch = rayon::current_num_threads().max(1);
     for (b, chunk) in moves.chunks(batch).enumerate() {
-        let outcomes: Vec<Result<Attempt, String>> = chunk.par_iter().map(attempt).collect();
+        let outcomes: Vec<Result<Attempt, (bool, String)>> = chunk.par_iter().map(attempt).collect();
         for (k, (outcome, &(vsd_mm, aortic_mm))) in outcomes.into_iter().zip(chunk).enumerate() {
             match outcome {
                 Ok(a) if a.rim_gap_mm >= clearance_mm => {
@@ -171,13 +181,18 @@ pub fn separate_openings(
                     }
                     first_error.get_or_insert_with(|| format!("the openings are {:.2} mm apart, less than the clearance {clearance_mm:.2} mm", a.rim_gap_mm));
                 }
-                Err(e) => {
+                Err((true, e)) => {
+                    widened.0 += 1;
+                    widened.1.get_or_insert(e);
+                }
+                Err((false, e)) => {
                     first_error.get_or_insert(e);
                 }
             }
         }
     }
-    Err(refusal(moves, interface_loops_gap_mm, first_error, closest))
+    let widened = widened.1.map(|e| format!("; {} clean pairs were not taken because a moved cut closes more than its opening, the first: {e}", widened.0));
+    Err(refusal(moves, interface_loops_gap_mm, first_error, closest) + &widened.unwrap_or_default())
 }
 
 /// Why no cut pair was accepted, with the moves tried and the best gap they reached.
@@ -197,6 +212,16 @@ fn refusal(moves: &[(f64, f64)], loops_gap_mm: f64, first_error: Option<String>,
          the LV and the aortic cut up to {max_aortic:.1} mm up the aorta ({} pairs, {step_mm} mm steps) did not separate them: {best}",
         moves.len()
     )
+}
+
+/// Whether a moved cut's rim spans more than the loop it was moved from plus a band of
+/// `band_mm` along that loop: the pool widens behind the opening (an LV behind a small
+/// VSD, the sinuses above the annulus), and a planar cap there would close the pool's
+/// section, not the opening (issue 27: a VSD cap 7 times the VSD's area).
+fn wider_than_its_opening(rim: &[Vec3], opening: &InterfaceLoop, band_mm: f64) -> bool {
+    let n = opening.points_mm.len();
+    let perimeter_mm: f64 = (0..n).map(|i| (opening.points_mm[(i + 1) % n] - opening.points_mm[i]).norm()).sum();
+    polygon_vector_area(rim).norm() > polygon_vector_area(&opening.points_mm).norm() + band_mm * perimeter_mm
 }
 
 /// The plane's unit normal turned away from `rv_center` (out of the RV through the opening).
