@@ -8,8 +8,8 @@
 //! angle to at least where they are r apart and at most where they are 2r apart (its
 //! diameter), and the voxelization joins them up to one voxel h farther: the union's
 //! rim lies where the gap is between `r` and `2r + h`. The cap's area must lie between
-//! the openings traced at those two gaps, widened by the band of half a voxel the
-//! union's surface may lie off a pool (perimeter x h/2); its centroid within `r + 2h`
+//! the openings traced at those two gaps, widened by the band the union's surface may
+//! lie off a pool where the closing rounds the crease (perimeter x (r + h/2)); its centroid within `r + 2h`
 //! of the centroids' path between those two openings, and every rim point that far
 //! from the nearer of the two rims, where a cut moved away from the interface adds its
 //! reported move to both.
@@ -34,6 +34,11 @@ impl BridgedGap {
     }
     fn most_mm(&self) -> f64 {
         2.0 * self.closing_radius_mm + self.voxel_mm
+    }
+    /// How far the union's surface may lie off a pool (mm): the closing rounds a crease
+    /// within its radius, the voxels add half their edge.
+    fn surface_offset_mm(&self) -> f64 {
+        self.closing_radius_mm + 0.5 * self.voxel_mm
     }
     /// How far a cap's centroid and rim may lie from the opening (mm).
     fn position_tolerance_mm(&self) -> f64 {
@@ -96,7 +101,7 @@ fn check_cap(mesh: &TriMesh, rv: &TriMesh, rv_bvh: &TriangleBvh, cap: &CapToChec
     let moved = if cap.moved_mm > 0.0 { format!(" + the cut's move {:.1} mm", cap.moved_mm) } else { String::new() };
 
     let (lo, hi) = (inner.area_mm2.min(outer.area_mm2), inner.area_mm2.max(outer.area_mm2));
-    let band_mm2 = 0.5 * gap.voxel_mm * outer.perimeter_mm;
+    let band_mm2 = gap.surface_offset_mm() * outer.perimeter_mm;
     let (area_lo, area_hi) = (lo - band_mm2, hi + band_mm2);
     // Outside [lo, hi] by this fraction of the range's nearer end (0 inside).
     let excess_pct = 100.0 * ((area_lo - area_mm2).max(area_mm2 - area_hi).max(0.0)) / if area_mm2 < area_lo { area_lo } else { area_hi };
@@ -106,7 +111,7 @@ fn check_cap(mesh: &TriMesh, rv: &TriMesh, rv_bvh: &TriangleBvh, cap: &CapToChec
         0.0,
         "%",
         format!(
-            "cap {area_mm2:.1} mm2 at {}; the opening spans {lo:.1}-{hi:.1} mm2, {band_mm2:.1} mm2 either way allowed (rim x half a voxel); \
+            "cap {area_mm2:.1} mm2 at {}; the opening spans {lo:.1}-{hi:.1} mm2, {band_mm2:.1} mm2 either way allowed (rim x (closing radius + half a voxel)); \
              the value is how far the cap lies outside {area_lo:.1}-{area_hi:.1} mm2; {traced}",
             at(c)
         ),
