@@ -7,7 +7,7 @@
 
 use baffle_core::reference_data::reference_data_if_present;
 use baffle_core::{TriMesh, Vec3};
-use baffle_prepare::shapes::{capped_tube, uv_sphere};
+use baffle_prepare::shapes::synthetic_heart;
 use baffle_prepare::voxelize::{voxelize, Grid};
 use baffle_prepare::{pools_from_labelmap, prepare, read_segmentations, BloodPools, LabelMap, LabelSurfaceOptions, PoolLabels, PrepareOptions, PrepareReport};
 use nalgebra::{Rotation3, Unit};
@@ -71,12 +71,10 @@ fn check_rigid(name: &str, original: &PrepareReport, moved_report: &PrepareRepor
     }
 }
 
+/// The sample run's synthetic heart: LV and RV spheres, an aorta tube of radius 4 mm.
 fn synthetic_pools() -> BloodPools {
-    BloodPools {
-        lv: uv_sphere(Vec3::zeros(), 10.0, 48, 96),
-        rv: uv_sphere(Vec3::new(16.0, 0.0, 0.0), 9.0, 48, 96),
-        aorta: capped_tube(Vec3::new(16.0, 0.0, 4.0), Vec3::new(16.0, 0.0, 25.0), 4.0, 20, 64),
-    }
+    let heart = synthetic_heart();
+    BloodPools { lv: heart.lv, rv: heart.rv, aorta: heart.aorta }
 }
 
 /// The synthetic heart re-voxelized at 0.3, 0.5, 0.75 and 1.0 mm, and moved rigidly.
