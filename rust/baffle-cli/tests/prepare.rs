@@ -46,6 +46,11 @@ fn prepare_writes_a_labelled_capped_ventricle_and_its_report() {
     assert_eq!(labels, vec![2, 11, 16]);
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("out/capped_ventricle-report.json")).unwrap()).unwrap();
     assert!(report["vsd_cap"]["area_mm2"].as_f64().unwrap() > 0.0);
+    // The caps' own checks against the segmentations, each with its figure and limit.
+    let checks = report["checks"].as_array().expect("a checks array");
+    assert_eq!(checks.len(), 6, "{checks:?}");
+    assert!(checks.iter().all(|c| c["passed"] == true && c["value"].is_f64() && c["limit"].is_f64() && c["name"].is_string()), "{checks:?}");
+    assert!(String::from_utf8_lossy(&run.stdout).contains("6 self-checks passed"));
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -60,20 +65,18 @@ fn a_missing_segment_is_named() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// The aorta leaning 30 degrees toward the VSD meets the LV: the cuts are moved apart,
-/// and the command says by how much (and the report has it).
+/// The aorta leaning 30 degrees toward the VSD meets the LV: the only cuts that part the
+/// openings move the VSD cut into the LV where it widens, so that its cap would close LV
+/// wall (issue 27). The command fails naming that, and writes nothing.
 #[test]
-fn prepare_reports_cuts_moved_apart_where_the_aorta_meets_the_lv() {
+fn prepare_refuses_a_vsd_cap_on_lv_wall_where_the_aorta_meets_the_lv() {
     let dir = tilted_segmentations("tilted", true, 30.0);
     let out = dir.join("capped.vtp");
     let run = baffle(&["prepare", "--segmentations", dir.to_str().unwrap(), "--out", out.to_str().unwrap(), "--closing-radius-mm", "0"]);
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(run.status.success(), "{stdout}{}", String::from_utf8_lossy(&run.stderr));
-    assert!(stdout.contains("so the cuts were moved") && stdout.contains("mm up the aortic root") && stdout.contains("openings"), "{stdout}");
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("capped-report.json")).unwrap()).unwrap();
-    let s = &report["separation"];
-    let moved = s["vsd_cut_moved_into_lv_mm"].as_f64().unwrap() + s["aortic_cut_moved_into_aorta_mm"].as_f64().unwrap();
-    assert!(moved > 0.0 && s["rim_gap_mm"].as_f64().unwrap() >= 0.45, "{s}");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{}", String::from_utf8_lossy(&run.stdout));
+    assert!(stderr.contains("into the LV closes") && stderr.contains("LV wall as if it were the opening"), "{stderr}");
+    assert!(!out.exists() && !dir.join("capped-report.json").exists(), "nothing written");
     std::fs::remove_dir_all(&dir).ok();
 }
 

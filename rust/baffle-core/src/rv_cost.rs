@@ -68,7 +68,7 @@ pub fn rv_cost(ventricle: &TriMesh, bvh: &TriangleBvh, domain: &TriMesh, baffle:
 /// at the nearest point (Baerentzen and Aanaes 2005), which decides correctly whether that
 /// point is inside a triangle, on an edge or at a corner (a single triangle's side does
 /// not, where the surface folds between neighbours).
-pub(crate) fn is_outside(surface: &TriMesh, bvh: &TriangleBvh, q: Vec3) -> bool {
+pub fn is_outside(surface: &TriMesh, bvh: &TriangleBvh, q: Vec3) -> bool {
     let Some(hit) = bvh.closest_point(surface, q) else {
         return false;
     };

@@ -113,6 +113,8 @@ pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
     );
     // The caps' distance from the true interfaces when the cuts had to be moved apart.
     println!("{}", report.separation.summary());
+    // A failed check is an error before anything is written: here they all passed.
+    println!("{} self-checks passed (each cap's centroid, area and rim against the segmentations' opening; listed in the report)", report.checks.len());
     let pulmonary = Some(pulmonary_path(&args.out)).filter(|p| args.source.labelmap.is_some() && p.is_file());
     let pulmonary = pulmonary.map(|p| format!(", {}", p.display())).unwrap_or_default();
     println!("wrote {}, {}{pulmonary}", args.out.display(), report_path.display());

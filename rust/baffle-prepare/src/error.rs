@@ -15,6 +15,9 @@ pub enum PrepareError {
     NoContact { a: &'static str, b: &'static str, what: &'static str, distance_mm: f64 },
     #[error("{step}: {message}")]
     Geometry { step: &'static str, message: String },
+    /// A cap failed its check against the segmentations' opening: no file is written.
+    #[error("self-check failed, no capped ventricle written: {check} (cuts: {summary})")]
+    SelfCheck { check: String, summary: String },
     #[error("invalid option: {0}")]
     Option(String),
 }

@@ -13,7 +13,7 @@
 
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::interfaces::{InterfaceLoop, Structure};
-use baffle_core::numerics::pca::Plane;
+use baffle_core::numerics::pca::{polygon_vector_area, Plane};
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 
@@ -27,6 +27,8 @@ pub const MAX_MOVE_MM: f64 = 9.0;
 /// this (mm) from the pool its cap closes (the LV for the VSD cap, the aorta for the
 /// annulus cap) runs over another pool, and the cap would close that one too.
 pub const RIM_OFF_POOL_MM: f64 = 1.0;
+/// How a refusal says that a moved cut was wider than its opening.
+const WIDENED: &str = "closes more than its opening";
 
 /// How the two openings were kept apart (all distances in mm).
 #[derive(Clone, Debug, serde::Serialize)]
@@ -87,7 +89,8 @@ pub fn move_grid(step_mm: f64) -> Vec<(f64, f64)> {
     pairs.into_iter().map(|(i, j)| (i as f64 * step_mm, j as f64 * step_mm)).collect()
 }
 
-/// The coarse grid's first accepted pair, then the pairs one fine step below it.
+/// The coarse grid's first accepted pair, then the pairs one fine step below it; where
+/// the coarse grid fails because a moved cut widened, the fine grid below that.
 pub fn separate_by_moves(
     union: &TriMesh,
     loops: [&InterfaceLoop; 2],
@@ -97,7 +100,17 @@ pub fn separate_by_moves(
     snap_mm: f64,
 ) -> Result<Separated, String> {
     let search = |moves: &[(f64, f64)]| separate_openings(union, loops, beyond, rv_center, moves, clearance_mm, snap_mm);
-    let coarse = search(&move_grid(COARSE_STEP_MM))?;
+    let coarse_grid = move_grid(COARSE_STEP_MM);
+    let coarse = match search(&coarse_grid) {
+        Ok(coarse) => coarse,
+        // A coarse step may straddle the depth where the pool widens: the fine grid's
+        // other pairs, below it (a VSD cut 0.5 mm in may still close the VSD).
+        Err(e) if e.contains(WIDENED) => {
+            let fine: Vec<(f64, f64)> = move_grid(FINE_STEP_MM).into_iter().filter(|m| !coarse_grid.contains(m)).collect();
+            return search(&fine).map_err(|fine_error| format!("{e}; on the {FINE_STEP_MM} mm grid: {fine_error}"));
+        }
+        Err(e) => return Err(e),
+    };
     let (v, a) = (coarse.report.vsd_cut_moved_into_lv_mm, coarse.report.aortic_cut_moved_into_aorta_mm);
     let mut finer: Vec<(f64, f64)> = [(v - FINE_STEP_MM, a - FINE_STEP_MM), (v - FINE_STEP_MM, a), (v, a - FINE_STEP_MM)]
         .into_iter()
@@ -128,31 +141,54 @@ pub fn separate_openings(
 ) -> Result<Separated, String> {
     let interface_loops_gap_mm = min_distance_mm(&loops[0].points_mm, &loops[1].points_mm);
     let away = loops.map(|lp| outward_normal(&lp.plane, rv_center));
-    let attempt = |&(vsd_mm, aortic_mm): &(f64, f64)| -> Result<Attempt, String> {
+    // Err((Some(k), why)): clean, but moved cut k closes more than its opening.
+    let attempt = |&(vsd_mm, aortic_mm): &(f64, f64)| -> Result<Attempt, (Option<usize>, String)> {
         let shift = [vsd_mm, aortic_mm];
         let planes = [0, 1].map(|k| Plane { centroid: loops[k].plane.centroid + shift[k] * away[k], ..loops[k].plane });
         let moved: [Vec<Vec3>; 2] = [0, 1].map(|k| loops[k].points_mm.iter().map(|p| p + shift[k] * away[k]).collect());
         let names = ["VSD", "aortic annulus"];
         let cuts = [0, 1].map(|k| Cut { name: names[k], plane: planes[k], loop_mm: &moved[k] });
-        let clipped = clip_between(union, &cuts, snap_mm)?;
+        let clipped = clip_between(union, &cuts, snap_mm).map_err(|e| (None, e))?;
         let rim = |k: usize| -> Vec<Vec3> { clipped.rims[k].iter().map(|&v| clipped.mesh.points[v as usize]).collect() };
         if let Some((k, (d, p))) = [0, 1].map(|k| (k, farthest_off_mm(&rim(k), beyond[k]))).into_iter().find(|(_, off)| off.0 > RIM_OFF_POOL_MM) {
-            return Err(format!(
+            return Err((None, format!(
                 "the {} cut runs {d:.2} mm off the {} near ({:.1}, {:.1}, {:.1}), over another pool (at most {RIM_OFF_POOL_MM} mm)",
                 names[k], ["LV", "aorta"][k], p.x, p.y, p.z
-            ));
+            )));
+        }
+        if let Some(k) = [0, 1].into_iter().find(|&k| shift[k] > 0.0 && wider_than_its_opening(&rim(k), loops[k], clearance_mm)) {
+            let (area, opening) = (polygon_vector_area(&rim(k)).norm(), polygon_vector_area(&loops[k].points_mm).norm());
+            return Err((Some(k), format!(
+                "the {} cut moved {:.1} mm {} closes {area:.1} mm2 there, more than the {opening:.1} mm2 opening and its rim band of {clearance_mm:.2} mm: \
+                 the cap would close {} wall as if it were the opening",
+                names[k], shift[k], ["into the LV", "up the aorta"][k], ["LV", "aortic"][k]
+            )));
         }
         let rim_gap_mm = min_distance_mm(&rim(0), &rim(1));
         Ok(Attempt { clipped, planes, rim_gap_mm })
     };
     let mut first_error = None;
+    let mut widened: (usize, Option<String>) = (0, None);
     let mut closest: Option<(f64, (f64, f64))> = None;
     // A few cut pairs at a time in parallel, judged in order: the first accepted is the
     // same as a sequential search's.
     let batch = rayon::current_num_threads().max(1);
-    for (b, chunk) in moves.chunks(batch).enumerate() {
-        let outcomes: Vec<Result<Attempt, String>> = chunk.par_iter().map(attempt).collect();
-        for (k, (outcome, &(vsd_mm, aortic_mm))) in outcomes.into_iter().zip(chunk).enumerate() {
+    // A cut that widened at some move is not tried farther: the pool has widened by
+    // then, and a deeper cap would leave that wider band of it inside the ventricle.
+    let mut widened_at = [f64::INFINITY; 2];
+    let mut pending = moves.iter().copied();
+    let mut tried = 0;
+    loop {
+        let chunk: Vec<(f64, f64)> = pending.by_ref().filter(|m| m.0 < widened_at[0] && m.1 < widened_at[1]).take(batch).collect();
+        if chunk.is_empty() {
+            break;
+        }
+        let outcomes: Vec<Result<Attempt, (Option<usize>, String)>> = chunk.par_iter().map(attempt).collect();
+        for (outcome, &(vsd_mm, aortic_mm)) in outcomes.into_iter().zip(&chunk) {
+            if vsd_mm >= widened_at[0] || aortic_mm >= widened_at[1] {
+                continue;
+            }
+            tried += 1;
             match outcome {
                 Ok(a) if a.rim_gap_mm >= clearance_mm => {
                     let report = CutSeparation {
@@ -161,7 +197,7 @@ pub fn separate_openings(
                         aortic_cut_moved_into_aorta_mm: aortic_mm,
                         rim_gap_mm: a.rim_gap_mm,
                         clearance_mm,
-                        cuts_tried: b * batch + k + 1,
+                        cuts_tried: tried,
                     };
                     return Ok(Separated { clipped: a.clipped, planes: a.planes, report });
                 }
@@ -171,13 +207,21 @@ pub fn separate_openings(
                     }
                     first_error.get_or_insert_with(|| format!("the openings are {:.2} mm apart, less than the clearance {clearance_mm:.2} mm", a.rim_gap_mm));
                 }
-                Err(e) => {
+                Err((Some(k), e)) => {
+                    widened_at[k] = widened_at[k].min([vsd_mm, aortic_mm][k]);
+                    widened.0 += 1;
+                    widened.1.get_or_insert(e);
+                }
+                Err((None, e)) => {
                     first_error.get_or_insert(e);
                 }
             }
         }
     }
-    Err(refusal(moves, interface_loops_gap_mm, first_error, closest))
+    let widened = widened.1.map(|e| {
+        format!("; {} clean pairs were not taken, nor any cut moved farther, because a moved cut {WIDENED}, the first: {e}", widened.0)
+    });
+    Err(refusal(moves, interface_loops_gap_mm, first_error, closest) + &widened.unwrap_or_default())
 }
 
 /// Why no cut pair was accepted, with the moves tried and the best gap they reached.
@@ -197,6 +241,16 @@ fn refusal(moves: &[(f64, f64)], loops_gap_mm: f64, first_error: Option<String>,
          the LV and the aortic cut up to {max_aortic:.1} mm up the aorta ({} pairs, {step_mm} mm steps) did not separate them: {best}",
         moves.len()
     )
+}
+
+/// Whether a moved cut's rim spans more than the loop it was moved from plus a band of
+/// `band_mm` along that loop: the pool widens behind the opening (an LV behind a small
+/// VSD, the sinuses above the annulus), and a planar cap there would close the pool's
+/// section, not the opening (issue 27: a VSD cap 7 times the VSD's area).
+fn wider_than_its_opening(rim: &[Vec3], opening: &InterfaceLoop, band_mm: f64) -> bool {
+    let n = opening.points_mm.len();
+    let perimeter_mm: f64 = (0..n).map(|i| (opening.points_mm[(i + 1) % n] - opening.points_mm[i]).norm()).sum();
+    polygon_vector_area(rim).norm() > polygon_vector_area(&opening.points_mm).norm() + band_mm * perimeter_mm
 }
 
 /// The plane's unit normal turned away from `rv_center` (out of the RV through the opening).

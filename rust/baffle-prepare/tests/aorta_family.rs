@@ -11,11 +11,11 @@ use baffle_prepare::aorta_family::{aorta_tilt_member, AortaTiltMember};
 use baffle_prepare::{prepare, PrepareOptions, PrepareReport};
 use baffle_verify::{edge_usage_counts, is_consistently_oriented, signed_volume_mm3};
 
-/// Tilts 0-35 degrees, one member in each 5 degrees: the aorta clear of the LV, then
-/// touching it, then over the VSD by up to half its rim (the `aorta_tilt` example runs the
+/// Tilts 0-25 degrees, one member in each 5 degrees: the aorta clear of the LV, then
+/// touching it, then over the VSD (the `aorta_tilt` example runs the
 /// whole family to 75 degrees, where the aorta arises from the LV and prepare refuses, at
 /// 100 clips of a wide union each; `synthetic.rs` tests one refusal).
-const SEEDS: std::ops::Range<u64> = 0..7;
+const SEEDS: std::ops::Range<u64> = 0..5;
 
 fn options() -> PrepareOptions {
     PrepareOptions { voxel_mm: 0.3, closing_radius_mm: 0.0, ..PrepareOptions::default() }
@@ -68,7 +68,7 @@ fn check_prepared(m: &AortaTiltMember, mesh: &TriMesh, report: &PrepareReport) -
 
 #[test]
 fn the_aorta_tilt_family_is_separated_or_refused_with_reasons_and_designs() {
-    let (mut separated, mut refused, mut designed) = (0, 0, 0);
+    let (mut separated, mut refused, mut widened, mut designed) = (0, 0, 0, 0);
     for seed in SEEDS {
         let m = aorta_tilt_member(seed);
         match prepare(&m.pools, &options()) {
@@ -90,14 +90,21 @@ fn the_aorta_tilt_family_is_separated_or_refused_with_reasons_and_designs() {
             Err(e) => {
                 let text = e.to_string();
                 eprintln!("seed {seed} tilt {:.1}: refused: {text}", m.params.tilt_deg);
+                // Refused either because no cut pair separates the openings, or because the
+                // only pairs that do move the VSD cut into the LV where it widens, so that
+                // its cap would close LV wall as if it were the VSD (issue 27).
                 assert!(text.contains("did not separate them") && text.contains("% over the LV"), "seed {seed}: an unexplained refusal: {text}");
+                widened += usize::from(text.contains("closes more than its opening"));
                 refused += 1;
             }
         }
     }
     eprintln!("{separated} separated by moved cuts, {refused} refused, {designed} designed of {}", SEEDS.end - SEEDS.start);
-    // Measured: seeds 0 and 1 clean, 2-6 separated, each then designed.
-    assert!(separated >= 5, "members separated by moved cuts: {separated}");
-    assert_eq!(refused, 0, "refusals");
+    // Measured: seeds 0 and 1 clean, 2 separated by a 0.5 mm aortic move, each then
+    // designed. Seeds 3 and 4 (and 5, 6: `aorta_tilt` example) were separated by moving
+    // the VSD cut 2-4.5 mm into the LV sphere, whose section there is 1.7-2.8 times the
+    // VSD (175 vs 105 mm2 for seed 3): they are now refused, naming the widening.
+    assert!(separated >= 1, "members separated by moved cuts: {separated}");
+    assert_eq!((refused, widened), (2, 2), "refusals, and those for a VSD cut that would close LV wall");
     assert_eq!(designed, SEEDS.end - SEEDS.start - refused, "every prepared member designs");
 }

@@ -42,6 +42,11 @@ fn check_caps(patient: &str, dir: &Path, pools: &BloodPools) -> TriMesh {
         assert!(distance < 1.5, "{patient} {name} cap centroid {distance:.2} mm from the published one");
         assert!((a / area - 1.0).abs() < 0.25, "{patient} {name} cap area {a:.1} vs {area:.1} mm2");
     }
+    for check in &report.checks {
+        eprintln!("{patient}: {}: {:.3} {} (limit {:.3})", check.name, check.value, check.unit, check.limit);
+    }
+    assert_eq!(report.checks.len(), 6, "{patient}: centroid, area and rim of both caps");
+    assert!(report.checks.iter().all(|c| c.passed), "{patient}: a failed check is an error, not a report entry");
     eprintln!("{patient}: {} triangles, {:.0} ms; {}", report.triangles, report.timings.total_ms, report.separation.summary());
     assert!(!report.separation.moved(), "{patient}: the openings are apart, the cuts stay in the loops' planes");
     mesh
