@@ -178,5 +178,10 @@ fn a_missing_lv_and_a_domain_without_caps_are_named() {
     let run = baffle(&["extend", "--domain", s(&capped), "--segmentations", s(&empty), "--aortic-label", "99", "--out", s(&out.join("x.vtp"))]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success() && stderr.contains("no aortic-annulus cap (no triangle labelled 99)"), "{stderr}");
+    // The capped ventricle has no baffle (label 10): refused by name unless said.
+    let run = baffle(&["extend", "--domain", s(&capped), "--segmentations", s(&empty), "--out", s(&out.join("x.vtp"))]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && stderr.contains("no baffle (no triangle labelled 10)") && stderr.contains("--no-baffle"), "{stderr}");
+    assert!(!out.join("x.vtp").exists());
     std::fs::remove_dir_all(out).ok();
 }

@@ -71,6 +71,11 @@ pub struct ExtendArgs {
     /// study of the outflow length; a height past the aortic root's sections is an error.
     #[arg(long)]
     pub outflow_diameters: Option<f64>,
+    /// The domain has no baffle (no triangle of --baffle-label), and is to be extended
+    /// as it is (e.g. a capped ventricle, for a pre-repair flow). Without it such a
+    /// domain is refused: `baffle extend` expects `baffle design`'s domain.
+    #[arg(long)]
+    pub no_baffle: bool,
 }
 
 pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
@@ -119,6 +124,7 @@ pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), Stri
         remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),
         stj: StjOptions { fixed_diameters: args.outflow_diameters, ..StjOptions::default() },
         inflow_offset_mm: args.inflow_offset_mm,
+        without_baffle: args.no_baffle,
         ..ExtendOptions::default()
     };
     let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
