@@ -6,7 +6,7 @@
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
-use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
 use baffle_core::{FaceLabels, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
@@ -102,7 +102,13 @@ pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
 /// remesher keeps label boundaries and projects every point back onto its label's faces).
 fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
     let options = RemeshOptions { target_edge_mm: edge_mm, ..RemeshOptions::default() };
-    remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))
+    let remeshed = remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))?;
+    // The remesher projects onto the input's own faces; on a tightly curved baffle that
+    // can fold the result through itself, which no later stage could mesh.
+    match where_it_crosses_itself(&remeshed) {
+        Some(crossing) => Err(format!("remeshing the designed domain at {edge_mm} mm made it cross itself: {crossing} (try another --remesh-domain-edge-mm)")),
+        None => Ok(remeshed),
+    }
 }
 
 /// Build the extended domain and write it and its report (each whole or not at all).

@@ -42,7 +42,7 @@ pub fn remesh_isotropic(mesh: &TriMesh, opts: &RemeshOptions) -> Result<TriMesh,
     let budget = TriangleBudget::new(mesh, opts.target_edge_mm)?;
     let mut remesher = Remesher::new(mesh, opts)?;
     for _ in 0..opts.iterations {
-        remesher.split_long_edges(&budget).map_err(|e| where_it_crosses_itself(mesh).unwrap_or(e))?;
+        remesher.split_long_edges(&budget).map_err(|e| where_it_crosses_itself(mesh).map_or(e, |c| format!("{c}: splitting long edges cannot converge on it")))?;
         remesher.collapse_short_edges();
         remesher.flip_toward_regular_valence();
         remesher.smooth_tangentially();
@@ -55,14 +55,14 @@ pub fn remesh_isotropic(mesh: &TriMesh, opts: &RemeshOptions) -> Result<TriMesh,
 /// so a remesh that fails names the crossing, if there is one, rather than the split.
 /// Asked of every closed input before remeshing (a closed surface is a whole domain a
 /// user gave), and of an open one only on failure (the test costs about a remesh round).
-fn where_it_crosses_itself(mesh: &TriMesh) -> Option<String> {
+pub fn where_it_crosses_itself(mesh: &TriMesh) -> Option<String> {
     let bvh = crate::spatial::TriangleBvh::new(mesh).ok()?;
     let crossings = bvh.self_intersections_par(mesh, |_, _| true);
     let &(a, b) = crossings.first()?;
     let [p, q, r] = mesh.triangle_points(a as usize);
     let c = (p + q + r) / 3.0;
     Some(format!(
-        "the surface crosses itself near ({:.2}, {:.2}, {:.2}) mm (triangles {a} and {b}, {} crossing pairs in all): it has no remesh; repair it there",
+        "the surface crosses itself near ({:.2}, {:.2}, {:.2}) mm (triangles {a} and {b}, {} crossing pairs in all)",
         c.x, c.y, c.z, crossings.len()
     ))
 }
@@ -95,7 +95,7 @@ fn validate_input(mesh: &TriMesh, opts: &RemeshOptions) -> Result<(), String> {
     }
     if crate::mesh::manifold_report(mesh).is_closed_manifold() {
         if let Some(crossing) = where_it_crosses_itself(mesh) {
-            return Err(crossing);
+            return Err(format!("{crossing}: it has no remesh; repair it there"));
         }
     }
     Ok(())
