@@ -6,7 +6,7 @@
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
-use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
 use baffle_core::{FaceLabels, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
@@ -71,6 +71,11 @@ pub struct ExtendArgs {
     /// study of the outflow length; a height past the aortic root's sections is an error.
     #[arg(long)]
     pub outflow_diameters: Option<f64>,
+    /// The domain has no baffle (no triangle of --baffle-label), and is to be extended
+    /// as it is (e.g. a capped ventricle, for a pre-repair flow). Without it such a
+    /// domain is refused: `baffle extend` expects `baffle design`'s domain.
+    #[arg(long)]
+    pub no_baffle: bool,
 }
 
 pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
@@ -97,7 +102,13 @@ pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
 /// remesher keeps label boundaries and projects every point back onto its label's faces).
 fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
     let options = RemeshOptions { target_edge_mm: edge_mm, ..RemeshOptions::default() };
-    remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))
+    let remeshed = remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))?;
+    // The remesher projects onto the input's own faces; on a tightly curved baffle that
+    // can fold the result through itself, which no later stage could mesh.
+    match where_it_crosses_itself(&remeshed) {
+        Some(crossing) => Err(format!("remeshing the designed domain at {edge_mm} mm made it cross itself: {crossing} (try another --remesh-domain-edge-mm)")),
+        None => Ok(remeshed),
+    }
 }
 
 /// Build the extended domain and write it and its report (each whole or not at all).
@@ -119,6 +130,7 @@ pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), Stri
         remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),
         stj: StjOptions { fixed_diameters: args.outflow_diameters, ..StjOptions::default() },
         inflow_offset_mm: args.inflow_offset_mm,
+        without_baffle: args.no_baffle,
         ..ExtendOptions::default()
     };
     let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;

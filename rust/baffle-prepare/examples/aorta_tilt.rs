@@ -23,7 +23,7 @@ fn main() {
                 let s = &report.separation;
                 let designed = match design(&mesh, &m.suture_points_mm, &TargetArea::AreaMm2(m.target_area_mm2), &DesignOptions::default(), &mut |_, _| true) {
                     Ok(r) => {
-                        let extended = match extend(&r.domain, &m.pools, &ExtendOptions { union: options.clone(), ..ExtendOptions::default() }) {
+                        let extended = match extend(&r.domain, &m.pools, &ExtendOptions { union: options.clone(), without_baffle: true, ..ExtendOptions::default() }) {
                             Ok(e) => format!("extend ok ({} triangles)", e.report.triangles),
                             Err(e) => format!("extend failed: {e}"),
                         };

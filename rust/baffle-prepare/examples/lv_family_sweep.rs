@@ -22,7 +22,7 @@ fn main() {
     let first = args.first().copied().unwrap_or(0.0) as u64;
     let count = args.get(1).copied().unwrap_or(40.0) as u64;
     let prepare_options = PrepareOptions { voxel_mm: args.get(2).copied().unwrap_or(0.4), ..PrepareOptions::default() };
-    let extend_options = ExtendOptions { union: prepare_options.clone(), ..ExtendOptions::default() };
+    let extend_options = ExtendOptions { union: prepare_options.clone(), without_baffle: true, ..ExtendOptions::default() };
     let start = Instant::now();
     let mut outcomes: BTreeMap<String, Vec<u64>> = BTreeMap::new();
     std::panic::set_hook(Box::new(|_| {}));

@@ -26,7 +26,11 @@
 //!   muscular VSD; a septum thinner than the closing, which fuses the pools) the union
 //!   has a handle through the VSD's rim: no VSD cut then separates the LV part ("the
 //!   kept surface has 1 openings, expected 2"), and no plane move removes a handle.
-//!   Such a contact is wall in the extension, and the report names it. Each part is remeshed at the designed rims' edge
+//!   Such a contact is wall in the extension, and the report names it. Beside the rim
+//!   the RV counts only from the closing radius and a voxel on the RV's side of the cap's
+//!   plane: where the designed wall there rises onto the LV's side (a VSD in a dimple of
+//!   the septum, a cap projected onto its plane by hand), that RV is inside the designed
+//!   domain, and the LV part would lie on the designed wall. Each part is remeshed at the designed rims' edge
 //!   length, its first row of triangles at the designed cap is dropped and the gap is
 //!   zipped to the designed cap's rim, so that rim is shared (3 faces meet there: the
 //!   designed wall, the interior cap, the extension).
@@ -44,7 +48,8 @@ use baffle_core::caps::{cap_flatness, project_caps_onto_planes, CapFlatness, Cap
 use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
-use baffle_core::spatial::{Aabb, TriangleBvh};
+use baffle_core::self_check::{first_failure, SelfCheck};
+use baffle_core::spatial::{winding_number, Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
@@ -117,6 +122,10 @@ pub struct ExtendOptions {
     /// away from the VSD), and only there (a sensitivity study of the inflow position);
     /// `None`: through the centroid, moved by `MID_LV_MOVES_MM` until a cut is clean.
     pub inflow_offset_mm: Option<f64>,
+    /// The domain has no baffle (no triangle of `labels.baffle`), as the user says: a
+    /// capped ventricle extended as it is. Without it such a domain is refused, since
+    /// the designed domain `extend` expects is `design`'s, with its baffle.
+    pub without_baffle: bool,
 }
 
 impl Default for ExtendOptions {
@@ -129,6 +138,7 @@ impl Default for ExtendOptions {
             remesh_edge_mm: None,
             stj: StjOptions::default(),
             inflow_offset_mm: None,
+            without_baffle: false,
         }
     }
 }
@@ -205,6 +215,8 @@ pub struct ExtendReport {
     pub cap_projections: Vec<CapProjection>,
     pub stj: StjReport,
     pub remesh_edge_mm: f64,
+    /// The checks of the extended domain by a second method (each passed).
+    pub checks: Vec<SelfCheck>,
     pub timings: ExtendTimings,
 }
 
@@ -240,6 +252,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let domain = &flattened;
     let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
     let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
+    check_baffle(domain, l.baffle, options.without_baffle)?;
     let centroid_plane = lv_centroid_plane(&pools.lv, &vsd.plane)?;
     let (stj, stj_report, stj_loop) = sinotubular_junction(&pools.aorta, &annulus, &options.stj)?;
     let planes_ms = lap();
@@ -253,7 +266,9 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let margin_mm = options.union.crop_margin_mm;
     let lv_bounds = part_bounds(domain, &vsd, &pools.lv, &deepest, margin_mm);
     let footprint = VsdFootprint::new(domain, &vsd, vsd.plane.signed_distance_mm(&deepest.centroid) + margin_mm);
-    let over_vsd = |q: &Vec3| footprint.contains(q);
+    let inset_mm = options.union.voxel_mm;
+    let beside_rim_below_mm = options.union.closing_radius_mm + options.union.voxel_mm;
+    let over_vsd = |q: &Vec3| footprint.joins_lv_part(q, inset_mm, beside_rim_below_mm);
     let (lv_union, _, _) = union_within(&[(&pools.lv, &everywhere), (&pools.rv, &over_vsd)], &lv_bounds, &options.union)?;
     let ao_bounds = part_bounds(domain, &annulus, &pools.aorta, &stj, margin_mm);
     let (ao_union, _, _) = union_within(&[(&pools.rv, &everywhere), (&pools.aorta, &everywhere)], &ao_bounds, &options.union)?;
@@ -278,7 +293,10 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     let ao_triangles = ao_part.attach(&mut surface, &ao_union, edge_mm, snap_mm, l.wall)?;
     let extensions_ms = lap();
 
-    check_extended(&surface, domain.triangles.len(), &[l.vsd_cap, l.aortic_cap])?;
+    let mut checks = vec![check_extended(&surface, domain.triangles.len(), &[l.vsd_cap, l.aortic_cap])?];
+    checks.extend(cap_in_pool_checks(&surface, options.inflow_label, "inflow", ("LV", &pools.lv))?);
+    checks.extend(cap_in_pool_checks(&surface, options.outflow_label, "outflow", ("aorta", &pools.aorta))?);
+    first_failure(&checks).map_err(|m| PrepareError::geometry("extended domain", m))?;
     let baffle_area = |m: &TriMesh| (0..m.triangles.len()).filter(|&t| m.face_ids[t] == l.baffle).map(|t| m.triangle_area_mm2(t)).sum::<f64>();
     let (before, after) = (baffle_area(domain), baffle_area(&surface));
     let report = ExtendReport {
@@ -313,6 +331,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
         cap_projections,
         stj: stj_report,
         remesh_edge_mm: edge_mm,
+        checks,
         timings: ExtendTimings { planes_ms, union_ms, extensions_ms, checks_ms: lap() },
     };
     Ok(Extended { surface, report })
@@ -372,6 +391,19 @@ fn check_domain(domain: &TriMesh) -> Result<(), PrepareError> {
         return Err(PrepareError::geometry("designed domain", "it must be wound outward (positive volume)"));
     }
     Ok(())
+}
+
+/// A designed domain has a baffle: without one it is most likely the capped ventricle
+/// (`prepare`'s output) given in place of `design`'s domain, and its extension would
+/// be a CFD domain of no repair. The user may say it has none.
+fn check_baffle(domain: &TriMesh, baffle: i32, without_baffle: bool) -> Result<(), PrepareError> {
+    if without_baffle || domain.face_ids.contains(&baffle) {
+        return Ok(());
+    }
+    Err(PrepareError::geometry(
+        "designed domain",
+        format!("it has no baffle (no triangle labelled {baffle}): is it the capped ventricle rather than `baffle design`'s domain.vtp? Say --no-baffle to extend a domain without one"),
+    ))
 }
 
 /// The cap labelled `label`: one planar disk with a single rim.
@@ -517,6 +549,27 @@ impl VsdFootprint {
         let polygon: Vec<(f64, f64)> = vsd.rim.iter().map(|&v| vsd.plane.project_2d(&domain.points[v as usize])).collect();
         let rim_reach_mm = polygon.iter().map(|&(u, v)| u.hypot(v)).fold(0.0, f64::max);
         VsdFootprint { plane: vsd.plane, polygon, reach_mm: rim_reach_mm + VSD_FOOTPRINT_MARGIN_MM, depth_mm: [-RV_BEHIND_VSD_MM, depth_mm] }
+    }
+
+    /// Where the RV joins the LV part's union: the footprint, but beside the rim only
+    /// from `below_mm` on the RV's side of the plane, and from there on into the LV only
+    /// within the rim polygon shrunk by `inset_mm`. The designed domain's wall beside
+    /// the rim may rise onto the LV's side of the cap's plane (a VSD in a dimple of the
+    /// septum, a rim projected onto its plane by hand): the RV beside the rim there is
+    /// inside the designed domain, and the union's surface around it would lie on the
+    /// designed wall, crossing it. The column over the cap then meets the plane inside
+    /// the rim (the grid moves a surface by up to half a voxel: `inset_mm` a voxel), and
+    /// the closing's fillet at the column's foot stays below the plane (`below_mm`: the
+    /// closing radius and a voxel).
+    fn joins_lv_part(&self, q: &Vec3, inset_mm: f64, below_mm: f64) -> bool {
+        if !self.contains(q) {
+            return false;
+        }
+        if self.plane.signed_distance_mm(q) <= -below_mm {
+            return true;
+        }
+        let uv = self.plane.project_2d(q);
+        inside_polygon(&self.polygon, uv) && distance_to_polygon_mm(&self.polygon, uv) >= inset_mm
     }
 
     fn contains(&self, q: &Vec3) -> bool {
@@ -764,7 +817,7 @@ fn drop_pinches(mesh: &TriMesh, keep: &mut [bool]) {
 /// The extended surface less its interior caps must be closed, consistently wound and
 /// outward; each interior cap edge is shared by 2 triangles inside it and 3 on its rim;
 /// no added triangle may cross another.
-fn check_extended(surface: &TriMesh, designed_triangles: usize, interior: &[i32]) -> Result<(), PrepareError> {
+fn check_extended(surface: &TriMesh, designed_triangles: usize, interior: &[i32]) -> Result<SelfCheck, PrepareError> {
     let fail = |m: String| Err(PrepareError::geometry("extended domain", m));
     let wall = surface.with_labels(|l| !interior.contains(&l));
     let r = manifold_report(&wall);
@@ -785,12 +838,54 @@ fn check_extended(surface: &TriMesh, designed_triangles: usize, interior: &[i32]
     }
     let bvh = TriangleBvh::new(surface).map_err(|e| PrepareError::geometry("extended domain", e))?;
     let first = designed_triangles as u32;
-    if let Some(&(a, b)) = bvh.self_intersections_par(surface, |a, b| a >= first || b >= first).first() {
+    let crossings = bvh.self_intersections_par(surface, |_, _| true);
+    // The designed domain is input, but the output is the whole surface: a designed
+    // domain through itself is named as such, not passed on.
+    if let Some(&(a, b)) = crossings.iter().find(|&&(a, b)| a < first && b < first) {
+        let [p, q, s] = surface.triangle_points(a as usize);
+        let c = (p + q + s) / 3.0;
+        return Err(PrepareError::geometry("designed domain", format!("it crosses itself near ({:.1}, {:.1}, {:.1}) mm (triangles {a}, {b})", c.x, c.y, c.z)));
+    }
+    if let Some(&(a, b)) = crossings.first() {
         let [p, q, s] = surface.triangle_points(a.max(b) as usize);
         let c = (p + q + s) / 3.0;
         return fail(format!("the extension crosses itself or the designed domain near ({:.1}, {:.1}, {:.1}) mm (triangles {a}, {b})", c.x, c.y, c.z));
     }
-    Ok(())
+    let added = surface.triangles.len() - designed_triangles;
+    Ok(SelfCheck::at_most("surface crossing itself", 0.0, 0.0, "count", format!("pairs of crossing triangles in the whole surface, {added} of them added (triangle-triangle test over a BVH)")))
+}
+
+/// The new cap `label` against the pool it closes, re-measured on the output: its rim
+/// on the pool's surface (within `FAR_RIM_OFF_POOL_MM`, what the union's closing and
+/// smoothing allow) and its centroid inside the pool (winding number, not the cut that
+/// made it).
+fn cap_in_pool_checks(surface: &TriMesh, label: i32, name: &str, (pool_name, pool): (&str, &TriMesh)) -> Result<[SelfCheck; 2], PrepareError> {
+    let fail = |m: String| PrepareError::geometry("extended domain", m);
+    let cap = surface.with_labels(|l| l == label);
+    let rim = cap.boundary_loops().map_err(|e| fail(format!("the {name} cap: {e}")))?.concat();
+    let bvh = TriangleBvh::new(pool).map_err(fail)?;
+    let (off_mm, at) = rim
+        .iter()
+        .map(|&v| cap.points[v as usize])
+        .filter_map(|p| bvh.closest_point(pool, p).map(|h| (h.distance_mm, p)))
+        .fold((f64::NAN, Vec3::zeros()), |best, x| if best.0.is_nan() || x.0 > best.0 { x } else { best });
+    let rim_check = SelfCheck::at_most(
+        &format!("{name} cap rim on the {pool_name} surface"),
+        off_mm,
+        FAR_RIM_OFF_POOL_MM,
+        "mm",
+        format!("largest distance of a rim point from the {pool_name} pool's surface, at ({:.1}, {:.1}, {:.1}) mm", at.x, at.y, at.z),
+    );
+    let (centroid, _, _) = cap.label_centroid_normal(label).ok_or_else(|| fail(format!("the {name} cap has no area")))?;
+    let inside = winding_number(pool, centroid).abs();
+    let centroid_check = SelfCheck::at_least(
+        &format!("{name} cap centroid inside the {pool_name} pool"),
+        inside,
+        0.5,
+        "winding number",
+        format!("the {pool_name} surface's winding number at the cap's centroid ({:.1}, {:.1}, {:.1}) mm (1 inside, 0 outside)", centroid.x, centroid.y, centroid.z),
+    );
+    Ok([rim_check, centroid_check])
 }
 
 #[cfg(test)]

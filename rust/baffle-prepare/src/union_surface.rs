@@ -7,6 +7,7 @@
 //! shrinking the volume.
 
 use crate::voxelize::Grid;
+use baffle_core::spatial::TriangleBvh;
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 
@@ -38,8 +39,41 @@ pub fn union_surface(mask: &[bool], grid: &Grid, smoothing: &SmoothingOptions) -
         return Err("the union of the structures covers no voxel of the grid".into());
     }
     let mut mesh = largest_component(&contour);
+    let contoured = mesh.points.clone();
     taubin_smooth(&mut mesh, smoothing);
+    undo_crossings(&mut mesh, &contoured, smoothing)?;
     Ok(mesh)
+}
+
+/// Rounds of pinning the points of crossing triangles before giving up.
+const MAX_UNDO_ROUNDS: usize = 8;
+
+/// Taubin smoothing can pull the two sides of a crevice a voxel or two wide through
+/// each other. Where the smoothed surface crosses itself and the contoured one did not
+/// (the piecewise-linear level set does not), the crossing triangles' points and their
+/// neighbours are pinned at their contoured positions and the surface is smoothed again
+/// from the contour around them, until no new crossing is left. Returns the crossings
+/// still left after `MAX_UNDO_ROUNDS` (the checks of what is built from it then name them).
+fn undo_crossings(mesh: &mut TriMesh, contoured: &[Vec3], smoothing: &SmoothingOptions) -> Result<usize, String> {
+    let (start, neighbors) = point_neighbors(mesh);
+    let crossings = |m: &TriMesh| TriangleBvh::new(m).map(|bvh| bvh.self_intersections_par(m, |_, _| true));
+    let smoothed = std::mem::replace(&mut mesh.points, contoured.to_vec());
+    let before: std::collections::HashSet<(u32, u32)> = crossings(mesh)?.into_iter().collect();
+    mesh.points = smoothed;
+    let mut pinned = vec![false; mesh.points.len()];
+    for _ in 0..MAX_UNDO_ROUNDS {
+        let new: Vec<(u32, u32)> = crossings(mesh)?.into_iter().filter(|p| !before.contains(p)).collect();
+        if new.is_empty() {
+            return Ok(0);
+        }
+        for v in new.iter().flat_map(|&(a, b)| mesh.triangles[a as usize].into_iter().chain(mesh.triangles[b as usize])) {
+            pinned[v as usize] = true;
+            neighbors[start[v as usize]..start[v as usize + 1]].iter().for_each(|&w| pinned[w as usize] = true);
+        }
+        mesh.points = contoured.to_vec();
+        smooth_pinned(mesh, smoothing, &pinned, (&start, &neighbors));
+    }
+    Ok(crossings(mesh)?.into_iter().filter(|p| !before.contains(p)).count())
 }
 
 /// Separable [1 2 1] blur of the 0/1 mask: 0..=64 per voxel, 0 beyond the grid.
@@ -173,12 +207,17 @@ fn point_neighbors(mesh: &TriMesh) -> (Vec<usize>, Vec<u32>) {
 /// Taubin's lambda|mu smoothing with uniform (umbrella) weights.
 pub fn taubin_smooth(mesh: &mut TriMesh, options: &SmoothingOptions) {
     let (start, neighbors) = point_neighbors(mesh);
+    smooth_pinned(mesh, options, &vec![false; mesh.points.len()], (&start, &neighbors));
+}
+
+/// Taubin smoothing that leaves the `pinned` points where they are.
+fn smooth_pinned(mesh: &mut TriMesh, options: &SmoothingOptions, pinned: &[bool], (start, neighbors): (&[usize], &[u32])) {
     let step = |points: &[Vec3], factor: f64| -> Vec<Vec3> {
         (0..points.len())
             .into_par_iter()
             .map(|i| {
                 let ring = &neighbors[start[i]..start[i + 1]];
-                if ring.is_empty() {
+                if ring.is_empty() || pinned[i] {
                     return points[i];
                 }
                 let mean = ring.iter().map(|&j| points[j as usize]).sum::<Vec3>() / ring.len() as f64;

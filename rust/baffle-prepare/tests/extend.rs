@@ -14,6 +14,11 @@ mod common;
 use common::check_extended;
 
 
+/// A capped ventricle (prepare's output) has no baffle: extended as it is, as said.
+fn capped_ventricle_options() -> ExtendOptions {
+    ExtendOptions { without_baffle: true, ..ExtendOptions::default() }
+}
+
 fn synthetic_pools() -> BloodPools {
     BloodPools {
         lv: uv_sphere(Vec3::zeros(), 10.0, 48, 96),
@@ -26,7 +31,7 @@ fn synthetic_pools() -> BloodPools {
 fn the_synthetic_heart_is_extended_to_the_lv_centre_and_one_diameter_up_the_aorta() {
     let pools = synthetic_pools();
     let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
-    let extended = extend(&capped, &pools, &ExtendOptions::default()).unwrap();
+    let extended = extend(&capped, &pools, &capped_ventricle_options()).unwrap();
     check_extended("synthetic", &capped, &pools, &extended);
     let r = &extended.report;
     // The mid-LV plane is x = 0 (the LV sphere's centre), parallel to the VSD plane x = 8.6.
@@ -43,7 +48,7 @@ fn the_inflow_and_outflow_caps_move_where_asked() {
     let pools = synthetic_pools();
     let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
     let stj = StjOptions { fixed_diameters: Some(1.5), ..StjOptions::default() };
-    let options = ExtendOptions { inflow_offset_mm: Some(3.0), stj, ..ExtendOptions::default() };
+    let options = ExtendOptions { inflow_offset_mm: Some(3.0), stj, without_baffle: true, ..ExtendOptions::default() };
     let extended = extend(&capped, &pools, &options).unwrap();
     check_extended("synthetic, caps moved", &capped, &pools, &extended);
     let r = &extended.report;
@@ -64,18 +69,18 @@ fn cap_positions_that_leave_no_valid_cut_are_named() {
     let run = |options: ExtendOptions| extend(&capped, &pools, &options).unwrap_err().to_string();
     // The VSD plane is x = 8.6: 8 mm toward it leaves the plane 0.6 mm beyond it; 12 mm
     // away misses the 10 mm LV. Neither falls back to another plane.
-    let near = run(ExtendOptions { inflow_offset_mm: Some(-8.0), ..ExtendOptions::default() });
+    let near = run(ExtendOptions { inflow_offset_mm: Some(-8.0), without_baffle: true, ..ExtendOptions::default() });
     assert!(near.contains("inflow cap offset leaves no valid cut") && near.contains("need 1 mm toward the LV") && !near.contains("+2 mm"), "{near}");
-    let beyond = run(ExtendOptions { inflow_offset_mm: Some(12.0), ..ExtendOptions::default() });
+    let beyond = run(ExtendOptions { inflow_offset_mm: Some(12.0), without_baffle: true, ..ExtendOptions::default() });
     assert!(beyond.contains("inflow cap offset leaves no valid cut"), "{beyond}");
     // The aorta tube is 21 mm long: 4 diameters (32 mm) is past its end.
-    let high = run(ExtendOptions { stj: StjOptions { fixed_diameters: Some(4.0), ..StjOptions::default() }, ..ExtendOptions::default() });
+    let high = run(ExtendOptions { stj: StjOptions { fixed_diameters: Some(4.0), ..StjOptions::default() }, without_baffle: true, ..ExtendOptions::default() });
     assert!(high.contains("below the asked outflow height"), "{high}");
     for bad in [Some(0.0), Some(-1.0), Some(f64::NAN)] {
-        let err = run(ExtendOptions { stj: StjOptions { fixed_diameters: bad, ..StjOptions::default() }, ..ExtendOptions::default() });
+        let err = run(ExtendOptions { stj: StjOptions { fixed_diameters: bad, ..StjOptions::default() }, without_baffle: true, ..ExtendOptions::default() });
         assert!(err.contains("must be positive"), "{bad:?}: {err}");
     }
-    let err = run(ExtendOptions { inflow_offset_mm: Some(f64::INFINITY), ..ExtendOptions::default() });
+    let err = run(ExtendOptions { inflow_offset_mm: Some(f64::INFINITY), without_baffle: true, ..ExtendOptions::default() });
     assert!(err.contains("offset must be finite"), "{err}");
 }
 
@@ -85,7 +90,7 @@ fn an_lv_behind_the_rv_side_of_the_vsd_plane_is_named() {
     let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
     // An LV whose centroid lies on the RV's side of the VSD plane.
     let moved = BloodPools { lv: uv_sphere(Vec3::new(12.0, 0.0, 0.0), 4.0, 16, 32), ..pools };
-    let err = extend(&capped, &moved, &ExtendOptions::default()).unwrap_err();
+    let err = extend(&capped, &moved, &capped_ventricle_options()).unwrap_err();
     assert!(matches!(err, PrepareError::Geometry { step: "mid-LV plane", .. }), "{err}");
     assert!(err.to_string().contains("VSD"), "{err}");
 }
@@ -95,8 +100,22 @@ fn a_domain_without_an_aortic_cap_is_named() {
     let pools = synthetic_pools();
     let (mut capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
     capped.face_ids.iter_mut().filter(|l| **l == 16).for_each(|l| *l = 2);
-    let err = extend(&capped, &pools, &ExtendOptions::default()).unwrap_err().to_string();
+    let err = extend(&capped, &pools, &capped_ventricle_options()).unwrap_err().to_string();
     assert!(err.contains("no aortic-annulus cap"), "{err}");
+}
+
+#[test]
+fn a_domain_without_a_baffle_is_refused_unless_said() {
+    let pools = synthetic_pools();
+    let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
+    let err = extend(&capped, &pools, &ExtendOptions::default()).unwrap_err().to_string();
+    assert!(err.contains("no baffle (no triangle labelled 10)") && err.contains("--no-baffle"), "{err}");
+    // Said, it extends; its report lists the checks of the output, each passed.
+    let extended = extend(&capped, &pools, &capped_ventricle_options()).unwrap();
+    let names: Vec<&str> = extended.report.checks.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names.len(), 5, "{names:?}");
+    assert!(names.iter().any(|n| n.contains("crossing itself")) && names.iter().any(|n| n.contains("inflow cap rim on the LV")) && names.iter().any(|n| n.contains("outflow cap centroid inside the aorta")), "{names:?}");
+    assert!(extended.report.checks.iter().all(|c| c.passed), "{:?}", extended.report.checks);
 }
 
 fn check_patient(patient: &str) {
@@ -138,9 +157,8 @@ fn check_published(patient: &str) {
     if domain.signed_volume_mm3() < 0.0 {
         domain.triangles.iter_mut().for_each(|t| t.swap(1, 2));
     }
-    // The published rims are 0.3-0.5 mm; a 0.8 mm extension keeps the test quick.
-    let options = ExtendOptions { remesh_edge_mm: Some(0.8), ..ExtendOptions::default() };
-    let extended = extend(&domain, &pools, &options).unwrap_or_else(|e| panic!("{patient} published: extend: {e}"));
+    // As it is: the extension at the published rims' own 0.3-0.5 mm edge.
+    let extended = extend(&domain, &pools, &ExtendOptions::default()).unwrap_or_else(|e| panic!("{patient} published: extend: {e}"));
     check_extended(&format!("{patient} published"), &domain, &pools, &extended);
     let r = &extended.report;
     eprintln!("{patient} published: caps off their planes by {:.4} (VSD) and {:.4} mm (aortic)", r.vsd_cap_off_plane_mm, r.aortic_cap_off_plane_mm);

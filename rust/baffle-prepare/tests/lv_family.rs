@@ -17,7 +17,7 @@ use common::{check_extended, inflow_clearance_mm};
 /// A 0.4 mm grid keeps the test quick; the union is made as `prepare` makes it.
 fn options() -> (PrepareOptions, ExtendOptions) {
     let prepare_options = PrepareOptions { voxel_mm: 0.4, ..PrepareOptions::default() };
-    (prepare_options.clone(), ExtendOptions { union: prepare_options, ..ExtendOptions::default() })
+    (prepare_options.clone(), ExtendOptions { union: prepare_options, without_baffle: true, ..ExtendOptions::default() })
 }
 
 /// The first members (0-7): LVs long and short, bent both ways, with a second VSD
@@ -61,7 +61,7 @@ fn an_aorta_touching_the_lv_no_longer_joins_the_parts() {
     };
     let prepare_options = PrepareOptions { voxel_mm: 0.3, closing_radius_mm: 0.0, ..PrepareOptions::default() };
     let (domain, _) = prepare(&pools, &prepare_options).unwrap();
-    let e = extend(&domain, &pools, &ExtendOptions { union: prepare_options, ..ExtendOptions::default() }).unwrap_or_else(|e| panic!("{e}"));
+    let e = extend(&domain, &pools, &ExtendOptions { union: prepare_options, without_baffle: true, ..ExtendOptions::default() }).unwrap_or_else(|e| panic!("{e}"));
     check_extended("aorta on the LV", &domain, &pools, &e);
 }
 
@@ -110,7 +110,7 @@ fn heart_with_rv_recess(angle_deg: f64, pouch_gap_mm: f64, channel: bool) -> (Bl
 fn extend_with_recess(name: &str, angle_deg: f64, pouch_gap_mm: f64, channel: bool) -> Option<String> {
     // The synthetic heart's aortic part needs the 0.3 mm grid (at 0.4 mm it crosses the designed domain).
     let prepare_options = PrepareOptions { voxel_mm: 0.3, ..PrepareOptions::default() };
-    let extend_options = ExtendOptions { union: prepare_options.clone(), ..ExtendOptions::default() };
+    let extend_options = ExtendOptions { union: prepare_options.clone(), without_baffle: true, ..ExtendOptions::default() };
     let (pools, pouch_center) = heart_with_rv_recess(angle_deg, pouch_gap_mm, channel);
     let plain = BloodPools { rv: uv_sphere(Vec3::new(16.0, 0.0, 0.0), 9.0, 48, 96), ..pools.clone() };
     let (domain, _) = prepare(&plain, &prepare_options).unwrap();

@@ -42,12 +42,29 @@ pub fn remesh_isotropic(mesh: &TriMesh, opts: &RemeshOptions) -> Result<TriMesh,
     let budget = TriangleBudget::new(mesh, opts.target_edge_mm)?;
     let mut remesher = Remesher::new(mesh, opts)?;
     for _ in 0..opts.iterations {
-        remesher.split_long_edges(&budget)?;
+        remesher.split_long_edges(&budget).map_err(|e| where_it_crosses_itself(mesh).map_or(e, |c| format!("{c}: splitting long edges cannot converge on it")))?;
         remesher.collapse_short_edges();
         remesher.flip_toward_regular_valence();
         remesher.smooth_tangentially();
     }
     Ok(remesher.mesh.to_trimesh())
+}
+
+/// Where `mesh` crosses itself, said: a surface through itself has no isotropic remesh
+/// (the projection onto it runs between the sheets, and splitting does not converge),
+/// so a remesh that fails names the crossing, if there is one, rather than the split.
+/// Asked of every closed input before remeshing (a closed surface is a whole domain a
+/// user gave), and of an open one only on failure (the test costs about a remesh round).
+pub fn where_it_crosses_itself(mesh: &TriMesh) -> Option<String> {
+    let bvh = crate::spatial::TriangleBvh::new(mesh).ok()?;
+    let crossings = bvh.self_intersections_par(mesh, |_, _| true);
+    let &(a, b) = crossings.first()?;
+    let [p, q, r] = mesh.triangle_points(a as usize);
+    let c = (p + q + r) / 3.0;
+    Some(format!(
+        "the surface crosses itself near ({:.2}, {:.2}, {:.2}) mm (triangles {a} and {b}, {} crossing pairs in all)",
+        c.x, c.y, c.z, crossings.len()
+    ))
 }
 
 fn validate_input(mesh: &TriMesh, opts: &RemeshOptions) -> Result<(), String> {
@@ -74,6 +91,11 @@ fn validate_input(mesh: &TriMesh, opts: &RemeshOptions) -> Result<(), String> {
         }
         if a == b || b == c || a == c {
             return Err(format!("triangle {t} repeats a point ({a}, {b}, {c})"));
+        }
+    }
+    if crate::mesh::manifold_report(mesh).is_closed_manifold() {
+        if let Some(crossing) = where_it_crosses_itself(mesh) {
+            return Err(format!("{crossing}: it has no remesh; repair it there"));
         }
     }
     Ok(())
