@@ -140,7 +140,7 @@ impl CaseSettings {
             mode: RunMode::Transient,
             time_integration: TimeIntegration::BackwardEuler,
             tau_includes_dt: true,
-            tau_metric: TauMetric::Invariant,
+            tau_metric: TauMetric::SvMultiPhysics,
             exact_convection: true,
             vms_advection: false,
             stress_viscosity: false,
