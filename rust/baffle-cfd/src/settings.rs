@@ -141,7 +141,7 @@ impl CaseSettings {
             time_integration: TimeIntegration::BackwardEuler,
             tau_includes_dt: true,
             tau_metric: TauMetric::SvMultiPhysics,
-            exact_convection: true,
+            exact_convection: false,
             vms_advection: false,
             stress_viscosity: false,
             nonlinear_iterations: None,

@@ -173,7 +173,7 @@ pub struct TimeSpec {
     /// The discrete method's ingredients, for comparing it with svMultiPhysics one at a
     /// time (docs/validation.md, issue 28): tau's metric "svmultiphysics" (default) or
     /// "invariant" (`baffle_cfd::assembly::TauMetric`), the Galerkin convection
-    /// "exact" (default) or "centroid", VMS advection by a + u' (default false), the
+    /// "centroid" (default) or "exact", VMS advection by a + u' (default false), the
     /// viscous term "laplacian" (default) or "stress".
     pub tau_metric: Option<String>,
     pub convection: Option<String>,
@@ -581,9 +581,9 @@ mod tests {
         let dt = "\"dt_s\": 0.001";
         let with = |extra: &str| example_with(dt, &format!("{dt}, {extra}"));
         let (d, _) = example_with(dt, dt).unwrap();
-        assert_eq!((d.tau_metric, d.exact_convection, d.vms_advection, d.stress_viscosity), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, true, false, false));
-        let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"centroid\", \"vms_advection\": true, \"viscous_form\": \"stress\"").unwrap();
-        assert_eq!((s.tau_metric, s.exact_convection, s.vms_advection, s.stress_viscosity), (baffle_cfd::assembly::TauMetric::Invariant, false, true, true));
+        assert_eq!((d.tau_metric, d.exact_convection, d.vms_advection, d.stress_viscosity), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, false, false, false));
+        let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"exact\", \"vms_advection\": true, \"viscous_form\": \"stress\"").unwrap();
+        assert_eq!((s.tau_metric, s.exact_convection, s.vms_advection, s.stress_viscosity), (baffle_cfd::assembly::TauMetric::Invariant, true, true, true));
         let e = with("\"tau_metric\": \"shakib\"").unwrap_err();
         assert!(e.contains("time.tau_metric 'shakib': expected invariant or svmultiphysics"), "{e}");
         assert!(with("\"viscous_form\": \"full\"").unwrap_err().contains("expected laplacian or stress"));
