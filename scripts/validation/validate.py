@@ -16,12 +16,18 @@ Every stage's output is kept under OUT/work and reused by later rows (a stage's 
 is stored beside its output, so a row's wall_time_s is the sum of its stages' times even
 when a stage was run for an earlier row). Writes OUT/results.json, results.csv,
 results.md (and gci.json / gci.md when a mesh study ran).
+
+--only same-mesh: the published p1 and p3 domains at 1.25 and 0.75 mm through the same chain,
+each mesh run to the first peak by both engines, ours (`baffle simulate --steps 170`) and
+svMultiPhysics (`--engine svmultiphysics --mpi-processes 2`, the same steps); rows are
+skipped, saying so, where svMultiPhysics is not on PATH (SAME_MESH_MPI_PROCESSES sets the ranks).
 """
 import argparse
 import csv
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -280,6 +286,90 @@ def chain_argv(spec):
     if spec.get("outflow_diameters") is not None:
         argv += ["--outflow-diameters", spec["outflow_diameters"]]
     return argv
+
+
+SAME_MESH_ROWS = (("p3", 1.25), ("p1", 1.25), ("p3", 0.75), ("p1", 0.75))
+SVMP_ENGINES = ("svmultiphysics", "svMultiPhysics")
+
+
+def svmp_engine():
+    """The svMultiPhysics executable on PATH, or None."""
+    return next((shutil.which(n) for n in SVMP_ENGINES if shutil.which(n)), None)
+
+
+def engine_figures(sim: Path, steps):
+    """dp at the first peak (t = 0.164 s) and the largest over the run, v_max and seconds
+    a step, of one engine's run in `sim`."""
+    summary = json.loads((sim / "summary.json").read_text())
+    with open(sim / "timeseries.csv") as f:
+        rows = list(csv.DictReader(f))
+    dps = [float(r["p_plane1_11_mmhg"]) - float(r["p_plane2_16_mmhg"]) for r in rows]
+    return {
+        "dp_mmhg": first_peak_dp_mmhg(sim),
+        "dp_largest_mmhg": max(dps),
+        "vmax_m_s": summary.get("max_velocity_m_s"),
+        "converged": summary.get("converged"),
+        "s_per_step": summary["wall_time_s"] / steps,
+    }
+
+
+def same_mesh_row(r: Runner, patient, interior, patients, common):
+    """One mesh of the published domain run by both engines to the first peak."""
+    info = patients[patient]
+    domain, _ = published_domain(r, patient, DESIGN_BOUNDARY_MM)
+    base = r.work / patient / "published" / f"b{DESIGN_BOUNDARY_MM}"
+    extended = base / "extended.vtp"
+    r.stage(extended, ["extend", "--domain", domain, "--segmentations", r.data / patient / "segmentations", "--out", extended])
+    mesh_dir = base / f"mesh-{interior}"
+    mesh = mesh_dir / "mesh.vtu"
+    r.stage(mesh, ["mesh", "--surface", extended, "--interior-labels", "11,16", "--edge-length-mm", interior, "--out", mesh])
+    steps = FIRST_PEAK_STEPS
+    row = Row(patient=patient, mesh=f"{DESIGN_BOUNDARY_MM} / {interior} mm", tets=json.loads((mesh_dir / "mesh-quality.json").read_text())["tetrahedra"])
+    ours = mesh_dir / f"same-mesh-ours-{steps}"
+    write_case(ours / "case.json", info, "plug", common["cardiac_index_l_min_m2"], steps)
+    r.stage(ours / "summary.json", ["simulate", ours / "case.json", "--out", ours])
+    row["ours"] = engine_figures(ours, steps)
+    if svmp_engine() is None:
+        log(f"  svMultiPhysics is not on PATH (build it with ../shared/engines/svmultiphysics/build.sh): {patient} {interior} mm runs our engine only")
+        row["svmp"] = None
+        return row
+    theirs = mesh_dir / f"same-mesh-svmp-{steps}"
+    write_case(theirs / "case.json", info, "plug", common["cardiac_index_l_min_m2"], steps)
+    ranks = os.environ.get("SAME_MESH_MPI_PROCESSES", "2")
+    r.stage(theirs / "summary.json", ["simulate", theirs / "case.json", "--out", theirs, "--engine", "svmultiphysics", "--mpi-processes", ranks])
+    row["svmp"] = engine_figures(theirs, steps)
+    return row
+
+
+def same_mesh_markdown(rows):
+    head = "| patient | mesh | tets | dp ours / svMP (mmHg) | ours - svMP | largest dp ours / svMP | v_max ours / svMP (m/s) | s a step ours / svMP | svMP converged |"
+    return "\n".join([head, "|" + "---|" * 9] + ["| " + " | ".join(same_mesh_cells(x)) + " |" for x in rows]) + "\n"
+
+
+def same_mesh_cells(x):
+    """A same-mesh row's cells: each figure as ours / svMultiPhysics' ('-' where it did not run)."""
+    o, t = x["ours"], x.get("svmp")
+    pair = lambda k, nd=2: f"{fmt(o[k], nd)} / " + (fmt(t[k], nd) if t else "-")
+    diff = f"{100 * (o['dp_mmhg'] / t['dp_mmhg'] - 1):+.1f}%" if t else "svMultiPhysics not run"
+    return [x["patient"], x["mesh"], f"{x['tets']:,}", pair("dp_mmhg"), diff, pair("dp_largest_mmhg"), pair("vmax_m_s"), pair("s_per_step", 3), str(t["converged"]) if t else ""]
+
+
+def same_mesh(r: Runner, patients, common, wanted, out: Path):
+    rows = []
+    for patient, interior in SAME_MESH_ROWS:
+        if patient not in wanted:
+            continue
+        log(f"== same mesh: {patient} published, interior {interior} mm, both engines")
+        try:
+            rows.append(same_mesh_row(r, patient, interior, patients, common))
+        except NotRun as e:
+            log(f"  not run yet ({e}): left out")
+        except (RuntimeError, ValueError, OSError, KeyError) as e:
+            log(f"  FAILED: {e}")
+            return 1
+    (out / "same-mesh.json").write_text(json.dumps(rows, indent=1))
+    (out / "same-mesh.md").write_text("## Same mesh, both engines, first peak of flow\n\n" + same_mesh_markdown(rows))
+    return 0
 
 
 def spec(patient, domain, boundary=DESIGN_BOUNDARY_MM, interior=1.25, flow="nominal", profile="plug", steps=FIRST_PEAK_STEPS, **kw):
@@ -566,8 +656,8 @@ def main(argv=None):
     ap.add_argument("--baffle", type=Path, required=True)
     ap.add_argument("--patients", default="p1,p2,p3")
     ap.add_argument("--nice", type=int, default=5)
-    ap.add_argument("--only", choices=("gci", "cycles", "chain", "area", "base"),
-                    help="run only the mesh-study rows, the four-cycle rows, the moved extension caps, the baffle sizes, or the others")
+    ap.add_argument("--only", choices=("gci", "cycles", "chain", "area", "base", "same-mesh"),
+                    help="run only the mesh-study rows, the four-cycle rows, the moved extension caps, the baffle sizes, the others, or both engines on the same meshes")
     ap.add_argument("--tables-only", action="store_true", help="rebuild the tables from the stages already run; rows with a stage missing are left out")
     args = ap.parse_args(argv)
     meta = json.loads((args.data / "patients.json").read_text())
@@ -578,6 +668,8 @@ def main(argv=None):
         sys.exit(f"{args.data}: no patient folder {', '.join(missing)}")
     args.out.mkdir(parents=True, exist_ok=True)
     r = Runner(args.baffle.resolve(), args.data.resolve(), (args.out / "work").resolve(), args.nice, args.tables_only)
+    if args.only == "same-mesh":
+        return same_mesh(r, meta["patients"], meta["common"], wanted, args.out)
     rows = []
     for s in row_specs(args.mode, wanted, args.only):
         try:

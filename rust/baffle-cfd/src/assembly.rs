@@ -11,11 +11,16 @@
 //!   continuity: (q, div u) + sum_e (tau/rho grad q, r_M)
 //!   r_M = rho (u - u_n)/dt + rho a.grad u + grad p   (the viscous term vanishes on P1)
 //!
-//! tau = [ (2/dt)^2 + a.G.a + C_I nu^2 G:G ]^(-1/2), nu_C = 1 / (tau tr G), with the
-//! node-numbering-invariant metric G = 2 sum_a grad N_a (x) grad N_a, which on a regular
-//! tet of edge h gives a.G.a = (2|a|/h)^2; C_I = 3 gives the diffusive limit
-//! 9 (4 nu / h^2)^2 of Shakib et al. The advecting velocity and the stabilization
-//! terms use one-point (centroid) quadrature; the Galerkin mass matrix is consistent.
+//! tau = [ (2/dt)^2 + a.G.a + C_I nu^2 G:G ]^(-1/2), nu_C = 1 / (tau tr G). By default
+//! G and C_I are svMultiPhysics' (fluid.cpp: G = J^-T J^-1 of the reference tet, ctC = 36),
+//! G averaged over the node numberings ([`TauMetric::SvMultiPhysics`]); the alternative
+//! [`TauMetric::Invariant`] (G = 2 sum_a grad N_a (x) grad N_a, C_I = 3) has an LSIC
+//! coefficient nu_C 2.7 times smaller and made dp 9-12 % lower than svMultiPhysics early
+//! in the p3 ramp and 8 % lower at p1's peak (docs/validation.md, issue 28). The advecting
+//! velocity in tau and the stabilization terms use one-point (centroid) quadrature, and so
+//! by default does the Galerkin convection (`Physics::exact_convection` integrates it
+//! exactly: +0.9 % dp on p3, but with svMultiPhysics' tau it made p2's steady Newton
+//! iterations diverge); the mass matrix is consistent.
 //! The viscous term is the Laplacian form, whose natural condition at outlets is
 //! mu du/dn - p n = -P n (traction-free up to the outlet pressure P).
 
@@ -55,9 +60,39 @@ pub struct Physics {
     /// 1/dt inside tau: 0 for steady or pseudo-time runs, so that the converged
     /// pseudo-transient solution is the steady discrete solution.
     pub inv_dt_tau_per_s: f64,
+    /// The element length inside tau (see [`TauMetric`]).
+    pub tau_metric: TauMetric,
+    /// Galerkin convection (rho a.grad u, w) integrated exactly for the P1 advecting
+    /// velocity (true), or with a at the centroid (false).
+    pub exact_convection: bool,
+    /// Variational multiscale advection (svMultiPhysics' VMS): the Galerkin convection and
+    /// the SUPG test advected by a + u', u' = -tau r_M(a) the fine-scale velocity of the
+    /// current iterate (lagged, elementwise constant).
+    pub vms_advection: bool,
+    /// Viscous term in stress form (mu (grad u + grad u^T), grad w), as svMultiPhysics.
+    pub stress_viscosity: bool,
 }
 
-const C_INVERSE_ESTIMATE: f64 = 3.0;
+/// The metric tensor G of tau's element length and the inverse-estimate constant C_I.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TauMetric {
+    /// G = 2 sum_a grad N_a (x) grad N_a, C_I = 3 (a.G.a = (2|a|/h)^2 on a regular tet).
+    Invariant,
+    /// svMultiPhysics' G = J^-T J^-1 of the reference tet (sum of grad N_a (x) grad N_a
+    /// over three of the four nodes), averaged over the four node numberings:
+    /// 3/4 sum_a grad N_a (x) grad N_a; C_I = 36 (its ctC).
+    SvMultiPhysics,
+}
+
+impl TauMetric {
+    /// (scale of sum_a grad N_a (x) grad N_a, C_I).
+    fn constants(self) -> (f64, f64) {
+        match self {
+            TauMetric::Invariant => (2.0, 3.0),
+            TauMetric::SvMultiPhysics => (0.75, 36.0),
+        }
+    }
+}
 
 /// Element matrix (4x4 node blocks of 4x4 (u,v,w,p) entries) and right-hand side.
 pub struct ElementSystem {
@@ -71,11 +106,12 @@ fn mean3(v: &[[f64; 3]; 4]) -> [f64; 3] {
 
 /// Stabilization parameters (tau in s, nu_C in cm^2/s) at the element centroid.
 pub fn stabilization(geo: &ElementGeometry, a_bar: [f64; 3], phys: &Physics) -> (f64, f64) {
+    let (scale, c_inverse) = phys.tau_metric.constants();
     let mut g = [[0.0; 3]; 3];
     for grad in &geo.grads_per_cm {
         for i in 0..3 {
             for j in 0..3 {
-                g[i][j] += 2.0 * grad[i] * grad[j];
+                g[i][j] += scale * grad[i] * grad[j];
             }
         }
     }
@@ -89,7 +125,7 @@ pub fn stabilization(geo: &ElementGeometry, a_bar: [f64; 3], phys: &Physics) -> 
     }
     let nu = phys.viscosity_g_cm_s / phys.density_g_cm3;
     let transient = 2.0 * phys.inv_dt_tau_per_s;
-    let tau = 1.0 / (transient * transient + aga + C_INVERSE_ESTIMATE * nu * nu * gg).sqrt();
+    let tau = 1.0 / (transient * transient + aga + c_inverse * nu * nu * gg).sqrt();
     let trace = g[0][0] + g[1][1] + g[2][2];
     (tau, 1.0 / (tau * trace))
 }
@@ -105,17 +141,45 @@ pub struct ElementState {
 }
 
 /// The [`ElementState`] for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
-pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> ElementState {
+pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], p: &[f64; 4], phys: &Physics) -> ElementState {
     let a_bar = mean3(a);
+    let u_old_bar = mean3(u_old);
     let (tau, nu_c) = stabilization(geo, a_bar, phys);
-    ElementState { u_old_bar: mean3(u_old), tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(a_bar, ga)) }
+    let advecting = if phys.vms_advection { add3(a_bar, fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys)) } else { a_bar };
+    ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(advecting, ga)) }
+}
+
+fn add3(x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
+    [x[0] + y[0], x[1] + y[1], x[2] + y[2]]
+}
+
+/// u' = -tau (dt-term + a.grad a + grad p / rho) at the centroid (the viscous part of r_M
+/// vanishes on P1).
+fn fine_scale_velocity(geo: &ElementGeometry, a: &[[f64; 3]; 4], a_bar: [f64; 3], u_old_bar: [f64; 3], p: &[f64; 4], tau: f64, phys: &Physics) -> [f64; 3] {
+    let g = &geo.grads_per_cm;
+    let mut r = [0.0; 3];
+    for k in 0..3 {
+        let mut convective = 0.0;
+        let mut grad_p = 0.0;
+        for n in 0..4 {
+            convective += crate::mesh::dot(a_bar, g[n]) * a[n][k];
+            grad_p += g[n][k] * p[n];
+        }
+        r[k] = phys.inv_dt_per_s * (a_bar[k] - u_old_bar[k]) + convective + grad_p / phys.density_g_cm3;
+    }
+    r.map(|v| -tau * v)
 }
 
 /// Row `ai` of the element system: the blocks (ai, 0..4) and node ai's right-hand side,
 /// `u_old_ai` being node ai's previous-step velocity (the consistent mass row only needs
 /// it and the centroid's: sum_b M_ab u_b = V/5 u_bar + V/20 u_a, so the rows gather no
 /// other node's old velocity).
-pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
+///
+/// `a_ai` is node ai's advecting velocity: the exact Galerkin convection of a P1 velocity
+/// is V/20 (4 a_bar + a_ai) . grad N_b (the mass matrix's weights again), the one-point
+/// rule's V/4 a_bar . grad N_b drops the second part, an O(h grad a / |a|) relative
+/// error that is not small in the shear layers of a jet a few elements wide.
+pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old_ai: &[f64; 3], a_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
     let rho = phys.density_g_cm3;
     let mu = phys.viscosity_g_cm_s;
     let idt = phys.inv_dt_per_s;
@@ -126,15 +190,17 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old_ai: &[f64; 3]
     let mut f = [0.0; B];
     for bi in 0..4 {
         let mass = if ai == bi { v / 10.0 } else { v / 20.0 };
+        let convection = if phys.exact_convection { 0.2 * s[bi] + 0.05 * crate::mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
         let diag = rho * idt * mass
-            + rho * 0.25 * v * s[bi]
+            + rho * v * convection
             + mu * v * crate::mesh::dot(g[ai], g[bi])
             + tau * v * s[ai] * rho * (0.25 * idt + s[bi]);
         let blk = &mut k[bi];
+        let transposed = if phys.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
             blk[i * B + i] += diag;
             for j in 0..3 {
-                blk[i * B + j] += nu_c * rho * v * g[ai][i] * g[bi][j];
+                blk[i * B + j] += nu_c * rho * v * g[ai][i] * g[bi][j] + transposed * g[ai][j] * g[bi][i];
             }
             // pressure column: -(p, div w) + SUPG grad p
             blk[i * B + 3] = -0.25 * v * g[ai][i] + tau * v * s[ai] * g[bi][i];
@@ -152,8 +218,8 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old_ai: &[f64; 3]
 
 /// Element system for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
 pub fn element_system(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> ElementSystem {
-    let st = element_state(geo, a, u_old, phys);
-    let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, &u_old[ai], phys, ai));
+    let st = element_state(geo, a, u_old, &[0.0; 4], phys);
+    let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, &u_old[ai], &a[ai], phys, ai));
     ElementSystem { k: rows.map(|r| r.0), f: rows.map(|r| r.1) }
 }
 
@@ -256,9 +322,10 @@ impl Assembler {
 
     /// Add the Newton term of the Galerkin convection to the velocity blocks of `vals`:
     /// the derivative of (rho a.grad u, w) with respect to the advecting velocity a,
-    /// evaluated at a = u = `x` with the same one-point (centroid) rule as the Picard
-    /// term: block (a, b) gets rho V/16 grad u (grad u constant on P1). The derivatives
-    /// of the SUPG/PSPG terms and of tau are not included (inexact Newton).
+    /// evaluated at a = u = `x` with the Picard term's rule: block (a, b) gets rho M_ab
+    /// grad u (grad u constant on P1), M_ab = V/20 (1 + delta_ab) for the exact
+    /// convection, V/16 for the centroid rule. The derivatives of the SUPG/PSPG terms
+    /// and of tau are not included (inexact Newton).
     pub fn add_convection_jacobian(&self, pattern: &BlockPattern, phys: &Physics, x: &[f64], vals: &mut [f64]) {
         self.for_each_row(pattern, vals, None, |i, row_vals, first, _| {
             for &(e, ai) in self.elements_of(i) {
@@ -272,14 +339,21 @@ impl Assembler {
                         }
                     }
                 }
-                let c = phys.density_g_cm3 * geo.volume_cm3 / 16.0;
-                let mut block = [0.0; BB];
-                for r in 0..3 {
-                    for col in 0..3 {
-                        block[r * B + col] = c * grad_u[r][col];
+                for bi in 0..4 {
+                    let weight = match (phys.exact_convection, ai == bi) {
+                        (true, true) => 0.1,
+                        (true, false) => 0.05,
+                        (false, _) => 1.0 / 16.0,
+                    };
+                    let c = phys.density_g_cm3 * geo.volume_cm3 * weight;
+                    let mut block = [0.0; BB];
+                    for r in 0..3 {
+                        for col in 0..3 {
+                            block[r * B + col] = c * grad_u[r][col];
+                        }
                     }
+                    self.add_block(row_vals, first, e, ai, bi, &block);
                 }
-                (0..4).for_each(|bi| self.add_block(row_vals, first, e, ai, bi, &block));
             }
         });
     }
@@ -290,16 +364,17 @@ impl Assembler {
         let nodal = |t: &[u32; 4], field: &[f64]| t.map(|n| [0, 1, 2].map(|c| field[n as usize * B + c]));
         let (tets, geometry) = (&self.tets, &self.geometry);
         self.states.par_iter_mut().zip(tets.par_iter().zip(geometry)).with_min_len(1024).for_each(|(st, (t, geo))| {
-            *st = element_state(geo, &nodal(t, a), &nodal(t, u_old), phys);
+            *st = element_state(geo, &nodal(t, a), &nodal(t, u_old), &t.map(|n| a[n as usize * B + 3]), phys);
         });
         let this = &*self;
         this.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
             row_vals.fill(0.0);
             rhs_i.fill(0.0);
             let u_old_i = [0, 1, 2].map(|c| u_old[i * B + c]);
+            let a_i = [0, 1, 2].map(|c| a[i * B + c]);
             for &(e, ai) in this.elements_of(i) {
                 let (e, ai) = (e as usize, ai as usize);
-                let (k, f) = element_row(&this.geometry[e], &this.states[e], &u_old_i, phys, ai);
+                let (k, f) = element_row(&this.geometry[e], &this.states[e], &u_old_i, &a_i, phys, ai);
                 (0..4).for_each(|bi| this.add_block(row_vals, first, e, ai, bi, &k[bi]));
                 rhs_i.iter_mut().zip(f).for_each(|(d, s)| *d += s);
             }
@@ -310,6 +385,69 @@ impl Assembler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The solver's default formulation (the other fields are set by each test).
+    const TEST_PHYSICS: Physics = Physics {
+        density_g_cm3: 1.0,
+        viscosity_g_cm_s: 1.0,
+        inv_dt_per_s: 0.0,
+        inv_dt_tau_per_s: 0.0,
+        tau_metric: TauMetric::SvMultiPhysics,
+        exact_convection: false,
+        vms_advection: false,
+        stress_viscosity: false,
+    };
+
+    #[test]
+    fn the_stress_form_annihilates_a_rigid_rotation_and_the_laplacian_form_does_not() {
+        // u = omega x x has grad u + grad u^T = 0: no viscous stress. With a = 0 and no
+        // time term only the viscous, LSIC (div u = 0 here) and pressure blocks act.
+        let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
+        let geo = element_geometry(&p, &[0, 1, 2, 3]);
+        let omega = [0.3, -0.7, 1.1];
+        let u: [[f64; 3]; 4] = p.map(|x| crate::mesh::cross(omega, x));
+        let force = |stress_viscosity: bool| {
+            let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, stress_viscosity, ..TEST_PHYSICS };
+            let es = element_system(&geo, &[[0.0; 3]; 4], &[[0.0; 3]; 4], &phys);
+            let mut largest = 0.0f64;
+            for a in 0..4 {
+                for i in 0..3 {
+                    let f: f64 = (0..4).map(|b| (0..3).map(|j| es.k[a][b][i * B + j] * u[b][j]).sum::<f64>()).sum();
+                    largest = largest.max(f.abs());
+                }
+            }
+            largest
+        };
+        let scale = 0.04 * geo.volume_cm3 * 1.1;
+        assert!(force(true) < 1e-12 * scale, "stress form: {}", force(true));
+        assert!(force(false) > 1e-3 * scale, "Laplacian form: {}", force(false));
+    }
+
+    #[test]
+    fn vms_advection_adds_the_fine_scale_velocity_of_the_residual() {
+        // Uniform a equal to the old velocity (no time or convective residual) under a
+        // pressure gradient: r_M = grad p / rho, so u' = -tau grad p / rho.
+        let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
+        let geo = element_geometry(&p, &[0, 1, 2, 3]);
+        let a = [[10.0, -5.0, 3.0]; 4];
+        let grad_p = [40.0, -20.0, 7.0];
+        let pressure = p.map(|x| crate::mesh::dot(grad_p, x));
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1e3, inv_dt_tau_per_s: 1e3, ..TEST_PHYSICS };
+        let plain = element_state(&geo, &a, &a, &pressure, &phys);
+        let vms = element_state(&geo, &a, &a, &pressure, &Physics { vms_advection: true, ..phys });
+        assert_eq!(plain.tau, vms.tau);
+        let fine = grad_p.map(|g| -plain.tau * g / phys.density_g_cm3);
+        for b in 0..4 {
+            let expected = crate::mesh::dot(add3(a[0], fine), geo.grads_per_cm[b]);
+            assert!((vms.s[b] - expected).abs() < 1e-12 * expected.abs().max(1.0), "node {b}: {} vs {expected}", vms.s[b]);
+            assert!((plain.s[b] - crate::mesh::dot(a[0], geo.grads_per_cm[b])).abs() < 1e-12);
+        }
+        // Without a pressure gradient the uniform flow has no residual: nothing is added.
+        let still = element_state(&geo, &a, &a, &[5.0; 4], &Physics { vms_advection: true, ..phys });
+        for b in 0..4 {
+            assert!((still.s[b] - plain.s[b]).abs() < 1e-9 * plain.s[b].abs().max(1.0), "node {b}: {} vs {}", still.s[b], plain.s[b]);
+        }
+    }
 
     #[test]
     fn gradients_sum_to_zero_and_reproduce_linear_fields() {
@@ -330,7 +468,7 @@ mod tests {
         // divergence; with a = 0 and dt = inf the viscous rows vanish on constants.
         let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let geo = element_geometry(&p, &[0, 1, 2, 3]);
-        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0 };
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0, ..TEST_PHYSICS };
         let es = element_system(&geo, &[[0.0; 3]; 4], &[[0.0; 3]; 4], &phys);
         let x = [0.3, -0.2, 0.7, 0.0];
         for a in 0..4 {
@@ -361,7 +499,7 @@ mod tests {
         // M_ab = V/10 on the diagonal and V/20 off it.
         let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
         let geo = element_geometry(&p, &[0, 1, 2, 3]);
-        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1e3, inv_dt_tau_per_s: 1e3 };
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1e3, inv_dt_tau_per_s: 1e3, ..TEST_PHYSICS };
         let u_old = [[1.0, -2.0, 0.5], [0.3, 0.7, -1.1], [2.2, 0.0, 0.4], [-0.6, 1.5, 0.9]];
         let es = element_system(&geo, &[[0.0; 3]; 4], &u_old, &phys);
         for a in 0..4 {
@@ -382,7 +520,7 @@ mod tests {
         let pattern = BlockPattern::from_tets(n, &mesh.tets);
         let parts = crate::linear::partitions(&pattern, 3);
         let mut asm = Assembler::new(&mesh.points_cm, mesh.tets.clone(), &pattern, parts);
-        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0 };
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0, ..TEST_PHYSICS };
         let field = |s: f64| (0..n * B).map(|k| ((k as f64 + s) * 0.37).sin() * 30.0).collect::<Vec<f64>>();
         let (a, u_old) = (field(0.0), field(2.0));
         let (mut expected, mut expected_rhs) = (vec![0.0; pattern.cols.len() * BB], vec![0.0; n * B]);
@@ -416,26 +554,58 @@ mod tests {
         let tets = vec![[0, 1, 2, 3], [1, 2, 3, 4]];
         let pattern = BlockPattern::from_tets(5, &tets);
         let mut asm = Assembler::new(&p, tets, &pattern, vec![0..5]);
-        let phys = Physics { density_g_cm3: 1.0, viscosity_g_cm_s: 1e6, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0 };
+        for exact_convection in [false, true] {
+            let phys = Physics { density_g_cm3: 1.0, viscosity_g_cm_s: 1e6, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0, exact_convection, ..TEST_PHYSICS };
+            jacobian_matches_the_convection_difference(&mut asm, &pattern, &phys);
+        }
+    }
+
+    #[test]
+    fn exact_convection_equals_the_galerkin_integral_of_the_p1_velocity() {
+        // rho int N_a (a_h . grad N_b) dV with the 4-point Gauss rule (exact for the
+        // quadratic integrand) against K(a) - K(0) on the velocity diagonal; a huge
+        // viscosity keeps tau (and so the stabilization's dependence on a) negligible.
+        let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
+        let geo = element_geometry(&p, &[0, 1, 2, 3]);
+        let a = [[1.0, -2.0, 0.5], [0.3, 0.7, -1.1], [2.2, 0.0, 0.4], [-0.6, 1.5, 0.9]];
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 1e8, exact_convection: true, ..TEST_PHYSICS };
+        let (with_a, without) = (element_system(&geo, &a, &[[0.0; 3]; 4], &phys), element_system(&geo, &[[0.0; 3]; 4], &[[0.0; 3]; 4], &phys));
+        let (alpha, beta) = (0.585_410_196_624_968_5, 0.138_196_601_125_010_5);
+        for ai in 0..4 {
+            for bi in 0..4 {
+                let mut expected = 0.0;
+                for q in 0..4 {
+                    let n: [f64; 4] = std::array::from_fn(|c| if c == q { alpha } else { beta });
+                    let a_q: [f64; 3] = std::array::from_fn(|k| (0..4).map(|c| n[c] * a[c][k]).sum());
+                    expected += 0.25 * geo.volume_cm3 * n[ai] * crate::mesh::dot(a_q, geo.grads_per_cm[bi]);
+                }
+                expected *= phys.density_g_cm3;
+                let got = with_a.k[ai][bi][0] - without.k[ai][bi][0];
+                assert!((got - expected).abs() < 1e-6 * geo.volume_cm3, "({ai}, {bi}): {got} vs {expected}");
+            }
+        }
+    }
+
+    fn jacobian_matches_the_convection_difference(asm: &mut Assembler, pattern: &BlockPattern, phys: &Physics) {
         let field = |s: f64| (0..5 * B).map(|k| if k % B == 3 { 0.0 } else { ((k as f64 + s) * 0.7).sin() }).collect::<Vec<f64>>();
         let (u, v) = (field(0.0), field(1.3));
         let n_vals = pattern.cols.len() * BB;
         let matvec = |vals: &[f64], x: &[f64]| {
             let mut y = vec![0.0; x.len()];
-            crate::sparse::spmv(&pattern, vals, x, &mut y);
+            crate::sparse::spmv(pattern, vals, x, &mut y);
             y
         };
         let (mut k1, mut k0, mut rhs) = (vec![0.0; n_vals], vec![0.0; n_vals], vec![0.0; 5 * B]);
-        asm.assemble(&pattern, &phys, &v, &u, &mut k1, &mut rhs);
-        asm.assemble(&pattern, &phys, &vec![0.0; 5 * B], &u, &mut k0, &mut rhs);
+        asm.assemble(pattern, phys, &v, &u, &mut k1, &mut rhs);
+        asm.assemble(pattern, phys, &vec![0.0; 5 * B], &u, &mut k0, &mut rhs);
         let expected: Vec<f64> = matvec(&k1, &u).iter().zip(matvec(&k0, &u)).map(|(a, b)| a - b).collect();
         let mut jac = vec![0.0; n_vals];
-        asm.add_convection_jacobian(&pattern, &phys, &u, &mut jac);
+        asm.add_convection_jacobian(pattern, phys, &u, &mut jac);
         let got = matvec(&jac, &v);
         let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         assert!(scale > 1e-3);
         for k in (0..5 * B).filter(|k| k % B != 3) {
-            assert!((got[k] - expected[k]).abs() < 1e-6 * scale, "dof {k}: {} vs {}", got[k], expected[k]);
+            assert!((got[k] - expected[k]).abs() < 1e-6 * scale, "exact {}: dof {k}: {} vs {}", phys.exact_convection, got[k], expected[k]);
         }
     }
 }

@@ -1,5 +1,6 @@
 //! Case settings with the paper's defaults (Martinez et al., svMultiPhysics setup).
 
+use crate::assembly::TauMetric;
 use crate::time_integration::TimeIntegration;
 use crate::waveform::Waveform;
 use crate::CfdError;
@@ -84,6 +85,15 @@ pub struct CaseSettings {
     /// mesh (Womersley test: it then dominates generalized-alpha's temporal error);
     /// false keeps only the flow and mesh scales, so the time error is the scheme's own.
     pub tau_includes_dt: bool,
+    /// tau's element metric and inverse-estimate constant ([`TauMetric`]).
+    pub tau_metric: TauMetric,
+    /// Galerkin convection integrated exactly for the P1 advecting velocity (see
+    /// [`crate::assembly::element_row`]) instead of with the centroid velocity.
+    pub exact_convection: bool,
+    /// VMS advection by a + u' ([`crate::assembly::Physics::vms_advection`]).
+    pub vms_advection: bool,
+    /// Viscous term in stress form instead of the Laplacian form.
+    pub stress_viscosity: bool,
     /// Picard iterations per transient step (None: the scheme's default, see
     /// [`CaseSettings::nonlinear`]) and their relative target (residual or update).
     pub nonlinear_iterations: Option<NonlinearIterations>,
@@ -130,6 +140,10 @@ impl CaseSettings {
             mode: RunMode::Transient,
             time_integration: TimeIntegration::BackwardEuler,
             tau_includes_dt: true,
+            tau_metric: TauMetric::SvMultiPhysics,
+            exact_convection: false,
+            vms_advection: false,
+            stress_viscosity: false,
             nonlinear_iterations: None,
             nonlinear_tolerance: 1e-3,
             // GMRES(30): on tubes of 9.7k-622k tets 4-10 % fewer iterations and 10-17 % less

@@ -224,7 +224,7 @@ fn a_failing_engine_gives_a_failed_summary_and_embedded_only_options_are_refused
     assert!(message.contains("last time step 3 of 68") && message.contains("B_NS_Pressure_average.txt"), "{message}");
     assert!(stderr(&out).contains("last time step 3 of 68"));
 
-    for option in [&["--resume"][..], &["--steps", "5"], &["--vtu-every", "2"]] {
+    for option in [&["--resume"][..], &["--vtu-every", "2"]] {
         let e = stderr(&simulate(&case, &out_dir, &bin, option));
         assert!(e.contains(&format!("{} applies to the embedded engine only", option[0])), "{e}");
     }
@@ -241,6 +241,40 @@ fn sigterm_stops_the_engine_and_says_so() {
     assert!(s["message"].as_str().unwrap().contains("stopped by signal at svMultiPhysics step"), "{s}");
     // The engine was asked to stop too, not left running.
     assert!(out_dir.join("svmultiphysics/standin.terminated").is_file());
+}
+
+/// The engine's convergence warnings reach summary.json: steps its log shows stopped at
+/// the Newton cap count as unconverged, and the run is not reported converged.
+#[test]
+fn the_engines_convergence_warnings_are_not_read_back_as_converged() {
+    let (case, recorded_dir) = box_case("unconverged");
+    let bin = standin_bin("cli-unconverged-bin", &StandIn { recorded: Some(&recorded_dir), unconverged_from_step: Some(60), ..StandIn::default() });
+    let out_dir = case.parent().unwrap().join("out");
+    let out = simulate(&case, &out_dir, &bin, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let s = summary(&out_dir);
+    assert_eq!((s["status"].as_str(), s["converged"].as_bool()), (Some("completed"), Some(false)), "{s}");
+    assert_eq!(s["unconverged_nonlinear_steps"].as_u64(), Some((STEPS - 59) as u64), "{s}");
+    let message = s["message"].as_str().unwrap();
+    assert!(message.contains("9 of 68 time steps stopped at Max_iterations") && message.contains("steps 60, 61, 62, 63, 64, ..."), "{message}");
+    assert!(message.contains("9 of 68 time steps had a linear solve that did not reach its tolerance"), "{message}");
+}
+
+/// --steps stops svMultiPhysics as it stops the embedded engine: solver.xml runs that many
+/// steps, and the summary's peak is the run's own flow peak (step 16 of 20 at 10 ms).
+#[test]
+fn a_step_limit_stops_the_engine_there() {
+    let (case, recorded_dir) = box_case_recorded("steps", 20, PEAK_STEP);
+    let bin = standin_bin("cli-steps-bin", &StandIn { recorded: Some(&recorded_dir), ..StandIn::default() });
+    let out_dir = case.parent().unwrap().join("out");
+    let out = simulate(&case, &out_dir, &bin, &["--steps", "20"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let xml = std::fs::read_to_string(out_dir.join("svmultiphysics/solver.xml")).unwrap();
+    assert!(xml.contains("<Number_of_time_steps> 20 </Number_of_time_steps>"), "{xml}");
+    let s = summary(&out_dir);
+    assert_eq!((s["status"].as_str(), s["steps_done"].as_u64(), s["last_step"].as_u64()), (Some("completed"), Some(20), Some(20)), "{s}");
+    let (_, rows) = csv(&out_dir);
+    assert_eq!(s["peak_time_s"].as_f64(), Some(rows[PEAK_STEP - 1][1]), "{s}");
 }
 
 /// --steady: svMultiPhysics has no steady solver, so the export runs 1 s at constant peak

@@ -170,6 +170,15 @@ pub struct TimeSpec {
     pub rho_inf: Option<f64>,
     pub steady_tolerance: Option<f64>,
     pub steady_max_iterations: Option<usize>,
+    /// The discrete method's ingredients, for comparing it with svMultiPhysics one at a
+    /// time (docs/validation.md, issue 28): tau's metric "svmultiphysics" (default) or
+    /// "invariant" (`baffle_cfd::assembly::TauMetric`), the Galerkin convection
+    /// "centroid" (default) or "exact", VMS advection by a + u' (default false), the
+    /// viscous term "laplacian" (default) or "stress".
+    pub tau_metric: Option<String>,
+    pub convection: Option<String>,
+    pub vms_advection: Option<bool>,
+    pub viscous_form: Option<String>,
 }
 
 impl Default for TimeSpec {
@@ -189,6 +198,10 @@ impl Default for TimeSpec {
             rho_inf: None,
             steady_tolerance: None,
             steady_max_iterations: None,
+            tau_metric: None,
+            convection: None,
+            vms_advection: None,
+            viscous_form: None,
         }
     }
 }
@@ -393,6 +406,30 @@ fn time_integration(t: &TimeSpec) -> Result<TimeIntegration, String> {
     }
 }
 
+/// The method's ingredients a case names (see [`TimeSpec::tau_metric`]); unnamed ones keep
+/// `CaseSettings`' defaults.
+fn formulation(t: &TimeSpec, s: &mut CaseSettings) -> Result<(), String> {
+    let pick = |field: &str, given: &Option<String>, choices: &[&str]| -> Result<Option<usize>, String> {
+        match given.as_deref() {
+            None => Ok(None),
+            Some(v) => choices.iter().position(|c| *c == v).map(Some).ok_or_else(|| format!("time.{field} '{v}': expected {}", choices.join(" or "))),
+        }
+    };
+    if let Some(k) = pick("tau_metric", &t.tau_metric, &["invariant", "svmultiphysics"])? {
+        s.tau_metric = [baffle_cfd::assembly::TauMetric::Invariant, baffle_cfd::assembly::TauMetric::SvMultiPhysics][k];
+    }
+    if let Some(k) = pick("convection", &t.convection, &["exact", "centroid"])? {
+        s.exact_convection = k == 0;
+    }
+    if let Some(v) = t.vms_advection {
+        s.vms_advection = v;
+    }
+    if let Some(k) = pick("viscous_form", &t.viscous_form, &["laplacian", "stress"])? {
+        s.stress_viscosity = k == 1;
+    }
+    Ok(())
+}
+
 pub fn is_quick(case: &Case) -> bool {
     case.time.mode == QUICK_MODE
 }
@@ -490,6 +527,7 @@ pub fn settings(case: &Case) -> Result<(CaseSettings, FlowInputs), String> {
         s.preconditioner_max_age = v;
     }
     s.time_integration = time_integration(t)?;
+    formulation(t, &mut s)?;
     if let Some(v) = t.steady_tolerance {
         s.steady_tolerance = v;
     }
@@ -536,6 +574,19 @@ mod tests {
         assert_eq!(example_with(dt, dt).unwrap().0.nonlinear(), NonlinearIterations::Fixed(1));
         assert!(with("\"nonlinear_iterations\": \"many\"").unwrap_err().contains("expected a count"));
         assert!(with("\"nonlinear_iterations\": 0").unwrap_err().contains("at least 1"));
+    }
+
+    #[test]
+    fn the_methods_ingredients_are_named_in_the_time_section_and_default_as_the_solver() {
+        let dt = "\"dt_s\": 0.001";
+        let with = |extra: &str| example_with(dt, &format!("{dt}, {extra}"));
+        let (d, _) = example_with(dt, dt).unwrap();
+        assert_eq!((d.tau_metric, d.exact_convection, d.vms_advection, d.stress_viscosity), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, false, false, false));
+        let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"exact\", \"vms_advection\": true, \"viscous_form\": \"stress\"").unwrap();
+        assert_eq!((s.tau_metric, s.exact_convection, s.vms_advection, s.stress_viscosity), (baffle_cfd::assembly::TauMetric::Invariant, true, true, true));
+        let e = with("\"tau_metric\": \"shakib\"").unwrap_err();
+        assert!(e.contains("time.tau_metric 'shakib': expected invariant or svmultiphysics"), "{e}");
+        assert!(with("\"viscous_form\": \"full\"").unwrap_err().contains("expected laplacian or stress"));
     }
 
     #[test]

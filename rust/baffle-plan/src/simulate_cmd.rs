@@ -281,10 +281,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     let report = Report { dir: &args.out, case: &case, settings: &settings, flow: &flow, engine: args.engine };
     let quick = case::is_quick(&case);
     if args.engine == Engine::Svmultiphysics {
-        if quick {
-            return Err("the quick estimate (time.mode \"quick\", --quick) runs on the embedded engine; give svMultiPhysics a transient or steady case".into());
-        }
-        let svmp = SvmpRun { out: &args.out, mpi_processes: args.mpi_processes, resume: args.resume, steps: args.steps, vtu_every: args.vtu_every, read_back: args.read_back };
+        let svmp = SvmpRun { out: &args.out, mpi_processes: args.mpi_processes, resume: args.resume, vtu_every: args.vtu_every, read_back: args.read_back };
         return simulate_svmp::run(&svmp, &report, &output, start, progress);
     }
 

@@ -22,7 +22,6 @@ pub struct SvmpRun<'a> {
     pub out: &'a Path,
     pub mpi_processes: Option<usize>,
     pub resume: bool,
-    pub steps: Option<usize>,
     pub vtu_every: Option<usize>,
     /// Read back a case exported to OUT/svmultiphysics/ and run elsewhere (no export, no run).
     pub read_back: bool,
@@ -41,6 +40,7 @@ pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Insta
             if let Some(ended_early) = exported_steps.and_then(|n| unfinished(&summary, n)) {
                 ending = ended_early;
             }
+            engine_convergence(&mut ending, &summary);
             rows_of(&summary, report, output)?
         }
         Err(e) => {
@@ -80,6 +80,20 @@ fn export_and_run(args: &SvmpRun, case_dir: &Path, report: &Report, output: &Out
     ending_of(&run, stop.load(Ordering::SeqCst), case_dir)
 }
 
+/// The engine's own convergence verdict joins the summary: a run whose log shows a step
+/// stopped at the Newton cap or a linear solve short of its tolerance is not converged,
+/// and says why; a run with no log to judge by says that.
+fn engine_convergence(ending: &mut Ending, summary: &SvmpSummary) {
+    let notes: Vec<&str> = summary.warnings.iter().map(String::as_str).filter(|w| w.contains("svMultiPhysics") || w.contains("convergence")).collect();
+    if summary.converged != Some(true) {
+        ending.converged = false;
+    }
+    if !notes.is_empty() {
+        let before = ending.message.take().map_or(String::new(), |m| format!("{m}; "));
+        ending.message = Some(format!("{before}{}", notes.join("; ")));
+    }
+}
+
 /// A returned run whose outputs stop before the last exported time step did not finish.
 fn unfinished(summary: &SvmpSummary, exported_steps: usize) -> Option<Ending> {
     let last = summary.steps.last().map_or(0, |r| r.step);
@@ -93,10 +107,10 @@ fn unfinished(summary: &SvmpSummary, exported_steps: usize) -> Option<Ending> {
 /// Options that steer the embedded solver's own loop; svMultiPhysics takes its run from
 /// solver.xml and always starts over.
 fn refuse_embedded_only_options(args: &SvmpRun) -> Result<(), String> {
-    let given = [("--resume", args.resume), ("--steps", args.steps.is_some()), ("--vtu-every", args.vtu_every.is_some())];
+    let given = [("--resume", args.resume), ("--vtu-every", args.vtu_every.is_some())];
     match given.iter().find(|(_, set)| *set) {
         Some((option, _)) => Err(format!(
-            "{option} applies to the embedded engine only; svMultiPhysics runs time.cycles cycles from the start"
+            "{option} applies to the embedded engine only; svMultiPhysics always starts from rest (time.steps / --steps stops it early)"
         )),
         None => Ok(()),
     }
@@ -146,7 +160,7 @@ fn rows_of(summary: &SvmpSummary, report: &Report, output: &Output) -> Result<Ve
             max_velocity_m_s: peak_velocity_m_s.filter(|(s, _)| *s == step.step).map_or(f64::NAN, |(_, v)| v),
             residual: f64::NAN,
             retries: 0,
-            nonlinear_converged: true,
+            nonlinear_converged: step.convergence.map_or(true, |c| c.nonlinear_converged),
             face_ids: step.faces.iter().map(|f| f.id).collect(),
             face_names,
             face_pressure_mmhg: step.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),

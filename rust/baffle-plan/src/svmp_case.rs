@@ -30,13 +30,24 @@ pub(crate) fn export_to(
 ) -> Result<ExportedCase, String> {
     let planes = case.faces.planes.clone();
     let tet_mesh = tet_mesh_mm(mesh, &planes);
-    let options = ExportOptions { mpi_processes, spectral_radius: spectral_radius(settings), ..ExportOptions::new(face_names(&case.faces, mesh), planes) };
+    let options = ExportOptions {
+        mpi_processes,
+        spectral_radius: spectral_radius(settings),
+        max_time_steps: step_limit(case, settings),
+        ..ExportOptions::new(face_names(&case.faces, mesh), planes)
+    };
     let exported = export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())?;
     match (exported.fourier_modes, exported.fourier_max_deviation_ml_s) {
         (Some(modes), Some(dev)) => println!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
         _ => println!("inflow: constant (steady)"),
     }
     Ok(exported)
+}
+
+/// Where a transient run stops before its last cycle, as on the embedded engine: the
+/// case's `time.steps` (or `--steps`), else the quick estimate's first flow peak.
+fn step_limit(case: &case::Case, settings: &CaseSettings) -> Option<usize> {
+    case.time.steps.or(case::is_quick(case).then(|| case::first_peak_step(settings)))
 }
 
 /// Whether a case directory returned from elsewhere (a cluster) was exported from this

@@ -49,6 +49,9 @@ pub struct ExportOptions {
     pub fourier_tolerance: f64,
     /// Steady mode: simulated time at constant peak inflow (svMultiPhysics has no steady solver).
     pub steady_duration_s: f64,
+    /// Transient mode: stop after this time step (the case's `time.steps`, `--steps`, or
+    /// the quick estimate's first flow peak) instead of after the last cycle.
+    pub max_time_steps: Option<usize>,
 }
 
 impl ExportOptions {
@@ -61,6 +64,7 @@ impl ExportOptions {
             spectral_radius: DEFAULT_SPECTRAL_RADIUS,
             fourier_tolerance: DEFAULT_FOURIER_TOLERANCE,
             steady_duration_s: 1.0,
+            max_time_steps: None,
         }
     }
 }
@@ -95,6 +99,10 @@ pub struct CaseManifest {
     pub faces: Vec<ManifestFace>,
     pub measurement_face_ids: Vec<i32>,
     pub results_dir: String,
+    /// solver.xml's Newton `Tolerance`, against which the step log is read back (absent in
+    /// manifests written before it was recorded: the log's convergence is then not judged).
+    #[serde(default)]
+    pub nonlinear_tolerance: Option<f64>,
 }
 
 impl CaseManifest {
@@ -153,6 +161,7 @@ pub fn export_case(
         faces,
         measurement_face_ids: options.measurement_face_ids.clone(),
         results_dir: RESULTS_DIR.to_string(),
+        nonlinear_tolerance: Some(spec.nonlinear_tolerance),
     };
     let json = serde_json::to_string_pretty(&manifest).map_err(|e| SvmpError::io(&dir.join(MANIFEST_FILE), e))?;
     write_text(&dir.join(MANIFEST_FILE), &json)?;
@@ -251,9 +260,18 @@ impl Timing {
             }
             RunMode::Steady => (options.steady_duration_s, None, options.steady_duration_s),
         };
-        let n_time_steps = (duration_s / dt).round() as usize;
+        let all_steps = (duration_s / dt).round() as usize;
+        let n_time_steps = match (settings.mode, options.max_time_steps) {
+            (_, Some(0)) => return Err(SvmpError::InvalidCase("the step limit is 0; a run needs at least 1 step".into())),
+            (RunMode::Transient, Some(limit)) => all_steps.min(limit),
+            _ => all_steps,
+        };
         let peak_time_s = options.peak_time_s.unwrap_or(default_peak_s);
-        let peak_step = (peak_time_s / dt).round();
+        let mut peak_step = (peak_time_s / dt).round();
+        if n_time_steps < all_steps && options.peak_time_s.is_none() && peak_step > n_time_steps as f64 {
+            // The run stops before the last cycle's peak: its fields at its own largest inflow.
+            peak_step = largest_inflow_step(&settings.inflow, dt, n_time_steps) as f64;
+        }
         if n_time_steps == 0 || !(peak_step >= 1.0 && peak_step <= n_time_steps as f64) {
             return Err(SvmpError::InvalidCase(format!(
                 "peak time {peak_time_s} s is not within the run's {n_time_steps} steps of {dt} s"
@@ -261,6 +279,14 @@ impl Timing {
         }
         Ok(Timing { n_time_steps, period_s, peak_step: peak_step as usize })
     }
+}
+
+/// The step in 1..=n_steps with the largest |inflow| (the first of equals).
+fn largest_inflow_step(inflow: &Waveform, dt_s: f64, n_steps: usize) -> usize {
+    (1..=n_steps).fold((1, f64::NEG_INFINITY), |best, k| {
+        let q = inflow.flow_ml_s(k as f64 * dt_s).abs();
+        if q > best.1 { (k, q) } else { best }
+    }).0
 }
 
 struct Inflow {

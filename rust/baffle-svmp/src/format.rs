@@ -421,6 +421,40 @@ pub struct StepLine {
     pub iteration: usize,
     pub saved: bool,
     pub elapsed_s: f64,
+    /// The residual figures that follow (absent on a line cut short).
+    pub residual: Option<IterationResidual>,
+}
+
+/// The bracketed figures of an iteration line (output.cpp): "[dB R/R_step R/R_run
+/// final/initial]" of the nonlinear residual R at this iterate, relative to the step's
+/// first iterate and to the run's first, then "[iterations dB %time]" of the linear solve,
+/// written "!...!" (and followed by "WARNING: The linear system solution has not
+/// converged") when that solve missed its tolerance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterationResidual {
+    pub step_relative: f64,
+    pub run_relative: f64,
+    pub linear_iterations: usize,
+    pub linear_converged: bool,
+}
+
+impl IterationResidual {
+    /// svMultiPhysics' own test of a Newton iterate (Integrator.cpp): R/R_run or R/R_step at
+    /// most the tolerance. A step whose last iterate fails it stopped at Max_iterations.
+    pub fn meets(&self, tolerance: f64) -> bool {
+        self.run_relative <= tolerance || self.step_relative <= tolerance
+    }
+}
+
+fn iteration_residual<'a>(mut tokens: impl Iterator<Item = &'a str>) -> Option<IterationResidual> {
+    let number = |t: &str| t.trim_matches(|c| c == '[' || c == ']' || c == '!').parse::<f64>().ok();
+    let _db = number(tokens.next()?)?;
+    let step_relative = number(tokens.next()?)?;
+    let run_relative = number(tokens.next()?)?;
+    let _ratio = number(tokens.next()?)?;
+    let linear = tokens.next()?;
+    let linear_iterations = number(linear)? as usize;
+    Some(IterationResidual { step_relative, run_relative, linear_iterations, linear_converged: !linear.starts_with('!') })
 }
 
 pub fn parse_step_line(line: &str) -> Option<StepLine> {
@@ -438,6 +472,7 @@ pub fn parse_step_line(line: &str) -> Option<StepLine> {
         iteration: iteration.parse().ok()?,
         saved,
         elapsed_s: tokens.next()?.parse().ok()?,
+        residual: iteration_residual(tokens),
     })
 }
 
@@ -477,8 +512,17 @@ mod tests {
     fn step_lines_are_parsed_and_others_ignored() {
         let l = parse_step_line(" NS 12-3s 4.123e+00  [-62 7.920e-04 7.920e-04 3.600e-04]  [5 -15 23]").unwrap();
         assert_eq!((l.equation.as_str(), l.step, l.iteration, l.saved, l.elapsed_s), ("NS", 12, 3, true, 4.123));
+        let r = l.residual.unwrap();
+        assert_eq!((r.step_relative, r.run_relative, r.linear_iterations, r.linear_converged), (7.92e-4, 7.92e-4, 5, true));
+        assert!(r.meets(1e-3) && !r.meets(1e-4));
         let l = parse_step_line(" NS 7-1 1.0e-1 [0 1 1 1] [1 2 3]").unwrap();
         assert_eq!((l.step, l.iteration, l.saved), (7, 1, false));
+        // A linear solve that missed its tolerance, as output.cpp marks it.
+        let line = " NS 164-3 2.5e+02  [-19 1.100e-01 3.000e-02 4.1e-01]  !10 -8 97!  WARNING: The linear system solution has not converged";
+        let r = parse_step_line(line).unwrap().residual.unwrap();
+        assert_eq!((r.linear_iterations, r.linear_converged), (10, false));
+        assert!(!r.meets(1e-3) && r.meets(0.05));
+        assert_eq!(parse_step_line(" NS 7-1 1.0e-1").unwrap().residual, None);
         for other in ["", "---------", " Eq     N-i     T       dB  Ri/R1", "Reading mesh msh"] {
             assert_eq!(parse_step_line(other), None, "{other}");
         }

@@ -1,6 +1,7 @@
 //! [`read_results`]: svMultiPhysics' outputs of an exported case read back into the same
 //! per-step face series and peak figures as the embedded engine reports.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
@@ -9,7 +10,7 @@ use serde::Serialize;
 
 use crate::export::{CaseManifest, FaceRole};
 use crate::format::{
-    parse_boundary_integral, result_file_step, BoundaryTable, GLOBAL_NODE_ID, PRESSURE_AVERAGE_FILE,
+    parse_boundary_integral, parse_step_line, result_file_step, BoundaryTable, GLOBAL_NODE_ID, PRESSURE_AVERAGE_FILE,
     RESULT_PRESSURE, RESULT_VELOCITY, VELOCITY_FLUX_FILE,
 };
 use crate::SvmpError;
@@ -34,6 +35,20 @@ pub struct StepSample {
     /// Total flux out through the outlets.
     pub outflow_ml_s: f64,
     pub faces: Vec<FaceSample>,
+    /// How the engine's step log says the step converged (None: no log line for it).
+    pub convergence: Option<StepConvergence>,
+}
+
+/// One time step's convergence as svMultiPhysics logged it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct StepConvergence {
+    pub newton_iterations: usize,
+    /// The last iterate met the Newton tolerance (false: the step stopped at Max_iterations).
+    pub nonlinear_converged: bool,
+    /// Every linear solve of the step reached its tolerance.
+    pub linear_converged: bool,
+    /// The last iterate's residual relative to the step's first.
+    pub final_step_relative_residual: f64,
 }
 
 /// Velocity and pressure at the nodes (volume-mesh numbering) from a `result_*.vtu`.
@@ -60,7 +75,11 @@ pub struct SvmpSummary {
     pub peak_fields_file: Option<PathBuf>,
     #[serde(skip)]
     pub peak_fields: Option<PeakFields>,
-    /// What was expected but not found (e.g. no result file at the peak step).
+    /// Whether every step met the Newton tolerance with every linear solve converged, as
+    /// the step log says (None: no log, or no tolerance, to judge by).
+    pub converged: Option<bool>,
+    /// What was expected but not found (e.g. no result file at the peak step), and the
+    /// engine's convergence warnings.
     pub warnings: Vec<String>,
 }
 
@@ -71,10 +90,30 @@ pub fn read_results(case_dir: &Path) -> Result<SvmpSummary, SvmpError> {
     let results = case_dir.join(&manifest.results_dir);
     let pressure = read_table(&results.join(PRESSURE_AVERAGE_FILE), manifest.dt_s)?;
     let flux = read_table(&results.join(VELOCITY_FLUX_FILE), manifest.dt_s)?;
-    let steps = step_samples(&manifest, &results, &pressure, &flux)?;
+    let mut steps = step_samples(&manifest, &results, &pressure, &flux)?;
     let peak = peak_index(&steps, manifest.peak_step);
     let (q_mean_ml_s, q_peak_ml_s) = inflow_figures(&steps, manifest.period_s);
     let mut warnings = Vec::new();
+    let converged = match (step_log(case_dir, &manifest), manifest.nonlinear_tolerance) {
+        (Some((path, text)), Some(tolerance)) => {
+            let logged = step_convergence(&text, tolerance);
+            for step in &mut steps {
+                step.convergence = logged.get(&step.step).copied();
+            }
+            let found = convergence_warnings(&steps, tolerance, &path);
+            let ok = found.is_empty();
+            warnings.extend(found);
+            Some(ok)
+        }
+        (None, _) => {
+            warnings.push(format!("no step log ({HISTORY_FILE} in {}, or {}): the engine's convergence is unknown", results.display(), crate::run::LOG_FILE));
+            None
+        }
+        (Some(_), None) => {
+            warnings.push("the case manifest has no Newton tolerance (exported by an older baffle): the engine's convergence is not judged".into());
+            None
+        }
+    };
     let peak_fields = match find_result_file(&results, steps[peak].step)? {
         Some(file) => Some(read_peak_fields(&file, steps[peak].step)?),
         None => {
@@ -92,8 +131,70 @@ pub fn read_results(case_dir: &Path) -> Result<SvmpSummary, SvmpError> {
         peak_fields_file: peak_fields.as_ref().map(|f| f.file.clone()),
         peak_fields,
         steps,
+        converged,
         warnings,
     })
+}
+
+/// svMultiPhysics' copy of its step log in the results folder.
+pub const HISTORY_FILE: &str = "histor.dat";
+
+/// The step log: results/histor.dat, else the stdout copy `baffle` keeps beside solver.xml.
+fn step_log(case_dir: &Path, manifest: &CaseManifest) -> Option<(PathBuf, String)> {
+    [case_dir.join(&manifest.results_dir).join(HISTORY_FILE), case_dir.join(crate::run::LOG_FILE)]
+        .into_iter()
+        .find_map(|path| std::fs::read_to_string(&path).ok().filter(|t| !t.trim().is_empty()).map(|t| (path, t)))
+}
+
+/// Each logged time step's convergence from its iteration lines (the last one decides
+/// the Newton test, every one the linear solves).
+pub fn step_convergence(log: &str, tolerance: f64) -> BTreeMap<usize, StepConvergence> {
+    let mut out: BTreeMap<usize, StepConvergence> = BTreeMap::new();
+    for line in log.lines().filter_map(parse_step_line) {
+        let Some(r) = line.residual else { continue };
+        let entry = out.entry(line.step).or_insert(StepConvergence {
+            newton_iterations: 0,
+            nonlinear_converged: true,
+            linear_converged: true,
+            final_step_relative_residual: 1.0,
+        });
+        if line.iteration >= entry.newton_iterations {
+            entry.newton_iterations = line.iteration;
+            entry.nonlinear_converged = r.meets(tolerance);
+            entry.final_step_relative_residual = r.step_relative;
+        }
+        entry.linear_converged &= r.linear_converged;
+    }
+    out
+}
+
+/// What the summary says of the engine's convergence: steps stopped at the Newton cap,
+/// steps with a linear solve short of its tolerance, steps the log does not show.
+fn convergence_warnings(steps: &[StepSample], tolerance: f64, log: &Path) -> Vec<String> {
+    let list = |pick: &dyn Fn(&StepConvergence) -> bool| -> Vec<usize> {
+        steps.iter().filter(|s| s.convergence.as_ref().is_some_and(|c| pick(c))).map(|s| s.step).collect()
+    };
+    let first = |v: &[usize]| v.iter().take(5).map(|s| s.to_string()).collect::<Vec<_>>().join(", ");
+    let mut out = Vec::new();
+    let newton = list(&|c| !c.nonlinear_converged);
+    if !newton.is_empty() {
+        out.push(format!(
+            "svMultiPhysics: {} of {} time steps stopped at Max_iterations above the Newton tolerance {tolerance:e} (steps {}{}; {})",
+            newton.len(), steps.len(), first(&newton), if newton.len() > 5 { ", ..." } else { "" }, log.display()
+        ));
+    }
+    let linear = list(&|c| !c.linear_converged);
+    if !linear.is_empty() {
+        out.push(format!(
+            "svMultiPhysics: {} of {} time steps had a linear solve that did not reach its tolerance (steps {}{}; {})",
+            linear.len(), steps.len(), first(&linear), if linear.len() > 5 { ", ..." } else { "" }, log.display()
+        ));
+    }
+    let missing = steps.iter().filter(|s| s.convergence.is_none()).count();
+    if missing > 0 {
+        out.push(format!("svMultiPhysics: {missing} of {} time steps have no iteration line in {}", steps.len(), log.display()));
+    }
+    out
 }
 
 fn read_table(path: &Path, dt_s: f64) -> Result<BoundaryTable, SvmpError> {
@@ -158,6 +259,7 @@ fn step_samples(
             inflow_ml_s: -sum_of(FaceRole::Inlet),
             outflow_ml_s: sum_of(FaceRole::Outlet),
             faces,
+            convergence: None,
         });
     }
     Ok(steps)

@@ -161,6 +161,32 @@ fn steady_mode_prescribes_the_peak_flux_inward_for_the_set_duration() {
     assert_eq!((case.manifest.peak_step, case.inflow_file.is_none()), (1000, true));
 }
 
+#[test]
+fn a_step_limit_stops_the_run_there_with_its_fields_at_its_own_largest_inflow() {
+    // 170 steps of 1 ms: the first cycle's peak (164 ms) is inside, cycle 4's is not.
+    let (settings, mut options) = (settings(), options());
+    options.max_time_steps = Some(170);
+    let dir = scratch("step-limit");
+    let case = export_case(&dir, &box_mesh(), &settings, &options).unwrap();
+    let root = parse_xml(&std::fs::read_to_string(dir.join("solver.xml")).unwrap());
+    let general = root.child("GeneralSimulationParameters");
+    assert_eq!(general.f64_of("Number_of_time_steps"), 170.0);
+    let first_peak = (settings.inflow.peak().1 / settings.dt_s).round() as usize;
+    assert!(first_peak <= 170, "{first_peak}");
+    assert_eq!((case.manifest.n_time_steps, case.manifest.peak_step), (170, first_peak));
+    assert_eq!(general.f64_of("Start_saving_after_time_step"), first_peak as f64);
+    // Before the first peak: the last step has the largest inflow of the run.
+    options.max_time_steps = Some(40);
+    let early = export_case(&scratch("step-limit-early"), &box_mesh(), &settings, &options).unwrap();
+    assert_eq!((early.manifest.n_time_steps, early.manifest.peak_step), (40, 40));
+    // A limit beyond the cycles changes nothing; 0 is refused.
+    options.max_time_steps = Some(1_000_000);
+    assert_eq!(export_case(&scratch("step-limit-long"), &box_mesh(), &settings, &options).unwrap().manifest.n_time_steps, 2728);
+    options.max_time_steps = Some(0);
+    let err = export_case(&scratch("step-limit-zero"), &box_mesh(), &settings, &options).unwrap_err().to_string();
+    assert!(err.contains("step limit is 0"), "{err}");
+}
+
 fn i32_array<'a>(arrays: &'a [baffle_core::io::DataArray], name: &str, what: &str) -> &'a [i32] {
     arrays.iter().find(|a| a.name == name).and_then(|a| a.as_i32()).unwrap_or_else(|| panic!("{what}: no Int32 '{name}'"))
 }

@@ -40,10 +40,47 @@ fn write_current_layout(results: &Path, settings: &baffle_cfd::CaseSettings, ste
     });
 }
 
+/// results/histor.dat as svMultiPhysics writes it (output.cpp): three Newton iterations a
+/// step, the last below the 1e-3 tolerance, except `unconverged` steps, whose last iterate
+/// stays above it after a linear solve marked unconverged.
+fn write_step_log(results: &Path, steps: usize, unconverged: &[usize]) {
+    let mut text = String::from(" Eq     N-i     T       dB  Ri/R1   Ri/R0    R/Ri     lsIt   dB  %t\n");
+    for k in 1..=steps {
+        text += &format!(" NS {k}-1  1.000e+00  [0 1.000e+00 1.000e+00 2.700e-05]  [3 -17 80]\n");
+        text += &format!(" NS {k}-2  2.000e+00  [-57 1.300e-03 1.700e-01 2.000e-05]  [5 -17 90]\n");
+        text += &if unconverged.contains(&k) {
+            format!(" NS {k}-3  3.000e+00  [-40 1.000e-02 2.000e-01 3.000e-01]  !10 -10 95!  WARNING: The linear system solution has not converged\n")
+        } else {
+            format!(" NS {k}-3  3.000e+00  [-94 1.900e-05 2.500e-03 6.800e-05]  [4 -17 91]\n")
+        };
+    }
+    std::fs::write(results.join("histor.dat"), text).unwrap();
+}
+
+#[test]
+fn the_step_log_says_which_steps_missed_the_newton_tolerance_or_a_linear_one() {
+    let (dir, settings) = exported("results-convergence");
+    write_current_layout(&dir.join("results"), &settings, 68);
+    write_step_log(&dir.join("results"), 68, &[]);
+    let summary = read_results(&dir).unwrap();
+    assert_eq!(summary.converged, Some(true), "{:?}", summary.warnings);
+    let c = summary.steps[40].convergence.unwrap();
+    assert_eq!((c.newton_iterations, c.nonlinear_converged, c.linear_converged, c.final_step_relative_residual), (3, true, true, 1.9e-5));
+    write_step_log(&dir.join("results"), 67, &[30, 31]);
+    let summary = read_results(&dir).unwrap();
+    assert_eq!(summary.converged, Some(false));
+    assert!(!summary.steps[29].convergence.unwrap().nonlinear_converged && summary.steps[32].convergence.unwrap().nonlinear_converged);
+    let w = summary.warnings.join("\n");
+    assert!(w.contains("2 of 68 time steps stopped at Max_iterations above the Newton tolerance 1e-3 (steps 30, 31;"), "{w}");
+    assert!(w.contains("2 of 68 time steps had a linear solve that did not reach its tolerance"), "{w}");
+    assert!(w.contains("1 of 68 time steps have no iteration line"), "{w}");
+}
+
 #[test]
 fn current_layout_gives_series_peak_pressure_drop_and_flows() {
     let (dir, settings) = exported("results-current");
     write_current_layout(&dir.join("results"), &settings, 68);
+    write_step_log(&dir.join("results"), 68, &[]);
     std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/result_016.vtu"), dir.join("results/result_016.vtu")).unwrap();
     let summary = read_results(&dir).unwrap();
 
@@ -107,7 +144,10 @@ fn legacy_layout_takes_steps_from_rows_and_a_missing_result_is_a_warning() {
     assert_eq!(summary.peak_step, 16);
     assert!((summary.dp_peak_mmhg.unwrap() - 5.0).abs() < 1e-9);
     assert!(summary.peak_fields.is_none());
-    assert!(summary.warnings[0].contains("no result_*.vtu for step 16"), "{:?}", summary.warnings);
+    assert!(summary.warnings.iter().any(|w| w.contains("no result_*.vtu for step 16")), "{:?}", summary.warnings);
+    // No step log to read the engine's convergence from: unknown, and said so.
+    assert_eq!(summary.converged, None);
+    assert!(summary.warnings.iter().any(|w| w.contains("no step log (histor.dat")), "{:?}", summary.warnings);
 }
 
 #[test]

@@ -140,11 +140,14 @@ pub struct StandIn<'a> {
     pub recorded: Option<&'a Path>,
     /// What its mpiexec answers to `--version`.
     pub mpi_version: &'a str,
+    /// From this time step on, its log shows the steps stopped at the Newton cap with a
+    /// linear solve that did not converge (output.cpp's "!" marks and WARNING).
+    pub unconverged_from_step: Option<usize>,
 }
 
 impl Default for StandIn<'_> {
     fn default() -> Self {
-        StandIn { steps: None, exit_code: 0, recorded: None, mpi_version: OPEN_MPI_VERSION }
+        StandIn { steps: None, exit_code: 0, recorded: None, mpi_version: OPEN_MPI_VERSION, unconverged_from_step: None }
     }
 }
 
@@ -159,6 +162,9 @@ pub fn standin_bin(name: &str, standin: &StandIn) -> PathBuf {
     let mut svmp = format!("STANDIN_EXIT={}", standin.exit_code);
     if let Some(steps) = standin.steps {
         let _ = write!(svmp, " STANDIN_STEPS={steps}");
+    }
+    if let Some(step) = standin.unconverged_from_step {
+        let _ = write!(svmp, " STANDIN_UNCONVERGED_FROM={step}");
     }
     if let Some(dir) = standin.recorded {
         let _ = write!(svmp, " STANDIN_RECORDED='{}'", dir.display());
