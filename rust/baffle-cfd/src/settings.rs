@@ -45,7 +45,7 @@ pub enum NonlinearIterations {
 }
 
 /// The auto loop's cap: on p2's published mesh, from rest to the first peak, generalized-alpha
-/// needs at most 3 solves a step at dt 1-2 ms (1.9 / 2.6 on average; README).
+/// needs at most 3 solves a step at dt 1-2 ms (1.9 / 2.6 on average; docs/cfd.md).
 pub const AUTO_NONLINEAR_CAP: usize = 6;
 
 impl NonlinearIterations {
@@ -59,7 +59,7 @@ impl NonlinearIterations {
 }
 
 /// Aggregate size of the two-level preconditioner: on tubes of 9.7k-150k tets GMRES
-/// then needs 31-45 iterations a step against ILU(0)'s 49-283 (README, Measured).
+/// then needs 31-45 iterations a step against ILU(0)'s 49-283 (docs/measurements.md).
 pub const TWO_LEVEL_AGGREGATE_NODES: usize = 256;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -148,7 +148,7 @@ impl CaseSettings {
             nonlinear_tolerance: 1e-3,
             // GMRES(30): on tubes of 9.7k-622k tets 4-10 % fewer iterations and 10-17 % less
             // CPU a step than GMRES(60) (shorter f32 rounds, each restarted from the f64
-            // residual; README, Measured).
+            // residual; docs/measurements.md).
             gmres_restart: 30,
             max_linear_iterations: 600,
             mixed_precision: true,
@@ -158,7 +158,7 @@ impl CaseSettings {
             // Factors kept while they cost fewer GMRES iterations than a renewal (solver.rs,
             // FactorsUse): on p2 from rest to the first peak (164 steps) 12 factorizations
             // instead of 164, 14.2 instead of 13.7 GMRES iterations a step, the same dp and
-            // v_max to 4 digits, CPU 0.33 -> 0.27-0.33 s a step (README, Measured).
+            // v_max to 4 digits, CPU 0.33 -> 0.27-0.33 s a step (docs/measurements.md).
             preconditioner_max_age: 50,
             steady_pseudo_dt_s: 0.01,
             steady_pseudo_dt_max_s: f64::INFINITY,
@@ -174,7 +174,7 @@ impl CaseSettings {
     /// extrapolation's oscillation. Generalized-alpha iterates to convergence: semi-implicit
     /// it oscillates in p2's VSD jet at dt 1-2 ms (dp at the first peak -4.6 % at 1 ms,
     /// +10.9 % at 2 ms against the 0.25 ms run; iterated -1.3 % and -0.4 %, within the
-    /// jet's own 0.1 mmHg fluctuation, as backward Euler; README).
+    /// jet's own 0.1 mmHg fluctuation, as backward Euler; docs/cfd.md).
     pub fn nonlinear(&self) -> NonlinearIterations {
         self.nonlinear_iterations.unwrap_or(match self.time_integration {
             TimeIntegration::BackwardEuler => NonlinearIterations::Fixed(1),

@@ -113,7 +113,7 @@
 //!
 //! Fifth session (issue 14, 2026-12-03): transient runs keep the ILU(0) factors and the
 //! coarse correction over several steps ([`FactorsUse`]). An earlier trial (fixed reuse
-//! for 2-8 solves, p2 from rest at t = 0.1 s, README) had stalled. Here the f32 operator
+//! for 2-8 solves, p2 from rest at t = 0.1 s, docs/measurements.md) had stalled. Here the f32 operator
 //! copy is refreshed at every solve, a solve with old factors has a bounded budget and is
 //! redone with new ones when it misses (the step right after an impulsive start does),
 //! and renewal follows the iterations aging adds. p2 from rest to the first peak (164

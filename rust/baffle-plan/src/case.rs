@@ -372,7 +372,7 @@ fn positive(name: &str, v: f64) -> Result<f64, String> {
 
 /// `time.mode` of the quick estimate: a transient run from rest that stops at the
 /// first flow peak. On p2 and p3's extended domains (1.25 mm) its peak dp is within
-/// 0.6 % of the fourth cycle's (README, Measured), at about a twentieth of the steps.
+/// 0.6 % of the fourth cycle's (docs/measurements.md), at about a twentieth of the steps.
 pub const QUICK_MODE: &str = "quick";
 
 /// The time integration scheme a case asks for; rho_inf only goes with generalized-alpha.

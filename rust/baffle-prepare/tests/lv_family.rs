@@ -24,9 +24,9 @@ fn options() -> (PrepareOptions, ExtendOptions) {
 /// or not. Where a second VSD opens beside the plane through the LV's centroid
 /// (seeds 1, 3 and 7), that plane's cut ran over the RV and the inflow cap closed
 /// part of it (its rim 1.2-1.8 mm off the LV); the plane was then moved 2 mm deeper.
-/// The LV part now takes the RV only over the VSD: no plane has to move, except seed 3's
-/// since prepare voxelizes its union in the anatomy's frame (the domain's rims fall
-/// on other voxels); it extends and passes every check all the same.
+/// The LV part now takes the RV only over the VSD: no plane has to move (seed 3's had to
+/// while prepare's union in the anatomy's frame met the LV part's old RV band beside the
+/// rim; with the band kept off the designed wall there, it does not).
 #[test]
 fn the_first_members_extend_with_the_plane_through_the_lv_centroid() {
     let (prepare_options, extend_options) = options();
@@ -42,7 +42,7 @@ fn the_first_members_extend_with_the_plane_through_the_lv_centroid() {
             moved.push(seed);
         }
     }
-    assert_eq!(moved, vec![3], "the members whose mid-LV plane had to move");
+    assert!(moved.is_empty(), "the members whose mid-LV plane had to move: {moved:?}");
 }
 
 /// The aorta tilted 10 degrees toward the VSD overlaps the LV by 0.24 mm (the

@@ -51,7 +51,7 @@ def source_python_package() -> Optional[Path]:
 
 
 def install_hint() -> str:
-    """How to put the `baffle` package into Slicer's Python (README, Slicer section)."""
+    """How to put the `baffle` package into Slicer's Python (slicer_module/README.md)."""
     source = source_python_package()
     where = repr(str(source)) if source else "'/path/to/baffle-repository/python'"
     return (

@@ -20,7 +20,7 @@ What is real and what stands in:
   mode (message boxes are logged, as `slicer.util` does in Slicer's testing mode).
 
 It does not draw: views, rendering, mouse interaction in 3D views and the look of the
-panel are Slicer's alone. See the README's Slicer section.
+panel are Slicer's alone. See slicer_module/README.md.
 """
 
 import importlib.util
