@@ -25,7 +25,7 @@
 //!   J. Biomech. 6:547), Kv mu U0 / D0 with Kv from the throat's geometry, integrated over
 //!   the measured sections instead of a fitted throat length. At peak flow (Re ~ 3000,
 //!   tunnel 1-3 diameters long) the profile is far from developed and this is a lower
-//!   bound of the wall friction; on p1-p3 it is a tenth of the dp (docs/hemodynamics_estimate.md).
+//!   bound of the wall friction; on p1-p3 it is 0.03-0.18 mmHg (docs/hemodynamics_estimate.md).
 //! - Convective acceleration: Bernoulli between the VSD and aortic planes' mean velocities.
 //!   The contraction into the throat is taken as lossless (a converging flow does not
 //!   separate); only one throat (the narrowest section) is modelled.
