@@ -10,6 +10,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import gci  # noqa: E402
 import planes  # noqa: E402
 import published  # noqa: E402
+import hemodynamics_estimate  # noqa: E402
 
 
 def test_observed_order_recovers_a_known_order_with_unequal_ratios():
@@ -454,3 +455,19 @@ def test_the_same_mesh_table_gives_both_engines_or_says_the_engine_was_not_run()
     text = validate.same_mesh_markdown([both, alone])
     assert "| p3 | 0.85 / 1.25 mm | 67,553 | 4.50 / 5.00 | -10.0% | 4.70 / 5.10 | 2.00 / 2.10 | 0.050 / 2.500 | True |" in text
     assert "| p1 | 0.85 / 0.75 mm | 160,215 | 4.50 / - | svMultiPhysics not run | 4.70 / - |" in text
+
+
+def test_the_estimates_3d_rows_are_those_of_validation_md():
+    # Each (dp static, dp total flow-weighted, v_max) triple is a row of the area study.
+    text = open(os.path.join(os.path.dirname(__file__), "..", "..", "docs", "validation.md")).read()
+    for patient, row, (dp, dpt, v) in hemodynamics_estimate.CFD_ROWS:
+        assert f"| {dp:.2f} | {dpt:.2f} | {v:.2f} |" in text, (patient, row)
+
+
+def test_the_criterion_is_20_percent_or_1_mmhg_and_the_unmixed_jet_is_bernoulli():
+    within = hemodynamics_estimate.within
+    assert within(11.0, 12.07) and not within(9.0, 12.07)  # 20 % of 12.07 is 2.41
+    assert within(-1.2, -0.2) and not within(0.9, -0.2)  # 1 mmHg near zero
+    # Q 70 ml/s through 70 mm2 (100 cm/s) from 140 mm2 (50 cm/s): rho/2 (100^2 - 50^2).
+    e = {"peak_flow_ml_s": 70.0, "throat_area_mm2": 70.0, "vsd_area_mm2": 140.0, "friction_mmhg": 0.1}
+    assert hemodynamics_estimate.no_recovery_mmhg(e) == pytest.approx(0.53 * 7500 / 1333.22 + 0.1)

@@ -464,7 +464,7 @@ fn mesh_centerline_template(b: &mut Bench, domain: &str) {
     b.bad("mesh an open surface", &["mesh", "--surface", &open, "--edge-length-mm", "1.5", "--out", "{out}/mesh.vtu"], &["open-domain.vtp", "open"]);
     b.bad("mesh a missing surface", &["mesh", "--surface", &b.input("nothing.vtp"), "--edge-length-mm", "1.5", "--out", "{out}/mesh.vtu"], &["nothing.vtp"]);
     b.bad("centerline of an open surface", &["centerline", "--surface", &open, "--out", "{out}/c.vtp"], &["open"]);
-    for (flag, value, needle) in [("--voxel-mm", "0", "voxel"), ("--voxel-mm", "NaN", "voxel"), ("--spacing-mm", "0", "spacing"), ("--smoothing-mm", "-1", "smoothing"), ("--planes", "11,99", "99"), ("--planes", "11", "--planes"), ("--plane-faces", &b.input("random-bytes.vtp"), "random-bytes.vtp"), ("--recenter-fraction", "7", "recenter"), ("--scale", "0", "scale"), ("--results", &b.input("empty.vtp"), "empty.vtp")] {
+    for (flag, value, needle) in [("--voxel-mm", "0", "voxel"), ("--voxel-mm", "NaN", "voxel"), ("--spacing-mm", "0", "spacing"), ("--smoothing-mm", "-1", "smoothing"), ("--planes", "11,99", "99"), ("--planes", "11", "--planes"), ("--plane-faces", &b.input("random-bytes.vtp"), "random-bytes.vtp"), ("--recenter-fraction", "7", "recenter"), ("--scale", "0", "scale"), ("--results", &b.input("empty.vtp"), "empty.vtp"), ("--peak-flow-ml-s", "0", "--peak-flow-ml-s"), ("--peak-flow-ml-s", "NaN", "--peak-flow-ml-s"), ("--peak-flow-ml-s", "-3", "--peak-flow-ml-s")] {
         b.bad(&format!("centerline {flag} {value}"), &["centerline", "--surface", domain, flag, value, "--out", "{out}/c.vtp"], &[needle]);
     }
     let pts = b.input("phantom.mrk.json");

@@ -52,6 +52,36 @@ fn phantom_files_design_like_the_built_in_sample() {
 }
 
 #[test]
+fn the_design_reports_the_hemodynamics_estimate_only_with_a_peak_flow() {
+    let dir = temp_dir("estimate");
+    let out = baffle(&["design", "--phantom", "--peak-flow-ml-s", "70", "--out", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let e = &report(&dir)["hemodynamics_estimate"];
+    let (dp, v) = (e["dp_estimate_mmhg"].as_f64().unwrap(), e["v_max_estimate_m_s"].as_f64().unwrap());
+    assert!(dp.is_finite() && v > 70.0 / e["throat_area_mm2"].as_f64().unwrap(), "{e}"); // ml/s over mm2 is m/s
+    assert!(e["dp_uncertainty"].as_str().unwrap().contains("p1-p3") && e["peak_flow_ml_s"] == 70.0, "{e}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("estimate at peak flow 70.0 ml/s"));
+    // `baffle centerline` on the written domain estimates the same tunnel the same way.
+    let line = dir.join("flow").join("c.vtp");
+    let out = baffle(&["centerline", "--surface", dir.join("domain.vtp").to_str().unwrap(), "--peak-flow-ml-s", "70", "--out", line.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let c = &serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(line.with_extension("json")).unwrap()).unwrap()["hemodynamics_estimate"];
+    for key in ["dp_estimate_mmhg", "v_max_estimate_m_s", "throat_area_mm2", "vsd_area_mm2", "aortic_area_mm2"] {
+        let (a, b) = (c[key].as_f64().unwrap(), e[key].as_f64().unwrap());
+        assert!((a - b).abs() <= 1e-3 * b.abs().max(1.0), "{key}: centerline {a} vs design {b}");
+    }
+    // Without a flow: absent, with the reason.
+    let out = baffle(&["design", "--phantom", "--out", dir.to_str().unwrap()]);
+    assert!(out.status.success());
+    let e = &report(&dir)["hemodynamics_estimate"];
+    assert!(e.get("dp_estimate_mmhg").is_none() && e["absent_because"].as_str().unwrap().contains("--peak-flow-ml-s"), "{e}");
+    // A bad flow is refused, named.
+    let out = baffle(&["design", "--phantom", "--peak-flow-ml-s", "-5", "--out", dir.to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--peak-flow-ml-s must be positive and finite, got -5"));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
 fn progress_tags_are_printed_for_slicer() {
     let dir = temp_dir("tags");
     let out = baffle(&["design", "--phantom", "--progress-tags", "--out", dir.to_str().unwrap()]);

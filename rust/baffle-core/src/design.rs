@@ -126,6 +126,11 @@ pub struct DesignReport {
     /// tunnel's sections normal to the flow, and the design rounds that met it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub flow_sections: Option<crate::flow_target::FlowSections>,
+    /// dp at peak flow and the peak velocity from the reduced-order model
+    /// (`crate::hemodynamics_estimate`), or why there is none; filled in by the front end
+    /// that knows the patient's flow (`baffle design --peak-flow-ml-s`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hemodynamics_estimate: Option<crate::hemodynamics_estimate::EstimateOutcome>,
 }
 
 /// Everything the design produces.
@@ -248,6 +253,7 @@ pub fn design(
         rv_cost: rv_cost(&surface, &bvh, &fitted.domain.mesh, &baffle),
         sections: sections.iter().map(SectionState::record).collect(),
         flow_sections: None,
+        hemodynamics_estimate: None,
         checks: Vec::new(),
         timings: StepTimes {
             validate_ms,

@@ -35,6 +35,7 @@ pub mod compare;
 pub mod voxel;
 pub mod flow_centerline;
 pub mod flow_target;
+pub mod hemodynamics_estimate;
 pub mod reference_data;
 pub mod template;
 pub mod rv_cost;

@@ -7,6 +7,7 @@ use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use crate::progress::{Progress, Style};
 use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
+use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::TriMesh;
 use clap::Args;
@@ -51,6 +52,11 @@ pub struct CenterlineArgs {
     /// its inscribed radius (0: the minimal path as found on the voxels, smoothed).
     #[arg(long, default_value_t = CenterlineOptions::default().recenter_fraction)]
     pub recenter_fraction: f64,
+    /// The peak flow (ml/s): <stem>.json then holds hemodynamics_estimate, dp at peak flow
+    /// between the planes and the peak velocity from the sections normal to the centerline
+    /// (baffle_core::hemodynamics_estimate; the planes' areas from their triangles).
+    #[arg(long, allow_hyphen_values = true)]
+    pub peak_flow_ml_s: Option<f64>,
     /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,
     /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
     #[arg(long)]
@@ -77,12 +83,17 @@ pub struct Measured {
     pub line: FlowCenterline,
     pub sections_mm2: Vec<Option<f64>>,
     pub profile: Option<Profile>,
+    /// The measurement planes' areas (mm2), inflow first.
+    pub plane_areas_mm2: [f64; 2],
 }
 
 /// The centerline of `args`, its flow-normal sections, and its profile when --results is given.
 pub fn compute(args: &CenterlineArgs) -> Result<Measured, String> {
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));
+    }
+    if let Some(q) = args.peak_flow_ml_s.filter(|q| !(q.is_finite() && *q > 0.0)) {
+        return Err(format!("--peak-flow-ml-s must be positive and finite, got {q}"));
     }
     let options = CenterlineOptions { voxel_mm: args.voxel_mm, spacing_mm: args.spacing_mm, smoothing_mm: args.smoothing_mm, recenter_fraction: args.recenter_fraction };
     options.validate()?;
@@ -107,7 +118,8 @@ pub fn compute(args: &CenterlineArgs) -> Result<Measured, String> {
         Some(path) => Some(PeakFields::read(path)?.profile(&line.points)),
         None => None,
     };
-    Ok(Measured { line, sections_mm2, profile })
+    let plane_areas_mm2 = [plane_area_mm2(&lumen.planes[0]), plane_area_mm2(&lumen.planes[1])];
+    Ok(Measured { line, sections_mm2, profile, plane_areas_mm2 })
 }
 
 fn nan_for_none(v: &[Option<f64>]) -> Vec<f64> {
@@ -149,6 +161,13 @@ fn summary(args: &CenterlineArgs, m: &Measured, wall_time_s: f64) -> serde_json:
         "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm; not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::flow_centerline::flow_normal_sections)",
         "points_mm": line.points.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
     });
+    if let Some(q) = args.peak_flow_ml_s {
+        let tunnel = TunnelSections { s_mm: line.s_mm.clone(), area_mm2: m.sections_mm2.clone(), vsd_area_mm2: m.plane_areas_mm2[0], aortic_area_mm2: m.plane_areas_mm2[1] };
+        doc["hemodynamics_estimate"] = match estimate(&tunnel, q, Blood::default()) {
+            Ok(e) => json!(e),
+            Err(why) => json!({ "absent_because": why }),
+        };
+    }
     if let Some(p) = profile {
         let v_max = p.v_max_m_s();
         doc["results"] = json!(args.results);

@@ -4,6 +4,7 @@
 use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
 use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
+use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::phantom::phantom_default;
 use baffle_core::rv_outflow::{rv_outflow, RvOutflow};
 use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh, Vec3};
@@ -93,6 +94,11 @@ pub struct DesignArgs {
     /// normal to the flow-domain centerline reaches the target (report.json flow_sections).
     #[arg(long)]
     pub flow_sections: bool,
+    /// The patient's peak flow (ml/s; the paper's is 3.26 x CI x BSA): report.json then
+    /// holds hemodynamics_estimate, dp at peak flow and the peak velocity from the tunnel's
+    /// flow-normal sections (baffle_core::hemodynamics_estimate, docs/hemodynamics_estimate.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub peak_flow_ml_s: Option<f64>,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     #[arg(long)]
     pub progress_tags: bool,
@@ -175,6 +181,9 @@ fn print_progress_tag(fraction: f64, stage: &str) {
 pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     // Options first: a bad number is refused before any file is read.
     let options = design_options(args)?;
+    if let Some(q) = args.peak_flow_ml_s.filter(|q| !(q.is_finite() && *q > 0.0)) {
+        return Err(format!("--peak-flow-ml-s must be positive and finite, got {q}"));
+    }
     let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
     let mut result = design_by_rule(args.flow_sections, &surface, &points, &target, &options, progress).map_err(|e| match e {
@@ -186,6 +195,8 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
         e => feasibility::design_failure(&args.out, e),
     })?;
     measure_rv_outflow(&surface, &mut result, args.pulmonary.as_deref())?;
+    let estimate = EstimateOutcome::for_domain(&result.domain, options.labels, args.peak_flow_ml_s, Blood::default());
+    result.report.hemodynamics_estimate = Some(estimate);
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
     println!(
@@ -201,6 +212,9 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     );
     if let Some(f) = &r.flow_sections {
         println!("{}", flow_sections_line(f));
+    }
+    if let Some(EstimateOutcome::Estimated(e)) = &r.hemodynamics_estimate {
+        println!("{}", estimate_line(e));
     }
     println!("{}", rv_cost_line(&r.rv_cost));
     println!("{}", rv_outflow_line(&r.rv_cost.rv_outflow));
@@ -227,6 +241,14 @@ pub fn design_by_rule(
         false => design(surface, points, target, options, progress),
     }?;
     baffle_verify::checked_design(result)
+}
+
+/// The reduced-order estimate in one line.
+pub fn estimate_line(e: &baffle_core::hemodynamics_estimate::HemodynamicsEstimate) -> String {
+    format!(
+        "estimate at peak flow {:.1} ml/s: dp {:.2} mmHg (Bernoulli {:.2}, expansion {:.2}, friction {:.2}), v_max {:.2} m/s, throat {:.1} mm2 at {:.1} mm; {:.0} ms",
+        e.peak_flow_ml_s, e.dp_estimate_mmhg, e.bernoulli_mmhg, e.expansion_loss_mmhg, e.friction_mmhg, e.v_max_estimate_m_s, e.throat_area_mm2, e.throat_at_mm, e.wall_time_ms
+    )
 }
 
 /// The flow-section rule's outcome in one line.

@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""The reduced-order dp / v_max estimate (baffle_core::hemodynamics_estimate) against the 3D
+first-peak rows of docs/validation.md ("dp against the baffle's size on the paper's design
+input", 0.85 mm boundary / 1.25 mm interior): the published domains via `baffle centerline
+--peak-flow-ml-s`, our designs on the paper's design input via `baffle design --z-score z
+--peak-flow-ml-s`. Writes the markdown table of docs/hemodynamics_estimate.md to stdout.
+
+    python3 scripts/validation/hemodynamics_estimate.py [--out DIR] [--baffle target/release/baffle]
+"""
+import argparse
+import json
+import os
+import subprocess
+from pathlib import Path
+
+RHO_G_CM3, DYN_CM2_PER_MMHG = 1.06, 1333.22
+
+# (patient, row, extra design args) -> 3D first peak from docs/validation.md (area study):
+# dp static (mmHg), dp total flow-weighted (mmHg), v_max on the centerline (m/s).
+CFD_ROWS = [
+    ("p1", "published", (4.36, 2.36, 1.52)), ("p2", "published", (-0.37, 1.58, 1.45)), ("p3", "published", (5.87, 2.17, 1.60)),
+    ("p1", "-1", (12.07, 5.56, 2.13)), ("p1", "0", (8.17, 3.92, 1.73)), ("p1", "1", (5.35, 2.31, 1.54)), ("p1", "0 --flow-sections", (5.87, 2.56, 1.61)),
+    ("p2", "-1", (2.24, 2.27, 1.74)), ("p2", "-0.75", (1.58, 2.11, 1.66)), ("p2", "-0.5", (0.53, 1.87, 1.60)), ("p2", "-0.25", (0.28, 1.68, 1.58)),
+    ("p2", "0", (-0.08, 1.56, 1.48)), ("p2", "1", (-0.92, 1.30, 1.31)), ("p2", "2", (-1.26, 1.31, 1.29)), ("p2", "3", (-0.67, 1.57, 1.49)), ("p2", "4", (-0.69, 1.72, 1.56)),
+    ("p3", "-1", (4.63, 1.88, 1.68)), ("p3", "2", (2.87, 1.43, 1.36)), ("p3", "3", (1.56, 1.13, 1.21)), ("p3", "4", (0.76, 1.12, 1.13)), ("p3", "0 --flow-sections", (4.08, 1.69, 1.62)),
+]
+
+
+def within(est, ref, rel=0.20, abs_mmhg=1.0):
+    return abs(est - ref) <= max(rel * abs(ref), abs_mmhg)
+
+
+def estimate_for(baffle, data, out, patient, row, info):
+    q = info["q_peak_ml_s"]
+    if row == "published":
+        dest = out / patient / "published" / "centerline.vtp"
+        argv = [baffle, "centerline", "--surface", data / patient / "published_M_final.vtp", "--scale", "10", "--peak-flow-ml-s", q, "--out", dest]
+        report = dest.with_suffix(".json")
+    else:
+        z, *extra = row.split()
+        dest = out / patient / ("z" + z + "".join(extra))
+        inputs = data / patient / "design_input"
+        argv = [baffle, "design", "--surface", inputs / "capped_ventricle.vtp", "--points", inputs / "suture_points.mrk.json", "--bsa", info["bsa_m2"], "--z-score", z, *extra, "--peak-flow-ml-s", q, "--out", dest]
+        report = dest / "report.json"
+    run = subprocess.run([str(a) for a in argv], capture_output=True, text=True)
+    if run.returncode != 0:
+        return None, (run.stderr.strip().splitlines() or ["failed"])[-1]
+    return json.loads(report.read_text()), None
+
+
+def no_recovery_mmhg(e):
+    """The variant with the jet unmixed at the aortic plane: rho/2 (U_t^2 - U_vsd^2) + friction."""
+    u = lambda a_mm2: e["peak_flow_ml_s"] / (a_mm2 * 1e-2)
+    return RHO_G_CM3 / 2 * (u(e["throat_area_mm2"]) ** 2 - u(e["vsd_area_mm2"]) ** 2) / DYN_CM2_PER_MMHG + e["friction_mmhg"]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", type=Path, default=Path("out/hemodynamics-estimate"))
+    ap.add_argument("--baffle", default="target/release/baffle")
+    args = ap.parse_args()
+    data = Path(os.environ.get("BAFFLE_DATA_DIR", Path(__file__).resolve().parents[2] / ".." / "shared" / "data"))
+    patients = json.loads((data / "patients.json").read_text())["patients"]
+    print("| patient | row (z) | 3D dp static (mmHg) | estimate (mmHg) | error (mmHg) | within 20 % / 1 mmHg | Bernoulli / expansion / friction (mmHg) | no-recovery variant (mmHg) | 3D dp total, flow-weighted | expansion + friction | 3D v_max (m/s) | estimate (m/s) | error | throat (mm2, at mm) | VSD / aortic plane (mm2) | estimate wall time (ms) | baffle now (mm2) |")
+    print("|" + "---|" * 17)
+    counts = {"dp": 0, "loss": 0, "v": 0, "rows": 0}
+    for patient, row, (dp3, dpt3, v3) in CFD_ROWS:
+        report, err = estimate_for(args.baffle, data, args.out, patient, row, patients[patient])
+        e = report and report["hemodynamics_estimate"]
+        if e is None:
+            print(f"| {patient} | {row} | {dp3} | not made: {err} |" + " |" * 13)
+            continue
+        wall_ms = f"{e['wall_time_ms']:.0f}" if row != "published" else "- (centerline)"
+        baffle = f"{report['baffle_area_mm2']:.1f}" if "baffle_area_mm2" in report else "-"
+        dp, v, loss = e["dp_estimate_mmhg"], e["v_max_estimate_m_s"], e["expansion_loss_mmhg"] + e["friction_mmhg"]
+        counts["rows"] += 1
+        counts["dp"] += within(dp, dp3)
+        counts["loss"] += within(loss, dpt3)
+        counts["v"] += abs(v - v3) <= 0.2 * v3
+        print(
+            f"| {patient} | {row} | {dp3:.2f} | {dp:.2f} | {dp - dp3:+.2f} | {'yes' if within(dp, dp3) else 'no'} | "
+            f"{e['bernoulli_mmhg']:.2f} / {e['expansion_loss_mmhg']:.2f} / {e['friction_mmhg']:.2f} | {no_recovery_mmhg(e):.2f} | {dpt3:.2f} | {loss:.2f} | "
+            f"{v3:.2f} | {v:.2f} | {100 * (v - v3) / v3:+.0f} % | {e['throat_area_mm2']:.1f}, {e['throat_at_mm']:.1f} | {e['vsd_area_mm2']:.1f} / {e['aortic_area_mm2']:.1f} | {wall_ms} | {baffle} |"
+        )
+    n = counts["rows"]
+    print(f"\nrows estimated: {n}; dp static within 20 % or 1 mmHg: {counts['dp']} of {n}; expansion + friction against the 3D total-pressure loss within 20 % or 1 mmHg: {counts['loss']} of {n}; v_max within 20 %: {counts['v']} of {n}")
+
+
+if __name__ == "__main__":
+    main()
