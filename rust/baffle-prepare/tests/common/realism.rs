@@ -10,7 +10,7 @@ use baffle_core::numerics::random::SplitMix64;
 use baffle_core::{TriMesh, Vec3};
 use baffle_prepare::BloodPools;
 use nalgebra::{Rotation3, Unit};
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::path::Path;
 
 /// The paper's designed domain: cm -> mm, wound outward.
@@ -25,21 +25,7 @@ pub fn published_domain(path: &Path) -> TriMesh {
 
 /// Each triangle split in 4 at its edges' midpoints (labels kept): planar caps stay planar.
 pub fn subdivided(mesh: &TriMesh) -> TriMesh {
-    let mut points = mesh.points.clone();
-    let mut midpoint: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut mid = |a: u32, b: u32, points: &mut Vec<Vec3>| {
-        *midpoint.entry((a.min(b), a.max(b))).or_insert_with(|| {
-            points.push(0.5 * (points[a as usize] + points[b as usize]));
-            (points.len() - 1) as u32
-        })
-    };
-    let (mut triangles, mut face_ids) = (Vec::new(), Vec::new());
-    for (&[a, b, c], &label) in mesh.triangles.iter().zip(&mesh.face_ids) {
-        let (ab, bc, ca) = (mid(a, b, &mut points), mid(b, c, &mut points), mid(c, a, &mut points));
-        triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-        face_ids.extend([label; 4]);
-    }
-    TriMesh::new(points, triangles, face_ids)
+    baffle_core::perturb::subdivide(mesh)
 }
 
 /// The points that no triangle of `caps` uses (they may move without bending a cap).
