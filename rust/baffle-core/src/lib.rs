@@ -19,6 +19,7 @@ pub mod phantom_family;
 pub mod caps;
 pub mod self_check;
 pub mod remesh;
+pub mod smoothing;
 pub mod seam;
 pub mod partition;
 pub mod patch;

@@ -84,32 +84,15 @@ pub fn rigid_motion_point(p: Vec3, axis: Vec3, angle_rad: f64, translation_mm: V
 }
 
 /// The wall smoothed as a segmentation tool smooths it: `iterations` Taubin rounds
-/// (lambda 0.5, mu -0.53: smoothing without the shrinkage of plain Laplacian rounds) on
-/// the vertices whose triangles are all `wall_label`, so the caps and their rims stay.
+/// (`smoothing`'s default lambda|mu) on the vertices whose triangles are all
+/// `wall_label`, so the caps and their rims stay.
 pub fn smooth_wall(mesh: &TriMesh, iterations: usize, wall_label: i32) -> TriMesh {
     let (_, wall_only) = vertex_normals_and_wall(mesh, wall_label);
-    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); mesh.points.len()];
-    for tri in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            neighbours[a as usize].push(b);
-            neighbours[b as usize].push(a);
-        }
-    }
-    neighbours.iter_mut().for_each(|n| {
-        n.sort_unstable();
-        n.dedup();
-    });
+    let pinned: Vec<bool> = wall_only.iter().map(|w| !w).collect();
     let mut out = mesh.clone();
-    for _ in 0..iterations {
-        for factor in [0.5, -0.53] {
-            let before = out.points.clone();
-            for v in (0..before.len()).filter(|&v| wall_only[v] && !neighbours[v].is_empty()) {
-                let mean = neighbours[v].iter().fold(Vec3::zeros(), |s, &u| s + before[u as usize]) / neighbours[v].len() as f64;
-                out.points[v] = before[v] + factor * (mean - before[v]);
-            }
-        }
-    }
+    let options = crate::smoothing::SmoothingOptions { iterations, ..Default::default() };
+    let (start, neighbors) = crate::smoothing::point_neighbors(mesh);
+    crate::smoothing::taubin_smooth_pinned(&mut out, &options, &pinned, (&start, &neighbors));
     out
 }
 

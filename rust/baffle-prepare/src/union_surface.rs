@@ -7,6 +7,8 @@
 //! shrinking the volume.
 
 use crate::voxelize::Grid;
+pub use baffle_core::smoothing::SmoothingOptions;
+use baffle_core::smoothing::{point_neighbors, taubin_smooth, taubin_smooth_pinned};
 use baffle_core::spatial::TriangleBvh;
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
@@ -16,20 +18,6 @@ use rayon::prelude::*;
 const ISO_LEVEL: f64 = 32.5;
 /// Kuhn's six tetrahedra of a cube, as corner numbers (bit 0 x, bit 1 y, bit 2 z).
 const KUHN_TETS: [[usize; 4]; 6] = [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SmoothingOptions {
-    pub iterations: usize,
-    pub lambda: f64,
-    pub mu: f64,
-}
-
-impl Default for SmoothingOptions {
-    /// Taubin (1995)'s pass-band 0.1: lambda 0.5, mu -0.53.
-    fn default() -> Self {
-        SmoothingOptions { iterations: 20, lambda: 0.5, mu: -0.53 }
-    }
-}
 
 /// The blurred mask's closed, outward-wound level-set surface (largest component).
 pub fn union_surface(mask: &[bool], grid: &Grid, smoothing: &SmoothingOptions) -> Result<TriMesh, String> {
@@ -71,7 +59,7 @@ fn undo_crossings(mesh: &mut TriMesh, contoured: &[Vec3], smoothing: &SmoothingO
             neighbors[start[v as usize]..start[v as usize + 1]].iter().for_each(|&w| pinned[w as usize] = true);
         }
         mesh.points = contoured.to_vec();
-        smooth_pinned(mesh, smoothing, &pinned, (&start, &neighbors));
+        taubin_smooth_pinned(mesh, smoothing, &pinned, (&start, &neighbors));
     }
     Ok(crossings(mesh)?.into_iter().filter(|p| !before.contains(p)).count())
 }
@@ -189,46 +177,6 @@ pub fn largest_component(mesh: &TriMesh) -> TriMesh {
     let best = counts.into_iter().max_by_key(|&(r, c)| (c, std::cmp::Reverse(r))).map(|(r, _)| r);
     let keep: Vec<bool> = roots.iter().map(|&r| Some(r) == best).collect();
     mesh.submesh(&keep).0
-}
-
-/// Point neighbours through edges, as compressed rows.
-fn point_neighbors(mesh: &TriMesh) -> (Vec<usize>, Vec<u32>) {
-    let mut pairs: Vec<(u32, u32)> = mesh.triangles.iter().flat_map(|t| (0..3).flat_map(move |k| [(t[k], t[(k + 1) % 3]), (t[(k + 1) % 3], t[k])])).collect();
-    pairs.par_sort_unstable();
-    pairs.dedup();
-    let mut start = vec![0usize; mesh.points.len() + 1];
-    pairs.iter().for_each(|&(a, _)| start[a as usize + 1] += 1);
-    for i in 0..mesh.points.len() {
-        start[i + 1] += start[i];
-    }
-    (start, pairs.into_iter().map(|(_, b)| b).collect())
-}
-
-/// Taubin's lambda|mu smoothing with uniform (umbrella) weights.
-pub fn taubin_smooth(mesh: &mut TriMesh, options: &SmoothingOptions) {
-    let (start, neighbors) = point_neighbors(mesh);
-    smooth_pinned(mesh, options, &vec![false; mesh.points.len()], (&start, &neighbors));
-}
-
-/// Taubin smoothing that leaves the `pinned` points where they are.
-fn smooth_pinned(mesh: &mut TriMesh, options: &SmoothingOptions, pinned: &[bool], (start, neighbors): (&[usize], &[u32])) {
-    let step = |points: &[Vec3], factor: f64| -> Vec<Vec3> {
-        (0..points.len())
-            .into_par_iter()
-            .map(|i| {
-                let ring = &neighbors[start[i]..start[i + 1]];
-                if ring.is_empty() || pinned[i] {
-                    return points[i];
-                }
-                let mean = ring.iter().map(|&j| points[j as usize]).sum::<Vec3>() / ring.len() as f64;
-                points[i] + factor * (mean - points[i])
-            })
-            .collect()
-    };
-    for _ in 0..options.iterations {
-        let shrunk = step(&mesh.points, options.lambda);
-        mesh.points = step(&shrunk, options.mu);
-    }
 }
 
 #[cfg(test)]
