@@ -5,7 +5,7 @@
 
 use baffle_core::phantom::phantom;
 use baffle_core::phantom_family::FamilyMember;
-use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, Vec3};
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea};
 
 /// What the design did with one member.
 pub enum Outcome {
@@ -20,26 +20,18 @@ pub enum Outcome {
     Problem(String),
 }
 
-/// Smallest re-measured (baffle-verify) checked section of a design, or why it fails.
+/// Smallest re-measured checked section of a design, or why it fails: the design's own
+/// checks by baffle-verify (edges, volume, every checked section re-cut), with the
+/// section held to the target itself, not to the checks' rounding allowance.
 pub fn verified_smallest_section_mm2(result: &DesignResult) -> Result<f64, String> {
-    if baffle_verify::edge_usage_counts(&result.domain) != (0, 0) {
-        return Err("the domain is open or non-manifold".into());
-    }
-    if !baffle_verify::signed_volume_mm3(&result.domain).is_ok_and(|v| v > 0.0) {
-        return Err("the domain is not wound outward".into());
-    }
+    let checks = baffle_verify::design_checks(result);
+    baffle_core::self_check::first_failure(&checks)?;
+    let section = checks.iter().find(|c| c.name == "smallest checked section, re-cut").ok_or("no section check")?;
     let target_mm2 = result.report.target_area_mm2;
-    let mut smallest = f64::INFINITY;
-    for section in result.report.sections.iter().filter(|s| s.final_area_mm2.is_some()) {
-        let area = baffle_verify::section_area_nearest(&result.domain, Vec3::from(section.origin_mm), Vec3::from(section.normal))
-            .map_err(|e| e.to_string())?
-            .unwrap_or(0.0);
-        if area < target_mm2 {
-            return Err(format!("section at s = {:.1} mm re-measures {area:.2} mm2 < {target_mm2:.2}", section.s_mm));
-        }
-        smallest = smallest.min(area);
+    if section.value < target_mm2 {
+        return Err(format!("{} re-measures {:.2} mm2 < {target_mm2:.2}", section.detail, section.value));
     }
-    Ok(smallest)
+    Ok(section.value)
 }
 
 pub fn run_member(member: &FamilyMember) -> Outcome {
