@@ -114,16 +114,16 @@ const MIN_PROJECTED_COSINE: f64 = 1e-3;
 /// with no triangle is skipped (the callers check the labels). The result is re-measured:
 /// every projected cap must lie on its plane to rounding.
 pub fn project_caps_onto_planes(mesh: &TriMesh, caps: &[(i32, &str)]) -> Result<(TriMesh, Vec<CapProjection>), String> {
-    let mut planes: Vec<(i32, &str, CapFlatness)> = Vec::new();
+    let mut planes: Vec<(i32, &str, CapFlatness, Vec<u32>)> = Vec::new();
     for &(label, name) in caps {
         let Some(flat) = cap_flatness(mesh, label) else { continue };
         check_cap_shape(mesh, label, name, &flat)?;
-        planes.push((label, name, flat));
+        planes.push((label, name, flat, cap_point_indices(mesh, label)));
     }
     let mut out = mesh.clone();
     let mut on_planes: Vec<Vec<Plane>> = vec![Vec::new(); mesh.points.len()];
-    for (label, _, flat) in &planes {
-        cap_point_indices(mesh, *label).iter().for_each(|&v| on_planes[v as usize].push(flat.plane));
+    for (_, _, flat, points) in &planes {
+        points.iter().for_each(|&v| on_planes[v as usize].push(flat.plane));
     }
     for (v, planes) in on_planes.iter().enumerate() {
         if !planes.is_empty() {
@@ -132,7 +132,7 @@ pub fn project_caps_onto_planes(mesh: &TriMesh, caps: &[(i32, &str)]) -> Result<
     }
     check_no_fold(mesh, &out, &on_planes)?;
     let mut projections = Vec::new();
-    for (label, name, flat) in planes {
+    for (label, name, flat, points) in planes {
         let after = cap_flatness(&out, label).ok_or_else(|| format!("the {name} cap lost its area when projected onto its plane"))?;
         let rounding_mm = 1e-9 * (1.0 + flat.plane.centroid.amax());
         if after.off_plane_mm > rounding_mm.max(1e-6 * flat.equivalent_radius_mm()) {
@@ -145,7 +145,7 @@ pub fn project_caps_onto_planes(mesh: &TriMesh, caps: &[(i32, &str)]) -> Result<
             name: name.to_string(),
             off_plane_mm: flat.off_plane_mm,
             limit_mm: flat.tolerance_mm,
-            moved_points: cap_point_indices(mesh, label).len(),
+            moved_points: points.len(),
             area_before_mm2: flat.area_mm2,
             area_after_mm2: after.area_mm2,
             plane_point_mm: [c.x, c.y, c.z],

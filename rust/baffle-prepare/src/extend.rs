@@ -235,8 +235,6 @@ struct DesignedCap {
     /// Rim as domain point indices, in the cap triangles' winding.
     rim: Vec<u32>,
     area_mm2: f64,
-    /// Largest distance of a cap point from the plane (mm).
-    off_plane_mm: f64,
 }
 
 /// The extended domain of `domain` (a closed, outward designed domain in mm with the
@@ -326,8 +324,8 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
             ),
             other_lv_rv_contact: lv_part.other_contact().map(|w| format!("{w}: left out of the LV part, which takes the RV only over the VSD, so it is wall in the extended domain")),
         },
-        vsd_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.vsd_cap, vsd.off_plane_mm),
-        aortic_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.aortic_cap, annulus.off_plane_mm),
+        vsd_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.vsd_cap),
+        aortic_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.aortic_cap),
         cap_projections,
         stj: stj_report,
         remesh_edge_mm: edge_mm,
@@ -338,8 +336,9 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
 }
 
 /// How far the cap labelled `label` was off its plane before the projection.
-fn off_plane_as_given_mm(projections: &[CapProjection], label: i32, after_mm: f64) -> f64 {
-    projections.iter().find(|p| p.label == label).map_or(after_mm, |p| p.off_plane_mm)
+/// (Every cap `designed_cap` accepted was projected, so each label has its record.)
+fn off_plane_as_given_mm(projections: &[CapProjection], label: i32) -> f64 {
+    projections.iter().find(|p| p.label == label).map_or(0.0, |p| p.off_plane_mm)
 }
 
 /// The moves of the mid-LV plane from the LV centroid to try, in order (mm along the VSD normal).
@@ -406,7 +405,7 @@ fn check_baffle(domain: &TriMesh, baffle: i32, without_baffle: bool) -> Result<(
     ))
 }
 
-/// The cap labelled `label`: one planar disk with a single rim.
+/// The cap labelled `label`, already projected onto its plane: one disk with a single rim.
 fn designed_cap(domain: &TriMesh, label: i32, name: &str) -> Result<DesignedCap, PrepareError> {
     let keep: Vec<bool> = domain.face_ids.iter().map(|&l| l == label).collect();
     let (cap, old_of_new) = domain.submesh(&keep);
@@ -417,12 +416,9 @@ fn designed_cap(domain: &TriMesh, label: i32, name: &str) -> Result<DesignedCap,
     let [rim] = &loops[..] else {
         return Err(PrepareError::geometry("designed domain", format!("the {name} cap has {} rims, expected 1", loops.len())));
     };
-    let flat = cap_flatness(&cap, label).ok_or_else(|| PrepareError::geometry("designed domain", format!("the {name} cap has no area")))?;
-    if !flat.is_planar() {
-        return Err(PrepareError::geometry("designed domain", flat.describe(name)));
-    }
-    let CapFlatness { plane, area_mm2, off_plane_mm, .. } = flat;
-    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2, off_plane_mm })
+    // Flat to rounding: `extend` projected the caps onto their planes before this.
+    let CapFlatness { plane, area_mm2, .. } = cap_flatness(&cap, label).ok_or_else(|| PrepareError::geometry("designed domain", format!("the {name} cap has no area")))?;
+    Ok(DesignedCap { plane, rim: rim.iter().map(|&v| old_of_new[v as usize]).collect(), area_mm2 })
 }
 
 /// A plane with `normal` through `point`, axes from `like`.
