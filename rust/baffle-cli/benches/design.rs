@@ -3,37 +3,13 @@
 //! the paper's BSA. `cargo bench -p baffle-cli --bench design` (15 runs per case);
 //! `-- --smoke` runs each case once, as CI does, to keep the benchmark working.
 
-use baffle_core::io::{read_points, read_surface, CoordinateSystem};
-use baffle_core::phantom::phantom_default;
-use baffle_core::{design, DesignOptions, DesignReport, TargetArea, TriMesh, Vec3};
+use baffle_core::reference_data::{design_cases, DesignCase};
+use baffle_core::{design, DesignOptions, DesignReport};
 
-struct Case {
-    name: String,
-    surface: TriMesh,
-    points: Vec<Vec3>,
-    target: TargetArea,
-}
-
-fn cases() -> Vec<Case> {
-    let p = phantom_default();
-    let mut cases = vec![Case {
-        name: "phantom".into(),
-        surface: p.surface,
-        points: p.suture_points_mm,
-        target: TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 },
-    }];
-    let Some(dir) = baffle_core::reference_data::reference_data_if_present() else {
+fn cases() -> Vec<DesignCase> {
+    let cases = design_cases();
+    if cases.len() == 1 {
         println!("note: benchmarking the phantom only");
-        return cases;
-    };
-    let table = std::fs::read_to_string(dir.join("patients.json")).expect("patients.json");
-    let table: serde_json::Value = serde_json::from_str(&table).expect("patients.json");
-    for patient in ["p1", "p2", "p3"] {
-        let input = dir.join(patient).join("design_input");
-        let surface = read_surface(&input.join("capped_ventricle.vtp")).expect("surface");
-        let points = read_points(&input.join("suture_points.mrk.json")).expect("points").to_frame(CoordinateSystem::Lps);
-        let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64().expect("bsa_m2");
-        cases.push(Case { name: patient.into(), surface, points, target: TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
     }
     cases
 }

@@ -107,3 +107,30 @@ mod tests {
         assert!((shifted[3] - Vec3::new(0.0, 0.5, 0.0)).norm() < 1e-12);
     }
 }
+
+/// A design input with its target: the phantom's, or a patient's `design_input/` at the
+/// paper's BSA (Table 3) and z = 0.
+pub struct DesignCase {
+    pub name: String,
+    pub surface: crate::TriMesh,
+    pub points: Vec<crate::Vec3>,
+    pub target: crate::TargetArea,
+}
+
+/// The phantom, then p1-p3's design inputs where the data is present (tests and benches).
+pub fn design_cases() -> Vec<DesignCase> {
+    let p = crate::phantom::phantom_default();
+    let target = crate::TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 };
+    let mut cases = vec![DesignCase { name: "phantom".into(), surface: p.surface, points: p.suture_points_mm, target }];
+    let Some(dir) = reference_data_if_present() else { return cases };
+    let table = std::fs::read_to_string(dir.join("patients.json")).expect("patients.json");
+    let table: serde_json::Value = serde_json::from_str(&table).expect("patients.json");
+    for patient in ["p1", "p2", "p3"] {
+        let input = dir.join(patient).join("design_input");
+        let surface = crate::io::read_surface(&input.join("capped_ventricle.vtp")).expect("surface");
+        let points = crate::io::read_points(&input.join("suture_points.mrk.json")).expect("points").to_frame(crate::io::CoordinateSystem::Lps);
+        let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64().expect("bsa_m2");
+        cases.push(DesignCase { name: patient.into(), surface, points, target: crate::TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
+    }
+    cases
+}

@@ -12,37 +12,15 @@ mod common;
 mod family;
 
 use baffle_core::perturb::{bend_cap, jitter, rigid_motion, rigid_motion_point, smooth_wall, subdivide};
-use baffle_core::phantom::phantom_default;
+use baffle_core::reference_data::{design_cases, DesignCase};
 use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, TriMesh, Vec3};
-
-struct Case {
-    name: String,
-    surface: TriMesh,
-    points: Vec<Vec3>,
-    target: TargetArea,
-}
-
-fn cases() -> Vec<Case> {
-    let p = phantom_default();
-    let mut cases = vec![Case { name: "phantom".into(), surface: p.surface, points: p.suture_points_mm, target: TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 } }];
-    let Some(data) = common::data_dir() else { return cases };
-    let table: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(data.join("patients.json")).unwrap()).unwrap();
-    for patient in ["p1", "p2", "p3"] {
-        let dir = data.join(patient).join("design_input");
-        let surface = baffle_core::io::read_surface(&dir.join("capped_ventricle.vtp")).unwrap();
-        let points = baffle_core::io::read_points(&dir.join("suture_points.mrk.json")).unwrap().to_frame(baffle_core::io::CoordinateSystem::Lps);
-        let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64().unwrap();
-        cases.push(Case { name: patient.into(), surface, points, target: TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
-    }
-    cases
-}
 
 /// A pose no scanner frame shares with the data: 37 degrees about an oblique axis, then far off.
 const AXIS: [f64; 3] = [0.3, -0.5, 0.8];
 const ANGLE_RAD: f64 = 0.65;
 const SHIFT_MM: [f64; 3] = [35.0, -180.0, 1200.0];
 
-fn members(case: &Case) -> Vec<(String, TriMesh, Vec<Vec3>)> {
+fn members(case: &DesignCase) -> Vec<(String, TriMesh, Vec<Vec3>)> {
     let mut out = Vec::new();
     // Bumps of 1-5.5 % of the diameter leave the caps 0.5-3 % of it off their fitted planes.
     for fraction in [0.01, 0.03, 0.055] {
@@ -65,7 +43,7 @@ fn run(surface: &TriMesh, points: &[Vec3], target: &TargetArea) -> Result<Design
 #[test]
 fn every_realistic_member_designs_verified_or_is_refused_by_name() {
     let (mut designed, mut refused, mut problems) = (0, Vec::new(), Vec::new());
-    for case in cases() {
+    for case in design_cases() {
         let base = run(&case.surface, &case.points, &case.target).unwrap_or_else(|e| panic!("{}: {e}", case.name));
         for (what, surface, points) in members(&case) {
             let name = format!("{} {what}", case.name);
