@@ -3,8 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-/// 1 mmHg in dyn/cm^2.
-pub const DYN_CM2_PER_MMHG: f64 = 1333.22;
+/// 1 mmHg in dyn/cm^2 (one constant for the CFD and the design's estimate).
+pub use baffle_core::hemodynamics_estimate::DYN_CM2_PER_MMHG;
 /// 1 Wood unit (mmHg min/L) in dyn s/cm^5, the clinical rounding the paper uses.
 pub const DYN_S_CM5_PER_WOOD: f64 = 80.0;
 /// Paper's default cardiac index (L/min/m^2) and the elevated-flow scenario.

@@ -51,8 +51,10 @@ pub const EXPANSION_KT_BORDA_CARNOT: f64 = 1.0;
 /// pi/(pi+2) = 0.611): the tunnel's inflow over the VSD rim is such an edge.
 pub const VENA_CONTRACTA_CC: f64 = 0.62;
 
-/// Blood as the CFD cases have it (baffle-cfd settings: rho 1.06 g/cm3, mu 0.04 P).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+/// Blood: rho 1.06 g/cm3, mu 0.04 P, as the paper's CFD; also the CFD case's `fluid`
+/// (`baffle_plan::case::Fluid`), so the estimate and the 3D run read the same numbers.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct Blood {
     pub density_g_cm3: f64,
     pub viscosity_g_cm_s: f64,

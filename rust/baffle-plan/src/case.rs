@@ -93,18 +93,8 @@ pub struct FaceRoles {
     pub planes: Vec<i32>,
 }
 
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Fluid {
-    pub density_g_cm3: f64,
-    pub viscosity_g_cm_s: f64,
-}
-
-impl Default for Fluid {
-    fn default() -> Self {
-        Fluid { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04 }
-    }
-}
+/// The blood of the case (`fluid` in case.json): the design's estimate uses the same.
+pub use baffle_core::hemodynamics_estimate::Blood as Fluid;
 
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
