@@ -117,6 +117,7 @@ _SIGNATURES = {
     "baffle_result_seam_count": ([c_void_p, _SZ], c_int),
     "baffle_result_copy_seam": ([c_void_p, _D, c_size_t], c_int),
     "baffle_phantom": ([POINTER(c_void_p), POINTER(_D), _SZ, _D], c_int),
+    "baffle_phantom_with_suture_half_angle": ([c_double, POINTER(c_void_p), POINTER(_D), _SZ, _D], c_int),
     "baffle_read_suture_points": ([c_char_p, c_int32, POINTER(_D), _SZ], c_int),
     "baffle_template": ([c_void_p, _D, c_size_t, c_char_p, c_char_p, c_char_p, _I32, c_int32, POINTER(c_void_p)], c_int),
     "baffle_template_free": ([c_void_p], None),

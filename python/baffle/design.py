@@ -222,10 +222,19 @@ def design(
         lib.baffle_mesh_free(surface)
 
 
-def phantom():
-    """The built-in synthetic phantom: (surface Mesh, suture points (k, 3), BSA m2)."""
+def phantom(suture_half_angle_deg=None):
+    """The built-in synthetic phantom: (surface Mesh, suture points (k, 3), BSA m2).
+
+    suture_half_angle_deg: how far the suture loop wraps round the tunnel from its
+    outermost line (degrees; None keeps the default phantom's 70). A wider loop leaves
+    less baffle near the caps, so large targets become infeasible.
+    """
     handle, points, length, bsa_m2 = c_void_p(), POINTER(c_double)(), c_size_t(), c_double()
-    check(lib.baffle_phantom(byref(handle), byref(points), byref(length), byref(bsa_m2)))
+    outputs = (byref(handle), byref(points), byref(length), byref(bsa_m2))
+    if suture_half_angle_deg is None:
+        check(lib.baffle_phantom(*outputs))
+    else:
+        check(lib.baffle_phantom_with_suture_half_angle(float(suture_half_angle_deg), *outputs))
     try:
         suture = np.ctypeslib.as_array(points, shape=(length.value,)).reshape(-1, 3).copy()
     finally:

@@ -380,6 +380,21 @@ enum BaffleStatus baffle_phantom(struct BaffleMesh **out_surface,
                                  double *out_bsa_m2);
 
 /*
+ The phantom with its suture loop wrapped `suture_half_angle_deg` round the tunnel
+ from its outermost line (the default phantom's is 70 degrees; a wider loop leaves
+ less baffle near the caps, so large targets become infeasible). Outputs as
+ baffle_phantom; an angle outside (0, 180) is BAFFLE_STATUS_INVALID_ARGUMENT.
+
+ # Safety
+ The outputs must be NULL or writable.
+ */
+enum BaffleStatus baffle_phantom_with_suture_half_angle(double suture_half_angle_deg,
+                                                        struct BaffleMesh **out_surface,
+                                                        double **out_points_mm,
+                                                        size_t *out_points_len,
+                                                        double *out_bsa_m2);
+
+/*
  Free a result (NULL is ignored).
 
  # Safety

@@ -24,7 +24,7 @@ pub use mesh::{
     baffle_mesh_new_vtk, baffle_mesh_point_count, baffle_mesh_triangle_count, BaffleMesh,
 };
 pub use options::{baffle_design_options_init, BaffleDesignOptions, BaffleTargetKind};
-pub use points::{baffle_phantom, baffle_read_suture_points, BaffleFrame};
+pub use points::{baffle_phantom, baffle_phantom_with_suture_half_angle, baffle_read_suture_points, BaffleFrame};
 pub use result::{
     baffle_result_baffle, baffle_result_centerline_count, baffle_result_copy_centerline, baffle_result_copy_sections,
     baffle_result_copy_seam, baffle_result_domain, baffle_result_free, baffle_result_report_json,

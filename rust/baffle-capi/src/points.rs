@@ -5,7 +5,7 @@ use crate::alloc::malloc_copy;
 use crate::mesh::BaffleMesh;
 use crate::status::{guarded, out_ref, BaffleStatus, CallError};
 use baffle_core::io::{read_points, CoordinateSystem};
-use baffle_core::phantom::phantom_default;
+use baffle_core::phantom::{phantom_default, phantom_with_suture_half_angle, Phantom};
 use baffle_core::Vec3;
 use std::ffi::{c_char, CStr};
 
@@ -64,20 +64,50 @@ pub unsafe extern "C" fn baffle_phantom(
     out_points_len: *mut usize,
     out_bsa_m2: *mut f64,
 ) -> BaffleStatus {
+    guarded(|| write_phantom(Ok(phantom_default()), out_surface, out_points_mm, out_points_len, out_bsa_m2))
+}
+
+/// The phantom with its suture loop wrapped `suture_half_angle_deg` round the tunnel
+/// from its outermost line (the default phantom's is 70 degrees; a wider loop leaves
+/// less baffle near the caps, so large targets become infeasible). Outputs as
+/// baffle_phantom; an angle outside (0, 180) is BAFFLE_STATUS_INVALID_ARGUMENT.
+///
+/// # Safety
+/// The outputs must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn baffle_phantom_with_suture_half_angle(
+    suture_half_angle_deg: f64,
+    out_surface: *mut *mut BaffleMesh,
+    out_points_mm: *mut *mut f64,
+    out_points_len: *mut usize,
+    out_bsa_m2: *mut f64,
+) -> BaffleStatus {
     guarded(|| {
-        let out_surface = out_ref(out_surface, "out_surface")?;
-        let out_points = out_ref(out_points_mm, "out_points_mm")?;
-        let out_len = out_ref(out_points_len, "out_points_len")?;
-        (*out_points, *out_len) = (std::ptr::null_mut(), 0);
-        let out_bsa = out_ref(out_bsa_m2, "out_bsa_m2")?;
-        let phantom = phantom_default();
-        let flat = flatten(&phantom.suture_points_mm);
-        *out_points = malloc_copy(&flat)?;
-        *out_len = flat.len();
-        *out_bsa = phantom.bsa_m2;
-        *out_surface = BaffleMesh::boxed(phantom.surface);
-        Ok(())
+        let phantom = phantom_with_suture_half_angle(suture_half_angle_deg).map_err(|e| CallError::invalid(format!("suture_half_angle_deg: {e}")));
+        write_phantom(phantom, out_surface, out_points_mm, out_points_len, out_bsa_m2)
     })
+}
+
+unsafe fn write_phantom(
+    phantom: Result<Phantom, CallError>,
+    out_surface: *mut *mut BaffleMesh,
+    out_points_mm: *mut *mut f64,
+    out_points_len: *mut usize,
+    out_bsa_m2: *mut f64,
+) -> Result<(), CallError> {
+    let out_surface = out_ref(out_surface, "out_surface")?;
+    *out_surface = std::ptr::null_mut();
+    let out_points = out_ref(out_points_mm, "out_points_mm")?;
+    let out_len = out_ref(out_points_len, "out_points_len")?;
+    (*out_points, *out_len) = (std::ptr::null_mut(), 0);
+    let out_bsa = out_ref(out_bsa_m2, "out_bsa_m2")?;
+    let phantom = phantom?;
+    let flat = flatten(&phantom.suture_points_mm);
+    *out_points = malloc_copy(&flat)?;
+    *out_len = flat.len();
+    *out_bsa = phantom.bsa_m2;
+    *out_surface = BaffleMesh::boxed(phantom.surface);
+    Ok(())
 }
 
 fn flatten(points: &[Vec3]) -> Vec<f64> {

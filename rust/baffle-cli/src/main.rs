@@ -63,6 +63,11 @@ enum Command {
         /// and suture_points.mrk.json, BSA 0.2 m2): the input of `baffle plan --segmentations`.
         #[arg(long)]
         heart: bool,
+        /// How far the phantom's suture loop wraps round the tunnel from its outermost
+        /// line, as a section angle (degrees; default 70). Wider loops leave the sections
+        /// near the caps less baffle to widen, so large targets become infeasible.
+        #[arg(long, conflicts_with = "heart")]
+        suture_half_angle_deg: Option<f64>,
     },
 }
 
@@ -80,8 +85,8 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan_cmd::run_plan(&args),
         Command::Template(args) => template_cmd::run_template(&args),
         Command::Sweep(args) => sweep_cmd::run_sweep(&args),
-        Command::Phantom { out, heart: false } => design_cmd::write_phantom(&out),
-        Command::Phantom { out, heart: true } => prepare_cmd::write_synthetic_heart(&out),
+        Command::Phantom { out, heart: false, suture_half_angle_deg } => design_cmd::write_phantom(&out, suture_half_angle_deg),
+        Command::Phantom { out, heart: true, .. } => prepare_cmd::write_synthetic_heart(&out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,12 +1,18 @@
 //! Step 4, the tunnel centerline [paper 2.4.2].
 //!
-//! A PCHIP curve (chord-length parameter, one PCHIP per coordinate) through six
-//! control points: p0 and p_N outside the domain, p_in and p_out at the VSD and
+//! A PCHIP curve (chord-length parameter) through six control points: p0 and p_N outside the domain, p_in and p_out at the VSD and
 //! aortic cap centroids, and q_in and q_out one transition length inside each cap
 //! along its inward normal. The transition length of a cap is the distance from its
 //! centroid to the nearest point of R_init. The outside points mirror q_in and q_out
 //! through the caps, so the curve leaves each cap along its normal. Only the
 //! physical part, between the caps, is sampled.
+//!
+//! The paper takes one PCHIP per scanner coordinate. PCHIP's slope limiter acts on each
+//! coordinate alone, so that curve turns with the scanner frame: rotating the scene by
+//! 37 degrees changed p1's baffle by 1.3 % and p3's smallest section by 7.5 %. The knot
+//! velocities here are PCHIP's weighted mean taken on the chord vectors
+//! ([`PchipCurve3::rotation_invariant`]): the same curve in every frame, the same
+//! end tangents along the cap normals.
 
 use crate::error::DesignError;
 use crate::mesh::Vec3;
@@ -56,7 +62,8 @@ pub fn build_centerline(vsd: CapFrame, aortic: CapFrame, chord: &InitialChord, s
     let p0 = vsd.centroid_mm - lengths[0] * vsd.inward_normal;
     let p_n = aortic.centroid_mm - lengths[1] * aortic.inward_normal;
     let control = [p0, vsd.centroid_mm, q_in, q_out, aortic.centroid_mm, p_n];
-    let curve = PchipCurve3::new(&control).map_err(|m| DesignError::numerical("centerline PCHIP", m))?;
+    let curve = PchipCurve3::rotation_invariant(&control)
+        .map_err(|m| DesignError::numerical("centerline PCHIP", m))?;
     let (t_in, t_out) = (curve.parameter_of_point(1), curve.parameter_of_point(4));
     let samples = curve.sample_by_arclength(t_in, t_out, spacing_mm).map_err(|m| DesignError::numerical("centerline sampling", m))?;
     let length_mm = samples.last().map_or(0.0, |s| s.s_mm);

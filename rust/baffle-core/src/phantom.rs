@@ -187,6 +187,14 @@ pub fn phantom(params: &PhantomParams) -> Phantom {
 }
 
 /// The phantom with [`PhantomParams::default`].
+/// The default phantom with its suture loop wrapped `half_angle_deg` round the tunnel
+/// from the outermost line (default 70), or why that angle makes no phantom.
+pub fn phantom_with_suture_half_angle(half_angle_deg: f64) -> Result<Phantom, String> {
+    let params = PhantomParams { suture_half_angle_deg: half_angle_deg, ..PhantomParams::default() };
+    params.check()?;
+    Ok(phantom(&params))
+}
+
 pub fn phantom_default() -> Phantom {
     phantom(&PhantomParams::default())
 }

@@ -398,8 +398,11 @@ fn parse_point(text: &str) -> Result<Vec3, String> {
 }
 
 /// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
-pub fn write_phantom(out: &Path) -> Result<(), String> {
-    let p = phantom_default();
+pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), String> {
+    let p = match suture_half_angle_deg {
+        None => phantom_default(),
+        Some(angle) => baffle_core::phantom::phantom_with_suture_half_angle(angle).map_err(|e| format!("--suture-half-angle-deg: {e}"))?,
+    };
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     write_trimesh_vtp(&out.join("capped_ventricle.vtp"), &p.surface).map_err(|e| e.to_string())?;
     write_markups_closed_curve(&out.join("suture_points.mrk.json"), "BC", &p.suture_points_mm, CoordinateSystem::Lps)

@@ -40,6 +40,16 @@ impl Pchip {
         Ok(Pchip { x: x.to_vec(), y: y.to_vec(), slopes: knot_slopes(x, y) })
     }
 
+    /// The cubic Hermite interpolant with the given dy/dx at each knot.
+    pub fn with_slopes(x: &[f64], y: &[f64], slopes: &[f64]) -> Result<Self, String> {
+        let mut p = Self::new(x, y)?;
+        if slopes.len() != x.len() || slopes.iter().any(|d| !d.is_finite()) {
+            return Err(format!("Hermite interpolant: {} finite slopes needed, got {slopes:?}", x.len()));
+        }
+        p.slopes = slopes.to_vec();
+        Ok(p)
+    }
+
     /// The derivative dy/dx chosen at each knot.
     pub fn knot_derivatives(&self) -> &[f64] {
         &self.slopes
@@ -123,6 +133,25 @@ fn end_slope(h0: f64, h1: f64, m0: f64, m1: f64) -> f64 {
     }
 }
 
+/// Knot velocities of [`PchipCurve3::rotation_invariant`] (chord-length knots, so each
+/// chord's velocity d_k is its unit direction).
+fn vector_knot_velocities(points: &[Vec3], knots: &[f64]) -> Vec<Vec3> {
+    let n = points.len();
+    let h: Vec<f64> = knots.windows(2).map(|w| w[1] - w[0]).collect();
+    let d: Vec<Vec3> = (0..n - 1).map(|k| (points[k + 1] - points[k]) / h[k]).collect();
+    if n == 2 {
+        return vec![d[0], d[0]];
+    }
+    let end = |h0: f64, h1: f64, d0: Vec3, d1: Vec3| ((2.0 * h0 + h1) * d0 - h0 * d1) / (h0 + h1);
+    let mut velocities = vec![end(h[0], h[1], d[0], d[1])];
+    for k in 1..n - 1 {
+        let (w_in, w_out) = (2.0 * h[k] + h[k - 1], h[k] + 2.0 * h[k - 1]);
+        velocities.push((w_in * d[k - 1] + w_out * d[k]) / (w_in + w_out));
+    }
+    velocities.push(end(h[n - 2], h[n - 3], d[n - 2], d[n - 3]));
+    velocities
+}
+
 /// One sample of a curve: parameter, arc length from the start of the sampled
 /// range (mm), position and unit tangent.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -134,7 +163,12 @@ pub struct CurveSample {
 }
 
 /// A 3D curve through points, parameterised by cumulative chord length t (mm), each
-/// coordinate a [`Pchip`] of t.
+/// coordinate a cubic Hermite interpolant of t.
+///
+/// [`PchipCurve3::new`] takes each coordinate's slopes by PCHIP's rule, which limits
+/// every coordinate on its own, so that curve depends on the frame the coordinates are
+/// taken in; [`PchipCurve3::rotation_invariant`] applies PCHIP's weights to the chord
+/// vectors instead, and turns with the points under any rigid motion.
 #[derive(Clone, Debug)]
 pub struct PchipCurve3 {
     points: Vec<Vec3>,
@@ -143,7 +177,8 @@ pub struct PchipCurve3 {
 }
 
 impl PchipCurve3 {
-    /// Curve through `points` (at least 2, consecutive ones distinct).
+    /// Curve through `points` (at least 2, consecutive ones distinct), one PCHIP per
+    /// coordinate of the input frame.
     pub fn new(points: &[Vec3]) -> Result<Self, String> {
         if points.len() < 2 {
             return Err(format!("PCHIP curve needs at least 2 points, got {}", points.len()));
@@ -169,6 +204,24 @@ impl PchipCurve3 {
         };
         let coordinates = [coordinate(0)?, coordinate(1)?, coordinate(2)?];
         Ok(PchipCurve3 { points: points.to_vec(), knots, coordinates })
+    }
+
+    /// Curve through `points` whose velocity dC/dt at each knot is PCHIP's rule applied
+    /// to the chord vectors rather than to each coordinate: at an interior knot the mean
+    /// of the two neighbouring unit chord directions with scipy's PCHIP weights
+    /// (2 h_k + h_k-1 on the incoming, h_k + 2 h_k-1 on the outgoing chord), at an end
+    /// the same one-sided 3-point formula. Only vector sums of the points enter, so
+    /// the curve turns and moves with them; the per-coordinate rule's sign tests and
+    /// harmonic means do not commute with a rotation.
+    pub fn rotation_invariant(points: &[Vec3]) -> Result<Self, String> {
+        let mut curve = Self::new(points)?;
+        let velocities = vector_knot_velocities(points, &curve.knots);
+        for c in 0..3 {
+            let values: Vec<f64> = points.iter().map(|p| p[c]).collect();
+            let slopes: Vec<f64> = velocities.iter().map(|v| v[c]).collect();
+            curve.coordinates[c] = Pchip::with_slopes(&curve.knots, &values, &slopes)?;
+        }
+        Ok(curve)
     }
 
     pub fn num_points(&self) -> usize {
@@ -468,5 +521,41 @@ mod tests {
         assert!(curve.sample_by_arclength(-1.0, 1.0, 0.1).unwrap_err().contains("t0 = -1"));
         assert!(curve.sample_by_arclength(0.0, 99.0, 0.1).unwrap_err().contains("t1 = 99"));
         assert!(curve.sample_by_arclength(2.0, 1.0, 0.1).unwrap_err().contains("t0 <= t1"));
+    }
+
+    /// A rotation about an oblique axis and a shift, as a scanner may place the scene.
+    fn move_point(p: Vec3) -> Vec3 {
+        let rotation = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vec3::new(0.3, -0.5, 0.8)), 0.65);
+        rotation * p + Vec3::new(35.0, -180.0, 1200.0)
+    }
+
+    #[test]
+    fn the_vector_rule_turns_with_the_points_and_the_per_coordinate_rule_does_not() {
+        let points = polyline();
+        let moved: Vec<Vec3> = points.iter().map(|&p| move_point(p)).collect();
+        let gap = |a: &PchipCurve3, b: &PchipCurve3| {
+            (0..=40).map(|i| a.total_parameter() * i as f64 / 40.0).map(|t| (move_point(a.eval(t)) - b.eval(t)).norm()).fold(0.0, f64::max)
+        };
+        let (here, there) = (PchipCurve3::rotation_invariant(&points).unwrap(), PchipCurve3::rotation_invariant(&moved).unwrap());
+        assert!(gap(&here, &there) < 1e-9, "{}", gap(&here, &there));
+        // The control: scipy's per-coordinate PCHIP on the same points changes shape.
+        let (here, there) = (PchipCurve3::new(&points).unwrap(), PchipCurve3::new(&moved).unwrap());
+        assert!(gap(&here, &there) > 1e-3, "{}", gap(&here, &there));
+    }
+
+    #[test]
+    fn vector_knot_velocities_follow_the_chords() {
+        // Collinear equal chords: every velocity is the chord direction, the curve the line.
+        let line = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, 2.0, 0.0), Vec3::new(3.0, 3.0, 0.0)];
+        let curve = PchipCurve3::rotation_invariant(&line).unwrap();
+        let direction = Vec3::new(1.0, 1.0, 0.0).normalize();
+        for i in 0..=30 {
+            let t = curve.total_parameter() * i as f64 / 30.0;
+            assert!((curve.derivative(t) - direction).norm() < 1e-12);
+        }
+        // A right-angle corner with chords 1 and 2: PCHIP's weights (2*2+1, 2+2*1) / 9.
+        let corner = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 2.0, 0.0)];
+        let v = PchipCurve3::rotation_invariant(&corner).unwrap().derivative(1.0);
+        assert!((v - Vec3::new(5.0 / 9.0, 4.0 / 9.0, 0.0)).norm() < 1e-12, "{v:?}");
     }
 }

@@ -134,12 +134,13 @@ def phantom_scene(scene):
     return phantom_candidate(scene)
 
 
-def phantom_candidate(scene):
-    """(scene, logic, model node, curve node) of the library's synthetic phantom in `scene`."""
+def phantom_candidate(scene, suture_half_angle_deg=None):
+    """(scene, logic, model node, curve node) of the library's synthetic phantom in `scene`
+    (its suture loop wrapped `suture_half_angle_deg` round the tunnel; None: the default)."""
     import baffle
     from baffle import vtk_adapters
 
-    mesh, points, bsa_m2 = baffle.phantom()
+    mesh, points, bsa_m2 = baffle.phantom(suture_half_angle_deg)
     model = scene.AddNewNodeByClass("vtkMRMLModelNode", "phantom")
     model.SetAndObservePolyData(vtk_adapters.mesh_to_polydata(mesh))
     curve = curve_from_points(scene, points, "phantom BC")
