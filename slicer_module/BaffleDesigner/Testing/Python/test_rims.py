@@ -31,10 +31,13 @@ def test_the_plain_phantom_capped_at_its_rims_designs_as_the_phantom(scene):
     import baffle
 
     reference = baffle.design(mesh.points, mesh.triangles, mesh.labels, points, bsa_m2=bsa)
-    # The caps are cut in on the phantom's own flat rims, and the library remeshes its
-    # input: the same baffle, to rounding.
-    assert result.report["baffle_area_mm2"] == pytest.approx(reference.report["baffle_area_mm2"], rel=1e-9)
-    assert result.report["min_constrained_final_area_mm2"] == pytest.approx(reference.report["min_constrained_final_area_mm2"], rel=1e-9)
+    # The caps are cut in on the phantom's own flat rims and triangulated anew, and the
+    # library remeshes its input: the caps' rims, planes and centroids (all the design reads
+    # of a cap) are the phantom's to rounding, but their triangles are not, so the design's
+    # sums run in another order (CI measured 1.5e-9 relative on the baffle). 1e-6 (0.0002
+    # mm2 here) is still 5000 times below the design's own 0.5 % area margin.
+    assert result.report["baffle_area_mm2"] == pytest.approx(reference.report["baffle_area_mm2"], rel=1e-6)
+    assert result.report["min_constrained_final_area_mm2"] == pytest.approx(reference.report["min_constrained_final_area_mm2"], rel=1e-6)
     # Designing again reuses the capped model; moving a rim makes it again.
     logic.design(curve)
     assert curve.GetNodeReference(bdlogic.REF_RIM_CAPPED) is capped
