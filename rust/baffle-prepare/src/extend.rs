@@ -43,7 +43,7 @@ use crate::polygon2d::{distance_to_polygon_mm, inside_polygon};
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
-use crate::prepare::{cap_report, everywhere, lap_timer, union_within, validate, CapReport, PrepareOptions};
+use crate::prepare::{cap_report, everywhere, lap_timer, union_in_frame, validate, AnatomyFrame, CapReport, PrepareOptions};
 use baffle_core::caps::{cap_flatness, project_caps_onto_planes, CapFlatness, CapProjection};
 use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
@@ -261,15 +261,17 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     // Each part is cut from the union of the two pools its designed cap joins: where
     // the aorta also touches the LV, the union of all three has a handle through
     // both caps' rims, and neither cut then separates its part.
+    // On a grid fixed to the anatomy, so a rigidly moved scene extends the same.
+    let frame = AnatomyFrame::of(pools);
     let margin_mm = options.union.crop_margin_mm;
-    let lv_bounds = part_bounds(domain, &vsd, &pools.lv, &deepest, margin_mm);
+    let lv_bounds = part_bounds(&frame, domain, &vsd, &pools.lv, &deepest, margin_mm);
     let footprint = VsdFootprint::new(domain, &vsd, vsd.plane.signed_distance_mm(&deepest.centroid) + margin_mm);
     let inset_mm = options.union.voxel_mm;
     let beside_rim_below_mm = options.union.closing_radius_mm + options.union.voxel_mm;
     let over_vsd = |q: &Vec3| footprint.joins_lv_part(q, inset_mm, beside_rim_below_mm);
-    let (lv_union, _, _) = union_within(&[(&pools.lv, &everywhere), (&pools.rv, &over_vsd)], &lv_bounds, &options.union)?;
-    let ao_bounds = part_bounds(domain, &annulus, &pools.aorta, &stj, margin_mm);
-    let (ao_union, _, _) = union_within(&[(&pools.rv, &everywhere), (&pools.aorta, &everywhere)], &ao_bounds, &options.union)?;
+    let (lv_union, _, _) = union_in_frame(&frame, &[(&pools.lv, &everywhere), (&pools.rv, &over_vsd)], &lv_bounds, &options.union)?;
+    let ao_bounds = part_bounds(&frame, domain, &annulus, &pools.aorta, &stj, margin_mm);
+    let (ao_union, _, _) = union_in_frame(&frame, &[(&pools.rv, &everywhere), (&pools.aorta, &everywhere)], &ao_bounds, &options.union)?;
     let union_ms = lap();
 
     let edge_mm = options.remesh_edge_mm.unwrap_or_else(|| mean_rim_edge_mm(domain, &[&vsd.rim, &annulus.rim]));
@@ -681,12 +683,12 @@ fn first_maximum(areas: &[f64], window: usize) -> Option<usize> {
     (0..areas.len()).find(|&k| k + window < areas.len() && around(k).iter().all(|&a| a <= areas[k]))
 }
 
-/// The box one part's union must cover: the designed cap's rim and the pool beyond it
-/// up to the far plane (with `margin_mm`), all grown by `margin_mm`.
-fn part_bounds(domain: &TriMesh, cap: &DesignedCap, pool: &TriMesh, far: &Plane, margin_mm: f64) -> Aabb {
+/// The box, in `frame`, one part's union must cover: the designed cap's rim and the pool
+/// beyond it up to the far plane (with `margin_mm`), all grown by `margin_mm`.
+fn part_bounds(frame: &AnatomyFrame, domain: &TriMesh, cap: &DesignedCap, pool: &TriMesh, far: &Plane, margin_mm: f64) -> Aabb {
     let rim = cap.rim.iter().map(|&v| &domain.points[v as usize]);
     let part = pool.points.iter().filter(|p| far.signed_distance_mm(p) <= margin_mm);
-    Aabb::from_points(rim.chain(part)).expanded(margin_mm)
+    frame.bounds_of(rim.chain(part)).expanded(margin_mm)
 }
 
 fn mean_rim_edge_mm(mesh: &TriMesh, rims: &[&Vec<u32>]) -> f64 {

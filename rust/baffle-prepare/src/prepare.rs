@@ -187,10 +187,8 @@ impl AroundRv {
     fn new(pools: &BloodPools, structures: &[Structure; 3], margin_mm: f64, options: &PrepareOptions, timings: &mut PrepareTimings) -> Result<Self, PrepareError> {
         let mut lap = lap_timer();
         let frame = AnatomyFrame::of(pools);
-        let [lv, rv, aorta] = [&pools.lv, &pools.rv, &pools.aorta].map(|m| frame.mesh_to_local(m));
-        let bounds = Aabb::from_points(&rv.points).expanded(margin_mm);
-        let (mut union, grid, voxelize_ms) = union_within(&[(&lv, &everywhere), (&rv, &everywhere), (&aorta, &everywhere)], &bounds, options)?;
-        union.points.iter_mut().for_each(|p| *p = frame.to_world(p));
+        let bounds = frame.bounds_of(&pools.rv.points).expanded(margin_mm);
+        let (union, grid, voxelize_ms) = union_in_frame(&frame, &[(&pools.lv, &everywhere), (&pools.rv, &everywhere), (&pools.aorta, &everywhere)], &bounds, options)?;
         timings.voxelize_ms += voxelize_ms;
         timings.union_surface_ms += lap() - voxelize_ms;
         // Only the RV's neighbourhood can be kept: the rest (and the grid's crop
@@ -238,15 +236,16 @@ impl AroundRv {
 /// centroid, first axis toward the LV's, second toward the aorta's. The grid then turns
 /// and moves with the scene, and a rigidly moved scene gives the same union, loops and
 /// caps moved with it (on an axis-aligned grid p1's caps changed by 3.3 % when the scene
-/// was turned 37 degrees: each rim falls on other voxels).
-struct AnatomyFrame {
+/// was turned 37 degrees: each rim falls on other voxels; `extend`'s parts crossed the
+/// designed domain on p2 so turned).
+pub(crate) struct AnatomyFrame {
     origin: Vec3,
     /// Rows: the frame's axes in the input's coordinates.
     axes: nalgebra::Matrix3<f64>,
 }
 
 impl AnatomyFrame {
-    fn of(pools: &BloodPools) -> Self {
+    pub(crate) fn of(pools: &BloodPools) -> Self {
         let centroid = |m: &TriMesh| m.points.iter().sum::<Vec3>() / m.points.len().max(1) as f64;
         let origin = centroid(&pools.rv);
         let toward_lv = (centroid(&pools.lv) - origin).try_normalize(1e-9).unwrap_or_else(Vec3::x);
@@ -269,6 +268,25 @@ impl AnatomyFrame {
     fn mesh_to_local(&self, mesh: &TriMesh) -> TriMesh {
         TriMesh { points: mesh.points.iter().map(|p| self.to_local(p)).collect(), ..mesh.clone() }
     }
+
+    /// The box, in this frame, around `points` (given in the input's coordinates).
+    pub(crate) fn bounds_of<'a>(&self, points: impl IntoIterator<Item = &'a Vec3>) -> Aabb {
+        Aabb::from_points(points.into_iter().map(|p| self.to_local(p)).collect::<Vec<_>>().iter())
+    }
+}
+
+/// [`union_within`] on a grid laid in `frame`: the pools and their regions in the input's
+/// coordinates, `local_bounds` in the frame's, the union returned in the input's.
+pub(crate) fn union_in_frame(frame: &AnatomyFrame, pools: &[(&TriMesh, Within)], local_bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
+    let local: Vec<TriMesh> = pools.iter().map(|(mesh, _)| frame.mesh_to_local(mesh)).collect();
+    let regions: Vec<Box<dyn Fn(&Vec3) -> bool + Sync>> = pools
+        .iter()
+        .map(|&(_, within)| Box::new(move |q: &Vec3| within(&frame.to_world(q))) as Box<dyn Fn(&Vec3) -> bool + Sync>)
+        .collect();
+    let local_pools: Vec<(&TriMesh, Within)> = local.iter().zip(&regions).map(|(mesh, region)| (mesh, region.as_ref() as Within)).collect();
+    let (mut union, grid, voxelize_ms) = union_within(&local_pools, local_bounds, options)?;
+    union.points.iter_mut().for_each(|p| *p = frame.to_world(p));
+    Ok((union, grid, voxelize_ms))
 }
 
 /// Smallest distance between a rim point of cap `a` and one of cap `b` (mm).
@@ -325,7 +343,7 @@ pub(crate) fn everywhere(_: &Vec3) -> bool {
 /// within `bounds` (mm), made with `options`' voxel, closing and smoothing (the pools
 /// beyond `bounds` are cut off, the cut closed flat at the grid's edge); also its grid
 /// and the voxelizing time (ms).
-pub(crate) fn union_within(pools: &[(&TriMesh, Within)], bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
+fn union_within(pools: &[(&TriMesh, Within)], bounds: &Aabb, options: &PrepareOptions) -> Result<(TriMesh, Grid, f64), PrepareError> {
     let start = Instant::now();
     let grid = union_grid(bounds, options.voxel_mm)?;
     let closing_voxels = (options.closing_radius_mm / options.voxel_mm).round() as usize;

@@ -61,13 +61,19 @@ fn p2_published_domain_extends_subdivided_noisy_smoothed_bowed_and_moved() {
             assert!(why.contains("near ("), "p2 {name}: refused without a place: {why}");
         }
     }
-    for k in [0, 1, 4] {
+    for k in [0, 1, 3, 4, 5] {
         assert!(results[k].is_ok(), "p2 {}: {}", members[k].0, results[k].as_ref().err().unwrap());
+    }
+    // 0.15 mm of noise on 0.34 mm triangles folds the wall beside the VSD rim through the
+    // cap: the input itself crosses itself there, and it is refused as the input's fault.
+    if let Err(why) = &results[2] {
+        assert!(why.contains("designed domain: it crosses itself near ("), "p2 noisy walls: refused for the extension, not its input: {why}");
     }
     // The moved scene gives the same domain, moved: volume and cap areas within 0.5 %.
     if let (Ok(a), Ok(b)) = (&results[0], &results[5]) {
         let (a, b) = (&a.report, &b.report);
         for (what, x, y) in [("volume", a.volume_mm3, b.volume_mm3), ("inflow cap", a.inflow_cap.area_mm2, b.inflow_cap.area_mm2), ("outflow cap", a.outflow_cap.area_mm2, b.outflow_cap.area_mm2)] {
+            eprintln!("p2 moved rigidly: {what} {x:.2} as is, {y:.2} moved ({:+.3} %)", 100.0 * (y / x - 1.0));
             assert!((x / y - 1.0).abs() < 0.005, "{what}: {x:.2} as is, {y:.2} moved");
         }
     }

@@ -13,6 +13,13 @@ use std::f64::consts::PI;
 /// (rad): wedges that merely touch along a ray are neighbours in a flat fan.
 const WEDGE_OVERLAP_TOLERANCE_RAD: f64 = 1e-9;
 
+/// Two segments from a shared corner that should both lie on the planes' common line
+/// and are further from parallel than this (sine of their angle) show planes too near
+/// parallel to have one: a corner snapped by the tolerance moves its segment by about
+/// tolerance / (edge x sine of the planes' angle), under 1e-3 unless the planes are
+/// within about 0.01 deg of each other (for the 1e-7 mm tolerance of a 100 mm scene).
+const COMMON_LINE_SIN_TOLERANCE: f64 = 1e-3;
+
 /// Corner pairs `(corner of first, corner of second)` at the same point.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct SharedCorners {
@@ -240,6 +247,15 @@ fn corner_sharing_triangles_overlap(t1: &[Vec3; 3], t2: &[Vec3; 3], tolerance_mm
     ) else {
         return false;
     };
+    // Both segments lie on the planes' common line, so they are parallel, unless a
+    // corner snapped onto the other plane made its edge the segment while the planes
+    // are too near parallel for a common line (p1's extension: two wedges of a flat
+    // fan 2e-5 deg apart, one corner of each within 1e-7 mm of the other's plane).
+    // Such triangles are coplanar to the tolerance: compare their wedges instead.
+    let sin_between = u1.cross(&u2).norm() / (u1.norm() * u2.norm());
+    if sin_between > COMMON_LINE_SIN_TOLERANCE {
+        return coplanar_wedges_overlap(&v, t1, t2, &n1);
+    }
     u1.dot(&u2) > 0.0
 }
 
@@ -374,6 +390,26 @@ mod tests {
         assert!(!triangles_intersect(&t1, &neighbour, TOL));
         let overlapping = [v(0.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)];
         assert!(triangles_intersect(&t1, &overlapping, TOL));
+    }
+
+    #[test]
+    fn near_coplanar_wedges_of_a_fan_do_not_cross_at_any_tolerance() {
+        // Two wedges of a flat fan in p1's extended domain (mm), 2e-5 deg apart, one
+        // corner of each within 1e-7 mm of the other's plane: at that tolerance the
+        // snapped corners' edges were taken for the common line and the pair for a
+        // crossing, while 0, 1e-9 and 1e-5 mm said apart.
+        let shared = v(38.62943962952906, -118.15786968753523, -133.52430403340153);
+        let t1 = [v(38.56898150925144, -118.19481798384076, -133.99216904745688), shared, v(38.3395286006125, -117.88967949810163, -133.69240710020355)];
+        let t2 = [shared, v(38.532913445302384, -117.95328683793184, -133.04302402995935), v(38.351150302247206, -117.81915062642898, -133.3069010012375)];
+        for tolerance_mm in [0.0, 1e-9, 1e-8, 1e-7, 3e-7, 1e-6, 1e-5, 1e-3] {
+            assert!(!triangles_intersect(&t1, &t2, tolerance_mm), "at {tolerance_mm} mm");
+        }
+        // The same snapping on wedges that do overlap still finds them.
+        let base = [v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0), v(0.0, 2.0, 0.0)];
+        let over = [v(0.0, 0.0, 0.0), v(1.0, 1.0, 0.5e-7), v(-1.0, 1.0, 3e-7)];
+        for tolerance_mm in [1e-7, 1e-5] {
+            assert!(triangles_intersect(&base, &over, tolerance_mm), "at {tolerance_mm} mm");
+        }
     }
 
     #[test]
