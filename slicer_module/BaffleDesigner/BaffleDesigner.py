@@ -195,7 +195,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         """The first-run check with the paths of the settings panel (read now, not once
         at start-up): the package here, the program's subcommands and gmsh on a
         background thread (`baffle ... --help` must not hold up the module panel)."""
-        self.executable = self.ui.programPathLineEdit.text.strip() or bdprocess.find_baffle_executable()
+        self.executable = self.ui.programPathLineEdit.text.strip() or bdenvironment.find_baffle_executable()
         self.logic.executable = self.executable
         self.logic.child_env = childEnvironment(self.ui.gmshPathLineEdit.text.strip())
         self.packageProblem = bdenvironment.package_problem()
@@ -1021,7 +1021,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         if folder is None:
             self.delayDisplay("Segmentation test SKIPPED: no patient data (set BAFFLE_DATA_DIR)")
             return
-        executable = bdprocess.find_baffle_executable()
+        executable = bdenvironment.find_baffle_executable()
         available, reason = bdprocess.subcommand_availability(executable, "prepare")
         if not (available and os.path.exists(os.path.join(folder, "LV.vtp"))):
             self.delayDisplay(f"Segmentation test skipped: {reason or 'no patient data at ' + folder}")
@@ -1069,7 +1069,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         return job.state
 
     def test_phantom_simulate_cancel_and_errors(self):
-        executable = bdprocess.find_baffle_executable()
+        executable = bdenvironment.find_baffle_executable()
         available, reason = bdprocess.simulate_availability(executable)
         if available:
             available, reason = bdenvironment.gmsh_availability(childEnvironment())

@@ -679,7 +679,7 @@ class BaffleDesignerLogic:
         from BaffleDesignerLib import prepare
 
         if executable is None:
-            executable = self.executable or process.find_baffle_executable()
+            executable = self.executable or environment.find_baffle_executable()
         if work_dir is None:
             work_dir = tempfile.mkdtemp(prefix="BaffleDesigner-prepare-", dir=self.work_root)
         job = prepare.PrepareJob(self, curve, executable, work_dir, self.child_env if env is None else env).start()

@@ -13,7 +13,7 @@ import vtk
 from vtkmodules.util import numpy_support
 
 from conftest import bdlogic, column, has_subcommand, phantom_candidate, slicer
-from BaffleDesignerLib import process, simulation
+from BaffleDesignerLib import environment, process, simulation
 
 SIMULATION_REFS = (
     bdlogic.REF_SIM_SUMMARY, bdlogic.REF_SIM_FIELDS, bdlogic.REF_SIM_SERIES_TABLE, bdlogic.REF_SIM_CHART,
@@ -232,7 +232,7 @@ def test_cancelling_a_running_simulation_keeps_the_earlier_results(simulated, tm
     parameters = logic.parameters(curve)
     parameters.flow_mode = "pulsatile"  # 4 cycles: far longer than the test waits
     logic.setParameters(curve, parameters)
-    job = logic.startSimulation(curve, process.find_baffle_executable(), str(tmp_path))
+    job = logic.startSimulation(curve, environment.find_baffle_executable(), str(tmp_path))
     deadline = time.monotonic() + 90
     while job.poll() == process.RUNNING and not (job.stage == simulation.SIMULATE_STAGE and job.progress > 0):
         assert time.monotonic() < deadline, f"no simulation progress: {job.stage}, {job.message}"
@@ -293,7 +293,7 @@ def test_the_child_processes_get_the_given_environment(phantom_scene, executable
 def test_simulation_cannot_start_without_program_or_design(phantom_scene, tmp_path):
     scene, logic, model, curve = phantom_scene
     with pytest.raises(bdlogic.BaffleDesignerError, match="design the baffle first"):
-        logic.startSimulation(curve, process.find_baffle_executable() or "/bin/true", str(tmp_path))
+        logic.startSimulation(curve, environment.find_baffle_executable() or "/bin/true", str(tmp_path))
     logic.design(curve)
     node_count = scene.GetNumberOfNodes()
     with pytest.raises(bdlogic.BaffleDesignerError, match="baffle command line program was not found"):
