@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Runs every test of the project: Rust (cargo test + the design and solver benchmarks' smoke modes, a 20 s fuzz run, one pass of the kernel bench),
+# the check that no crate or Python package has an import cycle between its modules,
 # the C/C++/VTK integration tests (CMake + ctest, incl. valgrind) and the Python
 # package's tests (pip install ./python + pytest) and the 3D Slicer module's tests on
 # slicer-core (scripts/test_slicer.sh). Exits non-zero on any failure.
@@ -15,6 +16,10 @@ step() { printf '\n==> %s\n' "$*"; }
 
 step "cargo test --workspace --release"
 cargo test --workspace --release
+
+step "no import cycles (scripts/check_import_cycles.py)"
+"$python" scripts/check_import_cycles.py --self-test
+"$python" scripts/check_import_cycles.py
 
 if [[ -f rust/baffle-cli/benches/design.rs ]]; then
   step "cargo bench -p baffle-cli --bench design -- --smoke"

@@ -21,6 +21,7 @@ from slicer.ScriptedLoadableModule import (
 )
 from slicer.util import VTKObservationMixin
 
+from BaffleDesignerLib import candidate as bdcandidate
 from BaffleDesignerLib import environment as bdenvironment
 from BaffleDesignerLib import logic as bdlogic
 from BaffleDesignerLib import prepare as bdprepare
@@ -57,7 +58,7 @@ baffle library (Rust, C ABI), shipped with this extension.
 
 # Target modes in the order of the UI's targetModeComboBox, flow modes in flowModeComboBox's.
 TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
-FLOW_MODES = bdlogic.FLOW_MODES
+FLOW_MODES = bdcandidate.FLOW_MODES
 SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 PREPARE = "prepare"
@@ -195,7 +196,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         """The first-run check with the paths of the settings panel (read now, not once
         at start-up): the package here, the program's subcommands and gmsh on a
         background thread (`baffle ... --help` must not hold up the module panel)."""
-        self.executable = self.ui.programPathLineEdit.text.strip() or bdprocess.find_baffle_executable()
+        self.executable = self.ui.programPathLineEdit.text.strip() or bdenvironment.find_baffle_executable()
         self.logic.executable = self.executable
         self.logic.child_env = childEnvironment(self.ui.gmshPathLineEdit.text.strip())
         self.packageProblem = bdenvironment.package_problem()
@@ -834,7 +835,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             return
         self.setStatus(f"{curve.GetName()}: {job.message}")  # the results, or why they were not loaded
         if state == bdprocess.COMPLETED:
-            self.showOutputs(curve, bdlogic.REF_SIM_CHART, bdlogic.REF_SIM_SUMMARY)
+            self.showOutputs(curve, bdcandidate.REF_SIM_CHART, bdcandidate.REF_SIM_SUMMARY)
 
     def reportPrepareEnd(self, job, state):
         """The prepared ventricle is loaded: design on it; else say why not."""
@@ -1021,7 +1022,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         if folder is None:
             self.delayDisplay("Segmentation test SKIPPED: no patient data (set BAFFLE_DATA_DIR)")
             return
-        executable = bdprocess.find_baffle_executable()
+        executable = bdenvironment.find_baffle_executable()
         available, reason = bdprocess.subcommand_availability(executable, "prepare")
         if not (available and os.path.exists(os.path.join(folder, "LV.vtp"))):
             self.delayDisplay(f"Segmentation test skipped: {reason or 'no patient data at ' + folder}")
@@ -1043,7 +1044,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.assertTrue(logic.needsPrepare(curve))
         job = logic.startPrepare(curve)
         self.assertEqual(self._waitFor(job, 300), bdprocess.COMPLETED, job.message)
-        prepared = curve.GetNodeReference(bdlogic.REF_PREPARED).GetPolyData()
+        prepared = curve.GetNodeReference(bdcandidate.REF_PREPARED).GetPolyData()
         labels = prepared.GetCellData().GetArray("ModelFaceID")
         self.assertEqual({int(labels.GetValue(i)) for i in range(labels.GetNumberOfTuples())}, {2, 11, 16})
         published = slicer.util.loadModel(self._patientFolder("design_input", "capped_ventricle.vtp"))  # RAS too
@@ -1069,7 +1070,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         return job.state
 
     def test_phantom_simulate_cancel_and_errors(self):
-        executable = bdprocess.find_baffle_executable()
+        executable = bdenvironment.find_baffle_executable()
         available, reason = bdprocess.simulate_availability(executable)
         if available:
             available, reason = bdenvironment.gmsh_availability(childEnvironment())
@@ -1088,7 +1089,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
 
         job = self._startSimulation(logic, curve, executable)
         self.assertEqual(self._waitFor(job, 120), bdprocess.COMPLETED, job.message)
-        summary = curve.GetNodeReference(bdlogic.REF_SIM_SUMMARY)
+        summary = curve.GetNodeReference(bdcandidate.REF_SIM_SUMMARY)
         quantities = summary.GetTable().GetColumnByName("Quantity")
         values = summary.GetTable().GetColumnByName("Value")
         figures = {quantities.GetValue(i): values.GetValue(i) for i in range(summary.GetNumberOfRows())}
@@ -1097,17 +1098,17 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         with open(os.path.join(job.out_dir, "summary.json"), encoding="utf-8") as handle:
             doubts = json.load(handle)["doubts"]
         self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationVerdict"), bdsimulation.verdict(dp, doubts))
-        fields = curve.GetNodeReference(bdlogic.REF_SIM_FIELDS)
+        fields = curve.GetNodeReference(bdcandidate.REF_SIM_FIELDS)
         reader = vtk.vtkXMLUnstructuredGridReader()
         reader.SetFileName(os.path.join(job.work_dir, "volume.vtu"))
         reader.Update()
         self.assertEqual(fields.GetMesh().GetNumberOfPoints(), reader.GetOutput().GetNumberOfPoints())
         for name in ("velocity_m_s", "speed_m_s", "pressure_mmhg"):
             self.assertIsNotNone(fields.GetMesh().GetPointData().GetArray(name), name)
-        series = curve.GetNodeReference(bdlogic.REF_SIM_SERIES_TABLE)
+        series = curve.GetNodeReference(bdcandidate.REF_SIM_SERIES_TABLE)
         self.assertGreater(series.GetNumberOfRows(), 0)
-        self.assertEqual(curve.GetNodeReference(bdlogic.REF_SIM_CHART).GetNumberOfPlotSeriesNodes(), 2)
-        slicer.modules.plots.logic().ShowChartInLayout(curve.GetNodeReference(bdlogic.REF_SIM_CHART))
+        self.assertEqual(curve.GetNodeReference(bdcandidate.REF_SIM_CHART).GetNumberOfPlotSeriesNodes(), 2)
+        slicer.modules.plots.logic().ShowChartInLayout(curve.GetNodeReference(bdcandidate.REF_SIM_CHART))
         compare = logic.updateCompareTable()
         self.assertAlmostEqual(compare.GetTable().GetColumnByName("dp").GetValue(0), dp, places=6)
 
@@ -1115,7 +1116,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         parameters = logic.parameters(curve)
         parameters.flow_mode = "pulsatile"
         logic.setParameters(curve, parameters)
-        roles = (bdlogic.REF_SIM_SUMMARY, bdlogic.REF_SIM_FIELDS, bdlogic.REF_SIM_SERIES_TABLE, bdlogic.REF_SIM_CHART)
+        roles = (bdcandidate.REF_SIM_SUMMARY, bdcandidate.REF_SIM_FIELDS, bdcandidate.REF_SIM_SERIES_TABLE, bdcandidate.REF_SIM_CHART)
         before = [curve.GetNodeReferenceID(role) for role in roles]
         job = self._startSimulation(logic, curve, executable)
         self._waitFor(job, 90, until=lambda: job.stage == bdsimulation.SIMULATE_STAGE and job.progress > 0)

@@ -151,8 +151,8 @@ pub const PRESSURE_ARRAY: &str = "pressure_mmhg";
 /// dyn/cm^2) as a VTK XML UnstructuredGrid (ASCII) in mm, m/s and mmHg: points (mm),
 /// linear tetrahedra, point arrays `velocity_m_s` (3 components), `speed_m_s` and
 /// `pressure_mmhg` (the solver's pressure, whose zero is the resistance outlet's
-/// downstream pressure). Atomic: written to a temporary name in the same directory,
-/// synced, then renamed, so a reader never sees a partial file.
+/// downstream pressure). Atomic (`baffle_core::io::write_atomic_with`): a reader never
+/// sees a partial file.
 pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]], velocity_cm_s: &[[f64; 3]], pressure_dyn_cm2: &[f64]) -> Result<(), CfdError> {
     use crate::hemodynamics::DYN_CM2_PER_MMHG;
     use std::io::Write;
@@ -160,10 +160,10 @@ pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]]
         let msg = format!("{} velocities and {} pressures for {} points", velocity_cm_s.len(), pressure_dyn_cm2.len(), points_cm.len());
         return Err(io_err(path, msg));
     }
-    let name = path.file_name().ok_or_else(|| io_err(path, "no file name"))?.to_string_lossy().into_owned();
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let write = || -> std::io::Result<()> {
-        let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+    if path.file_name().is_none() {
+        return Err(io_err(path, "no file name"));
+    }
+    let write = |w: &mut std::io::BufWriter<std::fs::File>| -> std::io::Result<()> {
         writeln!(w, r#"<?xml version="1.0"?>"#)?;
         writeln!(w, r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#)?;
         writeln!(w, "<UnstructuredGrid>")?;
@@ -203,15 +203,9 @@ pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]]
         for _ in tets {
             writeln!(w, "10")?;
         }
-        writeln!(w, "</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>")?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
+        writeln!(w, "</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>")
     };
-    write().map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io_err(path, format!("cannot write: {e}"))
-    })
+    baffle_core::io::write_atomic_with(path, write).map_err(|e| io_err(path, format!("cannot write: {e}")))
 }
 
 #[cfg(test)]

@@ -125,12 +125,32 @@ pub struct DesignReport {
     /// With the flow-section rule only (`crate::flow_target`): the target applied to the
     /// tunnel's sections normal to the flow, and the design rounds that met it.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub flow_sections: Option<crate::flow_target::FlowSections>,
+    pub flow_sections: Option<FlowSections>,
     /// dp at peak flow and the peak velocity from the reduced-order model
     /// (`crate::hemodynamics_estimate`), or why there is none; filled in by the front end
     /// that knows the patient's flow (`baffle design --peak-flow-ml-s`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hemodynamics_estimate: Option<crate::hemodynamics_estimate::EstimateOutcome>,
+}
+
+/// One design round: the target it was run at and the flow-normal section it gave.
+#[derive(Clone, Debug, Serialize)]
+pub struct FlowRound {
+    pub design_target_mm2: f64,
+    pub min_flow_section_mm2: f64,
+    /// Arc length of that section along the flow-domain centerline, from the VSD plane.
+    pub min_flow_section_at_mm: f64,
+}
+
+/// What the flow-section rule (`crate::flow_target`) did: the requested area, whether the
+/// last round met it, every round, and why it stopped short when it did.
+#[derive(Clone, Debug, Serialize)]
+pub struct FlowSections {
+    pub goal_area_mm2: f64,
+    pub met: bool,
+    pub rounds: Vec<FlowRound>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped_because: Option<String>,
 }
 
 /// Everything the design produces.

@@ -257,7 +257,7 @@ pub fn flow_normal_sections(boundary: &TriMesh, points: &[Vec3], planes: &[Measu
             if planes.iter().any(|p| p.is_crossed_by(points[k], tangent)) {
                 return None;
             }
-            crate::rv_outflow::section_area(boundary, None, points[k], tangent)
+            crate::plane_section::section_area(boundary, None, points[k], tangent)
         })
         .collect()
 }

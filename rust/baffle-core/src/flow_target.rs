@@ -10,11 +10,13 @@
 //! secant through the last two rounds.
 
 use crate::design::{design, DesignOptions, DesignResult, Progress};
+// The rule's record is part of the design's report; it lives there so the report does not
+// depend on this module (which runs the design).
+pub use crate::design::{FlowRound, FlowSections};
 use crate::error::DesignError;
 use crate::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, Lumen};
 use crate::mesh::{FaceLabels, TriMesh};
 use crate::target::TargetArea;
-use serde::Serialize;
 
 /// The requested area is met when the smallest flow-normal section is within this fraction of it.
 pub const FLOW_TARGET_TOLERANCE: f64 = 0.005;
@@ -27,26 +29,6 @@ pub const MAX_TARGET_RAISE: f64 = 2.0;
 /// Rounds stop when the flow's narrowest section grows by less than this fraction of the
 /// design target's raise: there the baffle does not bound it (p3 grew by 0.05).
 pub const MIN_SECTION_RESPONSE: f64 = 0.02;
-
-/// One design round: the target it was run at and the flow-normal section it gave.
-#[derive(Clone, Debug, Serialize)]
-pub struct FlowRound {
-    pub design_target_mm2: f64,
-    pub min_flow_section_mm2: f64,
-    /// Arc length of that section along the flow-domain centerline, from the VSD plane.
-    pub min_flow_section_at_mm: f64,
-}
-
-/// What the rule did: the requested area, whether the last round met it, every round,
-/// and why it stopped short when it did.
-#[derive(Clone, Debug, Serialize)]
-pub struct FlowSections {
-    pub goal_area_mm2: f64,
-    pub met: bool,
-    pub rounds: Vec<FlowRound>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub stopped_because: Option<String>,
-}
 
 /// The smallest section of a designed domain normal to its flow-domain centerline (between
 /// its VSD and aortic caps), and where it lies (mm2, mm from the VSD plane).

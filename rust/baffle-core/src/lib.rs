@@ -16,6 +16,7 @@ pub mod numerics;
 pub mod target;
 pub mod phantom;
 pub mod phantom_family;
+pub mod plane_section;
 pub mod caps;
 pub mod self_check;
 pub mod remesh;

@@ -64,6 +64,5 @@ fn closed_polyline(points: &[Vec3]) -> PolyData {
 
 fn write_report(path: &Path, result: &DesignResult) -> Result<(), IoError> {
     let text = serde_json::to_string_pretty(&result.report).map_err(|e| IoError::new(path, IoErrorKind::Malformed(e.to_string())))?;
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, path)).map_err(|e| IoError::new(path, IoErrorKind::Os(e)))
+    crate::io::write_atomic(path, text.as_bytes()).map_err(|e| IoError::new(path, IoErrorKind::Os(e)))
 }

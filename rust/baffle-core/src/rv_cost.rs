@@ -14,15 +14,12 @@
 //! The kept wall is remeshed (0.85 mm), so its volume changes by about the sagitta of
 //! an edge times the wall area (~0.01 mL on p2), below the figures' last digit.
 
-use crate::mesh::{TriMesh, Vec3};
+use crate::mesh::TriMesh;
 use crate::rv_outflow::RvOutflow;
-use crate::spatial::{Aabb, TriangleBvh};
+use crate::spatial::{is_outside, TriangleBvh};
 use serde::Serialize;
 
 const MM3_PER_ML: f64 = 1000.0;
-/// A nearest point whose barycentric weight for a corner is at most this lies on the
-/// opposite edge (or, with two such weights, at a corner).
-const FEATURE_WEIGHT: f64 = 1e-9;
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RvCost {
@@ -64,53 +61,10 @@ pub fn rv_cost(ventricle: &TriMesh, bvh: &TriangleBvh, domain: &TriMesh, baffle:
     }
 }
 
-/// Outside a closed outward surface: on the outer side of the angle-weighted pseudo-normal
-/// at the nearest point (Baerentzen and Aanaes 2005), which decides correctly whether that
-/// point is inside a triangle, on an edge or at a corner (a single triangle's side does
-/// not, where the surface folds between neighbours).
-pub fn is_outside(surface: &TriMesh, bvh: &TriangleBvh, q: Vec3) -> bool {
-    let Some(hit) = bvh.closest_point(surface, q) else {
-        return false;
-    };
-    let t = hit.triangle as usize;
-    let corners = surface.triangles[t];
-    let feature: Vec<u32> = (0..3).filter(|&k| hit.barycentric[k] > FEATURE_WEIGHT).map(|k| corners[k]).collect();
-    let normal = match feature.len() {
-        3 => surface.triangle_normal2(t),
-        _ => pseudo_normal(surface, bvh, &feature),
-    };
-    (q - hit.point).dot(&normal) > 0.0
-}
-
-/// Sum of the unit normals of the triangles holding every vertex of `feature` (an edge:
-/// its two triangles; a vertex: its fan, each weighted by its angle there).
-fn pseudo_normal(surface: &TriMesh, bvh: &TriangleBvh, feature: &[u32]) -> Vec3 {
-    let at = surface.points[feature[0] as usize];
-    let mut sum = Vec3::zeros();
-    bvh.triangles_overlapping_box(surface, &Aabb::from_points([&at]), |t| {
-        let corners = surface.triangles[t as usize];
-        if !feature.iter().all(|v| corners.contains(v)) {
-            return;
-        }
-        let unit = surface.triangle_normal2(t as usize).normalize();
-        let weight = match feature {
-            [v] => {
-                let k = corners.iter().position(|c| c == v).unwrap_or(0);
-                let [a, b, c] = [k, (k + 1) % 3, (k + 2) % 3].map(|i| surface.points[corners[i] as usize]);
-                (b - a).angle(&(c - a))
-            }
-            _ => 1.0,
-        };
-        if unit.iter().all(|x| x.is_finite()) {
-            sum += weight * unit;
-        }
-    });
-    sum
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::Vec3;
     use crate::phantom::phantom_default;
     use crate::{design, DesignOptions, TargetArea};
 

@@ -11,6 +11,7 @@
 //!   `tet_radius_ratio`).
 //! - dihedral angles between the faces at each of the 6 edges.
 
+pub use crate::tetmesh::longest_edge_mm;
 use crate::tetmesh::TetMesh;
 use baffle_core::Vec3;
 
@@ -72,11 +73,6 @@ pub fn dihedral_range_deg(p: &[Vec3; 4]) -> (f64, f64) {
         }
     }
     range
-}
-
-/// The tet's longest edge (mm).
-pub fn longest_edge_mm(p: &[Vec3; 4]) -> f64 {
-    edge_vectors(p).iter().map(|v| v.norm()).fold(0.0, f64::max)
 }
 
 /// Edge vectors in Verdict's order: p1-p0, p2-p1, p0-p2, p3-p0, p3-p1, p3-p2.

@@ -35,6 +35,11 @@ pub fn tet_signed_volume_mm3(p: &[Vec3; 4]) -> f64 {
     (p[1] - p[0]).dot(&(p[2] - p[0]).cross(&(p[3] - p[0]))) / 6.0
 }
 
+/// The tet's longest edge (mm).
+pub fn longest_edge_mm(p: &[Vec3; 4]) -> f64 {
+    [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)].iter().map(|&(a, b)| (p[b] - p[a]).norm()).fold(0.0, f64::max)
+}
+
 /// The four faces of a tet, each wound outward for a positively oriented tet; face `k`
 /// is opposite corner `k`.
 pub fn tet_faces(t: &[u32; 4]) -> [[u32; 3]; 4] {
@@ -147,7 +152,7 @@ impl TetMesh {
                 let kind = if v < 0.0 { "inverted" } else { "not finite" };
                 return Err(MeshError::InvalidMesh(format!("tet {t} {:?} is {kind}: signed volume {v:e} mm^3", self.tets[t])));
             }
-            let longest_mm = crate::quality::longest_edge_mm(&p);
+            let longest_mm = longest_edge_mm(&p);
             if v <= DEGENERATE_VOLUME_RATIO * longest_mm.powi(3) {
                 let centre = p.iter().sum::<Vec3>() / 4.0;
                 return Err(MeshError::DegenerateTet(format!(

@@ -6,7 +6,7 @@ use crate::tetmesh::{tet_signed_volume_mm3, FaceSet, TetMesh};
 use baffle_core::io::{read_polydata, write_vtp, ArrayValues, DataArray, PolyData, MODEL_FACE_ID};
 use baffle_core::Vec3;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use vtkio::model::{
     Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, Piece,
     UnstructuredGridPiece, Version, VertexNumbers, Vtk,
@@ -26,7 +26,7 @@ pub struct VtuData {
 }
 
 /// Write `mesh`'s points and tets as `.vtu` (vtkio; Float64 points), with the given
-/// arrays (one tuple per point / per tet). Written via `<path>.tmp.vtu` and renamed.
+/// arrays (one tuple per point / per tet). Written atomically (`baffle_core::io::write_atomic`).
 pub fn write_vtu(
     path: &Path,
     mesh: &TetMesh,
@@ -64,7 +64,7 @@ pub fn write_vtu(
     let mut bytes = Vec::new();
     vtk.write_xml(&mut bytes)
         .map_err(|e| MeshError::file(path, format!("vtkio could not write it: {e}")))?;
-    write_atomic(path, &bytes)
+    baffle_core::io::write_atomic(path, &bytes).map_err(|e| MeshError::file(path, e.to_string()))
 }
 
 fn check_arrays(
@@ -98,18 +98,6 @@ fn to_attribute(a: &DataArray) -> Attribute {
                 .with_data(IOBuffer::F64(values.clone()))
         }
     }
-}
-
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes)
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            MeshError::file(path, e.to_string())
-        })
 }
 
 /// Write the face sets as one `.vtp` in SimVascular style: the used points with point

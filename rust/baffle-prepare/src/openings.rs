@@ -4,8 +4,7 @@
 //! (the zero level of the signed distance to `b`, traced on `a`'s triangles) is the rim
 //! of the opening between them; the flat disc it spans is the opening a cap must close.
 
-use baffle_core::rv_cost::is_outside;
-use baffle_core::spatial::{closest_point_on_segment, TriangleBvh};
+use baffle_core::spatial::{closest_point_on_segment, is_outside, TriangleBvh};
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;

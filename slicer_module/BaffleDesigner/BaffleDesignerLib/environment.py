@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
+from BaffleDesignerLib import process
+
 # The subcommands of the `baffle` program the module runs, and what each is for.
 SUBCOMMANDS = {
     "prepare": "Segmentation input (baffle prepare)",
@@ -104,13 +106,28 @@ def child_environment(base: Optional[dict] = None) -> dict:
     return env
 
 
+def find_baffle_executable() -> Optional[str]:
+    """$BAFFLE_EXECUTABLE, else the packaged extension's program (baffle/bin beside the
+    module), else `baffle` on PATH, else a development tree's cargo build
+    (slicer_module/BaffleDesigner/BaffleDesignerLib -> ../../../target/release/baffle)."""
+    given = os.environ.get("BAFFLE_EXECUTABLE")
+    if given:
+        return given
+    packaged = packaged_executable()
+    if packaged is not None:
+        return str(packaged)
+    on_path = shutil.which("baffle")
+    if on_path:
+        return on_path
+    built = Path(__file__).resolve().parents[3] / "target" / "release" / executable_name()
+    return str(built) if built.exists() else None
+
+
 def gmsh_availability(env: Optional[dict] = None, timeout: float = 20.0) -> Tuple[bool, str]:
     """Whether `baffle mesh`, started with `env`, finds a working gmsh, looked up in its
     order (baffle-mesh, gmsh.rs): $BAFFLE_GMSH, else `gmsh` on PATH, else the gmsh wheel
     in python_interpreter(env) ($BAFFLE_PYTHON, which baffle mesh reads too). (True, "")
     or (False, what to do)."""
-    from BaffleDesignerLib import process  # it imports this module
-
     env = dict(os.environ if env is None else env)
     if env.get("BAFFLE_GMSH"):
         candidates = [[env["BAFFLE_GMSH"], "--version"]]

@@ -16,11 +16,9 @@ and output nodes are node references ("BaffleDesigner*"). One scene can therefor
 several candidate baffles, one per closed curve.
 """
 
-import contextlib
 import math
 import threading
 import time
-from dataclasses import dataclass, fields
 from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -28,53 +26,20 @@ import slicer
 import vtk
 from vtkmodules.util import numpy_support
 
-from BaffleDesignerLib import environment, process
+from BaffleDesignerLib import environment, prepare, process, rims, simulation
+from BaffleDesignerLib.candidate import (  # the candidate's scene names, parameters and errors (logic.X still works)
+    ATTRIBUTE_PREFIX, BaffleDesignerError, CANDIDATE_ATTRIBUTE, DesignCancelled, DesignParameters,
+    FOLDER_ATTRIBUTE, FOLDER_SUFFIX, OUTPUT_ROLES, REF_AORTIC_RIM, REF_BAFFLE, REF_CENTERLINE, REF_CHART,
+    REF_DOMAIN, REF_FLAT_TEMPLATE, REF_RIM_CAPPED, REF_SECTIONS, REF_SERIES_FINAL, REF_SERIES_RAW,
+    REF_SERIES_TARGET, REF_SURFACE, REF_TABLE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_VSD_RIM,
+    ROLE_ATTRIBUTE, batched_modify, check_curve, read_written_file, vtk_double_array,
+)
 
 MODULE_NAME = "BaffleDesigner"
 BAFFLE_PLANNER = "BafflePlanner"  # SlicerHeart's module: its parameter node names the curve
 PARAM_INPUT_CURVE = "InputCurve"  # the parameter node reference, as BafflePlanner names it
 PARAM_VENTRICLE = "Ventricle"
 BAFFLE_PLANNER_MODEL_REF = "BaffleModel"  # BafflePlanner's baffle, referenced by its curve
-ATTRIBUTE_PREFIX = "BaffleDesigner."
-CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
-ROLE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Role"
-
-# Node reference roles on the suture curve node.
-REF_SURFACE = "BaffleDesignerSurface"
-REF_BAFFLE = "BaffleDesignerBaffleModel"
-REF_DOMAIN = "BaffleDesignerDomainModel"
-REF_CENTERLINE = "BaffleDesignerCenterline"
-REF_SECTIONS = "BaffleDesignerSectionsModel"
-REF_TABLE = "BaffleDesignerSectionsTable"
-REF_CHART = "BaffleDesignerAreaChart"
-REF_SERIES_FINAL = "BaffleDesignerSeriesFinalArea"
-REF_SERIES_RAW = "BaffleDesignerSeriesRawArea"
-REF_SERIES_TARGET = "BaffleDesignerSeriesTarget"
-REF_PREPARED = "BaffleDesignerPreparedVentricle"  # capped ventricle made from a segmentation
-REF_FLAT_TEMPLATE = "BaffleDesignerFlatTemplate"  # the baffle flattened at true scale
-REF_VOLUME_MESH = "BaffleDesignerVolumeMesh"
-# A plain RV model (no ModelFaceID, as BafflePlanner's) with the rims the user marks on it.
-REF_VSD_RIM = "BaffleDesignerVsdRim"
-REF_AORTIC_RIM = "BaffleDesignerAorticRim"
-REF_RIM_CAPPED = "BaffleDesignerRimCappedVentricle"  # the capped ventricle made from them
-REF_VOLUME_MESH_QUALITY = "BaffleDesignerVolumeMeshQuality"
-# Simulation results (BaffleDesignerLib.simulation).
-REF_SIM_SUMMARY = "BaffleDesignerSimulationSummary"
-REF_SIM_FIELDS = "BaffleDesignerSimulationFields"
-REF_SIM_SERIES_TABLE = "BaffleDesignerSimulationTimeSeries"
-REF_SIM_CHART = "BaffleDesignerSimulationChart"
-REF_SIM_SERIES_DP = "BaffleDesignerSeriesPressureDifference"
-REF_SIM_SERIES_FLOW = "BaffleDesignerSeriesInflow"
-REF_SIM_SECTION = "BaffleDesignerSimulationSection"  # the peak fields on a cross-section
-
-# The roles of a candidate's outputs: they go with their curve.
-OUTPUT_ROLES = (
-    REF_BAFFLE, REF_DOMAIN, REF_CENTERLINE, REF_SECTIONS, REF_TABLE, REF_CHART, REF_SERIES_FINAL, REF_SERIES_RAW,
-    REF_SERIES_TARGET, REF_PREPARED, REF_RIM_CAPPED, REF_FLAT_TEMPLATE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_SIM_SUMMARY,
-    REF_SIM_FIELDS, REF_SIM_SECTION, REF_SIM_SERIES_TABLE, REF_SIM_CHART, REF_SIM_SERIES_DP, REF_SIM_SERIES_FLOW,
-)
-FOLDER_ATTRIBUTE = ATTRIBUTE_PREFIX + "CandidateCurve"  # on a candidate's subject hierarchy folder
-FOLDER_SUFFIX = " BaffleDesigner"  # the folder is named after the curve
 
 # What a `baffle plan --out DIR` run leaves that the scene can show: (file under DIR, name).
 PLAN_GEOMETRY = (
@@ -85,12 +50,6 @@ PLAN_GEOMETRY = (
     ("centerline/centerline.vtp", "flow centerline"),
 )
 
-TARGET_MODES = ("bsa", "height_weight", "area", "diameter")
-# "quick": pulsatile from rest to the first flow peak (`baffle simulate --quick`; within
-# 0.6 % of the 4-cycle peak dp on p2 and p3's extended domains), the default;
-# "steady": flow held at Q_peak (does not always converge: then inconclusive);
-# "pulsatile": the paper's transient run over cardiac cycles.
-FLOW_MODES = ("quick", "steady", "pulsatile")
 
 # Section table columns (name, unit, description).
 COL_S = "s"
@@ -110,14 +69,6 @@ SECTION_COLUMNS = (
 )
 
 
-class BaffleDesignerError(RuntimeError):
-    """An error to show the user; str() carries the library's message where there is one."""
-
-
-class DesignCancelled(BaffleDesignerError):
-    """The design was cancelled (Cancel, or a progress callback that returned False)."""
-
-
 def library():
     """(baffle, baffle.vtk_adapters), imported on first use: the module must load, and its
     first-run check say what is missing, in a Slicer whose Python lacks the package."""
@@ -127,127 +78,6 @@ def library():
     except ImportError as error:
         raise BaffleDesignerError(f"the baffle Python package cannot be imported ({error}). {environment.install_hint()}") from error
     return baffle, vtk_adapters
-
-
-@dataclass
-class DesignParameters:
-    """Target area and CFD conditions of one candidate, stored as curve node attributes.
-
-    target_mode: "bsa" (BSA + z-score, Boston aortic annulus), "height_weight" (Haycock
-    BSA + z-score), "area" (explicit mm2) or "diameter" (explicit annulus diameter mm).
-    The CFD step uses the blood pressure, heart rate, cardiac index (CO = BSA x CI), the
-    flow mode (FLOW_MODES) and the volume mesh edge length; its BSA is bsa_m2, or the
-    Haycock BSA in the height_weight mode. When the ventricle is a segmentation node,
-    lv_segment / rv_segment / aorta_segment name its segments (case-insensitive) that
-    `baffle prepare` joins into the capped ventricle."""
-
-    target_mode: str = "bsa"
-    bsa_m2: float = 0.37
-    height_cm: float = 60.0
-    weight_kg: float = 6.0
-    z_score: float = 0.0
-    target_area_mm2: float = 70.0
-    annulus_diameter_mm: float = 9.4
-    systolic_mmhg: float = 80.0
-    diastolic_mmhg: float = 45.0
-    heart_rate_bpm: float = 120.0
-    cardiac_index_l_min_m2: float = 3.48  # the paper's normal cardiac index
-    flow_mode: str = "quick"
-    mesh_edge_length_mm: float = 1.25  # the coarsest of the paper's meshes (1.25 / 0.95 / 0.75)
-    lv_segment: str = "LV"
-    rv_segment: str = "RV"
-    aorta_segment: str = "aorta"
-
-    def validate(self) -> None:
-        if self.target_mode not in TARGET_MODES:
-            raise BaffleDesignerError(f"target mode must be one of {', '.join(TARGET_MODES)}, not {self.target_mode!r}")
-        positive = {
-            "bsa": ("bsa_m2",),
-            "height_weight": ("height_cm", "weight_kg"),
-            "area": ("target_area_mm2",),
-            "diameter": ("annulus_diameter_mm",),
-        }[self.target_mode]
-        for name in positive:
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise BaffleDesignerError(f"{name} must be a positive number, not {value}")
-        if not math.isfinite(self.z_score):
-            raise BaffleDesignerError("z_score must be a finite number")
-        for name in ("lv_segment", "rv_segment", "aorta_segment"):
-            if not getattr(self, name).strip():
-                raise BaffleDesignerError(f"{name} must name a segment")
-
-    def cfd_bsa_m2(self) -> float:
-        """The BSA the flow is scaled with: Haycock's from height and weight in that mode
-        (the library's target.rs formula), else bsa_m2."""
-        if self.target_mode == "height_weight":
-            return 0.024265 * self.weight_kg**0.5378 * self.height_cm**0.3964
-        return self.bsa_m2
-
-    def validate_cfd(self) -> None:
-        """What the case file needs; physiological consistency (DBP below SBP, ...) is
-        checked by `baffle simulate`, which derives flow and resistance."""
-        if self.flow_mode not in FLOW_MODES:
-            raise BaffleDesignerError(f"flow mode must be one of {', '.join(FLOW_MODES)}, not {self.flow_mode!r}")
-        for name in ("systolic_mmhg", "diastolic_mmhg", "heart_rate_bpm", "cardiac_index_l_min_m2", "mesh_edge_length_mm"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise BaffleDesignerError(f"{name} must be a positive number, not {value}")
-        bsa = self.cfd_bsa_m2()
-        if not (math.isfinite(bsa) and bsa > 0):
-            raise BaffleDesignerError(f"the BSA for the flow must be a positive number, not {bsa}")
-
-    def design_kwargs(self) -> dict:
-        """The target arguments of baffle.design()."""
-        self.validate()
-        if self.target_mode == "bsa":
-            return {"bsa_m2": self.bsa_m2, "z_score": self.z_score}
-        if self.target_mode == "height_weight":
-            return {"height_cm": self.height_cm, "weight_kg": self.weight_kg, "z_score": self.z_score}
-        if self.target_mode == "area":
-            return {"target_area_mm2": self.target_area_mm2}
-        return {"annulus_diameter_mm": self.annulus_diameter_mm}
-
-    def write(self, node) -> None:
-        with batched_modify(node):
-            for f in fields(self):
-                node.SetAttribute(ATTRIBUTE_PREFIX + f.name, str(getattr(self, f.name)))
-
-    @classmethod
-    def read(cls, node) -> "DesignParameters":
-        """Parameters stored on the node; defaults for those it does not hold."""
-        parameters = cls()
-        for f in fields(cls):
-            text = node.GetAttribute(ATTRIBUTE_PREFIX + f.name)
-            if text is None:
-                continue
-            try:
-                setattr(parameters, f.name, text if f.type in (str, "str") else float(text))
-            except ValueError as error:
-                raise BaffleDesignerError(f"{node.GetName()}: attribute {ATTRIBUTE_PREFIX + f.name} = {text!r}: {error}")
-        return parameters
-
-
-def require_executable(executable: Optional[str]) -> None:
-    """Errors unless `executable` is the path of an executable file."""
-    import os
-
-    if not executable:
-        raise BaffleDesignerError("the baffle command line program was not found (set BAFFLE_EXECUTABLE or put baffle on PATH)")
-    if not (os.path.isfile(executable) and os.access(executable, os.X_OK)):
-        raise BaffleDesignerError(f"the baffle command line program {executable} is not an executable file")
-
-
-@contextlib.contextmanager
-def batched_modify(node):
-    """Hold back the node's ModifiedEvent until the block ends: one event for all the
-    attribute and reference writes in it. BafflePlanner's logic rebuilds its baffle on
-    every ModifiedEvent of its curve, and a design writes some 25 attributes there."""
-    was_modifying = node.StartModify()
-    try:
-        yield node
-    finally:
-        node.EndModify(was_modifying)
 
 
 def singleton_parameter_node(scene, module_name: str):
@@ -277,40 +107,6 @@ def defined_points_key(curve) -> tuple:
         curve.GetNthControlPointPositionWorld(i, position)
         key.append(tuple(position))
     return tuple(key)
-
-
-def read_written_file(reader, path: str):
-    """The output of a VTK reader for `path`, a file a child process was to write."""
-    import os
-
-    if not os.path.exists(path):
-        raise BaffleDesignerError(f"{path} was not written")
-    reader.SetFileName(path)
-    reader.Update()
-    return reader.GetOutput()
-
-
-class CandidateJob(process.PolledJob):
-    """A command line job for one candidate: the logic and curve it works for, the
-    program, its work folder and its environment (None: this process's; in Slicer the
-    startup environment, without the launcher's Python settings)."""
-
-    def __init__(self, logic, curve, executable: Optional[str], work_dir: str, env: Optional[dict] = None):
-        super().__init__()
-        self.logic = logic
-        self.curve = curve
-        self.executable = executable
-        self.work_dir = work_dir
-        self.env = env
-
-    def curve_removed(self) -> bool:
-        """Whether the candidate's curve has left the scene (its results have nowhere to go)."""
-        return self.logic.scene.GetNodeByID(self.curve.GetID()) is not self.curve
-
-    def stop_for_removed_curve(self) -> str:
-        """Cancel the running process and end the job: the curve was removed meanwhile."""
-        self.cancel_process(3.0)
-        return self.finish(process.CANCELLED, f"{self.curve.GetName()} was removed: the run was stopped, nothing loaded")
 
 
 class DesignJob:
@@ -423,12 +219,6 @@ class DesignJob:
                 raise TimeoutError(f"design still running after {timeout} s")
             self._thread.join(poll_interval)
         return self.state
-
-
-def _vtk_double_array(name: str, values) -> vtk.vtkDoubleArray:
-    array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=1)
-    array.SetName(name)
-    return array
 
 
 def _nan(value) -> float:
@@ -612,7 +402,7 @@ class BaffleDesignerLogic:
 
     def setSurfaceNode(self, curve, surface_node) -> None:
         """The candidate's ventricle; no write (no ModifiedEvent) when it is already that."""
-        self._check_curve(curve)
+        check_curve(curve)
         surface_id = surface_node.GetID() if surface_node else None
         if curve.GetNodeReferenceID(REF_SURFACE) == surface_id and curve.GetAttribute(CANDIDATE_ATTRIBUTE) == "1":
             return
@@ -625,7 +415,7 @@ class BaffleDesignerLogic:
 
     def setParameters(self, curve, parameters: DesignParameters) -> None:
         """Store the parameters on the candidate: one ModifiedEvent, none when unchanged."""
-        self._check_curve(curve)
+        check_curve(curve)
         parameters.validate()
         if curve.GetAttribute(CANDIDATE_ATTRIBUTE) == "1" and DesignParameters.read(curve) == parameters:
             return
@@ -635,16 +425,6 @@ class BaffleDesignerLogic:
 
     def parameters(self, curve) -> DesignParameters:
         return DesignParameters.read(curve)
-
-    @staticmethod
-    def _check_curve(curve) -> None:
-        if curve is None:
-            raise BaffleDesignerError("select the suture points (a closed curve node)")
-        if not curve.IsA("vtkMRMLMarkupsClosedCurveNode"):
-            raise BaffleDesignerError(
-                f"{curve.GetName()}: the suture points must be a closed curve (vtkMRMLMarkupsClosedCurveNode), "
-                f"not {curve.GetClassName()}"
-            )
 
     @staticmethod
     def suturePointsWorld(curve) -> np.ndarray:
@@ -661,8 +441,6 @@ class BaffleDesignerLogic:
     def preparedVentricle(self, curve):
         """The capped ventricle prepared from the candidate's segmentation as it is now
         (same segments, surfaces and transform), or None when it needs preparing."""
-        from BaffleDesignerLib import prepare
-
         segmentation = self.surfaceNode(curve)
         return prepare.prepared_node(self.scene, curve, prepare.fingerprint(segmentation, self.parameters(curve)))
 
@@ -676,10 +454,8 @@ class BaffleDesignerLogic:
         a new folder under work_root, the logic's child_env."""
         import tempfile
 
-        from BaffleDesignerLib import prepare
-
         if executable is None:
-            executable = self.executable or process.find_baffle_executable()
+            executable = self.executable or environment.find_baffle_executable()
         if work_dir is None:
             work_dir = tempfile.mkdtemp(prefix="BaffleDesigner-prepare-", dir=self.work_root)
         job = prepare.PrepareJob(self, curve, executable, work_dir, self.child_env if env is None else env).start()
@@ -736,7 +512,7 @@ class BaffleDesignerLogic:
     def setRims(self, curve, vsd_rim, aortic_rim) -> None:
         """The closed curves the user marked around the VSD and the aortic annulus on the
         plain RV model; no write when unchanged."""
-        self._check_curve(curve)
+        check_curve(curve)
         wanted = {REF_VSD_RIM: vsd_rim.GetID() if vsd_rim else None, REF_AORTIC_RIM: aortic_rim.GetID() if aortic_rim else None}
         if all(curve.GetNodeReferenceID(role) == node_id for role, node_id in wanted.items()):
             return
@@ -747,8 +523,6 @@ class BaffleDesignerLogic:
     def rimCappedVentricle(self, curve):
         """The capped ventricle cut from the candidate's plain RV model at its two rims (made
         now when missing or when the model, its transform or a rim changed)."""
-        from BaffleDesignerLib import rims
-
         model = self.surfaceNode(curve)
         vsd, aortic = curve.GetNodeReference(REF_VSD_RIM), curve.GetNodeReference(REF_AORTIC_RIM)
         if vsd is None or aortic is None:
@@ -828,7 +602,7 @@ class BaffleDesignerLogic:
 
     def _design_inputs(self, curve, allow_prepare, progress, parameters=None, ventricle=None):
         """(parameters, suture points, the ventricle as a baffle mesh), read on the GUI thread."""
-        self._check_curve(curve)
+        check_curve(curve)
         parameters = self.parameters(curve) if parameters is None else parameters
         parameters.validate()
         points = self.suturePointsWorld(curve)
@@ -1024,7 +798,7 @@ class BaffleDesignerLogic:
         node = self._output_node(curve, REF_CENTERLINE, "vtkMRMLMarkupsCurveNode", "centerline")
         node.SetCurveTypeToLinear()
         points = vtk.vtkPoints()
-        points.SetData(_vtk_double_array("points", result.centerline_points_mm))
+        points.SetData(vtk_double_array("points", result.centerline_points_mm))
         node.SetLocked(False)
         node.SetControlPointPositionsWorld(points)
         node.SetLocked(True)  # an output: the surgeon drags the suture points, not this
@@ -1056,7 +830,7 @@ class BaffleDesignerLogic:
         polydata = vtk.vtkPolyData()
         points = vtk.vtkPoints()
         if append_points:
-            points.SetData(_vtk_double_array("points", np.vstack(append_points)))
+            points.SetData(vtk_double_array("points", np.vstack(append_points)))
         polydata.SetPoints(points)
         cells = vtk.vtkCellArray()
         for line in lines:
@@ -1065,7 +839,7 @@ class BaffleDesignerLogic:
                 cells.InsertCellPoint(index)
         polydata.SetLines(cells)
         for name, values in (("s_mm", s_values), ("area_mm2", areas)):
-            polydata.GetCellData().AddArray(_vtk_double_array(name, values))
+            polydata.GetCellData().AddArray(vtk_double_array(name, values))
         flag = numpy_support.numpy_to_vtk(np.asarray(constrained, dtype=np.int32), deep=1)
         flag.SetName("constrained")
         polydata.GetCellData().AddArray(flag)
@@ -1086,7 +860,7 @@ class BaffleDesignerLogic:
         }
         table = vtk.vtkTable()
         for name, _, _ in SECTION_COLUMNS:
-            table.AddColumn(_vtk_double_array(name, columns[name]))
+            table.AddColumn(vtk_double_array(name, columns[name]))
         status = vtk.vtkStringArray()
         status.SetName(COL_STATUS)
         for s in sections:
@@ -1137,7 +911,7 @@ class BaffleDesignerLogic:
         (baffle.template): the flat model node (u, v, 0 in mm, cell array area_ratio), the
         template's figures as curve attributes, and the template kept for saveTemplate.
         Needs a design; the suture points are named as in the curve."""
-        self._check_curve(curve)
+        check_curve(curve)
         domain_node = curve.GetNodeReference(REF_DOMAIN)
         if domain_node is None or domain_node.GetPolyData() is None:
             raise BaffleDesignerError(f"{curve.GetName()}: design the baffle first (no domain to flatten)")
@@ -1152,7 +926,7 @@ class BaffleDesignerLogic:
             raise BaffleDesignerError(f"{curve.GetName()}: template failed: {error}") from error
         with batched_modify(curve):
             polydata = vtk_adapters.mesh_to_polydata(template.flat)
-            polydata.GetCellData().AddArray(_vtk_double_array("area_ratio", template.area_ratio))
+            polydata.GetCellData().AddArray(vtk_double_array("area_ratio", template.area_ratio))
             node = self._model(curve, REF_FLAT_TEMPLATE, "flat template", polydata, (0.85, 0.25, 0.2))
             node.SetAttribute(ATTRIBUTE_PREFIX + "DomainMTime", str(domain_node.GetPolyData().GetMTime()))
             f = template.report["flattening"]
@@ -1203,7 +977,7 @@ class BaffleDesignerLogic:
         and a design would start whenever the surgeon paused mid-drag. Nor do preview
         points: in place mode Slicer moves one on every mouse move, with no drag events,
         and the design ignores it (defined_points_key)."""
-        self._check_curve(curve)
+        check_curve(curve)
         curve_id = curve.GetID()
         for node, tag in self._observations.pop(curve_id, []):
             node.RemoveObserver(tag)
@@ -1436,7 +1210,7 @@ class BaffleDesignerLogic:
                 values[column].append(float(text) if text else float("nan"))
         table.AddColumn(name_column)
         for column in numeric:
-            table.AddColumn(_vtk_double_array(column, values[column]))
+            table.AddColumn(vtk_double_array(column, values[column]))
         table.AddColumn(status_column)
         table.AddColumn(simulation_column)
         node.SetAndObserveTable(table)
@@ -1470,8 +1244,6 @@ class BaffleDesignerLogic:
         simulation.SimulationJob (poll() it from a timer). `env`: the child processes'
         environment (default: this process's). Raises BaffleDesignerError when it
         cannot start."""
-        from BaffleDesignerLib import simulation  # it builds on this module
-
         return simulation.SimulationJob(self, curve, executable, work_dir, env).start()
 
     # ---- volume mesh (the step before CFD; `baffle mesh` as a separate process) ----------

@@ -20,7 +20,7 @@ import slicer
 import vtk
 from vtkmodules.util import numpy_support
 
-from BaffleDesignerLib import logic as bdlogic
+from BaffleDesignerLib import candidate
 from BaffleDesignerLib import process
 
 # (structure, DesignParameters field naming its segment); the structure is also the file
@@ -29,7 +29,7 @@ STRUCTURES = (("LV", "lv_segment"), ("RV", "rv_segment"), ("aorta", "aorta_segme
 PREPARED_LABELS = {2, 11, 16}
 OUTPUT_NAME = "capped_ventricle.vtp"
 STAGE = "prepare"
-FINGERPRINT_ATTRIBUTE = bdlogic.ATTRIBUTE_PREFIX + "PreparedFingerprint"
+FINGERPRINT_ATTRIBUTE = candidate.ATTRIBUTE_PREFIX + "PreparedFingerprint"
 KILL_AFTER_S = 3.0
 # LPS (files) <-> RAS (scene): x and y change sign; a rotation, so winding is kept.
 LPS_RAS = (-1.0, -1.0, 1.0)
@@ -49,18 +49,18 @@ def segment_id(segmentation_node, name: str, structure: str) -> str:
             return segmentation.GetNthSegmentID(i)
         names.append(segment.GetName())
     there = ", ".join(repr(n) for n in names) if names else "none"
-    raise bdlogic.BaffleDesignerError(
+    raise candidate.BaffleDesignerError(
         f"{segmentation_node.GetName()}: no segment named {name!r} for the {structure} (segments: {there}); "
         f"choose the {structure} segment"
     )
 
 
-def segment_ids(segmentation_node, parameters: "bdlogic.DesignParameters") -> Dict[str, str]:
+def segment_ids(segmentation_node, parameters: "candidate.DesignParameters") -> Dict[str, str]:
     """{structure: segment ID} for the LV, RV and aorta; each a different segment."""
     ids = {structure: segment_id(segmentation_node, getattr(parameters, field), structure) for structure, field in STRUCTURES}
     if len(set(ids.values())) < len(ids):
         chosen = ", ".join(f"{s} = {getattr(parameters, f)!r}" for s, f in STRUCTURES)
-        raise bdlogic.BaffleDesignerError(f"{segmentation_node.GetName()}: LV, RV and aorta need three different segments ({chosen})")
+        raise candidate.BaffleDesignerError(f"{segmentation_node.GetName()}: LV, RV and aorta need three different segments ({chosen})")
     return ids
 
 
@@ -68,13 +68,13 @@ def closed_surfaces(segmentation_node, ids: Dict[str, str]) -> Dict[str, vtk.vtk
     """Each segment's closed-surface representation (made from the source representation
     if needed), in the segmentation's own coordinates; an empty one is an error."""
     if not segmentation_node.CreateClosedSurfaceRepresentation():
-        raise bdlogic.BaffleDesignerError(f"{segmentation_node.GetName()}: could not make the closed-surface representation")
+        raise candidate.BaffleDesignerError(f"{segmentation_node.GetName()}: could not make the closed-surface representation")
     surfaces = {}
     for structure, sid in ids.items():
         polydata = segmentation_node.GetClosedSurfaceInternalRepresentation(sid)
         if polydata is None or polydata.GetNumberOfPolys() == 0:
             name = segmentation_node.GetSegmentation().GetSegment(sid).GetName()
-            raise bdlogic.BaffleDesignerError(f"{segmentation_node.GetName()}: the {structure} segment {name!r} is empty")
+            raise candidate.BaffleDesignerError(f"{segmentation_node.GetName()}: the {structure} segment {name!r} is empty")
         surfaces[structure] = polydata
     return surfaces
 
@@ -90,7 +90,7 @@ def _world_transform_key(node) -> str:
     return f"non-linear {parent.GetID()} {parent.GetMTime()}"
 
 
-def fingerprint(segmentation_node, parameters: "bdlogic.DesignParameters") -> str:
+def fingerprint(segmentation_node, parameters: "candidate.DesignParameters") -> str:
     """A digest of what `baffle prepare` would be given: the chosen segments' surfaces,
     their transform to world and the segment names."""
     ids = segment_ids(segmentation_node, parameters)
@@ -115,10 +115,10 @@ def export_segments(segmentation_node, ids: Dict[str, str], folder: str) -> None
         one = vtk.vtkStringArray()
         one.InsertNextValue(sid)
         if not logic.ExportSegmentsClosedSurfaceRepresentationToFiles(staging, segmentation_node, one, "STL", True, 1.0, False):
-            raise bdlogic.BaffleDesignerError(f"{segmentation_node.GetName()}: exporting the {structure} segment to {staging} failed")
+            raise candidate.BaffleDesignerError(f"{segmentation_node.GetName()}: exporting the {structure} segment to {staging} failed")
         written = [name for name in os.listdir(staging) if name.lower().endswith(".stl")]
         if len(written) != 1:
-            raise bdlogic.BaffleDesignerError(f"exporting the {structure} segment wrote {written or 'nothing'} into {staging}")
+            raise candidate.BaffleDesignerError(f"exporting the {structure} segment wrote {written or 'nothing'} into {staging}")
         os.replace(os.path.join(staging, written[0]), os.path.join(folder, f"{structure}.stl"))
         os.rmdir(staging)
 
@@ -143,13 +143,13 @@ def flip_lps_ras(polydata: vtk.vtkPolyData) -> vtk.vtkPolyData:
 
 def read_prepared(path: str) -> vtk.vtkPolyData:
     """The capped ventricle `baffle prepare` wrote (LPS), checked, in RAS."""
-    polydata = bdlogic.read_written_file(vtk.vtkXMLPolyDataReader(), path)
+    polydata = candidate.read_written_file(vtk.vtkXMLPolyDataReader(), path)
     labels = polydata.GetCellData().GetArray("ModelFaceID")
     if polydata.GetNumberOfPolys() == 0 or labels is None:
-        raise bdlogic.BaffleDesignerError(f"{path}: expected a surface with a ModelFaceID cell array")
+        raise candidate.BaffleDesignerError(f"{path}: expected a surface with a ModelFaceID cell array")
     found = set(int(v) for v in np.unique(numpy_support.vtk_to_numpy(labels)))
     if found != PREPARED_LABELS:
-        raise bdlogic.BaffleDesignerError(f"{path}: labels {sorted(found)}, expected {sorted(PREPARED_LABELS)}")
+        raise candidate.BaffleDesignerError(f"{path}: labels {sorted(found)}, expected {sorted(PREPARED_LABELS)}")
     return flip_lps_ras(polydata)
 
 
@@ -158,37 +158,37 @@ def read_report(path: str) -> dict:
         with open(path, encoding="utf-8") as handle:
             return json.load(handle)
     except (OSError, ValueError) as error:
-        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+        raise candidate.BaffleDesignerError(f"{path}: {error}") from error
 
 
 def _shared(logic, curve, node) -> bool:
     """Whether another candidate designs on `node` too."""
-    return any(c is not curve and c.GetNodeReferenceID(bdlogic.REF_PREPARED) == node.GetID() for c in logic.candidates())
+    return any(c is not curve and c.GetNodeReferenceID(candidate.REF_PREPARED) == node.GetID() for c in logic.candidates())
 
 
 def store_prepared(logic, curve, segmentation_node, polydata, report: dict, digest: str):
     """The capped ventricle onto the candidate (REF_PREPARED model node, its figures as
     node attributes). A model that other candidates share is left to them."""
-    node = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    node = curve.GetNodeReference(candidate.REF_PREPARED)
     if node is not None and _shared(logic, curve, node):
-        curve.SetNodeReferenceID(bdlogic.REF_PREPARED, None)
+        curve.SetNodeReferenceID(candidate.REF_PREPARED, None)
         node = None
     if node is None or not node.IsA("vtkMRMLModelNode"):
-        node = logic._output_node(curve, bdlogic.REF_PREPARED, "vtkMRMLModelNode", "capped ventricle")
+        node = logic._output_node(curve, candidate.REF_PREPARED, "vtkMRMLModelNode", "capped ventricle")
         display = node.GetDisplayNode()
         if display is not None:
             display.SetColor(0.9, 0.6, 0.6)
             display.SetOpacity(0.4)
     node.SetAndObservePolyData(polydata)
     node.SetAttribute(FINGERPRINT_ATTRIBUTE, digest)
-    node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "PreparedFrom", segmentation_node.GetName())
+    node.SetAttribute(candidate.ATTRIBUTE_PREFIX + "PreparedFrom", segmentation_node.GetName())
     for name, value in (
         ("PrepareTriangles", report.get("triangles")),
         ("PrepareVsdCapAreaMm2", report.get("vsd_cap", {}).get("area_mm2")),
         ("PrepareAorticCapAreaMm2", report.get("aortic_cap", {}).get("area_mm2")),
         ("PrepareTimeMs", report.get("timings", {}).get("total_ms")),
     ):
-        node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
+        node.SetAttribute(candidate.ATTRIBUTE_PREFIX + name, str(value))
     return node
 
 
@@ -200,14 +200,14 @@ def prepared_node(scene, curve, digest: str):
     """The capped ventricle made from the same inputs: the candidate's own, else one that
     another candidate on the same segmentation made (then referenced from this one too,
     so several candidates share one prepare run), else None."""
-    own = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    own = curve.GetNodeReference(candidate.REF_PREPARED)
     if _made_from(own, digest):
         return own
     nodes = scene.GetNodesByClass("vtkMRMLModelNode")
     for i in range(nodes.GetNumberOfItems()):
         node = nodes.GetItemAsObject(i)
-        if node.GetAttribute(bdlogic.ROLE_ATTRIBUTE) == bdlogic.REF_PREPARED and _made_from(node, digest):
-            curve.SetNodeReferenceID(bdlogic.REF_PREPARED, node.GetID())
+        if node.GetAttribute(candidate.ROLE_ATTRIBUTE) == candidate.REF_PREPARED and _made_from(node, digest):
+            curve.SetNodeReferenceID(candidate.REF_PREPARED, node.GetID())
             return node
     return None
 
@@ -215,7 +215,7 @@ def prepared_node(scene, curve, digest: str):
 # ---- the job ------------------------------------------------------------------------------
 
 
-class PrepareJob(bdlogic.CandidateJob):
+class PrepareJob(candidate.CandidateJob):
     """`baffle prepare` for one candidate whose ventricle is a segmentation, without
     blocking: start() exports the segments and starts the process, poll() (from a timer)
     loads the capped ventricle when it is done, cancel() stops it. A failed or cancelled
@@ -229,11 +229,11 @@ class PrepareJob(bdlogic.CandidateJob):
         self._digest = ""
 
     def start(self) -> "PrepareJob":
-        bdlogic.BaffleDesignerLogic._check_curve(self.curve)
-        bdlogic.require_executable(self.executable)
+        candidate.check_curve(self.curve)
+        candidate.require_executable(self.executable)
         segmentation = self.logic.surfaceNode(self.curve)
         if segmentation is None or not segmentation.IsA("vtkMRMLSegmentationNode"):
-            raise bdlogic.BaffleDesignerError(f"{self.curve.GetName()}: the ventricle is not a segmentation; nothing to prepare")
+            raise candidate.BaffleDesignerError(f"{self.curve.GetName()}: the ventricle is not a segmentation; nothing to prepare")
         parameters = self.logic.parameters(self.curve)
         ids = segment_ids(segmentation, parameters)
         self._digest = fingerprint(segmentation, parameters)
@@ -244,7 +244,7 @@ class PrepareJob(bdlogic.CandidateJob):
         try:
             self.start_process(command, cwd=self.work_dir, env=self.env)
         except OSError as error:
-            raise bdlogic.BaffleDesignerError(f"could not start {' '.join(command[:2])}: {error}") from error
+            raise candidate.BaffleDesignerError(f"could not start {' '.join(command[:2])}: {error}") from error
         return self
 
     def cancel(self) -> None:
@@ -264,7 +264,7 @@ class PrepareJob(bdlogic.CandidateJob):
             out_path = os.path.join(self.work_dir, OUTPUT_NAME)
             polydata = read_prepared(out_path)
             report = read_report(os.path.join(self.work_dir, "capped_ventricle-report.json"))
-        except bdlogic.BaffleDesignerError as error:
+        except candidate.BaffleDesignerError as error:
             return self.finish(process.FAILED, str(error))
         self.node = store_prepared(self.logic, self.curve, self._segmentation, polydata, report, self._digest)
         shutil.rmtree(self.work_dir, ignore_errors=True)

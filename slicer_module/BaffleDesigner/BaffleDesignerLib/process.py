@@ -5,15 +5,12 @@ from a QTimer and calls cancel(). Pure Python (subprocess + threading), no Qt.""
 
 import os
 import re
-import shutil
 import signal
 import subprocess
 import threading
 import time
-from pathlib import Path
 from typing import List, Optional, Tuple
 
-from BaffleDesignerLib import environment
 
 _TAG = re.compile(r"<(filter-[a-z]+)>(.*?)</\1>")
 
@@ -51,23 +48,6 @@ def run_captured(command: List[str], env: Optional[dict] = None, timeout: float 
     """A short child run with its output captured, under child_options()."""
     return subprocess.run([str(c) for c in command], env=env, capture_output=True, timeout=timeout, check=False,
                           **child_options())
-
-
-def find_baffle_executable() -> Optional[str]:
-    """$BAFFLE_EXECUTABLE, else the packaged extension's program (baffle/bin beside the
-    module), else `baffle` on PATH, else a development tree's cargo build
-    (slicer_module/BaffleDesigner/BaffleDesignerLib -> ../../../target/release/baffle)."""
-    given = os.environ.get("BAFFLE_EXECUTABLE")
-    if given:
-        return given
-    packaged = environment.packaged_executable()
-    if packaged is not None:
-        return str(packaged)
-    on_path = shutil.which("baffle")
-    if on_path:
-        return on_path
-    built = Path(__file__).resolve().parents[3] / "target" / "release" / environment.executable_name()
-    return str(built) if built.exists() else None
 
 
 def subcommand_availability(executable: Optional[str], subcommand: str, timeout: float = 20.0) -> Tuple[bool, str]:

@@ -14,7 +14,7 @@ import numpy as np
 import vtk
 from vtkmodules.util import numpy_support
 
-from BaffleDesignerLib.logic import BaffleDesignerError
+from BaffleDesignerLib.candidate import BaffleDesignerError
 
 LABEL_ARRAY = "ModelFaceID"
 WALL, VSD_CAP, AORTIC_CAP = 2, 11, 16

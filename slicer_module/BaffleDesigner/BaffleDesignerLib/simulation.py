@@ -21,7 +21,7 @@ import numpy as np
 import vtk
 from vtkmodules.util import numpy_support
 
-from BaffleDesignerLib import logic as bdlogic
+from BaffleDesignerLib import candidate
 from BaffleDesignerLib import process
 
 # The paper's planning criterion: the LV-to-aorta pressure difference at peak flow.
@@ -72,11 +72,11 @@ def verdict(dp_mmhg: float, doubts=()) -> str:
 def domain_face_ids(domain_polydata) -> List[int]:
     labels = domain_polydata.GetCellData().GetArray("ModelFaceID")
     if labels is None:
-        raise bdlogic.BaffleDesignerError("the domain model has no ModelFaceID cell array; design the baffle again")
+        raise candidate.BaffleDesignerError("the domain model has no ModelFaceID cell array; design the baffle again")
     return sorted({int(v) for v in numpy_support.vtk_to_numpy(labels).ravel()})
 
 
-def case_document(parameters: "bdlogic.DesignParameters", face_ids: List[int]) -> dict:
+def case_document(parameters: "candidate.DesignParameters", face_ids: List[int]) -> dict:
     """The `baffle simulate` case for the volume mesh `baffle mesh` writes beside it
     (volume.vtu, volume-faces.vtp, mm). Flow and outlet resistance are left for the CLI
     to derive from BSA x cardiac index and SBP/DBP, as the paper does; it also checks
@@ -84,7 +84,7 @@ def case_document(parameters: "bdlogic.DesignParameters", face_ids: List[int]) -
     parameters.validate_cfd()
     missing = [f for f in (INLET_FACE_ID, OUTLET_FACE_ID) if f not in face_ids]
     if missing:
-        raise bdlogic.BaffleDesignerError(
+        raise candidate.BaffleDesignerError(
             f"the domain has no face {missing} (faces {face_ids}); the inflow is the VSD cap ({INLET_FACE_ID}) "
             f"and the outflow the aortic-annulus cap ({OUTLET_FACE_ID})"
         )
@@ -152,7 +152,7 @@ class SimulationResults:
 def _finite(summary: dict, key: str, path: str) -> float:
     value = summary.get(key)
     if not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise bdlogic.BaffleDesignerError(f"{path}: {key} is {value!r}, not a finite number")
+        raise candidate.BaffleDesignerError(f"{path}: {key} is {value!r}, not a finite number")
     return float(value)
 
 
@@ -161,9 +161,9 @@ def read_summary(path: str) -> dict:
         with open(path, encoding="utf-8") as handle:
             summary = json.load(handle)
     except (OSError, ValueError) as error:
-        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+        raise candidate.BaffleDesignerError(f"{path}: {error}") from error
     if summary.get("status") != "completed":
-        raise bdlogic.BaffleDesignerError(
+        raise candidate.BaffleDesignerError(
             f"{path}: the simulation {summary.get('status')}: {summary.get('message') or 'no message'}"
         )
     return summary
@@ -171,14 +171,14 @@ def read_summary(path: str) -> dict:
 
 def read_fields(path: str) -> vtk.vtkUnstructuredGrid:
     """peak.vtu as written (points mm, velocity_m_s vector, speed_m_s, pressure_mmhg), checked."""
-    source = bdlogic.read_written_file(vtk.vtkXMLUnstructuredGridReader(), path)
+    source = candidate.read_written_file(vtk.vtkXMLUnstructuredGridReader(), path)
     data = source.GetPointData()
     missing = [
         name for name, components in FIELD_ARRAYS.items()
         if data.GetArray(name) is None or data.GetArray(name).GetNumberOfComponents() != components
     ]
     if source.GetNumberOfCells() == 0 or missing:
-        raise bdlogic.BaffleDesignerError(
+        raise candidate.BaffleDesignerError(
             f"{path}: expected tetrahedra with point arrays {', '.join(FIELD_ARRAYS)}; missing or malformed: {', '.join(missing)}"
         )
     grid = vtk.vtkUnstructuredGrid()
@@ -194,21 +194,21 @@ def read_series(path: str, dp_faces) -> Tuple[Dict[str, np.ndarray], List[str]]:
         with open(path, newline="", encoding="utf-8") as handle:
             rows = list(csv.reader(handle))
     except OSError as error:
-        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+        raise candidate.BaffleDesignerError(f"{path}: {error}") from error
     if len(rows) < 2:
-        raise bdlogic.BaffleDesignerError(f"{path}: no time steps")
+        raise candidate.BaffleDesignerError(f"{path}: no time steps")
     header = rows[0]
     try:
         values = np.array([[float(v) for v in row] for row in rows[1:]], dtype=np.float64)
     except ValueError as error:
-        raise bdlogic.BaffleDesignerError(f"{path}: {error}") from error
+        raise candidate.BaffleDesignerError(f"{path}: {error}") from error
     series = {name: values[:, k] for k, name in enumerate(header)}
 
     def pressure_column(face_id):
         pattern = re.compile(rf"^p_.*_{face_id}_mmhg$")
         names = [name for name in header if pattern.match(name)]
         if len(names) != 1:
-            raise bdlogic.BaffleDesignerError(f"{path}: no pressure column of face {face_id} in {header}")
+            raise candidate.BaffleDesignerError(f"{path}: no pressure column of face {face_id} in {header}")
         return series[names[0]]
 
     first, second = dp_faces
@@ -248,7 +248,7 @@ def _summary_table(results: SimulationResults) -> vtk.vtkTable:
         values.append(float(value) if isinstance(value, (int, float)) else float("nan"))
     table = vtk.vtkTable()
     table.AddColumn(quantity)
-    table.AddColumn(bdlogic._vtk_double_array("Value", values))
+    table.AddColumn(candidate.vtk_double_array("Value", values))
     table.AddColumn(unit)
     return table
 
@@ -256,7 +256,7 @@ def _summary_table(results: SimulationResults) -> vtk.vtkTable:
 def _series_table(results: SimulationResults) -> vtk.vtkTable:
     table = vtk.vtkTable()
     for name in results.series_order:
-        table.AddColumn(bdlogic._vtk_double_array(name, results.series[name]))
+        table.AddColumn(candidate.vtk_double_array(name, results.series[name]))
     return table
 
 
@@ -300,24 +300,24 @@ def store_results(logic, curve, results: SimulationResults, out_dir: str, outdat
     """The checked results onto the candidate: summary table, peak fields model, time
     series table and chart (node references on the curve), the verdict (attributes).
     `outdated`: the candidate was redesigned while it ran."""
-    with bdlogic.batched_modify(curve):  # one ModifiedEvent on the curve (BafflePlanner observes it)
-        summary_node = logic._output_node(curve, bdlogic.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
+    with candidate.batched_modify(curve):  # one ModifiedEvent on the curve (BafflePlanner observes it)
+        summary_node = logic._output_node(curve, candidate.REF_SIM_SUMMARY, "vtkMRMLTableNode", "simulation summary")
         summary_node.SetAndObserveTable(_summary_table(results))
-        summary_node.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
+        summary_node.SetAttribute(candidate.ATTRIBUTE_PREFIX + "Verdict", results.verdict)
 
-        fields_node = logic._output_node(curve, bdlogic.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
+        fields_node = logic._output_node(curve, candidate.REF_SIM_FIELDS, "vtkMRMLModelNode", "peak flow fields")
         fields_node.SetAndObserveMesh(results.fields)
         _show_speed(fields_node.GetDisplayNode(), opacity=0.5)
         display = fields_node.GetDisplayNode()
         if display is not None:
             display.SetVisibility2D(True)  # the slice views cut the volume: speed inside, not only at the wall
-        section = speed_section(results.fields, curve.GetNodeReference(bdlogic.REF_CENTERLINE))
+        section = speed_section(results.fields, curve.GetNodeReference(candidate.REF_CENTERLINE))
         if section is not None:
-            section_node = logic._output_node(curve, bdlogic.REF_SIM_SECTION, "vtkMRMLModelNode", "peak flow section")
+            section_node = logic._output_node(curve, candidate.REF_SIM_SECTION, "vtkMRMLModelNode", "peak flow section")
             section_node.SetAndObservePolyData(section)
             _show_speed(section_node.GetDisplayNode(), opacity=1.0)
 
-        series_node = logic._output_node(curve, bdlogic.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
+        series_node = logic._output_node(curve, candidate.REF_SIM_SERIES_TABLE, "vtkMRMLTableNode", "simulation time series")
         series_node.SetAndObserveTable(_series_table(results))
         _write_series_chart(logic, curve, series_node, results)
 
@@ -330,21 +330,21 @@ def store_results(logic, curve, results: SimulationResults, out_dir: str, outdat
             ("SimulationConverged", "1" if results.summary.get("converged") else "0"),
             ("SimulationDir", out_dir),
         ):
-            curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + name, str(value))
+            curve.SetAttribute(candidate.ATTRIBUTE_PREFIX + name, str(value))
 
 
 CHART_TITLES = {"quick": "from rest to the first flow peak", "steady": "steady solve at peak flow", "pulsatile": "pulsatile run"}
 
 
 def _write_series_chart(logic, curve, table_node, results) -> None:
-    chart = logic._output_node(curve, bdlogic.REF_SIM_CHART, "vtkMRMLPlotChartNode", "simulation chart")
+    chart = logic._output_node(curve, candidate.REF_SIM_CHART, "vtkMRMLPlotChartNode", "simulation chart")
     x_column, x_title = ("step", "iteration") if results.steady else ("time_s", "t (s)")
     chart.SetTitle(f"{curve.GetName()}: {CHART_TITLES[results.mode]}")
     chart.SetXAxisTitle(x_title)
     chart.SetYAxisTitle("dp (mmHg), Q (mL/s)")
     styles = (
-        (bdlogic.REF_SIM_SERIES_DP, COL_DP, (0.85, 0.25, 0.2)),
-        (bdlogic.REF_SIM_SERIES_FLOW, "inflow_ml_s", (0.2, 0.5, 0.95)),
+        (candidate.REF_SIM_SERIES_DP, COL_DP, (0.85, 0.25, 0.2)),
+        (candidate.REF_SIM_SERIES_FLOW, "inflow_ml_s", (0.2, 0.5, 0.95)),
     )
     for role, column, color in styles:
         series = logic._output_node(curve, role, "vtkMRMLPlotSeriesNode", column)
@@ -361,7 +361,7 @@ def _write_series_chart(logic, curve, table_node, results) -> None:
 # ---- the job: mesh, then simulate -------------------------------------------------------
 
 
-class SimulationJob(bdlogic.CandidateJob):
+class SimulationJob(candidate.CandidateJob):
     """Mesh and simulate one candidate in `work_dir` without blocking. start() checks the
     inputs and starts `baffle mesh`; poll() (from a timer) starts `baffle simulate` when
     the mesh is done and loads the results when the simulation is; cancel() stops the
@@ -380,11 +380,11 @@ class SimulationJob(bdlogic.CandidateJob):
     def start(self) -> "SimulationJob":
         """Raises BaffleDesignerError when the run cannot start (no executable, no
         design, bad parameters); nothing in the scene changes then."""
-        bdlogic.BaffleDesignerLogic._check_curve(self.curve)
-        bdlogic.require_executable(self.executable)
-        domain = self.curve.GetNodeReference(bdlogic.REF_DOMAIN)
+        candidate.check_curve(self.curve)
+        candidate.require_executable(self.executable)
+        domain = self.curve.GetNodeReference(candidate.REF_DOMAIN)
         if domain is None or domain.GetPolyData() is None:
-            raise bdlogic.BaffleDesignerError(f"{self.curve.GetName()}: design the baffle first (no domain model)")
+            raise candidate.BaffleDesignerError(f"{self.curve.GetName()}: design the baffle first (no domain model)")
         parameters = self.logic.parameters(self.curve)
         self._case = case_document(parameters, domain_face_ids(domain.GetPolyData()))
         self._domain = (domain.GetPolyData(), domain.GetPolyData().GetMTime())
@@ -397,7 +397,7 @@ class SimulationJob(bdlogic.CandidateJob):
         try:
             self.start_process(command, cwd=self.work_dir, env=self.env)
         except OSError as error:
-            raise bdlogic.BaffleDesignerError(f"could not start the {stage}: {error}") from error
+            raise candidate.BaffleDesignerError(f"could not start the {stage}: {error}") from error
 
     @property
     def progress(self) -> Optional[float]:
@@ -427,7 +427,7 @@ class SimulationJob(bdlogic.CandidateJob):
                 self._start_simulation()
                 return self.state
             self.results = read_results(self.out_dir)
-        except bdlogic.BaffleDesignerError as error:
+        except candidate.BaffleDesignerError as error:
             return self._finish(process.FAILED, str(error))
         store_results(self.logic, self.curve, self.results, self.out_dir, outdated=self._redesigned())
         return self._finish(process.COMPLETED, self._result_line())
@@ -446,7 +446,7 @@ class SimulationJob(bdlogic.CandidateJob):
 
     def _redesigned(self) -> bool:
         """Whether the candidate's domain changed since it was meshed (a redesign while running)."""
-        node = self.curve.GetNodeReference(bdlogic.REF_DOMAIN)
+        node = self.curve.GetNodeReference(candidate.REF_DOMAIN)
         polydata = node.GetPolyData() if node is not None else None
         return polydata is not self._domain[0] or polydata.GetMTime() != self._domain[1]
 
@@ -455,12 +455,12 @@ class SimulationJob(bdlogic.CandidateJob):
         try:
             write_case(case_path, self._case)
         except OSError as error:
-            raise bdlogic.BaffleDesignerError(f"could not write {case_path}: {error}") from error
+            raise candidate.BaffleDesignerError(f"could not write {case_path}: {error}") from error
         self.simulate_started_at = time.monotonic()
         self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", case_path, "--out", self.out_dir, "--progress-tags"])
 
     def _finish(self, state: str, message: str) -> str:
         # The outcome of the latest run; the stored results change only on completion.
         last_run = state if state == process.COMPLETED else f"{state}: {message}"
-        self.curve.SetAttribute(bdlogic.ATTRIBUTE_PREFIX + "SimulationLastRun", last_run)
+        self.curve.SetAttribute(candidate.ATTRIBUTE_PREFIX + "SimulationLastRun", last_run)
         return self.finish(state, message)

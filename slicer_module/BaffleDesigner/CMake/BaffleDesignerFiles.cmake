@@ -3,6 +3,7 @@
 set(BAFFLE_DESIGNER_PYTHON_SCRIPTS
   BaffleDesigner.py
   BaffleDesignerLib/__init__.py
+  BaffleDesignerLib/candidate.py
   BaffleDesignerLib/environment.py
   BaffleDesignerLib/logic.py
   BaffleDesignerLib/prepare.py

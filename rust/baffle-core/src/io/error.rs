@@ -64,15 +64,3 @@ pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
         IoError::new(path, kind)
     })
 }
-
-/// Write via `<path>.tmp` and rename, so a reader never sees a half-written file.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
-    let mut tmp_name = path.as_os_str().to_owned();
-    tmp_name.push(".tmp");
-    let tmp = PathBuf::from(tmp_name);
-    let result = std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        IoError::new(path, IoErrorKind::Os(e))
-    })
-}

@@ -4,6 +4,7 @@
 //! Geometry is returned as stored (millimetres expected, frame as in the file).
 //! Every error is an [`IoError`] whose message starts with the file's path.
 
+mod atomic;
 mod error;
 mod legacy;
 mod points;
@@ -14,12 +15,13 @@ mod vtp_write;
 
 use std::path::Path;
 
+pub use atomic::{write_atomic, write_atomic_with};
 pub use error::{IoError, IoErrorKind};
 pub use points::{read_points, write_markups_closed_curve, CoordinateSystem, SuturePoints};
 pub use polydata::{ArrayValues, DataArray, LabeledSurface, PolyData, PolyDataOut, MODEL_FACE_ID};
 
 use crate::mesh::TriMesh;
-use error::{read_bytes, write_atomic};
+use error::read_bytes;
 
 /// File formats told apart by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -77,11 +79,11 @@ pub fn read_polydata(path: &Path) -> Result<PolyData, IoError> {
     parsed.map_err(|kind| IoError::new(path, kind))
 }
 
-/// Write VTK XML PolyData (base64 binary, Float64 points), atomically via `<path>.tmp`.
+/// Write VTK XML PolyData (base64 binary, Float64 points), atomically ([`write_atomic`]).
 /// The data is validated first (finite points, indices in range, array lengths).
 pub fn write_vtp(path: &Path, data: &PolyData) -> Result<(), IoError> {
     data.validate().map_err(|kind| IoError::new(path, kind))?;
-    write_atomic(path, vtp_write::vtp_text(data).as_bytes())
+    write_atomic(path, vtp_write::vtp_text(data).as_bytes()).map_err(|e| IoError::new(path, IoErrorKind::Os(e)))
 }
 
 /// Write a triangle mesh as `.vtp` with `face_ids` as the Int32 cell array `ModelFaceID`.

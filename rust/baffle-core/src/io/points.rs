@@ -5,7 +5,8 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::error::{malformed, read_bytes, write_atomic, IoError, IoErrorKind};
+use super::atomic::write_atomic;
+use super::error::{malformed, read_bytes, IoError, IoErrorKind};
 use crate::mesh::Vec3;
 
 /// Patient frame of coordinates: Slicer stores LPS in files, works in RAS internally.
@@ -121,7 +122,7 @@ pub fn write_markups_closed_curve(
         }],
     });
     let text = serde_json::to_string_pretty(&doc).map_err(|e| IoError::new(path, malformed(e.to_string())))?;
-    write_atomic(path, text.as_bytes())
+    write_atomic(path, text.as_bytes()).map_err(|e| IoError::new(path, IoErrorKind::Os(e)))
 }
 
 fn text_of(bytes: &[u8]) -> Result<&str, IoErrorKind> {

@@ -1,4 +1,5 @@
 use super::*;
+use crate::plane_section::section_area;
 
 /// A closed surface of the union of axis-aligned boxes (mm, corners on a 0.5 mm lattice):
 /// every face between a filled and an empty 0.5 mm cell, as two outward triangles.

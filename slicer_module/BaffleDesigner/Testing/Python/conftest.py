@@ -48,9 +48,9 @@ def p2_inputs():
 @pytest.fixture(scope="session")
 def executable():
     """The built `baffle` command line program (BAFFLE_EXECUTABLE, PATH or target/release)."""
-    from BaffleDesignerLib import process
+    from BaffleDesignerLib import environment
 
-    found = process.find_baffle_executable()
+    found = environment.find_baffle_executable()
     if not found:
         pytest.skip("baffle executable not found: cargo build --release -p baffle-cli, or set BAFFLE_EXECUTABLE")
     return found

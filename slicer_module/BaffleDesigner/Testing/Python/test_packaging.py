@@ -27,7 +27,7 @@ from baffle import _lib
 from BaffleDesignerLib import environment, process
 print("PACKAGE", baffle.__file__)
 print("LIBRARY", _lib._library_path())
-print("PROGRAM", process.find_baffle_executable())
+print("PROGRAM", environment.find_baffle_executable())
 print("PACKAGED", environment.packaged_package_dir())
 print("PROBLEM", environment.package_problem() or "none")
 test = sys.modules["BaffleDesigner"].BaffleDesignerTest("runTest")

@@ -11,6 +11,7 @@ import vtk
 from vtkmodules.util import numpy_support
 
 from conftest import bdlogic, column, curve_from_points, data_dir, has_subcommand, missing_data, load_closed_curve, load_model, p2_inputs, slicer, translation_node
+from BaffleDesignerLib import candidate as bdcandidate
 from BaffleDesignerLib import prepare, process
 from test_logic import open_and_nonmanifold_edges
 
@@ -65,7 +66,7 @@ def prepared(executable):
 
 def test_prepared_ventricle_is_closed_and_labelled(prepared):
     scene, logic, segmentation, curve, result, seconds = prepared
-    node = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    node = curve.GetNodeReference(bdcandidate.REF_PREPARED)
     assert node is not None and node.IsA("vtkMRMLModelNode") and node.GetDisplayNode() is not None
     polydata = node.GetPolyData()
     labels = set(numpy_support.vtk_to_numpy(polydata.GetCellData().GetArray("ModelFaceID")).tolist())
@@ -86,7 +87,7 @@ def test_prepared_caps_match_the_published_design_input(prepared):
     reader.SetFileName(str(data_dir() / "p2" / "design_input" / "capped_ventricle.vtp"))
     reader.Update()
     published = label_centroids(reader.GetOutput())  # LPS, as on disk
-    in_scene = prepare.flip_lps_ras(curve.GetNodeReference(bdlogic.REF_PREPARED).GetPolyData())  # RAS -> LPS
+    in_scene = prepare.flip_lps_ras(curve.GetNodeReference(bdcandidate.REF_PREPARED).GetPolyData())  # RAS -> LPS
     ours = label_centroids(in_scene)
     for label in (11, 16):
         distance = float(np.linalg.norm(ours[label] - published[label]))
@@ -108,7 +109,7 @@ def test_design_on_the_prepared_ventricle_meets_the_target(prepared):
 
 def test_redesign_and_drag_reuse_the_prepared_ventricle(prepared):
     scene, logic, segmentation, curve, result, _ = prepared
-    node = curve.GetNodeReference(bdlogic.REF_PREPARED)
+    node = curve.GetNodeReference(bdcandidate.REF_PREPARED)
     logic.design(curve)
     logic.setAutoUpdate(curve, True)
     p = [0.0] * 3
@@ -116,7 +117,7 @@ def test_redesign_and_drag_reuse_the_prepared_ventricle(prepared):
     curve.SetNthControlPointPositionWorld(3, p[0] + 0.2, p[1], p[2])  # a move (one to the same place is none)
     assert logic.processPendingUpdates(force=True) == {curve.GetID(): None}
     logic.setAutoUpdate(curve, False)
-    assert logic.prepare_count == 1 and curve.GetNodeReference(bdlogic.REF_PREPARED) is node
+    assert logic.prepare_count == 1 and curve.GetNodeReference(bdcandidate.REF_PREPARED) is node
 
     # Another segment choice is another input: live updates say so instead of preparing.
     parameters = logic.parameters(curve)
@@ -136,13 +137,13 @@ def test_candidates_on_one_segmentation_share_the_prepared_ventricle(prepared):
     logic.setParameters(second, logic.parameters(curve))
     assert not logic.needsPrepare(second)
     logic.design(second, allow_prepare=False)
-    shared = curve.GetNodeReference(bdlogic.REF_PREPARED)
-    assert second.GetNodeReference(bdlogic.REF_PREPARED) is shared and logic.prepare_count == 1
+    shared = curve.GetNodeReference(bdcandidate.REF_PREPARED)
+    assert second.GetNodeReference(bdcandidate.REF_PREPARED) is shared and logic.prepare_count == 1
     polydata = shared.GetPolyData()
     # Re-preparing one candidate leaves the other's ventricle alone.
     prepare.store_prepared(logic, second, segmentation, vtk.vtkPolyData(), {}, "other inputs")
-    assert second.GetNodeReference(bdlogic.REF_PREPARED) is not shared
-    assert curve.GetNodeReference(bdlogic.REF_PREPARED) is shared and shared.GetPolyData() is polydata
+    assert second.GetNodeReference(bdcandidate.REF_PREPARED) is not shared
+    assert curve.GetNodeReference(bdcandidate.REF_PREPARED) is shared and shared.GetPolyData() is polydata
     scene.RemoveNode(second)
 
 
@@ -158,7 +159,7 @@ def test_a_missing_aorta_segment_is_named(scene, executable):
     message = str(error.value)
     assert "no segment named 'aorta' for the aorta" in message and "'LV', 'RV'" in message, message
     assert curve.GetAttribute("BaffleDesigner.Error") == message
-    assert curve.GetNodeReference(bdlogic.REF_PREPARED) is None and logic.prepare_count == 0
+    assert curve.GetNodeReference(bdcandidate.REF_PREPARED) is None and logic.prepare_count == 0
 
 
 def test_prepare_errors_carry_the_command_line_message(scene, executable, tmp_path):
@@ -180,7 +181,7 @@ def test_prepare_errors_carry_the_command_line_message(scene, executable, tmp_pa
     job = logic.startPrepare(curve, executable, str(tmp_path / "work"))
     assert job.wait(timeout=120) == process.FAILED
     assert job.message.startswith("prepare failed: baffle: error:"), job.message
-    assert curve.GetNodeReference(bdlogic.REF_PREPARED) is None
+    assert curve.GetNodeReference(bdcandidate.REF_PREPARED) is None
     assert sorted(p.name for p in (tmp_path / "work" / "segmentations").iterdir()) == ["LV.stl", "RV.stl", "aorta.stl"]
 
 
@@ -194,7 +195,7 @@ def test_prepare_can_be_cancelled(scene, executable, tmp_path):
     assert job.running
     job.cancel()
     assert job.wait(timeout=30) == process.CANCELLED
-    assert "cancelled" in job.message and curve.GetNodeReference(bdlogic.REF_PREPARED) is None
+    assert "cancelled" in job.message and curve.GetNodeReference(bdcandidate.REF_PREPARED) is None
     with pytest.raises(bdlogic.BaffleDesignerError, match="not an executable"):
         logic.startPrepare(curve, str(tmp_path / "no-such-baffle"))
 

@@ -13,11 +13,12 @@ import vtk
 from vtkmodules.util import numpy_support
 
 from conftest import bdlogic, column, has_subcommand, phantom_candidate, slicer
-from BaffleDesignerLib import process, simulation
+from BaffleDesignerLib import candidate as bdcandidate
+from BaffleDesignerLib import environment, process, simulation
 
 SIMULATION_REFS = (
-    bdlogic.REF_SIM_SUMMARY, bdlogic.REF_SIM_FIELDS, bdlogic.REF_SIM_SERIES_TABLE, bdlogic.REF_SIM_CHART,
-    bdlogic.REF_SIM_SERIES_DP, bdlogic.REF_SIM_SERIES_FLOW,
+    bdcandidate.REF_SIM_SUMMARY, bdcandidate.REF_SIM_FIELDS, bdcandidate.REF_SIM_SERIES_TABLE, bdcandidate.REF_SIM_CHART,
+    bdcandidate.REF_SIM_SERIES_DP, bdcandidate.REF_SIM_SERIES_FLOW,
 )
 
 
@@ -118,7 +119,7 @@ def test_steady_simulation_results_table_and_verdict(simulated):
     print(f"steady phantom simulation (mesh 1.25 mm + CFD): {wall_s:.1f} s, simulate step "
           f"{job.finished_at - job.simulate_started_at:.1f} s; {job.message}")
     assert wall_s < 60
-    summary_node = curve.GetNodeReference(bdlogic.REF_SIM_SUMMARY)
+    summary_node = curve.GetNodeReference(bdcandidate.REF_SIM_SUMMARY)
     values = summary_values(summary_node)
     dp = values["Pressure difference at peak flow"]
     v_max = values["Max velocity at peak flow"]
@@ -146,7 +147,7 @@ def test_steady_simulation_results_table_and_verdict(simulated):
 
 def test_peak_fields_node_has_the_mesh_and_the_arrays_in_scene_units(simulated):
     scene, logic, curve, job, _ = simulated
-    fields_node = curve.GetNodeReference(bdlogic.REF_SIM_FIELDS)
+    fields_node = curve.GetNodeReference(bdcandidate.REF_SIM_FIELDS)
     assert fields_node.GetMeshType() == fields_node.UnstructuredGridMeshType
     grid = fields_node.GetMesh()
     reader = vtk.vtkXMLUnstructuredGridReader()
@@ -174,10 +175,10 @@ def test_the_fields_on_a_section_show_the_speed_inside(simulated):
     """The outer surface is the wall, where the speed is zero (no slip): the section at the
     middle of the centerline shows the flow itself."""
     scene, logic, curve, job, _ = simulated
-    section = curve.GetNodeReference(bdlogic.REF_SIM_SECTION)
+    section = curve.GetNodeReference(bdcandidate.REF_SIM_SECTION)
     assert section is not None and section.GetPolyData().GetNumberOfCells() > 10
     speed = numpy_support.vtk_to_numpy(section.GetPolyData().GetPointData().GetArray("speed_m_s"))
-    wall_speed = numpy_support.vtk_to_numpy(curve.GetNodeReference(bdlogic.REF_SIM_FIELDS).GetMesh().GetPointData().GetArray("speed_m_s"))
+    wall_speed = numpy_support.vtk_to_numpy(curve.GetNodeReference(bdcandidate.REF_SIM_FIELDS).GetMesh().GetPointData().GetArray("speed_m_s"))
     assert speed.max() > 0.5 * wall_speed.max() and speed.max() <= wall_speed.max() + 1e-9
     display = section.GetDisplayNode()
     assert display.GetActiveScalarName() == "speed_m_s" and display.GetOpacity() == 1.0
@@ -190,7 +191,7 @@ def test_the_fields_on_a_section_show_the_speed_inside(simulated):
 
 def test_time_series_table_and_chart(simulated):
     scene, logic, curve, job, _ = simulated
-    series_node = curve.GetNodeReference(bdlogic.REF_SIM_SERIES_TABLE)
+    series_node = curve.GetNodeReference(bdcandidate.REF_SIM_SERIES_TABLE)
     with open(f"{job.out_dir}/timeseries.csv", encoding="utf-8") as handle:
         lines = handle.read().splitlines()
     assert series_node.GetNumberOfRows() == len(lines) - 1 > 0
@@ -200,12 +201,12 @@ def test_time_series_table_and_chart(simulated):
     np.testing.assert_allclose(dp, inlet - outlet)
     # The steady solve's last iterate is the reported result.
     assert dp[-1] == pytest.approx(float(curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")), rel=1e-6)
-    chart = curve.GetNodeReference(bdlogic.REF_SIM_CHART)
+    chart = curve.GetNodeReference(bdcandidate.REF_SIM_CHART)
     assert chart.GetNumberOfPlotSeriesNodes() == 2
-    dp_series = curve.GetNodeReference(bdlogic.REF_SIM_SERIES_DP)
+    dp_series = curve.GetNodeReference(bdcandidate.REF_SIM_SERIES_DP)
     assert dp_series.GetTableNodeID() == series_node.GetID()
     assert (dp_series.GetXColumnName(), dp_series.GetYColumnName()) == ("step", simulation.COL_DP)
-    assert curve.GetNodeReference(bdlogic.REF_SIM_SERIES_FLOW).GetYColumnName() == "inflow_ml_s"
+    assert curve.GetNodeReference(bdcandidate.REF_SIM_SERIES_FLOW).GetYColumnName() == "inflow_ml_s"
 
 
 def test_compare_table_has_the_simulated_dp_and_v_max(simulated):
@@ -224,7 +225,7 @@ def test_compare_table_has_the_simulated_dp_and_v_max(simulated):
 def test_cancelling_a_running_simulation_keeps_the_earlier_results(simulated, tmp_path):
     scene, logic, curve, _, _ = simulated
     refs = {role: curve.GetNodeReferenceID(role) for role in SIMULATION_REFS}
-    fields = curve.GetNodeReference(bdlogic.REF_SIM_FIELDS).GetMesh()
+    fields = curve.GetNodeReference(bdcandidate.REF_SIM_FIELDS).GetMesh()
     dp_before = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
     domain = curve.GetNodeReference(bdlogic.REF_DOMAIN).GetPolyData()
     node_count = scene.GetNumberOfNodes()
@@ -232,7 +233,7 @@ def test_cancelling_a_running_simulation_keeps_the_earlier_results(simulated, tm
     parameters = logic.parameters(curve)
     parameters.flow_mode = "pulsatile"  # 4 cycles: far longer than the test waits
     logic.setParameters(curve, parameters)
-    job = logic.startSimulation(curve, process.find_baffle_executable(), str(tmp_path))
+    job = logic.startSimulation(curve, environment.find_baffle_executable(), str(tmp_path))
     deadline = time.monotonic() + 90
     while job.poll() == process.RUNNING and not (job.stage == simulation.SIMULATE_STAGE and job.progress > 0):
         assert time.monotonic() < deadline, f"no simulation progress: {job.stage}, {job.message}"
@@ -251,7 +252,7 @@ def test_cancelling_a_running_simulation_keeps_the_earlier_results(simulated, tm
     # ... but nothing of it in the scene: the earlier results and the design are untouched.
     assert scene.GetNumberOfNodes() == node_count
     assert {role: curve.GetNodeReferenceID(role) for role in SIMULATION_REFS} == refs
-    assert curve.GetNodeReference(bdlogic.REF_SIM_FIELDS).GetMesh() is fields
+    assert curve.GetNodeReference(bdcandidate.REF_SIM_FIELDS).GetMesh() is fields
     assert curve.GetAttribute("BaffleDesigner.SimulationDpMmhg") == dp_before
     assert curve.GetAttribute("BaffleDesigner.SimulationMode") == "steady"
     assert curve.GetAttribute("BaffleDesigner.SimulationLastRun").startswith("cancelled: simulation cancelled")
@@ -293,7 +294,7 @@ def test_the_child_processes_get_the_given_environment(phantom_scene, executable
 def test_simulation_cannot_start_without_program_or_design(phantom_scene, tmp_path):
     scene, logic, model, curve = phantom_scene
     with pytest.raises(bdlogic.BaffleDesignerError, match="design the baffle first"):
-        logic.startSimulation(curve, process.find_baffle_executable() or "/bin/true", str(tmp_path))
+        logic.startSimulation(curve, environment.find_baffle_executable() or "/bin/true", str(tmp_path))
     logic.design(curve)
     node_count = scene.GetNumberOfNodes()
     with pytest.raises(bdlogic.BaffleDesignerError, match="baffle command line program was not found"):
