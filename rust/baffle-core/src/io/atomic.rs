@@ -2,8 +2,9 @@
 //! never leaves a truncated copy in place of an earlier good one: the bytes go to a
 //! temporary file in the same folder (so the rename stays on one file system), which is
 //! then renamed over the target. The temporary's name is unique per process and call
-//! (`.<name>.tmp-<pid>-<n>`), so concurrent writers of the same file do not share it. No
-//! fsync: the rename is atomic for readers, not durable across a power loss.
+//! (`.<name>.tmp-<pid>-<n>`), so concurrent writers of the same file do not share it. The
+//! temporary is synced before the rename (as baffle-cfd's and baffle-plan's copies did),
+//! so a power loss leaves the old file or the new one.
 //! Every crate's output files go through here (baffle-mesh, baffle-cfd, baffle-plan map
 //! the `std::io::Error` to their own error types).
 
@@ -24,7 +25,9 @@ pub fn write_atomic_with(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -
     let result = (|| {
         let mut w = BufWriter::new(File::create(&tmp)?);
         write(&mut w)?;
-        w.into_inner().map_err(|e| e.into_error())?;
+        // On disk before the rename: a crash then leaves the old file or the new one,
+        // never an empty one under the final name (a run's earlier results are kept).
+        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
         std::fs::rename(&tmp, path)
     })();
     if result.is_err() {
