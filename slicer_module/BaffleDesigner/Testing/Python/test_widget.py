@@ -47,6 +47,11 @@ def bdlogic():
     return sys.modules["BaffleDesignerLib.logic"]
 
 
+def bdcandidate():
+    """The scene's names and the flow modes (what logic, prepare and simulation share)."""
+    return sys.modules["BaffleDesignerLib.candidate"]
+
+
 def p2_candidate():
     surface, points = p2_inputs()
     model = slicer.util.loadModel(str(surface))
@@ -144,7 +149,7 @@ def test_setup_connects_the_panel(widget):
     assert w.ui.designButton.enabled
     w.ui.bsaSpinBox.value = 0.41  # valueChanged(double) -> stored on the candidate
     assert w.logic.parameters(curve).bsa_m2 == pytest.approx(0.41)
-    w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("pulsatile")
+    w.ui.flowModeComboBox.currentIndex = bdcandidate().FLOW_MODES.index("pulsatile")
     assert w.logic.parameters(curve).flow_mode == "pulsatile"
 
 
@@ -256,8 +261,8 @@ def test_design_on_p2_shows_table_and_chart_and_repaints_progress(widget):
 
     views = app.layoutManager().viewClasses()
     assert {"vtkMRMLPlotViewNode", "vtkMRMLTableViewNode"} <= views, views
-    table = curve.GetNodeReference(bdlogic().REF_TABLE)
-    chart = curve.GetNodeReference(bdlogic().REF_CHART)
+    table = curve.GetNodeReference(bdcandidate().REF_TABLE)
+    chart = curve.GetNodeReference(bdcandidate().REF_CHART)
     table_views = slicer.util.getNodesByClass("vtkMRMLTableViewNode")
     plot_views = slicer.util.getNodesByClass("vtkMRMLPlotViewNode")
     assert any(v.GetTableNodeID() == table.GetID() for v in table_views)
@@ -273,7 +278,7 @@ def test_flatten_and_save_template_buttons(widget, tmp_path, monkeypatch):
     assert "RV" in w.ui.statusLabel.text and "mL after the baffle" in w.ui.statusLabel.text
     assert w.ui.flattenButton.enabled and w.ui.saveTemplateButton.enabled
     w.ui.flattenButton.click()
-    flat = curve.GetNodeReference(bdlogic().REF_FLAT_TEMPLATE)
+    flat = curve.GetNodeReference(bdcandidate().REF_FLAT_TEMPLATE)
     assert flat is not None and flat.GetPolyData().GetNumberOfPolys() > 100
     assert "perimeter error" in w.ui.statusLabel.text, w.ui.statusLabel.text
     # Save: the file dialog answers with a path (PySide's (path, filter) as PythonQt's path).
@@ -357,21 +362,21 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     require_cfd(w)
     model, curve, bsa = phantom_candidate()
     design_in_widget(w, model, curve, bsa)
-    w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("steady")
+    w.ui.flowModeComboBox.currentIndex = bdcandidate().FLOW_MODES.index("steady")
     w.ui.meshEdgeLengthSpinBox.value = 1.25
     w.ui.simulateButton.click()
     assert w.run is not None and w.ui.cancelButton.enabled and not w.ui.simulateButton.enabled
     wait_run(w, 180)
     skip_without_gmsh(w)
     assert "dp " in w.ui.statusLabel.text and "mmHg" in w.ui.statusLabel.text, w.ui.statusLabel.text
-    summary = curve.GetNodeReference(bdlogic().REF_SIM_SUMMARY)
+    summary = curve.GetNodeReference(bdcandidate().REF_SIM_SUMMARY)
     assert summary is not None and summary.GetNumberOfRows() > 0
     assert any(v.GetTableNodeID() == summary.GetID() for v in slicer.util.getNodesByClass("vtkMRMLTableViewNode"))
     dp = curve.GetAttribute("BaffleDesigner.SimulationDpMmhg")
     work = Path(curve.GetAttribute("BaffleDesigner.SimulationDir")).parent
     assert not (work / "volume.vtu").exists() and (work / "results" / "summary.json").exists()  # cleaned, results kept
 
-    w.ui.flowModeComboBox.currentIndex = bdlogic().FLOW_MODES.index("pulsatile")  # long enough to cancel
+    w.ui.flowModeComboBox.currentIndex = bdcandidate().FLOW_MODES.index("pulsatile")  # long enough to cancel
     w.ui.simulateButton.click()
     wait_run(w, 120, until=lambda: w.run is not None and w.run.stage == "simulation" and (w.run.progress or 0) > 0)
     w.ui.cancelButton.click()
@@ -657,7 +662,7 @@ def test_an_output_model_is_never_taken_for_the_ventricle(widget):
     w = widget
     model, curve = p2_candidate()
     design_in_widget(w, model, curve, 0.37)
-    baffle = curve.GetNodeReference(bdlogic().REF_BAFFLE)
+    baffle = curve.GetNodeReference(bdcandidate().REF_BAFFLE)
     w.ui.surfaceSelector.setCurrentNode(baffle)
     assert w.logic.surfaceNode(curve) is model and "not a ventricle" in w.ui.statusLabel.text
     assert w.logic.inputVentricle() is model
@@ -699,7 +704,7 @@ def test_baffle_planners_bc_curve_and_plain_rv_model_design_through_the_module(m
         w.ui.designButton.click()
         wait_design(w)
         assert curve.GetAttribute("BaffleDesigner.Status") == "designed", w.ui.statusLabel.text
-        assert curve.GetNodeReference(bdlogic().REF_RIM_CAPPED) is not None
+        assert curve.GetNodeReference(bdcandidate().REF_RIM_CAPPED) is not None
         assert w.logic.surfaceNode(curve) is model and not w.logic.candidates()[1:]  # the rims are no candidates
     finally:
         harness.unload_module(module)
