@@ -87,6 +87,8 @@ class DesignOptions(ctypes.Structure):
         ("area_margin", c_double),
         ("max_wall_fraction", c_double),
         ("tps_regularization", c_double),
+        # Appended after the first layout: NaN or 0 = no reduced-order estimate.
+        ("peak_flow_ml_s", c_double),
     ]
 
 

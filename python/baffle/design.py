@@ -187,6 +187,7 @@ def design(
     height_cm: Optional[float] = None,
     weight_kg: Optional[float] = None,
     progress: Optional[Progress] = None,
+    peak_flow_ml_s: Optional[float] = None,
     **tunables,
 ) -> DesignResult:
     """Design the area-constrained baffle.
@@ -197,6 +198,9 @@ def design(
     target. `tunables` set other BaffleDesignOptions fields (seam_samples,
     remesh_edge_mm, wall_label, ...). `progress(fraction, stage)` returning False
     cancels (raises Cancelled). Errors raise BaffleError with the library's message.
+    `peak_flow_ml_s`, the patient's peak flow, adds report["hemodynamics_estimate"]:
+    the reduced-order dp at peak flow and v_max with their measured error (not a CFD
+    result, docs/hemodynamics_estimate.md); without it that object says why there is none.
     """
     target = {
         "target_area_mm2": target_area_mm2,
@@ -207,6 +211,7 @@ def design(
     }
     options = _options(target, tunables)
     options.z_score = float(z_score)
+    options.peak_flow_ml_s = float("nan") if peak_flow_ml_s is None else float(peak_flow_ml_s)
     suture = _array(suture_points, np.float64, "suture_points", 3)
     surface = _new_mesh(surface_points, triangles, labels)
     bridge = _ProgressBridge(progress)

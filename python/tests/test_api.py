@@ -113,6 +113,18 @@ def test_phantom_design_with_progress(phantom):
     assert fractions[0] == 0.0 and fractions[-1] == 1.0
     assert all(s["final_area_mm2"] >= result.target_area_mm2 for s in result.checked_sections)
     assert result.domain.triangles.shape == (result.report["domain_triangles"], 3)
+    assert "peak_flow_ml_s" in result.report["hemodynamics_estimate"]["absent_because"]
+
+
+def test_a_peak_flow_adds_the_reduced_order_estimate(phantom):
+    surface, points, bsa_m2 = phantom
+    result = baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, peak_flow_ml_s=70.0)
+    estimate = result.report["hemodynamics_estimate"]
+    assert estimate["peak_flow_ml_s"] == 70.0
+    assert estimate["v_max_estimate_m_s"] > 0 and np.isfinite(estimate["dp_estimate_mmhg"])
+    assert "mmHg below" in estimate["dp_uncertainty"]
+    with pytest.raises(baffle.BaffleError, match="peak_flow_ml_s"):
+        baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, peak_flow_ml_s=-1.0)
 
 
 def write_markups(path, frame, points):

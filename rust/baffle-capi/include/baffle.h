@@ -207,6 +207,13 @@ typedef struct BaffleDesignOptions {
    Smoothing of the final thin-plate spline (0 interpolates).
    */
   double tps_regularization;
+  /*
+   Appended after the first layout (a caller compiled against it keeps the default).
+   The patient's peak flow (ml/s): the report JSON's hemodynamics_estimate then holds
+   the reduced-order dp at peak flow and v_max (docs/hemodynamics_estimate.md); 0 or
+   NaN (the default): no estimate, hemodynamics_estimate says why.
+   */
+  double peak_flow_ml_s;
 } BaffleDesignOptions;
 
 /*

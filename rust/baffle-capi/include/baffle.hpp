@@ -147,6 +147,11 @@ class Options {
     raw_.annulus_diameter_mm = diameter;
     return *this;
   }
+  // The patient's peak flow (ml/s): the report then holds hemodynamics_estimate.
+  Options& peak_flow_ml_s(double q) {
+    raw_.peak_flow_ml_s = q;
+    return *this;
+  }
   BaffleDesignOptions& raw() noexcept { return raw_; }
   const BaffleDesignOptions& raw() const noexcept { return raw_; }
 

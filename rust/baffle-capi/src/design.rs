@@ -4,6 +4,7 @@ use crate::mesh::BaffleMesh;
 use crate::options::read_options;
 use crate::result::BaffleResult;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
+use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::{design, DesignError, Vec3};
 use std::ffi::{c_char, c_void, CString};
 
@@ -38,10 +39,15 @@ pub unsafe extern "C" fn baffle_design(
         let options = read_options(options)?;
         let target = options.target()?;
         let core_options = options.design_options()?;
+        let peak_flow_ml_s = options.peak_flow_ml_s()?;
         let mut report = |fraction: f64, stage: &str| call_progress(progress, user_data, fraction, stage);
         let designed = design(&surface.mesh, &points, &target, &core_options, &mut report).map_err(design_error)?;
         // Checked by a second method before the caller sees it (report.json `checks`).
-        let result = baffle_verify::checked_design(designed).map_err(design_error)?;
+        let mut result = baffle_verify::checked_design(designed).map_err(design_error)?;
+        result.report.hemodynamics_estimate = Some(match peak_flow_ml_s {
+            Some(q) => EstimateOutcome::for_domain(&result.domain, core_options.labels, Some(q), Blood::default()),
+            None => EstimateOutcome::Absent { absent_because: "no peak flow given (options.peak_flow_ml_s is 0 or NaN)".into() },
+        });
         *out = BaffleResult::boxed(result)?;
         Ok(())
     })

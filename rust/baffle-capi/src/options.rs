@@ -58,10 +58,16 @@ pub struct BaffleDesignOptions {
     pub max_wall_fraction: f64,
     /// Smoothing of the final thin-plate spline (0 interpolates).
     pub tps_regularization: f64,
+    /// Appended after the first layout (a caller compiled against it keeps the default).
+    /// The patient's peak flow (ml/s): the report JSON's hemodynamics_estimate then holds
+    /// the reduced-order dp at peak flow and v_max (docs/hemodynamics_estimate.md); 0 or
+    /// NaN (the default): no estimate, hemodynamics_estimate says why.
+    pub peak_flow_ml_s: f64,
 }
 
-/// Size of the first published layout; any caller struct is at least this long.
-const V1_SIZE: usize = std::mem::size_of::<BaffleDesignOptions>();
+/// Size of the first published layout (up to tps_regularization); any caller struct is
+/// at least this long, and the fields after it keep their defaults for such a caller.
+const V1_SIZE: usize = std::mem::offset_of!(BaffleDesignOptions, peak_flow_ml_s);
 
 impl Default for BaffleDesignOptions {
     fn default() -> Self {
@@ -90,6 +96,7 @@ impl Default for BaffleDesignOptions {
             area_margin: d.area_margin,
             max_wall_fraction: d.max_wall_fraction,
             tps_regularization: d.tps_regularization,
+            peak_flow_ml_s: f64::NAN,
         }
     }
 }
@@ -143,6 +150,16 @@ impl BaffleDesignOptions {
             }
             other => return Err(CallError::invalid(format!("options.target_kind = {other} is not a BaffleTargetKind"))),
         })
+    }
+
+    /// The peak flow for the estimate (ml/s): None for 0 or NaN, an error for any other
+    /// value that is not positive and finite.
+    pub(crate) fn peak_flow_ml_s(&self) -> Result<Option<f64>, CallError> {
+        match self.peak_flow_ml_s {
+            q if q.is_nan() || q == 0.0 => Ok(None),
+            q if q.is_finite() && q > 0.0 => Ok(Some(q)),
+            q => Err(CallError::invalid(format!("options.peak_flow_ml_s = {q}: give a positive, finite peak flow (ml/s), or 0 or NaN for none"))),
+        }
     }
 
     /// The core's options, range-checked by `DesignOptions::validate` (so no value can

@@ -232,6 +232,9 @@ fn phantom_design_results_are_copied_out() {
     let mut target = 0.0;
     assert_eq!(unsafe { baffle_result_target_area_mm2(result, &mut target) }, BaffleStatus::Ok);
     assert_eq!(report["target_area_mm2"].as_f64(), Some(target));
+    // No peak flow by default: no estimate, and the report says why.
+    let why = report["hemodynamics_estimate"]["absent_because"].as_str().unwrap_or_default();
+    assert!(why.contains("options.peak_flow_ml_s"), "{}", report["hemodynamics_estimate"]);
 
     let mut n = 0;
     assert_eq!(unsafe { baffle_result_section_count(result, &mut n) }, BaffleStatus::Ok);
@@ -262,6 +265,36 @@ fn phantom_design_results_are_copied_out() {
         baffle_mesh_free(domain);
         baffle_result_free(result);
     }
+}
+
+/// options.peak_flow_ml_s, appended after the first layout: the estimate with it; a
+/// caller compiled against the first layout (struct_size up to tps_regularization) keeps
+/// working and gets no estimate, whatever lies in its memory after the struct.
+#[test]
+fn a_peak_flow_adds_the_estimate_and_first_layout_callers_keep_working() {
+    let p = phantom();
+    let mut options = bsa_options(p.bsa_m2);
+    assert!(options.peak_flow_ml_s.is_nan(), "no peak flow by default");
+    for bad in [-1.0, f64::INFINITY] {
+        options.peak_flow_ml_s = bad;
+        assert_eq!(run_design(&p, &options, None, null_mut()).0, BaffleStatus::InvalidArgument);
+        assert!(last_error().contains("options.peak_flow_ml_s"), "{}", last_error());
+    }
+    options.peak_flow_ml_s = 70.0;
+    let (status, result) = run_design(&p, &options, None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    let e = report(result)["hemodynamics_estimate"].clone();
+    unsafe { baffle_result_free(result) };
+    assert_eq!(e["peak_flow_ml_s"].as_f64(), Some(70.0), "{e}");
+    assert!(e["dp_estimate_mmhg"].as_f64().unwrap().is_finite() && e["v_max_estimate_m_s"].as_f64().unwrap() > 0.0, "{e}");
+    let first_layout = std::mem::offset_of!(BaffleDesignOptions, peak_flow_ml_s);
+    assert_eq!(first_layout, 144, "the first published layout's size");
+    options.struct_size = first_layout as u32;
+    let (status, result) = run_design(&p, &options, None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    let e = report(result)["hemodynamics_estimate"].clone();
+    unsafe { baffle_result_free(result) };
+    assert!(e["absent_because"].is_string() && e.get("dp_estimate_mmhg").is_none(), "{e}");
 }
 
 #[test]

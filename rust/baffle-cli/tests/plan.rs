@@ -166,6 +166,22 @@ fn phantom_plan_reports_the_stages_own_figures() {
     let v_line = q["max_centerline_velocity_m_s"].as_f64().unwrap();
     assert!(v_line > 0.0 && v_line <= q["max_velocity_m_s"].as_f64().unwrap() + 1e-9);
 
+    // The design's reduced-order estimate, made at the nominal CFD case's peak flow (no
+    // --peak-flow-ml-s given), as the design wrote it and beside the 3D dp and v_max.
+    let estimate = &report["hemodynamics_estimate"];
+    assert_eq!(estimate["design"], design["hemodynamics_estimate"]);
+    let e = &estimate["design"];
+    assert!(close(e["peak_flow_ml_s"].as_f64().unwrap(), summary["inputs"]["q_peak_ml_s"].as_f64().unwrap()), "{e} vs {}", summary["inputs"]);
+    assert!(e["dp_estimate_mmhg"].as_f64().unwrap().is_finite() && e["v_max_estimate_m_s"].as_f64().unwrap() > 0.0, "{e}");
+    let c = &estimate["comparison_with_3d"];
+    assert!(close(c["dp_3d_mmhg"].as_f64().unwrap(), dp) && close(c["v_max_3d_m_s"].as_f64().unwrap(), v_line), "{c}");
+    let difference = e["dp_estimate_mmhg"].as_f64().unwrap() - dp;
+    assert!(close(c["dp_difference_mmhg"].as_f64().unwrap(), difference), "{c}");
+    assert_eq!(c["dp_within_measured_error"], (-7.38..=0.29).contains(&difference), "{c}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Reduced-order estimate (not a CFD result):"), "no estimate paragraph");
+    assert_eq!(html.contains("disagree on dp beyond"), c["dp_within_measured_error"] == false);
+    eprintln!("phantom plan: estimate {e}\ncomparison {c}");
     check_html(&out.join("report.html"));
     // Every stage wrote atomically: no temporary files are left in any subfolder.
     for stage in ["design", "centerline", "mesh-nominal", "simulate-nominal", "."] {

@@ -79,6 +79,18 @@ fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
     Ok(path)
 }
 
+/// The peak flow the design's reduced-order estimate is made at (ml/s): --peak-flow-ml-s
+/// when given, else the nominal CFD case's own (BSA x cardiac index through its inflow
+/// waveform), so the plan's design/report.json always holds the estimate (issue 31).
+fn design_peak_flow_ml_s(args: &PlanArgs) -> Result<f64, String> {
+    if let Some(q) = args.design.peak_flow_ml_s {
+        return Ok(q);
+    }
+    let case = simulate_case(args, "nominal", FlowCase::Nominal)?;
+    let (_, flow) = crate::case::settings(&case).map_err(|e| format!("the nominal CFD case's peak flow (for the design's estimate): {e}"))?;
+    Ok(flow.q_peak_ml_s)
+}
+
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
 pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
     let out = &args.design.out;
@@ -95,7 +107,8 @@ pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &P
         Step::Design => {
             let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
             let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
-            let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, ..args.design.clone() };
+            let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
+            let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() };
             design_reporting(&design, &mut |f, s| {
                 progress.report(f, "design", s);
                 true

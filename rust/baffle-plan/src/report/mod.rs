@@ -10,6 +10,8 @@ use crate::plan_stages::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase,
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use baffle_cfd::Waveform;
+use baffle_core::hemodynamics_estimate::{compare_with_3d, EstimateComparison, EstimateOutcome};
+use serde::Deserialize;
 use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
@@ -152,6 +154,58 @@ fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &Ce
         row("max_velocity_m_s", "v_max (domain)", nominal.v_max_m_s()?, "m/s", 3),
         row("max_centerline_velocity_m_s", "v_max along the flow-domain centerline", centerline.profile.v_max_m_s(), "m/s", 3),
     ])
+}
+
+/// The design's reduced-order estimate of dp and v_max beside the nominal 3D run (report.json
+/// `hemodynamics_estimate`). Advisory: the verdict is the 3D dp's and never reads this.
+#[derive(serde::Serialize)]
+struct EstimateBeside3d {
+    /// As the design stage wrote it (design/report.json), or why there is none.
+    design: EstimateOutcome,
+    /// Against the nominal run's plane-averaged dp and the flow-centerline v_max (the 3D
+    /// quantities the estimate's error was measured on).
+    comparison_with_3d: Option<EstimateComparison>,
+    comparison_absent_because: Option<String>,
+    verdict_uses: &'static str,
+}
+
+impl EstimateBeside3d {
+    fn of(design: &Value, design_path: &Path, dp_3d_mmhg: f64, v_max_3d_m_s: f64) -> EstimateBeside3d {
+        #[derive(Deserialize)]
+        struct DesignEstimate {
+            hemodynamics_estimate: Option<EstimateOutcome>,
+        }
+        let absent = |why: String| EstimateOutcome::Absent { absent_because: why };
+        let design = match DesignEstimate::deserialize(design) {
+            Ok(DesignEstimate { hemodynamics_estimate: Some(outcome) }) => outcome,
+            Ok(DesignEstimate { hemodynamics_estimate: None }) => absent(format!("{} has no hemodynamics_estimate", design_path.display())),
+            Err(e) => absent(format!("{}: hemodynamics_estimate unreadable: {e}", design_path.display())),
+        };
+        let compared = match &design {
+            EstimateOutcome::Estimated(e) => compare_with_3d(e, dp_3d_mmhg, v_max_3d_m_s),
+            EstimateOutcome::Absent { .. } => Err("the design has no estimate".into()),
+        };
+        let (comparison_with_3d, comparison_absent_because) = match compared {
+            Ok(c) => (Some(c), None),
+            Err(why) => (None, Some(why)),
+        };
+        EstimateBeside3d { design, comparison_with_3d, comparison_absent_because, verdict_uses: "the 3D dp (dp_peak_mmhg); the estimate never changes the verdict" }
+    }
+
+    /// One paragraph for report.html, beside the 3D dp.
+    fn text(&self) -> String {
+        match (&self.design, &self.comparison_with_3d, &self.comparison_absent_because) {
+            (_, Some(c), _) => format!("{} The verdict uses the 3D dp.", c.text),
+            (EstimateOutcome::Estimated(e), None, why) => format!(
+                "Reduced-order estimate (not a CFD result): {:.2} mmHg, v_max {:.2} m/s at peak flow {:.1} ml/s; not compared with the 3D run ({}). The verdict uses the 3D dp.",
+                e.dp_estimate_mmhg,
+                e.v_max_estimate_m_s,
+                e.peak_flow_ml_s,
+                why.as_deref().unwrap_or("no reason given")
+            ),
+            (EstimateOutcome::Absent { absent_because }, None, _) => format!("No reduced-order estimate of dp: {absent_because}."),
+        }
+    }
 }
 
 /// The RV outflow figures in words for the surgeon: what each means, or why there are none.
@@ -659,6 +713,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     flow_line.write_with_fields(reference_mmhg)?;
     let prepare = prepare_summary(out, records)?;
     let paper = input_path(args).and_then(paper::PaperPatient::of_input);
+    let estimate = EstimateBeside3d::of(&design, &design_path, dp, profile.v_max_m_s());
 
     let run_rows: Vec<Value> = runs
         .iter()
@@ -696,6 +751,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             "threshold_mmhg": DP_THRESHOLD_MMHG, "dp_peak_mmhg": dp, "converged": converged, "text": verdict_line,
             "warnings": warnings,
         },
+        "hemodynamics_estimate": &estimate,
         "runs": run_rows,
         "mesh_study": study.as_ref().map(mesh_study_json),
         "paper": paper.as_ref().map(|p| json!({
@@ -796,6 +852,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         None => html.table(&["Quantity", "Value", "Unit"], &rows),
     }
 
+    html.para(&estimate.text());
     html.para(&rv_outflow_text(&design));
 
     if let Some(prepare) = &prepare {
@@ -898,6 +955,34 @@ mod tests {
         let moved = json!({ "rim_gap_mm": 0.66, "clearance_mm": 0.5, "interface_loops_gap_mm": 0.01, "vsd_cut_moved_into_lv_mm": 2.0, "aortic_cut_moved_into_aorta_mm": 4.0 });
         let text = separation_text(&moved);
         assert!(text.contains("0.66 mm apart") && text.contains("moved 2.00 mm into the LV") && text.contains("4.00 mm up the aortic root"), "{text}");
+    }
+
+    #[test]
+    fn the_designs_estimate_is_read_typed_and_set_beside_the_3d_run() {
+        let path = Path::new("design/report.json");
+        let tunnel = baffle_core::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
+        let e = baffle_core::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap();
+        let design = json!({ "target_area_mm2": 60.0, "hemodynamics_estimate": EstimateOutcome::Estimated(e.clone()) });
+        // The 3D dp equal to the estimate: within its measured error.
+        let near = EstimateBeside3d::of(&design, path, e.dp_estimate_mmhg, e.v_max_estimate_m_s);
+        assert_eq!(near.design, EstimateOutcome::Estimated(e.clone()));
+        let c = near.comparison_with_3d.as_ref().unwrap();
+        assert!(c.dp_within_measured_error && c.v_max_within_measured_error && c.dp_3d_mmhg == e.dp_estimate_mmhg);
+        assert!(near.text().starts_with("Reduced-order estimate (not a CFD result):") && !near.text().contains("disagree"), "{}", near.text());
+        // 3D dp 10 mmHg above the estimate: beyond the range, and the text says so.
+        let far = EstimateBeside3d::of(&design, path, e.dp_estimate_mmhg + 10.0, e.v_max_estimate_m_s);
+        assert!(far.text().contains("disagree on dp beyond") && far.text().contains("verdict uses"), "{}", far.text());
+        let report = serde_json::to_value(&far).unwrap();
+        assert_eq!(report["comparison_with_3d"]["dp_within_measured_error"], false);
+        assert_eq!(report["design"]["dp_estimate_mmhg"].as_f64(), Some(e.dp_estimate_mmhg));
+        // No 3D v_max sampled: the estimate stands, the comparison says why not.
+        let unsampled = EstimateBeside3d::of(&design, path, 1.0, f64::NAN);
+        assert!(unsampled.comparison_with_3d.is_none() && unsampled.text().contains("not compared with the 3D run (hemodynamics estimate comparison: the 3D v_max"), "{}", unsampled.text());
+        // Without an estimate: why, in one line.
+        let absent = json!({ "hemodynamics_estimate": { "absent_because": "no peak flow given" } });
+        assert_eq!(EstimateBeside3d::of(&absent, path, 1.0, 1.0).text(), "No reduced-order estimate of dp: no peak flow given.");
+        assert!(EstimateBeside3d::of(&json!({}), path, 1.0, 1.0).text().contains("design/report.json has no hemodynamics_estimate"));
+        assert!(EstimateBeside3d::of(&json!({ "hemodynamics_estimate": 3 }), path, 1.0, 1.0).text().contains("hemodynamics_estimate unreadable"));
     }
 
     #[test]
