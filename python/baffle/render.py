@@ -115,13 +115,10 @@ def read_surface(path):
     path = Path(path)
     if not path.is_file():
         raise RenderError(f"{path}: no such file")
-    reader = {".vtp": vtkXMLPolyDataReader, ".vtk": vtkPolyDataReader, ".stl": vtkSTLReader}.get(path.suffix.lower())
-    if reader is None:
+    reader_class = {".vtp": vtkXMLPolyDataReader, ".vtk": vtkPolyDataReader, ".stl": vtkSTLReader}.get(path.suffix.lower())
+    if reader_class is None:
         raise RenderError(f"{path}: not a .vtp, .vtk or .stl surface")
-    reader = reader()
-    reader.SetFileName(str(path))
-    reader.Update()
-    data = reader.GetOutput()
+    data = read_with(reader_class, path)
     if data.GetNumberOfCells() == 0:
         raise RenderError(f"{path}: no cells")
     return data
@@ -133,13 +130,18 @@ def read_volume(path):
     path = Path(path)
     if not path.is_file():
         raise RenderError(f"{path}: no such file")
-    reader = vtkXMLUnstructuredGridReader()
-    reader.SetFileName(str(path))
-    reader.Update()
-    grid = reader.GetOutput()
+    grid = read_with(vtkXMLUnstructuredGridReader, path)
     if grid.GetPointData().GetArray("speed_m_s") is None:
         raise RenderError(f"{path}: no point array speed_m_s")
     return grid
+
+
+def read_with(reader_class, path):
+    """What a new VTK file reader of `reader_class` reads from `path`."""
+    reader = reader_class()
+    reader.SetFileName(str(path))
+    reader.Update()
+    return reader.GetOutput()
 
 
 def with_labels(surface, labels):

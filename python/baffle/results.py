@@ -96,13 +96,12 @@ def read_fields(path) -> Dict[str, np.ndarray]:
     from vtkmodules.util import numpy_support
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
 
+    from .render import read_with
+
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: file not found")
-    reader = vtkXMLUnstructuredGridReader()
-    reader.SetFileName(str(path))
-    reader.Update()
-    grid = reader.GetOutput()
+    grid = read_with(vtkXMLUnstructuredGridReader, path)
     data = grid.GetPointData()
     missing = [n for n, c in FIELD_ARRAYS.items() if data.GetArray(n) is None or data.GetArray(n).GetNumberOfComponents() != c]
     if grid.GetNumberOfPoints() == 0 or missing:

@@ -31,22 +31,12 @@ pub unsafe extern "C" fn baffle_mesh_new(
     labels_len: usize,
     out_mesh: *mut *mut BaffleMesh,
 ) -> BaffleStatus {
-    guarded(|| {
-        let out = out_ref(out_mesh, "out_mesh")?;
-        *out = std::ptr::null_mut();
-        let points = mesh_points(in_slice(points_mm, points_len, "points_mm")?)?;
+    new_mesh(points_mm, points_len, labels, labels_len, out_mesh, |point_count| {
         let corners = in_slice(triangles, triangles_len, "triangles")?;
         if !triangles_len.is_multiple_of(3) {
             return Err(CallError::invalid(format!("triangles has {triangles_len} indices, not a multiple of 3")));
         }
-        let tris = corners
-            .chunks_exact(3)
-            .enumerate()
-            .map(|(t, c)| triangle(t, c, points.len()))
-            .collect::<Result<Vec<_>, _>>()?;
-        let face_ids = mesh_labels(in_slice(labels, labels_len, "labels")?, tris.len())?;
-        *out = BaffleMesh::boxed(TriMesh::new(points, tris, face_ids));
-        Ok(())
+        corners.chunks_exact(3).enumerate().map(|(t, c)| triangle(t, c, point_count)).collect()
     })
 }
 
@@ -69,13 +59,29 @@ pub unsafe extern "C" fn baffle_mesh_new_vtk(
     labels_len: usize,
     out_mesh: *mut *mut BaffleMesh,
 ) -> BaffleStatus {
+    new_mesh(points_mm, points_len, labels, labels_len, out_mesh, |point_count| {
+        let offsets = in_slice(offsets, offsets_len, "offsets")?;
+        let connectivity = in_slice(connectivity, connectivity_len, "connectivity")?;
+        vtk_triangles(offsets, connectivity, point_count)
+    })
+}
+
+/// The body of the mesh constructors: `out_mesh` set to NULL, the points checked, the
+/// triangles made by `triangles_of` (given the point count), the labels checked against
+/// them, then the new handle in `out_mesh`.
+unsafe fn new_mesh(
+    points_mm: *const f64,
+    points_len: usize,
+    labels: *const i32,
+    labels_len: usize,
+    out_mesh: *mut *mut BaffleMesh,
+    triangles_of: impl FnOnce(usize) -> Result<Vec<[u32; 3]>, CallError>,
+) -> BaffleStatus {
     guarded(|| {
         let out = out_ref(out_mesh, "out_mesh")?;
         *out = std::ptr::null_mut();
         let points = mesh_points(in_slice(points_mm, points_len, "points_mm")?)?;
-        let offsets = in_slice(offsets, offsets_len, "offsets")?;
-        let connectivity = in_slice(connectivity, connectivity_len, "connectivity")?;
-        let tris = vtk_triangles(offsets, connectivity, points.len())?;
+        let tris = triangles_of(points.len())?;
         let face_ids = mesh_labels(in_slice(labels, labels_len, "labels")?, tris.len())?;
         *out = BaffleMesh::boxed(TriMesh::new(points, tris, face_ids));
         Ok(())
@@ -179,12 +185,7 @@ pub unsafe extern "C" fn baffle_mesh_triangle_count(mesh: *const BaffleMesh, out
 /// `mesh` must be NULL or a live handle; `out_points_mm` NULL or `capacity` writable doubles.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_mesh_copy_points(mesh: *const BaffleMesh, out_points_mm: *mut f64, capacity: usize) -> BaffleStatus {
-    guarded(|| {
-        let points = &arg_ref(mesh, "mesh")?.mesh.points;
-        let out = out_slice(out_points_mm, capacity, 3 * points.len(), "out_points_mm")?;
-        copy_points(points, out);
-        Ok(())
-    })
+    copy_mesh_array(mesh, |m| &m.points, 3, out_points_mm, capacity, "out_points_mm", copy_points)
 }
 
 /// Copy the triangles (3 point indices each) into `out_triangles` (`capacity` int64s).
@@ -193,14 +194,7 @@ pub unsafe extern "C" fn baffle_mesh_copy_points(mesh: *const BaffleMesh, out_po
 /// `mesh` must be NULL or a live handle; `out_triangles` NULL or `capacity` writable int64s.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_mesh_copy_triangles(mesh: *const BaffleMesh, out_triangles: *mut i64, capacity: usize) -> BaffleStatus {
-    guarded(|| {
-        let tris = &arg_ref(mesh, "mesh")?.mesh.triangles;
-        let out = out_slice(out_triangles, capacity, 3 * tris.len(), "out_triangles")?;
-        for (dst, &src) in out.iter_mut().zip(tris.iter().flatten()) {
-            *dst = i64::from(src);
-        }
-        Ok(())
-    })
+    copy_mesh_array(mesh, |m| &m.triangles, 3, out_triangles, capacity, "out_triangles", copy_triangles)
 }
 
 /// Copy the per-triangle labels into `out_labels` (`capacity` int32s).
@@ -209,9 +203,24 @@ pub unsafe extern "C" fn baffle_mesh_copy_triangles(mesh: *const BaffleMesh, out
 /// `mesh` must be NULL or a live handle; `out_labels` NULL or `capacity` writable int32s.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_mesh_copy_labels(mesh: *const BaffleMesh, out_labels: *mut i32, capacity: usize) -> BaffleStatus {
+    copy_mesh_array(mesh, |m| &m.face_ids, 1, out_labels, capacity, "out_labels", |labels, out| out.copy_from_slice(labels))
+}
+
+/// The body of the mesh copy-out calls: one of the mesh's arrays (`array`, `per_item`
+/// output values per element) written by `write` into the caller's buffer `out`
+/// (`capacity` long, named `out_name` in errors).
+unsafe fn copy_mesh_array<Item, Out>(
+    mesh: *const BaffleMesh,
+    array: fn(&TriMesh) -> &[Item],
+    per_item: usize,
+    out: *mut Out,
+    capacity: usize,
+    out_name: &str,
+    write: fn(&[Item], &mut [Out]),
+) -> BaffleStatus {
     guarded(|| {
-        let labels = &arg_ref(mesh, "mesh")?.mesh.face_ids;
-        out_slice(out_labels, capacity, labels.len(), "out_labels")?.copy_from_slice(labels);
+        let items = array(&arg_ref(mesh, "mesh")?.mesh);
+        write(items, out_slice(out, capacity, per_item * items.len(), out_name)?);
         Ok(())
     })
 }
@@ -220,5 +229,12 @@ pub unsafe extern "C" fn baffle_mesh_copy_labels(mesh: *const BaffleMesh, out_la
 pub(crate) fn copy_points(points: &[Vec3], out: &mut [f64]) {
     for (dst, p) in out.chunks_exact_mut(3).zip(points) {
         dst.copy_from_slice(&[p.x, p.y, p.z]);
+    }
+}
+
+/// Write triangles as int64 index triples into `out` (exactly 3 x triangles long).
+fn copy_triangles(triangles: &[[u32; 3]], out: &mut [i64]) {
+    for (dst, &src) in out.iter_mut().zip(triangles.iter().flatten()) {
+        *dst = i64::from(src);
     }
 }
