@@ -17,7 +17,7 @@ With the `vtk` module importable, `baffle.vtk_adapters` converts vtkPolyData.
 """
 
 from ._lib import ABI_VERSION, BaffleError, Cancelled, version
-from .design import DesignResult, Mesh, design, phantom
+from .design import DesignResult, Mesh, design, peak_flow_ml_s, phantom
 from .markups import read_markups
 from .results import PlanReport, read_fields, read_points, read_report, read_surface
 from .template import Template, template
@@ -30,6 +30,7 @@ __all__ = [
     "Mesh",
     "PlanReport",
     "design",
+    "peak_flow_ml_s",
     "phantom",
     "read_fields",
     "read_markups",

@@ -109,6 +109,7 @@ _SIGNATURES = {
     "baffle_mesh_copy_points": ([c_void_p, _D, c_size_t], c_int),
     "baffle_mesh_copy_triangles": ([c_void_p, _I64, c_size_t], c_int),
     "baffle_mesh_copy_labels": ([c_void_p, _I32, c_size_t], c_int),
+    "baffle_peak_flow_ml_s": ([c_double, c_double, _D], c_int),
     "baffle_design": ([c_void_p, _D, c_size_t, POINTER(DesignOptions), PROGRESS, c_void_p, POINTER(c_void_p)], c_int),
     "baffle_result_free": ([c_void_p], None),
     "baffle_result_domain": ([c_void_p, POINTER(c_void_p)], c_int),

@@ -227,6 +227,15 @@ def design(
         lib.baffle_mesh_free(surface)
 
 
+def peak_flow_ml_s(bsa_m2: float, cardiac_index_l_min_m2: float = 3.48) -> float:
+    """The paper's peak flow (ml/s) for design(..., peak_flow_ml_s=): 3.26 x BSA x cardiac
+    index (L/min/m2; 3.48 is the paper's normal), the peak of the CFD's default waveform.
+    Raises BaffleError naming a BSA or cardiac index that is not positive and finite."""
+    q = c_double()
+    check(lib.baffle_peak_flow_ml_s(float(bsa_m2), float(cardiac_index_l_min_m2), byref(q)))
+    return q.value
+
+
 def phantom(suture_half_angle_deg=None):
     """The built-in synthetic phantom: (surface Mesh, suture points (k, 3), BSA m2).
 

@@ -127,6 +127,16 @@ def test_a_peak_flow_adds_the_reduced_order_estimate(phantom):
         baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, peak_flow_ml_s=-1.0)
 
 
+def test_the_peak_flow_for_the_estimate_is_the_papers():
+    # patients.json's p2: BSA 0.37 m2 at CI 3.48 -> 70.0 ml/s (Table 4).
+    assert baffle.peak_flow_ml_s(0.37, 3.48) == pytest.approx(3.26 * 0.37 * 3.48 * 1000 / 60, rel=1e-12)
+    assert baffle.peak_flow_ml_s(0.37) == pytest.approx(69.96, abs=0.01)
+    with pytest.raises(baffle.BaffleError, match="BSA"):
+        baffle.peak_flow_ml_s(0.0)
+    with pytest.raises(baffle.BaffleError, match="cardiac index"):
+        baffle.peak_flow_ml_s(0.37, float("nan"))
+
+
 def write_markups(path, frame, points):
     document = {
         "markups": [

@@ -483,6 +483,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                 + (" (net: the baffle leaves the capped ventricle)" if a("BaffleAreaOutsideVentricleMm2") > 0 else "")
                 + "\n"
                 + bdlogic.rv_outflow_line(lambda name: curve.GetAttribute("BaffleDesigner." + name))
+                + "\n"
+                + bdlogic.estimate_line(lambda name: curve.GetAttribute("BaffleDesigner." + name))
             )
         if status == "failed":
             return f"{curve.GetName()}: {curve.GetAttribute('BaffleDesigner.Error')}"

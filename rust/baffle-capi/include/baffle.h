@@ -264,6 +264,19 @@ enum BaffleStatus baffle_design(const struct BaffleMesh *surface,
                                 struct BaffleResult **out_result);
 
 /*
+ The paper's peak flow (ml/s) for a child of `bsa_m2` (m2) at `cardiac_index_l_min_m2`
+ (L/min/m2; the paper's normal 3.48): 3.26 x BSA x CI, the peak of the CFD's default
+ waveform, so an estimate made with it is at the 3D run's peak flow. A BSA or cardiac
+ index that is not positive and finite is InvalidArgument, named in baffle_last_error().
+
+ # Safety
+ `out_peak_flow_ml_s` must be NULL or writable.
+ */
+enum BaffleStatus baffle_peak_flow_ml_s(double bsa_m2,
+                                        double cardiac_index_l_min_m2,
+                                        double *out_peak_flow_ml_s);
+
+/*
  Make a mesh from points (double[points_len], x y z per point), triangles
  (int64[triangles_len], three point indices each) and labels
  (int32[labels_len], one ModelFaceID per triangle).

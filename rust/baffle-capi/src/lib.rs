@@ -10,6 +10,7 @@
 
 mod alloc;
 mod design;
+mod flow;
 mod mesh;
 mod options;
 mod points;
@@ -19,6 +20,7 @@ mod template;
 
 pub use alloc::baffle_free;
 pub use design::{baffle_design, BaffleProgressFn};
+pub use flow::baffle_peak_flow_ml_s;
 pub use mesh::{
     baffle_mesh_copy_labels, baffle_mesh_copy_points, baffle_mesh_copy_triangles, baffle_mesh_free, baffle_mesh_new,
     baffle_mesh_new_vtk, baffle_mesh_point_count, baffle_mesh_triangle_count, BaffleMesh,

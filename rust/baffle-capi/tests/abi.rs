@@ -297,6 +297,20 @@ fn a_peak_flow_adds_the_estimate_and_first_layout_callers_keep_working() {
     assert!(e["absent_because"].is_string() && e.get("dp_estimate_mmhg").is_none(), "{e}");
 }
 
+/// The flow a front end without a CFD case gives the estimate: the paper's 3.26 x BSA x
+/// cardiac index, the 3D run's peak; bad values are named, a NULL output is an error.
+#[test]
+fn the_peak_flow_for_the_estimate_is_the_papers() {
+    let mut q = f64::NAN;
+    assert_eq!(unsafe { baffle_peak_flow_ml_s(0.37, 3.48, &mut q) }, BaffleStatus::Ok);
+    assert!((q - 69.96).abs() < 0.01, "p2's Table 4 peak flow, got {q}");
+    assert_eq!(unsafe { baffle_peak_flow_ml_s(0.0, 3.48, &mut q) }, BaffleStatus::InvalidArgument);
+    assert!(last_error().contains("BSA"), "{}", last_error());
+    assert_eq!(unsafe { baffle_peak_flow_ml_s(0.37, f64::NAN, &mut q) }, BaffleStatus::InvalidArgument);
+    assert!(last_error().contains("cardiac index"), "{}", last_error());
+    assert_eq!(unsafe { baffle_peak_flow_ml_s(0.37, 3.48, null_mut()) }, BaffleStatus::NullPointer);
+}
+
 #[test]
 fn small_buffers_are_reported_not_overrun() {
     let p = phantom();

@@ -42,6 +42,24 @@ use serde::{Deserialize, Serialize};
 
 /// 1 mmHg in dyn/cm^2.
 pub const DYN_CM2_PER_MMHG: f64 = 1333.22;
+/// Peak-to-mean flow ratio of the paper's inflow waveform (Table 4: Q_peak = 3.26 Q_mean);
+/// the CFD's waveform peaks there too (`baffle_cfd::hemodynamics` re-exports it), so an
+/// estimate at [`peak_flow_ml_s`] is at the 3D run's peak flow.
+pub const PEAK_TO_MEAN_FLOW: f64 = 3.26;
+
+/// The paper's peak flow (ml/s) for a child of `bsa_m2` at `cardiac_index_l_min_m2`:
+/// Q_peak = 3.26 Q_mean, Q_mean = BSA x CI (L/min -> ml/s). What `baffle plan` and the
+/// 3D run use with the default waveform; front ends that design without a CFD case
+/// (the C ABI, Python, the Slicer module) take the estimate's flow from here.
+pub fn peak_flow_ml_s(bsa_m2: f64, cardiac_index_l_min_m2: f64) -> Result<f64, String> {
+    for (name, value) in [("BSA (m2)", bsa_m2), ("cardiac index (L/min/m2)", cardiac_index_l_min_m2)] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(format!("peak flow: the {name} must be positive and finite, got {value}"));
+        }
+    }
+    Ok(PEAK_TO_MEAN_FLOW * bsa_m2 * cardiac_index_l_min_m2 * 1000.0 / 60.0)
+}
+
 /// Seeley & Young (1976): expansion-loss coefficient measured on model stenoses.
 pub const EXPANSION_KT_SEELEY_YOUNG: f64 = 1.52;
 /// Borda-Carnot, derived from momentum for a sudden expansion with full mixing.
@@ -478,5 +496,15 @@ mod tests {
         assert!(estimate(&TunnelSections { aortic_area_mm2: f64::NAN, ..t.clone() }, Q, Blood::default()).unwrap_err().contains("aortic plane area"));
         assert!(estimate(&TunnelSections { area_mm2: vec![Some(50.0), Some(-1.0)], ..t.clone() }, Q, Blood::default()).unwrap_err().contains("-1 mm2"));
         assert!(estimate(&TunnelSections { s_mm: vec![0.0], ..t }, Q, Blood::default()).unwrap_err().contains("1 arc lengths for 2"));
+    }
+
+    #[test]
+    fn the_papers_peak_flow_is_3_26_times_bsa_times_cardiac_index() {
+        // patients.json's p2: BSA 0.37 m2, CI 3.48 -> q_peak 70.0 ml/s.
+        let q = peak_flow_ml_s(0.37, 3.48).unwrap();
+        assert!((q - 3.26 * 0.37 * 3.48 * 1000.0 / 60.0).abs() < 1e-12 && (q - 69.96).abs() < 0.01, "{q}");
+        for (bsa, ci) in [(0.0, 3.48), (0.37, f64::NAN), (-1.0, 3.48), (0.37, f64::INFINITY)] {
+            assert!(peak_flow_ml_s(bsa, ci).unwrap_err().contains("must be positive"), "{bsa} {ci}");
+        }
     }
 }

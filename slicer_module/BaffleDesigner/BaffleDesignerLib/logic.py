@@ -256,6 +256,34 @@ def rv_outflow_line(attribute):
     )
 
 
+def estimate_attributes(report):
+    """The design's reduced-order estimate (report["hemodynamics_estimate"]) as (attribute,
+    text) pairs: dp and v_max at peak flow with their measured error ("" where there is no
+    estimate), and DpEstimateNote: why there is none."""
+    estimate = report.get("hemodynamics_estimate") or {}
+    text = lambda key, digits: "" if estimate.get(key) is None else f"{estimate[key]:.{digits}f}"
+    return (
+        ("DpEstimateMmhg", text("dp_estimate_mmhg", 2)),
+        ("VMaxEstimateMS", text("v_max_estimate_m_s", 2)),
+        ("EstimatePeakFlowMlS", text("peak_flow_ml_s", 1)),
+        ("DpEstimateUncertainty", estimate.get("dp_uncertainty") or ""),
+        ("DpEstimateNote", estimate.get("absent_because") or ""),
+    )
+
+
+def estimate_line(attribute):
+    """The estimate in words from a candidate's attributes (`attribute(name)`), marked as an
+    estimate: the 10 mmHg verdict is the simulation's, never the estimate's."""
+    dp = attribute("DpEstimateMmhg")
+    if not dp:
+        note = attribute("DpEstimateNote") or ""
+        return f"no dp estimate: {note}" if note else "no dp estimate"
+    return (
+        f"dp estimate {dp} mmHg, v_max estimate {attribute('VMaxEstimateMS')} m/s at {attribute('EstimatePeakFlowMlS')} ml/s "
+        f"(reduced-order estimate, not CFD: {attribute('DpEstimateUncertainty')})"
+    )
+
+
 def _surface_area(polydata) -> float:
     triangles = vtk.vtkTriangleFilter()
     triangles.SetInputData(polydata)
@@ -620,8 +648,10 @@ class BaffleDesignerLogic:
         """baffle.design on the inputs: a pure function of them, safe off the GUI thread."""
         baffle, _ = library()
         try:
+            # The reduced-order dp estimate at the flow the CFD step would use (BSA x CI).
+            peak_flow = baffle.peak_flow_ml_s(parameters.cfd_bsa_m2(), parameters.cardiac_index_l_min_m2)
             return baffle.design(mesh.points, mesh.triangles, mesh.labels, points, progress=progress,
-                                 **parameters.design_kwargs())
+                                 peak_flow_ml_s=peak_flow, **parameters.design_kwargs())
         except baffle.Cancelled as error:
             raise DesignCancelled(f"design cancelled: {error}") from error
         except baffle.BaffleError as error:
@@ -667,6 +697,7 @@ class BaffleDesignerLogic:
                 ("RvVolumeAfterMl", f"{report['rv_volume_after_ml']:.3f}"),
                 ("BaffleAreaOutsideVentricleMm2", f"{report['baffle_area_outside_ventricle_mm2']:.1f}"),
                 *rv_outflow_attributes(report),
+                *estimate_attributes(report),
                 ("DesignTimeMs", f"{elapsed_ms:.0f}"),
             ):
                 curve.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
@@ -1195,6 +1226,8 @@ class BaffleDesignerLogic:
             "RV after": "RvVolumeAfterMl",  # the capped ventricle's volume outside the pathway
             "BafflePlanner area": "BafflePlannerAreaMm2",  # compareWithBafflePlanner
             "Distance to BafflePlanner": "BafflePlannerMeanDistanceMm",
+            "dp estimate": "DpEstimateMmhg",  # reduced-order, with the design (not CFD)
+            "v_max estimate": "VMaxEstimateMS",
             "dp": "SimulationDpMmhg",
             "v_max": "SimulationMaxVelocityMS",
         }
@@ -1218,8 +1251,10 @@ class BaffleDesignerLogic:
         for column in ("Target area", "Baffle area", "Min section area", "Max feasible area", "BafflePlanner area"):
             node.SetColumnUnitLabel(column, "mm2")
         node.SetColumnUnitLabel("RV after", "mL")
-        node.SetColumnUnitLabel("dp", "mmHg")
-        node.SetColumnUnitLabel("v_max", "m/s")
+        for column in ("dp", "dp estimate"):
+            node.SetColumnUnitLabel(column, "mmHg")
+        for column in ("v_max", "v_max estimate"):
+            node.SetColumnUnitLabel(column, "m/s")
         return node
 
     @staticmethod

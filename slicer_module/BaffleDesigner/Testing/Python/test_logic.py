@@ -206,6 +206,11 @@ def test_candidates_compare_table(p2_scene):
     assert rv_after[1] < rv_after[0] and np.isnan(rv_after[2])  # the larger tunnel leaves less
     assert np.isnan(target[2]) and column(table, "Status")[2] == "not designed"
     assert np.all(np.isnan(column(table, "dp")))
+    # Each design carries the reduced-order estimate at the CFD step's flow (BSA x CI).
+    estimate = column(table, "dp estimate")
+    assert np.all(np.isfinite(estimate[:2])) and np.isnan(estimate[2])
+    assert estimate[0] == pytest.approx(float(curve.GetAttribute("BaffleDesigner.DpEstimateMmhg")))
+    assert np.all(column(table, "v_max estimate")[:2] > 0)
     assert column(table, "Simulation") == ["not simulated: test"] * 3
     # Each candidate owns its outputs.
     assert curve.GetNodeReferenceID(bdlogic.REF_BAFFLE) != second.GetNodeReferenceID(bdlogic.REF_BAFFLE)
@@ -318,6 +323,30 @@ def test_rv_volumes_are_on_the_candidate(p2_scene):
     assert curve.GetAttribute("BaffleDesigner.RvOutflowMostNarrowedAfterMm2") == ""
     line = bdlogic.rv_outflow_line(lambda name: curve.GetAttribute("BaffleDesigner." + name))
     assert line.startswith("RV outflow not measured: no pulmonary artery surface given"), line
+
+
+def test_a_design_carries_the_estimate_at_the_cfd_steps_peak_flow(p2_scene):
+    """The flow is the one the CFD step would use (3.26 x BSA x cardiac index), and the
+    line says it is an estimate, with its measured error."""
+    scene, logic, model, curve = p2_scene
+    parameters = logic.parameters(curve)
+    parameters.cardiac_index_l_min_m2 = 4.22
+    logic.setParameters(curve, parameters)
+    result = logic.design(curve)
+    estimate = result.report["hemodynamics_estimate"]
+    import baffle
+
+    assert estimate["peak_flow_ml_s"] == pytest.approx(baffle.peak_flow_ml_s(parameters.cfd_bsa_m2(), 4.22))
+    assert curve.GetAttribute("BaffleDesigner.DpEstimateMmhg") == f"{estimate['dp_estimate_mmhg']:.2f}"
+    line = bdlogic.estimate_line(lambda name: curve.GetAttribute("BaffleDesigner." + name))
+    assert line.startswith(f"dp estimate {estimate['dp_estimate_mmhg']:.2f} mmHg") and "reduced-order estimate, not CFD" in line, line
+    assert "mmHg below" in line  # the measured error, from the library's report
+
+
+def test_the_estimate_line_says_why_there_is_none():
+    attributes = dict(bdlogic.estimate_attributes({"hemodynamics_estimate": {"absent_because": "no tunnel found"}}))
+    assert attributes["DpEstimateMmhg"] == "" and bdlogic.estimate_line(attributes.get) == "no dp estimate: no tunnel found"
+    assert bdlogic.estimate_line(dict(bdlogic.estimate_attributes({})).get) == "no dp estimate"
 
 
 def test_the_rv_outflow_line_says_where_the_baffle_narrows_it():

@@ -332,6 +332,10 @@ def test_drag_redesigns_once_after_the_drag_ends(widget):
     harness.process_events_for(0.5)
     assert w.logic.design_count == count + 1
     assert float(curve.GetAttribute("BaffleDesigner.BaffleAreaMm2")) != pytest.approx(area, abs=1e-3)
+    # The redesign's dp estimate is in the status line, marked as an estimate.
+    dp = curve.GetAttribute("BaffleDesigner.DpEstimateMmhg")
+    assert dp and f"dp estimate {dp} mmHg" in w.ui.statusLabel.text, w.ui.statusLabel.text
+    assert "reduced-order estimate, not CFD" in w.ui.statusLabel.text
     # A move from a script (no interaction events) redesigns after the debounce.
     curve.SetNthControlPointPositionWorld(3, *a)
     assert harness.process_events_for(5, until=lambda: w.logic.design_count == count + 2)
