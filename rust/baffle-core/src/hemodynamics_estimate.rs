@@ -187,10 +187,7 @@ pub fn compare_with_3d(estimate: &HemodynamicsEstimate, dp_3d_mmhg: f64, v_max_3
     );
     let beyond: Vec<&str> = [("dp", dp_within), ("v_max", v_within)].into_iter().filter_map(|(name, ok)| (!ok).then_some(name)).collect();
     if !beyond.is_empty() {
-        let _ = std::fmt::Write::write_fmt(
-            &mut text,
-            format_args!(" The estimate and the 3D run disagree on {} beyond the estimate's measured error range; the 3D value is the one the verdict uses.", beyond.join(" and ")),
-        );
+        text += &format!(" The estimate and the 3D run disagree on {} beyond the estimate's measured error range; the 3D value is the one the verdict uses.", beyond.join(" and "));
     }
     Ok(EstimateComparison {
         dp_3d_mmhg,
