@@ -78,3 +78,30 @@ fn p2_published_domain_extends_subdivided_noisy_smoothed_bowed_and_moved() {
         }
     }
 }
+
+/// p1 and p3's published domains with their scenes moved rigidly (two motions each):
+/// each extends, with its checks passed and re-measured, to the as-is domain moved
+/// (volume and both new caps within 0.5 %, as p2's above), so the anatomy's grid holds
+/// on every patient, not only the one it was fixed on.
+#[test]
+fn p1_and_p3_published_domains_extend_the_same_when_moved() {
+    let Some(data) = reference_data_if_present() else { return };
+    let motions = [
+        RigidMotion::new(Vec3::new(1.0, 2.0, -0.5), 37.0, Vec3::new(12.0, -40.0, 7.0)),
+        RigidMotion::new(Vec3::new(-0.7, 0.2, 0.4), 109.0, Vec3::new(35.0, -180.0, 1200.0)),
+    ];
+    for patient in ["p1", "p3"] {
+        let dir = data.join(patient);
+        let pools = read_segmentations(&dir.join("segmentations")).expect("segmentations");
+        let domain = published_domain(&dir.join("published_M_final.vtp"));
+        let as_is = member(&format!("{patient} as is"), &domain, &pools).unwrap_or_else(|e| panic!("{patient} as is: {e}")).report;
+        for (k, motion) in motions.iter().enumerate() {
+            let name = format!("{patient} moved ({k})");
+            let moved = member(&name, &motion.mesh(&domain), &motion.pools(&pools)).unwrap_or_else(|e| panic!("{name}: {e}")).report;
+            for (what, x, y) in [("volume", as_is.volume_mm3, moved.volume_mm3), ("inflow cap", as_is.inflow_cap.area_mm2, moved.inflow_cap.area_mm2), ("outflow cap", as_is.outflow_cap.area_mm2, moved.outflow_cap.area_mm2)] {
+                eprintln!("{name}: {what} {x:.2} as is, {y:.2} moved ({:+.3} %)", 100.0 * (y / x - 1.0));
+                assert!((x / y - 1.0).abs() < 0.005, "{name}: {what}: {x:.2} as is, {y:.2} moved");
+            }
+        }
+    }
+}
