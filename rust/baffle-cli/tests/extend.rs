@@ -193,3 +193,35 @@ fn a_missing_lv_and_a_domain_without_caps_are_named() {
     assert!(!out.join("x.vtp").exists());
     std::fs::remove_dir_all(out).ok();
 }
+
+/// The synthetic heart (`baffle phantom --heart`) prepared and designed at BSA 0.2 m2, as
+/// the main job does: (the designed domain, the segment surfaces' folder).
+fn designed_synthetic_heart(out: &Path) -> (PathBuf, PathBuf) {
+    let segmentations = out.join("heart");
+    ok(baffle(&["phantom", "--heart", "--out", s(&segmentations)]));
+    let capped = out.join("capped.vtp");
+    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
+    let points = segmentations.join("suture_points.mrk.json");
+    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.2", "--out", s(&out.join("design"))]));
+    (out.join("design/domain.vtp"), segmentations)
+}
+
+#[test]
+fn the_synthetic_hearts_design_remeshes_finely_without_folding() {
+    // The mesh study around 0.42 mm (19 edges across the heart's 8.2 mm annulus, where its
+    // dp settles) extends its fine level at 0.33 mm. The remesher used to split the
+    // baffle's slivers into microns-apart sheets and smooth next to them into folds: at 0.35
+    // and 0.33 mm the domain was refused as crossing itself, at 0.3 mm the split was
+    // refused as not converging. Every size must now extend, each finer than the last.
+    let out = temp_dir("heart-fine");
+    let (domain, segmentations) = designed_synthetic_heart(&out);
+    let mut previous = 0;
+    for edge in ["0.42", "0.35", "0.33", "0.3"] {
+        let extended = out.join(format!("extended-{edge}.vtp"));
+        ok(baffle(&["extend", "--domain", s(&domain), "--segmentations", s(&segmentations), "--remesh-domain-edge-mm", edge, "--remesh-edge-mm", edge, "--out", s(&extended)]));
+        let surface = read_surface_labeled(&extended).unwrap().mesh;
+        assert!(surface.triangles.len() > previous, "{edge} mm: {} triangles, not more than {previous}", surface.triangles.len());
+        previous = surface.triangles.len();
+    }
+    std::fs::remove_dir_all(out).ok();
+}

@@ -203,6 +203,12 @@ impl HalfEdgeMesh {
         }
     }
 
+    /// Squared length of face f's longest edge.
+    pub fn longest_edge_sq(&self, f: usize) -> f64 {
+        let [a, b, c] = self.corners[f].map(|v| self.pos[v as usize]);
+        (b - a).norm_squared().max((c - b).norm_squared()).max((a - c).norm_squared())
+    }
+
     pub fn face_normal2(&self, f: usize) -> Vec3 {
         let [a, b, c] = self.corners[f];
         let (pa, pb, pc) = (self.pos[a as usize], self.pos[b as usize], self.pos[c as usize]);
