@@ -81,14 +81,9 @@ fn a_remeshed_designed_domain_refines_the_whole_boundary_with_conforming_planes(
     let edge = 0.6;
     let edge_arg = edge.to_string();
     let run = baffle(&["extend", "--domain", s(&domain_path), "--segmentations", s(&segmentations), "--remesh-domain-edge-mm", &edge_arg, "--out", s(&extended)]);
-    if !run.status.success() {
-        // The remesher folds p2's baffle through itself at 0.6 and 0.7 mm (2026-12-04, an
-        // open defect): then the refusal must name it, and leave no file.
-        let stderr = String::from_utf8_lossy(&run.stderr);
-        assert!(stderr.contains("made it cross itself") && stderr.contains("crosses itself near (") && !extended.exists(), "{stderr}");
-        eprintln!("refused: {stderr}");
-        return;
-    }
+    // The remesher folded p2's baffle through itself here (0.6 and 0.7 mm) until smoothing
+    // stopped turning faces over next to slivers: it must extend now.
+    ok(run);
     let surface = read_surface_labeled(&extended).unwrap().mesh;
     // The designed part at 0.6 mm instead of the design's 0.85: about (0.85 / 0.6)^2 = 2x the triangles.
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("extended-report.json")).unwrap()).unwrap();
