@@ -220,9 +220,9 @@ pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result
     let doc = summary(args, &measured, wall_time_s);
     let (line, profile) = (&measured.line, &measured.profile);
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
-    let (r_min, r_max) = (doc["radius_min_mm"].as_f64().unwrap_or(f64::NAN), doc["radius_max_mm"].as_f64().unwrap_or(f64::NAN));
+    let (r_min, r_max) = radius_range(line);
     print!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
-    if let (Some(a), Some(at)) = (doc["min_section_mm2"].as_f64(), doc["min_section_at_mm"].as_f64()) {
+    if let Some((a, at)) = smallest_section(&line.s_mm, &measured.sections_mm2) {
         print!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
     }
     match &profile {
