@@ -283,12 +283,22 @@ mod tests {
     fn a_poor_mesh_and_a_design_check_are_reported() {
         assert!(design_doubt(99.0, 100.0).unwrap().contains("below the target"));
         assert_eq!(design_doubt(100.5, 100.0), None);
-        let quality: QualityReport = serde_json::from_value(serde_json::json!({
-            "tetrahedra": 1000, "points": 300, "volume_mm3": 500.0, "min_scaled_jacobian": 0.026, "p1_scaled_jacobian": 0.2,
-            "mean_scaled_jacobian": 0.6, "p99_aspect_ratio": 4.4, "max_aspect_ratio": 9.0, "p99_radius_ratio": 3.0,
-            "min_dihedral_deg": 5.0, "max_dihedral_deg": 170.0, "min_edge_length_mm": 0.3, "mean_edge_length_mm": 1.0, "max_edge_length_mm": 2.0,
-        }))
-        .unwrap();
+        let quality = QualityReport {
+            tetrahedra: 1000,
+            points: 300,
+            volume_mm3: 500.0,
+            min_scaled_jacobian: 0.026,
+            p1_scaled_jacobian: 0.2,
+            mean_scaled_jacobian: 0.6,
+            p99_aspect_ratio: 4.4,
+            max_aspect_ratio: 9.0,
+            p99_radius_ratio: 3.0,
+            min_dihedral_deg: 5.0,
+            max_dihedral_deg: 170.0,
+            min_edge_length_mm: 0.3,
+            mean_edge_length_mm: 1.0,
+            max_edge_length_mm: 2.0,
+        };
         assert!(mesh_warning(&quality).unwrap().contains("0.026"));
         assert_eq!(mesh_warning(&QualityReport { min_scaled_jacobian: 0.2, ..quality }), None);
     }
