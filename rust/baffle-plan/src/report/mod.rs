@@ -1092,6 +1092,13 @@ mod tests {
     }
 
     #[test]
+    fn a_designed_domain_is_its_two_fields_in_report_json() {
+        let designed = CfdDomain { extended: false, note: "n", extension: None };
+        assert_eq!(serde_json::to_value(&designed).unwrap(), json!({ "extended": false, "note": "n" }));
+        assert_eq!(domain_text(&designed), "CFD domain: n.");
+    }
+
+    #[test]
     fn dates_are_utc_calendar_dates() {
         assert_eq!(utc_date_time(0), "1970-01-01 00:00 UTC");
         assert_eq!(utc_date_time(1_700_000_000), "2023-11-14 22:13 UTC");
