@@ -64,7 +64,7 @@ impl Default for DesignOptions {
 }
 
 /// One centerline section and what the design did with it.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct SectionRecord {
     pub s_mm: f64,
     pub origin_mm: [f64; 3],
@@ -79,7 +79,7 @@ pub struct SectionRecord {
 }
 
 /// Wall-clock time of each step (ms).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct StepTimes {
     pub validate_ms: f64,
     pub seam_ms: f64,
@@ -93,7 +93,7 @@ pub struct StepTimes {
     pub total_ms: f64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct DesignReport {
     pub target_area_mm2: f64,
     pub target: String,
@@ -134,7 +134,7 @@ pub struct DesignReport {
 }
 
 /// One design round: the target it was run at and the flow-normal section it gave.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct FlowRound {
     pub design_target_mm2: f64,
     pub min_flow_section_mm2: f64,
@@ -144,7 +144,7 @@ pub struct FlowRound {
 
 /// What the flow-section rule (`crate::flow_target`) did: the requested area, whether the
 /// last round met it, every round, and why it stopped short when it did.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct FlowSections {
     pub goal_area_mm2: f64,
     pub met: bool,

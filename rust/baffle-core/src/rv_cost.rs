@@ -21,7 +21,7 @@ use serde::Serialize;
 
 const MM3_PER_ML: f64 = 1000.0;
 
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct RvCost {
     /// Volume enclosed by the capped ventricle (the design input).
     pub rv_volume_before_ml: f64,

@@ -47,7 +47,7 @@ pub const SAMPLE_MM: f64 = 0.5;
 const SMOOTHING_MM: f64 = 2.0;
 
 /// The path through one region and its smallest section.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct OutflowPath {
     pub min_section_mm2: f64,
     /// Arc length from the apex end of the path to the smallest section.
@@ -64,7 +64,7 @@ pub struct OutflowPath {
 /// The section of the outflow path after the baffle that the baffle narrows most: the
 /// same plane's section of the capped ventricle before the baffle and of what the
 /// domain leaves of it after.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct NarrowedSection {
     pub area_before_mm2: f64,
     pub area_after_mm2: f64,
@@ -77,7 +77,7 @@ pub struct NarrowedSection {
 }
 
 /// The RV-to-pulmonary figures of a design, or why there are none.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct RvOutflow {
     /// The smallest section after the baffle (null when unavailable).
     pub rv_outflow_min_section_mm2: Option<f64>,

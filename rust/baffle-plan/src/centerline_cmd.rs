@@ -11,6 +11,7 @@ use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, Tunnel
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::TriMesh;
 use clap::Args;
+use serde::Deserialize;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -140,11 +141,28 @@ fn polydata(m: &Measured) -> PolyData {
     PolyData { points: line.points.clone(), lines: vec![(0..line.points.len() as u32).collect()], point_data, ..PolyData::default() }
 }
 
+/// The figures of <stem>.json that the plan's report reads back (the file holds more).
+#[derive(Clone, Debug, Deserialize)]
+pub struct CenterlineFigures {
+    pub length_mm: f64,
+    /// The smallest section normal to the centerline and its arc length (mm2, mm; null
+    /// when no section was measured).
+    #[serde(deserialize_with = "crate::files::nullable")]
+    pub min_section_mm2: Option<f64>,
+    #[serde(deserialize_with = "crate::files::nullable")]
+    pub min_section_at_mm: Option<f64>,
+}
+
+/// The smallest and largest inscribed radius along the centerline (mm).
+fn radius_range(line: &FlowCenterline) -> (f64, f64) {
+    line.radius_mm.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &r| (a.min(r), b.max(r)))
+}
+
 /// The figures written to <stem>.json (also read back by the plan's report).
 fn summary(args: &CenterlineArgs, m: &Measured, wall_time_s: f64) -> serde_json::Value {
     let (line, profile) = (&m.line, m.profile.as_ref());
     let smallest = smallest_section(&line.s_mm, &m.sections_mm2);
-    let (r_min, r_max) = line.radius_mm.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &r| (a.min(r), b.max(r)));
+    let (r_min, r_max) = radius_range(line);
     let mut doc = json!({
         "surface": args.surface, "planes": args.planes, "ends": args.ends.as_ref().unwrap_or(&args.planes),
         "plane_faces": args.plane_faces, "scale_to_mm": args.scale,
@@ -202,9 +220,9 @@ pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result
     let doc = summary(args, &measured, wall_time_s);
     let (line, profile) = (&measured.line, &measured.profile);
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
-    let (r_min, r_max) = (doc["radius_min_mm"].as_f64().unwrap_or(f64::NAN), doc["radius_max_mm"].as_f64().unwrap_or(f64::NAN));
+    let (r_min, r_max) = radius_range(line);
     print!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
-    if let (Some(a), Some(at)) = (doc["min_section_mm2"].as_f64(), doc["min_section_at_mm"].as_f64()) {
+    if let Some((a, at)) = smallest_section(&line.s_mm, &measured.sections_mm2) {
         print!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
     }
     match &profile {

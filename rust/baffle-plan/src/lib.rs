@@ -6,14 +6,15 @@
 //! Module dependency order: a module uses only modules above it, so there are no circles
 //! (the test `each_module_uses_only_modules_declared_before_it` holds lib.rs to it).
 //!
-//! 1. `files`, `progress`, `sampling`, `case`, `mesh_convergence`: atomic writes, the
-//!    progress model, fields sampled along a centerline, the simulate case (JSON) and its
-//!    settings, the grid convergence index of a mesh study.
-//! 2. `feasibility`, `verdict` (case, mesh_convergence), `svmp_case` (case: the svMultiPhysics export),
+//! 1. `files`, `progress`, `sampling`, `case`, `run_summary`, `mesh_convergence`: atomic
+//!    writes and typed reads, the progress model, fields sampled along a centerline, the
+//!    simulate case (JSON) and its settings, a run's summary.json read back, the grid
+//!    convergence index of a mesh study.
+//! 2. `feasibility`, `verdict` (run_summary, mesh_convergence), `svmp_case` (case: the svMultiPhysics export),
 //!    `export_cmd` (svmp_case), `prepare_cmd`, `mesh_cmd`,
 //!    `centerline_cmd` (files, progress, sampling).
 //! 3. `design_cmd` (feasibility), `extend_cmd` (prepare_cmd), `simulate_report` (case,
-//!    verdict: the summary both engines write), `template_cmd` (design_cmd).
+//!    run_summary, verdict: the summary both engines write), `template_cmd` (design_cmd).
 //! 4. `simulate_svmp` (svmp_case, simulate_report), `plan_stages` (design_cmd,
 //!    prepare_cmd: the plan's arguments, stages and paths).
 //! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict, mesh_convergence,
@@ -25,6 +26,7 @@ pub mod files;
 pub mod progress;
 pub mod sampling;
 pub mod case;
+pub mod run_summary;
 pub mod mesh_convergence;
 
 pub mod feasibility;

@@ -4,6 +4,7 @@
 
 use crate::case::{self, FlowInputs};
 use crate::files::write_atomic;
+use crate::run_summary::RunSummary;
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{CaseSettings, FlowMesh, RunMode, StepResult};
 use clap::ValueEnum;
@@ -125,31 +126,28 @@ impl Report<'_> {
         write_atomic(&self.dir.join("timeseries.csv"), text.as_bytes())
     }
 
-    /// Write timeseries.csv and summary.json; returns the summary.
+    /// Write timeseries.csv and summary.json; returns the summary as it is read back.
     /// `steady_residuals`: a steady solve's relative residual per iteration (empty otherwise).
-    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<serde_json::Value, String> {
-        let mut json = summary_json(self, rows, ending, wall_time_s);
-        if !steady_residuals.is_empty() {
-            json["steady_relative_residuals"] = serde_json::json!(steady_residuals);
-        }
+    pub(crate) fn write(&self, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<RunSummary, String> {
+        let (json, summary) = summary_json(self, rows, ending, steady_residuals, wall_time_s)?;
         self.csv(rows)?;
         let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
         write_atomic(&self.dir.join("summary.json"), text.as_bytes())?;
-        Ok(json)
+        Ok(summary)
     }
 
     /// The one-line account of a run on stdout.
-    pub(crate) fn print(&self, summary: &serde_json::Value, rows: usize, rows_this_run: usize, wall_time_s: f64) {
+    pub(crate) fn print(&self, summary: &RunSummary, rows: usize, rows_this_run: usize, wall_time_s: f64) {
         let (a, b) = dp_faces(self.case);
-        let number = |key: &str| summary[key].as_f64().unwrap_or(f64::NAN);
+        let number = |v: Option<f64>| v.unwrap_or(f64::NAN);
         // An unconverged solve's numbers are not presented as a plain result.
-        let converged = if summary["converged"] == true { "" } else { " (NOT CONVERGED)" };
+        let converged = if summary.converged { "" } else { " (NOT CONVERGED)" };
         println!(
             "{}{converged} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
-            summary["status"].as_str().unwrap_or_default(),
-            number("dp_peak_mmhg"),
-            number("max_velocity_m_s"),
-            number("q_peak_ml_s"),
+            summary.status,
+            number(summary.dp_peak_mmhg),
+            number(summary.max_velocity_m_s),
+            number(summary.q_peak_ml_s),
             wall_time_s,
             self.dir.display()
         );
@@ -164,11 +162,17 @@ fn dp_faces(case: &case::Case) -> (i32, i32) {
     }
 }
 
-/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can).
-fn summary_json(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {
-    let mut summary = summary_figures(report, rows, ending, wall_time_s);
-    summary["doubts"] = serde_json::json!(crate::verdict::run_doubts(&summary));
-    summary
+/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can), and
+/// its figures as the verdict and the report read them back (so a field they need and
+/// this writer lacks fails every run, not only a later reader's).
+fn summary_json(report: &Report, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<(serde_json::Value, RunSummary), String> {
+    let mut json = summary_figures(report, rows, ending, wall_time_s);
+    if !steady_residuals.is_empty() {
+        json["steady_relative_residuals"] = serde_json::json!(steady_residuals);
+    }
+    let summary = RunSummary::deserialize(&json).map_err(|e| format!("{}: summary.json as written: {e}", report.dir.display()))?;
+    json["doubts"] = serde_json::json!(crate::verdict::run_doubts(&summary));
+    Ok((json, summary))
 }
 
 fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: f64) -> serde_json::Value {

@@ -10,11 +10,12 @@
 //! `mesh-nominal/` and `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
 //! the pressure difference and to the right ventricle side by side.
 
-use crate::files::write_atomic;
+use crate::files::{read_json, write_atomic};
 use crate::plan_cmd;
 use crate::plan_stages::{self, PlanArgs, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
 use crate::progress::{Progress, Style};
+use crate::run_summary::RunSummary;
 use crate::report::svg_plot::{line_chart, with_note, Series};
 use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignArgs, TargetArgs};
 use crate::verdict::{self, Verdict};
@@ -283,14 +284,11 @@ fn quick_estimate(plan: &PlanArgs, report: &DesignReport) -> Quick {
     let clock = Instant::now();
     let result = run_after_design(plan);
     let cfd_s = clock.elapsed().as_secs_f64();
-    let design_doubt = verdict::design_doubt(&json!({
-        "min_constrained_final_area_mm2": report.min_constrained_final_area_mm2,
-        "target_area_mm2": report.target_area_mm2,
-    }));
+    let design_doubt = verdict::design_doubt(report.min_constrained_final_area_mm2, report.target_area_mm2);
     match result {
         Ok(summary) => {
-            let dp_mmhg = summary["dp_peak_mmhg"].as_f64().unwrap_or(f64::NAN);
-            let vmax_m_s = summary["max_velocity_m_s"].as_f64().unwrap_or(f64::NAN);
+            let dp_mmhg = summary.dp_peak_mmhg.unwrap_or(f64::NAN);
+            let vmax_m_s = summary.max_velocity_m_s.unwrap_or(f64::NAN);
             let mut doubts = verdict::run_doubts(&summary);
             doubts.extend(design_doubt);
             Quick { dp_mmhg, vmax_m_s, verdict: Verdict::of(dp_mmhg, doubts), cfd_s }
@@ -303,7 +301,7 @@ fn quick_estimate(plan: &PlanArgs, report: &DesignReport) -> Quick {
 const AFTER_DESIGN: [&str; 3] = ["extend", "mesh-", "simulate-"];
 
 /// The plan's extend (when prepared), mesh and simulate stages into the row's folder; the run's summary.json.
-fn run_after_design(plan: &PlanArgs) -> Result<serde_json::Value, String> {
+fn run_after_design(plan: &PlanArgs) -> Result<RunSummary, String> {
     let out = &plan.design.out;
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let mut summary = None;
@@ -314,9 +312,7 @@ fn run_after_design(plan: &PlanArgs) -> Result<serde_json::Value, String> {
         summary = Some(dir.join("summary.json"));
     }
     progress.finish(None);
-    let path = summary.ok_or("the plan has no simulate stage")?;
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    read_json(&summary.ok_or("the plan has no simulate stage")?)
 }
 
 /// The sweep's targets, each with its z-score when the list was of z-scores.

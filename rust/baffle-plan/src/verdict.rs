@@ -7,7 +7,8 @@
 //! same verdict without a second copy of these rules.
 
 use crate::mesh_convergence::{grid_convergence, Convergence, Level};
-use serde_json::Value;
+use crate::run_summary::RunSummary;
+use baffle_mesh::QualityReport;
 
 /// The planning threshold of the peak pressure difference (mmHg): below it passes.
 pub const DP_THRESHOLD_MMHG: f64 = 10.0;
@@ -71,43 +72,34 @@ impl Verdict {
     }
 }
 
-fn number(doc: &Value, key: &str) -> Option<f64> {
-    doc.pointer(key).and_then(Value::as_f64).filter(|v| v.is_finite())
-}
-
 /// Why one run's dp cannot be trusted, from its summary.json (empty: no doubt).
-pub fn run_doubts(summary: &Value) -> Vec<String> {
+pub fn run_doubts(summary: &RunSummary) -> Vec<String> {
     let mut doubts = Vec::new();
-    let status = summary["status"].as_str().unwrap_or("unknown");
-    let message = summary["message"].as_str();
-    if status != "completed" {
-        doubts.push(format!("the CFD run {status}{}", message.map_or(String::new(), |m| format!(" ({m})"))));
+    if summary.status != "completed" {
+        doubts.push(format!("the CFD run {}{}", summary.status, summary.message.as_ref().map_or(String::new(), |m| format!(" ({m})"))));
     }
-    let steady = summary["mode"] == "steady";
-    if summary["converged"] != true {
+    let steady = summary.is_steady();
+    if !summary.converged {
         doubts.push(if steady {
             "the steady solve did not reach its residual target (it stopped at the iteration cap): rerun with --quick (from rest to the first flow peak) or pulsatile".into()
         } else {
             "the solve did not converge".into()
         });
     }
-    if let Some(n) = number(summary, "/unconverged_nonlinear_steps").filter(|n| *n > 0.0) {
+    if summary.unconverged_nonlinear_steps > 0 {
         doubts.push(format!(
-            "{n:.0} time steps stopped at the Picard iteration cap with the velocity still changing (time.nonlinear_iterations \"auto\"): use a smaller time step"
+            "{} time steps stopped at the Picard iteration cap with the velocity still changing (time.nonlinear_iterations \"auto\"): use a smaller time step",
+            summary.unconverged_nonlinear_steps
         ));
     }
     // A quick run ends at the first flow peak by design: no cycles to settle.
-    let quick = summary["mode"] == crate::case::QUICK_MODE;
-    if !steady {
-        if let (Some(done), Some(planned)) = (number(summary, "/last_step"), number(summary, "/steps_planned")) {
-            if done < planned {
-                let end = if quick { "the first flow peak" } else { "its last cycle" };
-                doubts.push(format!("the run stopped at time step {done:.0} of {planned:.0}, before {end}"));
-            }
-        }
+    let quick = summary.is_quick();
+    if let Some(planned) = summary.steps_planned.filter(|&planned| !steady && summary.last_step < planned) {
+        let end = if quick { "the first flow peak" } else { "its last cycle" };
+        doubts.push(format!("the run stopped at time step {} of {planned}, before {end}", summary.last_step));
     }
     if !steady && !quick {
-        match number(summary, "/periodicity_nrmsd") {
+        match summary.periodicity_nrmsd {
             Some(p) if p > PERIODICITY_LIMIT => {
                 doubts.push(format!("the last two cycles differ (periodicity NRMSD {p:.3} > {PERIODICITY_LIMIT}): run more cycles"))
             }
@@ -115,7 +107,7 @@ pub fn run_doubts(summary: &Value) -> Vec<String> {
             None => doubts.push("the cycles' periodicity could not be measured (fewer than two complete cycles)".into()),
         }
     }
-    if let Some(m) = number(summary, "/mass_imbalance").filter(|m| *m > MASS_IMBALANCE_LIMIT) {
+    if let Some(m) = summary.mass_imbalance.filter(|m| *m > MASS_IMBALANCE_LIMIT) {
         doubts.push(format!("inflow and outflow differ by {:.1} % (limit {:.0} %)", 100.0 * m, 100.0 * MASS_IMBALANCE_LIMIT));
     }
     doubts
@@ -185,15 +177,15 @@ impl MeshStudy {
     }
 }
 
-/// The design's check: every constrained section reaches the target area.
-pub fn design_doubt(design: &Value) -> Option<String> {
-    let (smallest, target) = (number(design, "/min_constrained_final_area_mm2")?, number(design, "/target_area_mm2")?);
+/// The design's check: every constrained section reaches the target area (the design
+/// report's `min_constrained_final_area_mm2` and `target_area_mm2`).
+pub fn design_doubt(smallest: f64, target: f64) -> Option<String> {
     (smallest < target).then(|| format!("a design check failed: the smallest constrained section is {smallest:.1} mm², below the target {target:.1} mm²"))
 }
 
 /// A warning on the mesh, shown beside the verdict (quality alone does not decide it).
-pub fn mesh_warning(quality: &Value) -> Option<String> {
-    let sj = number(quality, "/min_scaled_jacobian")?;
+pub fn mesh_warning(quality: &QualityReport) -> Option<String> {
+    let sj = quality.min_scaled_jacobian;
     (sj < POOR_SCALED_JACOBIAN).then(|| {
         format!("the mesh has poorly shaped elements (smallest scaled Jacobian {sj:.3} < {POOR_SCALED_JACOBIAN}): check dp on a finer mesh (--mesh-study)")
     })
@@ -202,10 +194,32 @@ pub fn mesh_warning(quality: &Value) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use serde_json::json;
+    use crate::run_summary::RunInputs;
 
-    fn steady(converged: bool) -> Value {
-        json!({ "status": "completed", "mode": "steady", "converged": converged, "mass_imbalance": 1e-6, "message": null })
+    /// A completed run of `mode` that gave every figure, before the test's changes.
+    fn run(mode: &str) -> RunSummary {
+        let steady = mode == "steady";
+        RunSummary {
+            status: "completed".into(),
+            message: None,
+            mode: mode.into(),
+            converged: true,
+            unconverged_nonlinear_steps: 0,
+            last_step: if steady { 0 } else { 109 },
+            steps_planned: (!steady).then_some(109),
+            peak_time_s: Some(0.109),
+            dp_peak_mmhg: Some(1.47),
+            max_velocity_m_s: Some(1.5),
+            q_peak_ml_s: Some(36.0),
+            mass_imbalance: Some(1e-5),
+            periodicity_nrmsd: None,
+            steady_relative_residuals: Vec::new(),
+            inputs: RunInputs { q_mean_ml_s: Some(12.0), period_s: Some(0.682), steady_tolerance: steady.then_some(1e-6) },
+        }
+    }
+
+    fn steady(converged: bool) -> RunSummary {
+        RunSummary { converged, mass_imbalance: Some(1e-6), ..run("steady") }
     }
 
     #[test]
@@ -228,28 +242,26 @@ mod tests {
 
     #[test]
     fn a_pulsatile_run_must_finish_its_cycles_and_settle() {
-        let mut s = json!({ "status": "completed", "mode": "transient", "converged": true, "last_step": 2728, "steps_planned": 2728,
-            "periodicity_nrmsd": 2.8e-7, "mass_imbalance": 1e-5, "message": null });
+        let mut s = RunSummary { last_step: 2728, steps_planned: Some(2728), periodicity_nrmsd: Some(2.8e-7), ..run("transient") };
         assert!(run_doubts(&s).is_empty());
-        s["last_step"] = json!(100);
-        s["message"] = json!("step limit 100 reached");
-        s["periodicity_nrmsd"] = Value::Null;
+        s.last_step = 100;
+        s.message = Some("step limit 100 reached".into());
+        s.periodicity_nrmsd = None;
         let doubts = run_doubts(&s);
         assert!(doubts.iter().any(|d| d.contains("step 100 of 2728")) && doubts.iter().any(|d| d.contains("periodicity")), "{doubts:?}");
-        s["last_step"] = json!(2728);
-        s["periodicity_nrmsd"] = json!(0.05);
+        s.last_step = 2728;
+        s.periodicity_nrmsd = Some(0.05);
         assert!(run_doubts(&s)[0].contains("0.050 > 0.01"));
-        s["periodicity_nrmsd"] = json!(1e-4);
-        s["status"] = json!("stopped");
+        s.periodicity_nrmsd = Some(1e-4);
+        s.status = "stopped".into();
         assert!(run_doubts(&s)[0].starts_with("the CFD run stopped"));
     }
 
     #[test]
     fn steps_whose_picard_loop_hit_its_cap_make_the_run_inconclusive() {
-        let mut s = json!({ "status": "completed", "mode": "quick", "converged": true, "last_step": 109, "steps_planned": 109,
-            "periodicity_nrmsd": null, "mass_imbalance": 1e-5, "message": null, "unconverged_nonlinear_steps": 0 });
+        let mut s = run("quick");
         assert!(run_doubts(&s).is_empty());
-        s["unconverged_nonlinear_steps"] = json!(3);
+        s.unconverged_nonlinear_steps = 3;
         let v = Verdict::of(1.47, run_doubts(&s));
         assert_eq!(v.key(), "inconclusive");
         assert!(v.text(1.47).contains("3 time steps stopped at the Picard iteration cap"), "{}", v.text(1.47));
@@ -257,12 +269,11 @@ mod tests {
 
     #[test]
     fn a_quick_run_is_judged_at_its_first_peak_without_cycles() {
-        let mut s = json!({ "status": "completed", "mode": "quick", "converged": true, "last_step": 109, "steps_planned": 109,
-            "periodicity_nrmsd": null, "mass_imbalance": 1e-5, "message": null });
+        let mut s = run("quick");
         assert!(run_doubts(&s).is_empty(), "{:?}", run_doubts(&s));
         assert_eq!(Verdict::of(1.47, run_doubts(&s)), Verdict::Passes);
-        s["last_step"] = json!(60);
-        s["status"] = json!("stopped");
+        s.last_step = 60;
+        s.status = "stopped".into();
         let doubts = run_doubts(&s);
         assert!(doubts.iter().any(|d| d.contains("step 60 of 109, before the first flow peak")), "{doubts:?}");
         assert!(!doubts.iter().any(|d| d.contains("periodicity")), "{doubts:?}");
@@ -270,10 +281,26 @@ mod tests {
 
     #[test]
     fn a_poor_mesh_and_a_design_check_are_reported() {
-        let design = json!({ "min_constrained_final_area_mm2": 99.0, "target_area_mm2": 100.0 });
-        assert!(design_doubt(&design).unwrap().contains("below the target"));
-        assert_eq!(design_doubt(&json!({ "min_constrained_final_area_mm2": 100.5, "target_area_mm2": 100.0 })), None);
-        assert!(mesh_warning(&json!({ "min_scaled_jacobian": 0.026 })).unwrap().contains("0.026"));
+        assert!(design_doubt(99.0, 100.0).unwrap().contains("below the target"));
+        assert_eq!(design_doubt(100.5, 100.0), None);
+        let quality = QualityReport {
+            tetrahedra: 1000,
+            points: 300,
+            volume_mm3: 500.0,
+            min_scaled_jacobian: 0.026,
+            p1_scaled_jacobian: 0.2,
+            mean_scaled_jacobian: 0.6,
+            p99_aspect_ratio: 4.4,
+            max_aspect_ratio: 9.0,
+            p99_radius_ratio: 3.0,
+            min_dihedral_deg: 5.0,
+            max_dihedral_deg: 170.0,
+            min_edge_length_mm: 0.3,
+            mean_edge_length_mm: 1.0,
+            max_edge_length_mm: 2.0,
+        };
+        assert!(mesh_warning(&quality).unwrap().contains("0.026"));
+        assert_eq!(mesh_warning(&QualityReport { min_scaled_jacobian: 0.2, ..quality }), None);
     }
 
     /// Levels at 1.25, 0.95 and 0.75 mm (V = 1 mm³, N = h^-3) with dp = limit + c h^2.

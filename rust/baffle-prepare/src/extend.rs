@@ -143,7 +143,7 @@ impl Default for ExtendOptions {
     }
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct MidLvPlaneReport {
     pub rule: String,
     pub point_mm: [f64; 3],
@@ -162,7 +162,7 @@ pub struct MidLvPlaneReport {
     pub other_lv_rv_contact: Option<String>,
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct StjReport {
     /// Whether an area minimum was found; if not, the outflow cap is at the fallback height.
     pub found: bool,
@@ -178,7 +178,7 @@ pub struct StjReport {
     pub profile: Vec<[f64; 2]>,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct ExtendTimings {
     pub planes_ms: f64,
     pub union_ms: f64,
@@ -186,7 +186,7 @@ pub struct ExtendTimings {
     pub checks_ms: f64,
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ExtendReport {
     /// The first `designed_triangles` triangles (and their points) are the designed domain's.
     pub designed_triangles: usize,

@@ -64,7 +64,7 @@ impl Default for PrepareOptions {
 }
 
 /// One planar cap of the result.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct CapReport {
     pub label: i32,
     pub centroid_mm: [f64; 3],
@@ -72,7 +72,7 @@ pub struct CapReport {
     pub area_mm2: f64,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PrepareTimings {
     pub voxelize_ms: f64,
     pub union_surface_ms: f64,
@@ -82,7 +82,7 @@ pub struct PrepareTimings {
     pub total_ms: f64,
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct PrepareReport {
     pub voxel_mm: f64,
     /// Voxels of the union grid along its axes (the RV's box plus the crop margin, in the

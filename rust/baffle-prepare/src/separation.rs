@@ -31,7 +31,7 @@ pub const RIM_OFF_POOL_MM: f64 = 1.0;
 const WIDENED: &str = "closes more than its opening";
 
 /// How the two openings were kept apart (all distances in mm).
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct CutSeparation {
     /// Smallest distance between the VSD and aortic interface loops as found (before any move).
     pub interface_loops_gap_mm: f64,

@@ -8,30 +8,26 @@ pub(crate) mod svg_plot;
 
 use crate::plan_stages::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
-use crate::files::write_atomic;
+use crate::files::{read_json, write_atomic};
+use crate::centerline_cmd::CenterlineFigures;
+use crate::run_summary::{required, RunSummary};
 use baffle_cfd::Waveform;
+use baffle_core::design::SectionRecord;
 use baffle_core::hemodynamics_estimate::{compare_with_3d, EstimateComparison, EstimateOutcome};
-use serde::Deserialize;
+use baffle_core::rv_outflow::{NarrowedSection, RvOutflow};
+use baffle_core::DesignReport;
+use baffle_mesh::QualityReport;
+use baffle_prepare::extend::ExtendReport;
+use baffle_prepare::prepare::CapReport;
+use baffle_prepare::separation::CutSeparation;
+use baffle_prepare::PrepareReport;
+use serde::Serialize;
 use serde_json::{json, Value};
 use svg_plot::{escape, line_chart, Series};
 use std::fmt::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use crate::mesh_convergence::Level;
 use crate::verdict::{self, MeshStudy, Verdict, DP_THRESHOLD_MMHG};
-
-fn read_json(path: &Path) -> Result<Value, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-fn number(doc: &Value, key: &str, file: &Path) -> Result<f64, String> {
-    doc.pointer(key).and_then(Value::as_f64).filter(|v| v.is_finite()).ok_or_else(|| format!("{}: no finite {key}", file.display()))
-}
-
-/// A number that may be null (NaN then).
-fn optional_number(doc: &Value, key: &str) -> f64 {
-    doc.pointer(key).and_then(Value::as_f64).unwrap_or(f64::NAN)
-}
 
 /// A table value for report.json: counts as integers, non-finite as null.
 fn json_value(q: &Quantity) -> Value {
@@ -58,28 +54,32 @@ struct Run {
     flow: FlowCase,
     cardiac_index_l_min_m2: f64,
     edge_length_mm: f64,
-    quality: Value,
-    quality_path: std::path::PathBuf,
-    summary: Value,
-    summary_path: std::path::PathBuf,
+    quality: QualityReport,
+    summary: RunSummary,
+    summary_path: PathBuf,
 }
 
 impl Run {
     fn dp_mmhg(&self) -> Result<f64, String> {
-        number(&self.summary, "/dp_peak_mmhg", &self.summary_path)
+        required(self.summary.dp_peak_mmhg, "dp_peak_mmhg", &self.summary_path)
     }
     /// This run as a level of a mesh study (its dp NaN when it gave none).
-    fn mesh_level(&self) -> Result<Level, String> {
-        let q = |key: &str| number(&self.quality, key, &self.quality_path);
-        Ok(Level {
+    fn mesh_level(&self) -> Level {
+        Level {
             edge_length_mm: self.edge_length_mm,
-            tetrahedra: q("/tetrahedra")? as usize,
-            volume_mm3: q("/volume_mm3")?,
+            tetrahedra: self.quality.tetrahedra,
+            volume_mm3: self.quality.volume_mm3,
             value: self.dp_mmhg().unwrap_or(f64::NAN),
-        })
+        }
     }
     fn v_max_m_s(&self) -> Result<f64, String> {
-        number(&self.summary, "/max_velocity_m_s", &self.summary_path)
+        required(self.summary.max_velocity_m_s, "max_velocity_m_s", &self.summary_path)
+    }
+    fn peak_time_s(&self) -> Result<f64, String> {
+        required(self.summary.peak_time_s, "peak_time_s", &self.summary_path)
+    }
+    fn period_s(&self) -> Result<f64, String> {
+        required(self.summary.inputs.period_s, "inputs.period_s", &self.summary_path)
     }
     /// This run's own verdict (its solve and cycles; the mesh study is the plan's).
     fn verdict(&self) -> Verdict {
@@ -109,7 +109,6 @@ fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage], records: &[StageReco
                 cardiac_index_l_min_m2: flow.cardiac_index_l_min_m2(args),
                 edge_length_mm: edge(level).unwrap_or(f64::NAN),
                 quality: read_json(&quality_path)?,
-                quality_path,
                 summary: read_json(&summary_path)?,
                 summary_path,
             });
@@ -127,29 +126,33 @@ struct Quantity {
     decimals: usize,
 }
 
-fn quantities(design: &Value, design_path: &Path, nominal: &Run, centerline: &CenterlineProfile) -> Result<Vec<Quantity>, String> {
-    let d = |key: &str| number(design, key, design_path);
-    let q = |key: &str| number(&nominal.quality, key, &nominal.quality_path);
+/// A figure of the section the baffle narrows most (NaN when it was not measured).
+fn most_narrowed(outflow: &RvOutflow, figure: fn(&NarrowedSection) -> f64) -> f64 {
+    outflow.rv_outflow_most_narrowed.as_ref().map_or(f64::NAN, figure)
+}
+
+fn quantities(design: &DesignReport, nominal: &Run, centerline: &CenterlineProfile) -> Result<Vec<Quantity>, String> {
+    let (q, rv, outflow) = (&nominal.quality, &design.rv_cost, &design.rv_cost.rv_outflow);
     let row = |key, label, value, unit, decimals| Quantity { key, label, value, unit, decimals };
     Ok(vec![
-        row("target_area_mm2", "Target area", d("/target_area_mm2")?, "mm²", 1),
-        row("centerline_length_mm", "Centerline length", d("/centerline_length_mm")?, "mm", 2),
+        row("target_area_mm2", "Target area", design.target_area_mm2, "mm²", 1),
+        row("centerline_length_mm", "Centerline length", design.centerline_length_mm, "mm", 2),
         row("flow_centerline_length_mm", "Flow-domain centerline length", centerline.length_mm, "mm", 2),
         row("min_flow_section_mm2", "Smallest tunnel section normal to the flow (flow-domain centerline)", centerline.min_section_mm2, "mm²", 1),
-        row("baffle_area_mm2", "Baffle area", d("/baffle_area_mm2")?, "mm²", 1),
-        row("baffle_triangles", "Baffle triangles", d("/baffle_triangles")?, "", 0),
-        row("rv_volume_before_ml", "RV volume before the baffle (capped ventricle)", d("/rv_volume_before_ml")?, "mL", 2),
-        row("rv_volume_after_ml", "RV volume after the baffle (outside the pathway)", d("/rv_volume_after_ml")?, "mL", 2),
+        row("baffle_area_mm2", "Baffle area", design.baffle_area_mm2, "mm²", 1),
+        row("baffle_triangles", "Baffle triangles", design.baffle_triangles as f64, "", 0),
+        row("rv_volume_before_ml", "RV volume before the baffle (capped ventricle)", rv.rv_volume_before_ml, "mL", 2),
+        row("rv_volume_after_ml", "RV volume after the baffle (outside the pathway)", rv.rv_volume_after_ml, "mL", 2),
         // Null where the pulmonary artery is not known or does not touch the RV ("—").
-        row("rv_outflow_min_section_mm2", "RV outflow smallest section after the baffle (apex region to the pulmonary interface)", optional_number(design, "/rv_outflow_min_section_mm2"), "mm²", 1),
-        row("rv_outflow_most_narrowed_before_mm2", "RV outflow section the baffle narrows most: before the baffle", optional_number(design, "/rv_outflow_most_narrowed/area_before_mm2"), "mm²", 1),
-        row("rv_outflow_most_narrowed_after_mm2", "RV outflow section the baffle narrows most: after the baffle", optional_number(design, "/rv_outflow_most_narrowed/area_after_mm2"), "mm²", 1),
-        row("rv_outflow_most_narrowed_after_over_before", "RV outflow section the baffle narrows most: after / before", optional_number(design, "/rv_outflow_most_narrowed/after_over_before"), "", 2),
-        row("rv_outflow_most_narrowed_from_pulmonary_end_mm", "RV outflow section the baffle narrows most: distance from the pulmonary end", optional_number(design, "/rv_outflow_most_narrowed/distance_from_pulmonary_end_mm"), "mm", 1),
-        row("tetrahedra", "Tetrahedra", q("/tetrahedra")?, "", 0),
-        row("min_scaled_jacobian", "Scaled Jacobian, min", q("/min_scaled_jacobian")?, "", 3),
-        row("p1_scaled_jacobian", "Scaled Jacobian, 1st percentile", q("/p1_scaled_jacobian")?, "", 3),
-        row("p99_aspect_ratio", "Aspect ratio, 99th percentile", q("/p99_aspect_ratio")?, "", 2),
+        row("rv_outflow_min_section_mm2", "RV outflow smallest section after the baffle (apex region to the pulmonary interface)", outflow.rv_outflow_min_section_mm2.unwrap_or(f64::NAN), "mm²", 1),
+        row("rv_outflow_most_narrowed_before_mm2", "RV outflow section the baffle narrows most: before the baffle", most_narrowed(outflow, |n| n.area_before_mm2), "mm²", 1),
+        row("rv_outflow_most_narrowed_after_mm2", "RV outflow section the baffle narrows most: after the baffle", most_narrowed(outflow, |n| n.area_after_mm2), "mm²", 1),
+        row("rv_outflow_most_narrowed_after_over_before", "RV outflow section the baffle narrows most: after / before", most_narrowed(outflow, |n| n.after_over_before), "", 2),
+        row("rv_outflow_most_narrowed_from_pulmonary_end_mm", "RV outflow section the baffle narrows most: distance from the pulmonary end", most_narrowed(outflow, |n| n.distance_from_pulmonary_end_mm), "mm", 1),
+        row("tetrahedra", "Tetrahedra", q.tetrahedra as f64, "", 0),
+        row("min_scaled_jacobian", "Scaled Jacobian, min", q.min_scaled_jacobian, "", 3),
+        row("p1_scaled_jacobian", "Scaled Jacobian, 1st percentile", q.p1_scaled_jacobian, "", 3),
+        row("p99_aspect_ratio", "Aspect ratio, 99th percentile", q.p99_aspect_ratio, "", 2),
         row("dp_peak_mmhg", "Pressure difference at peak flow (VSD − aortic cap)", nominal.dp_mmhg()?, "mmHg", 2),
         row("max_velocity_m_s", "v_max (domain)", nominal.v_max_m_s()?, "m/s", 3),
         row("max_centerline_velocity_m_s", "v_max along the flow-domain centerline", centerline.profile.v_max_m_s(), "m/s", 3),
@@ -170,16 +173,12 @@ struct EstimateBeside3d {
 }
 
 impl EstimateBeside3d {
-    fn of(design: &Value, design_path: &Path, dp_3d_mmhg: f64, v_max_3d_m_s: f64) -> EstimateBeside3d {
-        #[derive(Deserialize)]
-        struct DesignEstimate {
-            hemodynamics_estimate: Option<EstimateOutcome>,
-        }
-        let absent = |why: String| EstimateOutcome::Absent { absent_because: why };
-        let design = match DesignEstimate::deserialize(design) {
-            Ok(DesignEstimate { hemodynamics_estimate: Some(outcome) }) => outcome,
-            Ok(DesignEstimate { hemodynamics_estimate: None }) => absent(format!("{} has no hemodynamics_estimate", design_path.display())),
-            Err(e) => absent(format!("{}: hemodynamics_estimate unreadable: {e}", design_path.display())),
+    /// `design`: the design report's `hemodynamics_estimate` (None: the file at
+    /// `design_path` has none).
+    fn of(design: Option<&EstimateOutcome>, design_path: &Path, dp_3d_mmhg: f64, v_max_3d_m_s: f64) -> EstimateBeside3d {
+        let design = match design {
+            Some(outcome) => outcome.clone(),
+            None => EstimateOutcome::Absent { absent_because: format!("{} has no hemodynamics_estimate", design_path.display()) },
         };
         let compared = match &design {
             EstimateOutcome::Estimated(e) => compare_with_3d(e, dp_3d_mmhg, v_max_3d_m_s),
@@ -209,18 +208,19 @@ impl EstimateBeside3d {
 }
 
 /// The RV outflow figures in words for the surgeon: what each means, or why there are none.
-fn rv_outflow_text(design: &Value) -> String {
-    if let Some(reason) = design["rv_outflow_unavailable"].as_str() {
+fn rv_outflow_text(outflow: &RvOutflow) -> String {
+    if let Some(reason) = &outflow.rv_outflow_unavailable {
         return format!("RV outflow sections not measured: {reason}.");
     }
-    let n = |key: &str| optional_number(design, &format!("/rv_outflow_most_narrowed/{key}"));
-    let smallest = optional_number(design, "/rv_outflow_min_section_mm2");
-    let verdict = if n("after_over_before") >= 1.0 {
+    let n = |figure| most_narrowed(outflow, figure);
+    let (ratio, after, distance) = (n(|n| n.after_over_before), n(|n| n.area_after_mm2), n(|n| n.distance_from_pulmonary_end_mm));
+    let smallest = outflow.rv_outflow_min_section_mm2.unwrap_or(f64::NAN);
+    let verdict = if ratio >= 1.0 {
         "the baffle narrows no section of it".to_string()
-    } else if n("area_after_mm2") >= smallest {
-        format!("where the baffle narrows it most ({:.1} mm from the pulmonary end) {:.0} % of the section is left, {:.1} mm², still no less than the smallest section ({smallest:.1} mm²): the baffle does not make a new narrowest point", n("distance_from_pulmonary_end_mm"), 100.0 * n("after_over_before"), n("area_after_mm2"))
+    } else if after >= smallest {
+        format!("where the baffle narrows it most ({distance:.1} mm from the pulmonary end) {:.0} % of the section is left, {after:.1} mm², still no less than the smallest section ({smallest:.1} mm²): the baffle does not make a new narrowest point", 100.0 * ratio)
     } else {
-        format!("where the baffle narrows it most ({:.1} mm from the pulmonary end) {:.0} % of the section is left, {:.1} mm²: this is the outflow's narrowest point after the baffle", n("distance_from_pulmonary_end_mm"), 100.0 * n("after_over_before"), n("area_after_mm2"))
+        format!("where the baffle narrows it most ({distance:.1} mm from the pulmonary end) {:.0} % of the section is left, {after:.1} mm²: this is the outflow's narrowest point after the baffle", 100.0 * ratio)
     };
     format!(
         "RV outflow (the widest, centred path from the RV apex region to the pulmonary artery, with no pulmonary valve plane known): its smallest section is {smallest:.1} mm² after the baffle; {verdict}."
@@ -251,11 +251,10 @@ fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile,
         Some((1, values)) => values.to_vec(),
         _ => return Err(format!("{}: no point array s_mm", vtp.display())),
     };
-    let doc = read_json(&json_path)?;
-    let length_mm = number(&doc, "/length_mm", &json_path)?;
-    let (min_section_mm2, min_section_at_mm) = (optional_number(&doc, "/min_section_mm2"), optional_number(&doc, "/min_section_at_mm"));
+    let figures: CenterlineFigures = read_json(&json_path)?;
+    let (min_section_mm2, min_section_at_mm) = (figures.min_section_mm2.unwrap_or(f64::NAN), figures.min_section_at_mm.unwrap_or(f64::NAN));
     let profile = PeakFields::read(peak_path)?.profile(&line.points);
-    Ok(CenterlineProfile { vtp, line, length_mm, min_section_mm2, min_section_at_mm, s_mm, profile })
+    Ok(CenterlineProfile { vtp, line, length_mm: figures.length_mm, min_section_mm2, min_section_at_mm, s_mm, profile })
 }
 
 impl CenterlineProfile {
@@ -355,10 +354,10 @@ impl Timeseries {
         self.header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", self.path.display()))
     }
 
-    /// The mean pressure over `face` (its timeseries name) at the run's peak flow (mmHg).
-    fn pressure_at_peak_mmhg(&self, summary: &Value, face: &str) -> Result<f64, String> {
+    /// The mean pressure over `face` (its timeseries name) at the run's peak flow (its
+    /// time `peak` in s; mmHg).
+    fn pressure_at_peak_mmhg(&self, peak: f64, face: &str) -> Result<f64, String> {
         let (t, p) = (self.column("time_s")?, self.column(&format!("p_{face}_mmhg"))?);
-        let peak = number(summary, "/peak_time_s", &self.path)?;
         self.rows
             .iter()
             .min_by(|a, b| (a[t] - peak).abs().total_cmp(&(b[t] - peak).abs()))
@@ -367,14 +366,14 @@ impl Timeseries {
             .ok_or_else(|| format!("{}: no pressure of {face} at the peak time {peak} s", self.path.display()))
     }
 
-    /// (time in cycle, dp) over the last cycle; empty for a steady run. `faces`: the
-    /// timeseries' names of the two faces dp is taken between (first minus second).
-    fn dp_over_cycle(&self, summary: &Value, faces: (&str, &str)) -> Result<Vec<(f64, f64)>, String> {
-        if summary["mode"] == "steady" {
+    /// (time in cycle, dp) over the last cycle of the run of `period_s`; empty for a
+    /// steady run (None). `faces`: the timeseries' names of the two faces dp is taken
+    /// between (first minus second).
+    fn dp_over_cycle(&self, period_s: Option<f64>, faces: (&str, &str)) -> Result<Vec<(f64, f64)>, String> {
+        let Some(period) = period_s else {
             return Ok(Vec::new());
-        }
+        };
         let (t, a, b) = (self.column("time_s")?, self.column(&format!("p_{}_mmhg", faces.0))?, self.column(&format!("p_{}_mmhg", faces.1))?);
-        let period = number(summary, "/inputs/period_s", &self.path)?;
         let last = self.rows.last().map_or(0.0, |r| r[t]);
         let start = (last - period).max(0.0);
         Ok(self.rows.iter().filter(|r| r[t] > start + 1e-12).map(|r| (r[t] - start, r[a] - r[b])).collect())
@@ -382,8 +381,8 @@ impl Timeseries {
 }
 
 fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
-    let q_mean = number(&run.summary, "/inputs/q_mean_ml_s", &run.summary_path)?;
-    let period = number(&run.summary, "/inputs/period_s", &run.summary_path)?;
+    let q_mean = required(run.summary.inputs.q_mean_ml_s, "inputs.q_mean_ml_s", &run.summary_path)?;
+    let period = run.period_s()?;
     let w = Waveform::Ejection { period_s: period, q_mean_ml_s: q_mean };
     let points = (0..=200).map(|k| period * k as f64 / 200.0).map(|t| (t, w.flow_ml_s(t))).collect();
     let label = format!("CI {:.2} L/min/m²", run.cardiac_index_l_min_m2);
@@ -391,11 +390,11 @@ fn waveform_series(run: &Run, color: &'static str) -> Result<Series, String> {
 }
 
 /// The plan's verdict: the nominal run's own doubts, the mesh study's and the design's.
-fn plan_verdict(nominal: &Run, study: Option<&Result<MeshStudy, String>>, design: &Value) -> Verdict {
+fn plan_verdict(nominal: &Run, study: Option<&Result<MeshStudy, String>>, design: &DesignReport) -> Verdict {
     let dp = nominal.dp_mmhg().unwrap_or(f64::NAN);
     let mut doubts = verdict::run_doubts(&nominal.summary);
     doubts.extend(study.and_then(|s| verdict::mesh_study_doubt(dp, s)));
-    doubts.extend(verdict::design_doubt(design));
+    doubts.extend(verdict::design_doubt(design.min_constrained_final_area_mm2, design.target_area_mm2));
     Verdict::of(dp, doubts)
 }
 
@@ -410,9 +409,8 @@ fn mesh_study(args: &PlanArgs, runs: &[Run], records: &[StageRecord]) -> Option<
         let why: Vec<&str> = failed.error.as_deref().unwrap_or("no reason given").lines().map(str::trim).filter(|l| !l.is_empty()).collect();
         return Some(Err(format!("its stage {} failed: {}", failed.name, why.join("; "))));
     }
-    let levels: Vec<&Run> = runs.iter().filter(|r| r.flow == FlowCase::Nominal).collect();
-    let levels: Result<Vec<Level>, String> = levels.iter().map(|r| r.mesh_level()).collect();
-    Some(levels.and_then(|l| MeshStudy::of(&l)))
+    let levels: Vec<Level> = runs.iter().filter(|r| r.flow == FlowCase::Nominal).map(Run::mesh_level).collect();
+    Some(MeshStudy::of(&levels))
 }
 
 /// report.json's `mesh_study`: the grid convergence of dp, or why there is none.
@@ -433,18 +431,15 @@ fn profile_series(s_mm: &[f64], values: &[Option<f64>]) -> Vec<(f64, f64)> {
     s_mm.iter().zip(values).map(|(&s, v)| (s, v.unwrap_or(f64::NAN))).collect()
 }
 
-fn section_area_chart(design: &Value) -> String {
-    let sections = design["sections"].as_array().cloned().unwrap_or_default();
-    let series_of = |key: &str| -> Vec<(f64, f64)> {
-        sections.iter().filter_map(|s| Some((s["s_mm"].as_f64()?, s[key].as_f64()?))).collect()
-    };
-    let finals = series_of("final_area_mm2");
-    let target = design["target_area_mm2"].as_f64().unwrap_or(f64::NAN);
-    let span: Vec<f64> = sections.iter().filter_map(|s| s["s_mm"].as_f64()).collect();
-    let (s0, s1) = (span.first().copied().unwrap_or(0.0), span.last().copied().unwrap_or(1.0));
+fn section_area_chart(design: &DesignReport) -> String {
+    let sections = &design.sections;
+    let series_of = |area: fn(&SectionRecord) -> Option<f64>| -> Vec<(f64, f64)> { sections.iter().filter_map(|s| Some((s.s_mm, area(s)?))).collect() };
+    let finals = series_of(|s| s.final_area_mm2);
+    let target = design.target_area_mm2;
+    let (s0, s1) = (sections.first().map_or(0.0, |s| s.s_mm), sections.last().map_or(1.0, |s| s.s_mm));
     let series = [
         Series { markers: finals.len() < 40, ..Series::line("designed", finals, "#1f77b4") },
-        Series { dashed: true, ..Series::line("initial patch", series_of("raw_area_mm2"), "#999999") },
+        Series { dashed: true, ..Series::line("initial patch", series_of(|s| s.raw_area_mm2), "#999999") },
         Series { dashed: true, ..Series::line("target", vec![(s0, target), (s1, target)], "#d62728") },
     ];
     line_chart("Section area along the centerline", "arc length from the VSD s (mm)", "area (mm²)", &series, true)
@@ -527,84 +522,147 @@ fn format_value(v: f64, decimals: usize) -> String {
     if v.is_finite() { format!("{v:.decimals$}") } else { "—".into() }
 }
 
+/// A cap of the prepare or extend stage as report.json gives it.
+#[derive(Serialize)]
+struct Cap {
+    label: i32,
+    area_mm2: f64,
+    centroid_mm: [f64; 3],
+}
+
+impl From<&CapReport> for Cap {
+    fn from(c: &CapReport) -> Cap {
+        Cap { label: c.label, area_mm2: c.area_mm2, centroid_mm: c.centroid_mm }
+    }
+}
+
+/// The prepare stage's figures in report.json: its report's caps, separation and size,
+/// and the stage's wall time.
+#[derive(Serialize)]
+struct PrepareSummary {
+    report: PathBuf,
+    wall_time_s: Option<f64>,
+    triangles: usize,
+    vsd_cap: Cap,
+    aortic_cap: Cap,
+    separation: CutSeparation,
+}
+
 /// The prepare stage's report (cap areas and centroids) and wall time, if it ran.
-fn prepare_summary(out: &Path, records: &[StageRecord]) -> Result<Option<Value>, String> {
+fn prepare_summary(out: &Path, records: &[StageRecord]) -> Result<Option<PrepareSummary>, String> {
     let Some(record) = records.iter().find(|r| r.name == "prepare") else { return Ok(None) };
     let path = crate::prepare_cmd::report_path(&crate::plan_stages::prepared_surface_path(out));
-    let doc = read_json(&path)?;
-    let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
-    Ok(Some(json!({
-        "report": path, "wall_time_s": record.wall_time_s, "triangles": doc["triangles"],
-        "vsd_cap": cap("vsd_cap"), "aortic_cap": cap("aortic_cap"), "separation": doc["separation"],
-    })))
+    let doc: PrepareReport = read_json(&path)?;
+    Ok(Some(PrepareSummary {
+        report: path,
+        wall_time_s: record.wall_time_s,
+        triangles: doc.triangles,
+        vsd_cap: Cap::from(&doc.vsd_cap),
+        aortic_cap: Cap::from(&doc.aortic_cap),
+        separation: doc.separation,
+    }))
 }
 
 /// How far apart prepare kept the two openings, and how far it moved their cuts to do so.
-fn separation_text(separation: &Value) -> String {
-    let mm = |key: &str| format_value(separation[key].as_f64().unwrap_or(f64::NAN), 2);
-    let gap = format!("The VSD and aortic openings are {} mm apart (at least {} mm).", mm("rim_gap_mm"), mm("clearance_mm"));
-    let moved = ["vsd_cut_moved_into_lv_mm", "aortic_cut_moved_into_aorta_mm"].iter().any(|k| separation[k].as_f64().unwrap_or(0.0) > 0.0);
-    if !moved {
+fn separation_text(separation: &CutSeparation) -> String {
+    let mm = |v: f64| format_value(v, 2);
+    let gap = format!("The VSD and aortic openings are {} mm apart (at least {} mm).", mm(separation.rim_gap_mm), mm(separation.clearance_mm));
+    if !separation.moved() {
         return gap;
     }
     format!(
         "{gap} Their interfaces meet (within {} mm), so the VSD cut was moved {} mm into the LV and the aortic cut {} mm up the aortic root: \
          the caps lie that far from the anatomical openings.",
-        mm("interface_loops_gap_mm"),
-        mm("vsd_cut_moved_into_lv_mm"),
-        mm("aortic_cut_moved_into_aorta_mm")
+        mm(separation.interface_loops_gap_mm),
+        mm(separation.vsd_cut_moved_into_lv_mm),
+        mm(separation.aortic_cut_moved_into_aorta_mm)
     )
 }
 
 /// The HTML rows of the prepare stage's caps: name, label, area, centroid.
-fn prepare_rows(prepare: &Value) -> Vec<Vec<String>> {
-    let cap_row = |name: &str, cap: &Value| {
-        let centroid: Vec<String> = cap["centroid_mm"].as_array().into_iter().flatten().map(|c| format_value(c.as_f64().unwrap_or(f64::NAN), 2)).collect();
-        vec![name.to_string(), cap["label"].to_string(), format_value(cap["area_mm2"].as_f64().unwrap_or(f64::NAN), 1), format!("({})", centroid.join(", "))]
+fn prepare_rows(prepare: &PrepareSummary) -> Vec<Vec<String>> {
+    let cap_row = |name: &str, cap: &Cap| {
+        let centroid: Vec<String> = cap.centroid_mm.iter().map(|&c| format_value(c, 2)).collect();
+        vec![name.to_string(), cap.label.to_string(), format_value(cap.area_mm2, 1), format!("({})", centroid.join(", "))]
     };
-    vec![cap_row("VSD cap", &prepare["vsd_cap"]), cap_row("Aortic cap", &prepare["aortic_cap"])]
+    vec![cap_row("VSD cap", &prepare.vsd_cap), cap_row("Aortic cap", &prepare.aortic_cap)]
+}
+
+/// The CFD domain in report.json: the extend stage's figures, or why the designed domain
+/// was kept.
+#[derive(Serialize)]
+struct CfdDomain {
+    extended: bool,
+    note: &'static str,
+    #[serde(flatten)]
+    extension: Option<Extension>,
+}
+
+/// The extend stage's figures (report.json `domain`).
+#[derive(Serialize)]
+struct Extension {
+    report: PathBuf,
+    wall_time_s: Option<f64>,
+    triangles: usize,
+    volume_mm3: f64,
+    designed_volume_mm3: f64,
+    baffle_area_relative_change: f64,
+    inflow_cap: Cap,
+    outflow_cap: Cap,
+    mid_lv_distance_from_vsd_mm: f64,
+    stj_found: bool,
+    stj_distance_from_annulus_mm: f64,
+    stj_note: String,
 }
 
 /// The CFD domain: the extend stage's figures, or why the designed domain was kept.
-fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Result<Value, String> {
+fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Result<CfdDomain, String> {
     let Some(record) = records.iter().find(|r| r.name == "extend").filter(|_| crate::plan_stages::is_extended(args)) else {
-        return Ok(json!({
-            "extended": false,
-            "note": "the designed domain (VSD cap to aortic-annulus cap) as CFD domain, plug inflow at the VSD cap: with --surface no LV or aorta is known to extend it (give --segmentations or --labelmap)",
-        }));
+        return Ok(CfdDomain {
+            extended: false,
+            note: "the designed domain (VSD cap to aortic-annulus cap) as CFD domain, plug inflow at the VSD cap: with --surface no LV or aorta is known to extend it (give --segmentations or --labelmap)",
+            extension: None,
+        });
     };
     let path = crate::prepare_cmd::report_path(&crate::plan_stages::extended_surface_path(out));
-    let doc = read_json(&path)?;
-    let cap = |key: &str| json!({ "label": doc[key]["label"], "area_mm2": doc[key]["area_mm2"], "centroid_mm": doc[key]["centroid_mm"] });
-    Ok(json!({
-        "extended": true,
-        "note": "extended domain (paper 2.5): plug inflow at the mid-LV cap, outflow at the STJ cap; dp between the VSD and aortic-annulus caps as interior planes",
-        "report": path, "wall_time_s": record.wall_time_s, "triangles": doc["triangles"], "volume_mm3": doc["volume_mm3"],
-        "designed_volume_mm3": doc["designed_volume_mm3"], "baffle_area_relative_change": doc["baffle_area_relative_change"],
-        "inflow_cap": cap("inflow_cap"), "outflow_cap": cap("outflow_cap"),
-        "mid_lv_distance_from_vsd_mm": doc["mid_lv_plane"]["distance_from_vsd_mm"],
-        "stj_found": doc["stj"]["found"], "stj_distance_from_annulus_mm": doc["stj"]["distance_from_annulus_mm"], "stj_note": doc["stj"]["note"],
-    }))
+    let doc: ExtendReport = read_json(&path)?;
+    let extension = Extension {
+        report: path,
+        wall_time_s: record.wall_time_s,
+        triangles: doc.triangles,
+        volume_mm3: doc.volume_mm3,
+        designed_volume_mm3: doc.designed_volume_mm3,
+        baffle_area_relative_change: doc.baffle_area_relative_change,
+        inflow_cap: Cap::from(&doc.inflow_cap),
+        outflow_cap: Cap::from(&doc.outflow_cap),
+        mid_lv_distance_from_vsd_mm: doc.mid_lv_plane.distance_from_vsd_mm,
+        stj_found: doc.stj.found,
+        stj_distance_from_annulus_mm: doc.stj.distance_from_annulus_mm,
+        stj_note: doc.stj.note,
+    };
+    Ok(CfdDomain {
+        extended: true,
+        note: "extended domain (paper 2.5): plug inflow at the mid-LV cap, outflow at the STJ cap; dp between the VSD and aortic-annulus caps as interior planes",
+        extension: Some(extension),
+    })
 }
 
 /// The report's paragraph on the CFD domain.
-fn domain_text(domain: &Value) -> String {
-    if domain["extended"] != true {
-        return format!("CFD domain: {}.", domain["note"].as_str().unwrap_or_default());
-    }
-    let n = |key: &str| format_value(domain[key].as_f64().unwrap_or(f64::NAN), 1);
-    let area = |cap: &str| format_value(domain[cap]["area_mm2"].as_f64().unwrap_or(f64::NAN), 1);
+fn domain_text(domain: &CfdDomain) -> String {
+    let Some(e) = &domain.extension else {
+        return format!("CFD domain: {}.", domain.note);
+    };
     format!(
         "CFD domain: {}. Inflow cap {} mm² at {} mm beyond the VSD (parallel to it, through the LV's centroid); outflow cap {} mm² at {} mm above the annulus ({}). Volume {} mm³ (designed {} mm³); baffle area change {:.1e}.",
-        domain["note"].as_str().unwrap_or_default(),
-        area("inflow_cap"),
-        n("mid_lv_distance_from_vsd_mm"),
-        area("outflow_cap"),
-        n("stj_distance_from_annulus_mm"),
-        domain["stj_note"].as_str().unwrap_or_default(),
-        format_value(domain["volume_mm3"].as_f64().unwrap_or(f64::NAN), 0),
-        format_value(domain["designed_volume_mm3"].as_f64().unwrap_or(f64::NAN), 0),
-        domain["baffle_area_relative_change"].as_f64().unwrap_or(f64::NAN)
+        domain.note,
+        format_value(e.inflow_cap.area_mm2, 1),
+        format_value(e.mid_lv_distance_from_vsd_mm, 1),
+        format_value(e.outflow_cap.area_mm2, 1),
+        format_value(e.stj_distance_from_annulus_mm, 1),
+        e.stj_note,
+        format_value(e.volume_mm3, 0),
+        format_value(e.designed_volume_mm3, 0),
+        e.baffle_area_relative_change
     )
 }
 
@@ -619,15 +677,16 @@ fn short_path(path: &Path) -> String {
 /// against its target, or a transient run's per-step residual; log10 scale.
 fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, String)> {
     let log = |(x, r): (f64, f64)| (x, if r > 0.0 { r.log10() } else { f64::NAN });
-    if nominal.summary["mode"] == "steady" {
-        let history: Vec<(f64, f64)> = nominal.summary["steady_relative_residuals"].as_array()?.iter().enumerate().filter_map(|(k, r)| Some(log(((k + 1) as f64, r.as_f64()?)))).collect();
-        let tolerance = nominal.summary["inputs"]["steady_tolerance"].as_f64()?;
+    let summary = &nominal.summary;
+    if summary.is_steady() {
+        let history: Vec<(f64, f64)> = summary.steady_relative_residuals.iter().enumerate().filter_map(|(k, r)| Some(log(((k + 1) as f64, (*r)?)))).collect();
+        let tolerance = summary.inputs.steady_tolerance?;
         let end = history.last()?.0;
         let series = [
             Series { markers: history.len() < 80, ..Series::line("relative residual", history, "#1f77b4") },
             Series { dashed: true, ..Series::line("target", vec![(1.0, tolerance.log10()), (end, tolerance.log10())], "#d62728") },
         ];
-        let converged = if nominal.summary["converged"] == true { "reached" } else { "did not reach" };
+        let converged = if summary.converged { "reached" } else { "did not reach" };
         let caption = format!("Steady solve: residual relative to the first iteration's (log10) per iteration; it {converged} its target {tolerance:.0e}.");
         return Some((line_chart("Solver convergence (steady)", "iteration", "log10 relative residual", &series, false), caption));
     }
@@ -678,15 +737,15 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let labels = (args.design.vsd_label, args.design.aortic_label);
     let design_dir = out.join("design");
     let design_path = design_dir.join("report.json");
-    let design = read_json(&design_path)?;
+    let design: DesignReport = read_json(&design_path)?;
     let runs = load_runs(args, out, stages, records)?;
     let nominal = runs.iter().find(|r| r.level == "nominal" && r.flow == FlowCase::Nominal).ok_or("no nominal simulation stage")?;
     let nominal_dir = out.join(&nominal.stage);
     let flow_line = centerline_profile(out, &nominal_dir.join("peak.vtu"))?;
     let profile = &flow_line.profile;
-    let table = quantities(&design, &design_path, nominal, &flow_line)?;
+    let table = quantities(&design, nominal, &flow_line)?;
     let dp = nominal.dp_mmhg()?;
-    let converged = nominal.summary["converged"].as_bool().unwrap_or(false);
+    let converged = nominal.summary.converged;
     let study = mesh_study(args, &runs, records);
     let verdict = plan_verdict(nominal, study.as_ref(), &design);
     let verdict_line = verdict.text(dp);
@@ -696,24 +755,25 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         warnings.push("dp comes from one mesh (--single-mesh): its discretization error is not known; without --single-mesh the plan runs the three-level mesh study".into());
     }
     // The requested target: with --flow-sections the design ran at a raised one.
-    let goal_mm2 = design["flow_sections"]["goal_area_mm2"].as_f64().map_or_else(|| number(&design, "/target_area_mm2", &design_path), Ok)?;
+    let goal_mm2 = design.flow_sections.as_ref().map_or(design.target_area_mm2, |f| f.goal_area_mm2);
     warnings.extend(flow_section_warning(&flow_line, goal_mm2));
     let cfd_domain = domain_summary(args, out, records)?;
-    let dp_faces = if cfd_domain["extended"] == true {
+    let dp_faces = if cfd_domain.extended {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
     } else {
         (format!("inlet_{}", labels.0), format!("outlet_{}", labels.1))
     };
     let timeseries = Timeseries::read(&nominal_dir)?;
-    let dp_cycle = timeseries.dp_over_cycle(&nominal.summary, (&dp_faces.0, &dp_faces.1))?;
+    let period_s = if nominal.summary.is_steady() { None } else { Some(nominal.period_s()?) };
+    let dp_cycle = timeseries.dp_over_cycle(period_s, (&dp_faces.0, &dp_faces.1))?;
     // Gauge pressures: relative to the aortic plane's mean at peak flow.
-    let reference_mmhg = timeseries.pressure_at_peak_mmhg(&nominal.summary, &dp_faces.1)?;
+    let reference_mmhg = timeseries.pressure_at_peak_mmhg(nominal.peak_time_s()?, &dp_faces.1)?;
     let gauge = flow_line.gauge_mmhg(reference_mmhg);
     let comparison = PressureComparison::of(&flow_line.s_mm, &gauge);
     flow_line.write_with_fields(reference_mmhg)?;
     let prepare = prepare_summary(out, records)?;
     let paper = input_path(args).and_then(paper::PaperPatient::of_input);
-    let estimate = EstimateBeside3d::of(&design, &design_path, dp, profile.v_max_m_s());
+    let estimate = EstimateBeside3d::of(design.hemodynamics_estimate.as_ref(), &design_path, dp, profile.v_max_m_s());
 
     let run_rows: Vec<Value> = runs
         .iter()
@@ -721,22 +781,23 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             json!({
                 "stage": r.stage, "mesh": r.level, "edge_length_mm": r.edge_length_mm,
                 "cardiac_index_l_min_m2": r.cardiac_index_l_min_m2,
-                "tetrahedra": r.quality["tetrahedra"], "mode": r.summary["mode"], "converged": r.summary["converged"],
-                "dp_peak_mmhg": r.summary["dp_peak_mmhg"], "max_velocity_m_s": r.summary["max_velocity_m_s"],
+                "tetrahedra": r.quality.tetrahedra, "mode": r.summary.mode, "converged": r.summary.converged,
+                "dp_peak_mmhg": r.summary.dp_peak_mmhg, "max_velocity_m_s": r.summary.max_velocity_m_s,
                 "verdict": r.verdict().key(), "reason": r.verdict().reason(),
             })
         })
         .collect();
+    let created_utc = utc_now();
     let mut report = json!({
         "status": "completed",
-        "created_utc": utc_now(),
+        "created_utc": created_utc,
         "patient": patient_label(args, paper.as_ref()),
         "software": { "name": "baffle", "version": env!("CARGO_PKG_VERSION") },
         "inputs": {
             "surface": args.design.surface, "points": args.design.points, "phantom": args.design.phantom,
             "segmentations": args.prepare.segmentations, "labelmap": args.prepare.labelmap,
             "bsa_m2": flow_bsa_m2(args).ok(), "sbp_mmhg": args.bp.0, "dbp_mmhg": args.bp.1,
-            "heart_rate_bpm": args.hr, "cardiac_index_l_min_m2": args.cardiac_index, "mode": nominal.summary["mode"],
+            "heart_rate_bpm": args.hr, "cardiac_index_l_min_m2": args.cardiac_index, "mode": nominal.summary.mode,
             "edge_length_mm": args.edge_length_mm,
         },
         "stages": records,
@@ -744,7 +805,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         "domain": cfd_domain,
         "quantities": table.iter().map(|q| (q.key.to_string(), json_value(q))).collect::<serde_json::Map<_, _>>(),
         // Why the RV outflow quantities are null, and what they mean.
-        "rv_outflow": { "unavailable": design["rv_outflow_unavailable"], "text": rv_outflow_text(&design) },
+        "rv_outflow": { "unavailable": design.rv_cost.rv_outflow.rv_outflow_unavailable, "text": rv_outflow_text(&design.rv_cost.rv_outflow) },
         // passes is true only for a trusted run below the threshold, never for an inconclusive one.
         "verdict": {
             "verdict": verdict.key(), "reason": verdict.reason(), "passes": verdict == Verdict::Passes,
@@ -795,7 +856,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let mut html = Html(String::new());
     let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
     let _ = writeln!(html.0, "<p><b>Patient: {}</b></p>", escape(&patient_label(args, paper.as_ref())));
-    html.para(&format!("Made {} by baffle {} (baffle plan).", report["created_utc"].as_str().unwrap_or_default(), env!("CARGO_PKG_VERSION")));
+    html.para(&format!("Made {created_utc} by baffle {} (baffle plan).", env!("CARGO_PKG_VERSION")));
     html.para(&format!(
         "{}; BSA {} m²; BP {}/{} mmHg; {}; cardiac index {} L/min/m²; {} run, nominal mesh {} mm.",
         surface_source(args),
@@ -804,7 +865,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         args.bp.1,
         args.hr.map_or("default period 0.682 s".into(), |hr| format!("HR {hr} /min")),
         args.cardiac_index,
-        nominal.summary["mode"].as_str().unwrap_or("?"),
+        nominal.summary.mode,
         args.edge_length_mm
     ));
     let _ = writeln!(html.0, "<p class=\"{}\"><b>{}</b></p>", verdict.key(), escape(&verdict_line));
@@ -845,7 +906,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
                 "Paper: patient {} as printed in Martinez et al. (from {}), from its pulsatile run on the nominal 0.95 mm mesh; this plan ran {} on a {} mm mesh.",
                 p.id,
                 p.table.display(),
-                nominal.summary["mode"].as_str().unwrap_or("?"),
+                nominal.summary.mode,
                 args.edge_length_mm
             ));
         }
@@ -853,13 +914,13 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     }
 
     html.para(&estimate.text());
-    html.para(&rv_outflow_text(&design));
+    html.para(&rv_outflow_text(&design.rv_cost.rv_outflow));
 
     if let Some(prepare) = &prepare {
         html.heading("Capped ventricle (prepare stage)");
         html.table(&["Cap", "ModelFaceID", "Area (mm²)", "Centroid (mm)"], &prepare_rows(prepare));
-        html.para(&format!("Built from the segmentations in {} s.", format_value(prepare["wall_time_s"].as_f64().unwrap_or(f64::NAN), 1)));
-        html.para(&separation_text(&prepare["separation"]));
+        html.para(&format!("Built from the segmentations in {} s.", format_value(prepare.wall_time_s.unwrap_or(f64::NAN), 1)));
+        html.para(&separation_text(&prepare.separation));
     }
     html.heading("Section area");
     html.figure(&section_area_chart(&design), "Designed section areas against the target (the design's report.json).");
@@ -870,11 +931,11 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     for (k, run) in runs.iter().filter(|r| r.level == "nominal").enumerate() {
         inflow.push(waveform_series(run, colors[k % 2])?);
     }
-    if let (true, Some(q_peak)) = (dp_cycle.is_empty(), nominal.summary["q_peak_ml_s"].as_f64()) {
+    if let (true, Some(q_peak)) = (dp_cycle.is_empty(), nominal.summary.q_peak_ml_s) {
         let period = inflow[0].points.last().map_or(1.0, |p| p.0);
         inflow.push(Series { dashed: true, ..Series::line("held in the steady run", vec![(0.0, q_peak), (period, q_peak)], "#555555") });
     }
-    let inflow_title = if cfd_domain["extended"] == true { "Inflow waveform (mid-LV cap)" } else { "Inflow waveform (VSD cap)" };
+    let inflow_title = if cfd_domain.extended { "Inflow waveform (mid-LV cap)" } else { "Inflow waveform (VSD cap)" };
     html.figure(&line_chart(inflow_title, "time in cycle (s)", "flow (mL/s)", &inflow, true), "Built-in ejection waveform scaled to BSA × cardiac index; a steady run holds Q_peak.");
 
     html.heading("Pressure difference");
@@ -883,7 +944,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     } else {
         let series = [Series::line("dp", dp_cycle.clone(), "#1f77b4"), Series { dashed: true, ..Series::line("10 mmHg", vec![(0.0, DP_THRESHOLD_MMHG), (dp_cycle.last().map_or(1.0, |p| p.0), DP_THRESHOLD_MMHG)], "#d62728") }];
         // A quick run is judged at its first flow peak: there is no last cycle.
-        let (title, caption) = if nominal.summary["mode"] == crate::case::QUICK_MODE {
+        let (title, caption) = if nominal.summary.is_quick() {
             ("Pressure difference from rest to the first flow peak", "VSD cap − aortic cap mean pressure; the quick estimate starts from rest and stops at the first flow peak.")
         } else {
             ("Pressure difference over the last cycle", "VSD cap − aortic cap mean pressure.")
@@ -919,7 +980,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
                 r.stage.clone(),
                 format!("{} ({:.2} mm)", r.level, r.edge_length_mm),
                 format!("{:.2}", r.cardiac_index_l_min_m2),
-                r.quality["tetrahedra"].to_string(),
+                r.quality.tetrahedra.to_string(),
                 format_value(r.dp_mmhg().unwrap_or(f64::NAN), 3),
                 format_value(r.v_max_m_s().unwrap_or(f64::NAN), 3),
                 r.verdict().text(r.dp_mmhg().unwrap_or(f64::NAN)),
@@ -950,9 +1011,9 @@ mod tests {
 
     #[test]
     fn the_prepare_separation_names_any_move() {
-        let kept = json!({ "rim_gap_mm": 5.49, "clearance_mm": 0.5, "interface_loops_gap_mm": 5.2, "vsd_cut_moved_into_lv_mm": 0.0, "aortic_cut_moved_into_aorta_mm": 0.0 });
+        let kept = CutSeparation { rim_gap_mm: 5.49, clearance_mm: 0.5, interface_loops_gap_mm: 5.2, vsd_cut_moved_into_lv_mm: 0.0, aortic_cut_moved_into_aorta_mm: 0.0, cuts_tried: 1 };
         assert_eq!(separation_text(&kept), "The VSD and aortic openings are 5.49 mm apart (at least 0.50 mm).");
-        let moved = json!({ "rim_gap_mm": 0.66, "clearance_mm": 0.5, "interface_loops_gap_mm": 0.01, "vsd_cut_moved_into_lv_mm": 2.0, "aortic_cut_moved_into_aorta_mm": 4.0 });
+        let moved = CutSeparation { rim_gap_mm: 0.66, interface_loops_gap_mm: 0.01, vsd_cut_moved_into_lv_mm: 2.0, aortic_cut_moved_into_aorta_mm: 4.0, ..kept };
         let text = separation_text(&moved);
         assert!(text.contains("0.66 mm apart") && text.contains("moved 2.00 mm into the LV") && text.contains("4.00 mm up the aortic root"), "{text}");
     }
@@ -962,27 +1023,79 @@ mod tests {
         let path = Path::new("design/report.json");
         let tunnel = baffle_core::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
         let e = baffle_core::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap();
-        let design = json!({ "target_area_mm2": 60.0, "hemodynamics_estimate": EstimateOutcome::Estimated(e.clone()) });
+        let estimated = EstimateOutcome::Estimated(e.clone());
+        let design = Some(&estimated);
         // The 3D dp equal to the estimate: within its measured error.
-        let near = EstimateBeside3d::of(&design, path, e.dp_estimate_mmhg, e.v_max_estimate_m_s);
+        let near = EstimateBeside3d::of(design, path, e.dp_estimate_mmhg, e.v_max_estimate_m_s);
         assert_eq!(near.design, EstimateOutcome::Estimated(e.clone()));
         let c = near.comparison_with_3d.as_ref().unwrap();
         assert!(c.dp_within_measured_error && c.v_max_within_measured_error && c.dp_3d_mmhg == e.dp_estimate_mmhg);
         assert!(near.text().starts_with("Reduced-order estimate (not a CFD result):") && !near.text().contains("disagree"), "{}", near.text());
         // 3D dp 10 mmHg above the estimate: beyond the range, and the text says so.
-        let far = EstimateBeside3d::of(&design, path, e.dp_estimate_mmhg + 10.0, e.v_max_estimate_m_s);
+        let far = EstimateBeside3d::of(design, path, e.dp_estimate_mmhg + 10.0, e.v_max_estimate_m_s);
         assert!(far.text().contains("disagree on dp beyond") && far.text().contains("verdict uses"), "{}", far.text());
         let report = serde_json::to_value(&far).unwrap();
         assert_eq!(report["comparison_with_3d"]["dp_within_measured_error"], false);
         assert_eq!(report["design"]["dp_estimate_mmhg"].as_f64(), Some(e.dp_estimate_mmhg));
         // No 3D v_max sampled: the estimate stands, the comparison says why not.
-        let unsampled = EstimateBeside3d::of(&design, path, 1.0, f64::NAN);
+        let unsampled = EstimateBeside3d::of(design, path, 1.0, f64::NAN);
         assert!(unsampled.comparison_with_3d.is_none() && unsampled.text().contains("not compared with the 3D run (hemodynamics estimate comparison: the 3D v_max"), "{}", unsampled.text());
         // Without an estimate: why, in one line.
-        let absent = json!({ "hemodynamics_estimate": { "absent_because": "no peak flow given" } });
-        assert_eq!(EstimateBeside3d::of(&absent, path, 1.0, 1.0).text(), "No reduced-order estimate of dp: no peak flow given.");
-        assert!(EstimateBeside3d::of(&json!({}), path, 1.0, 1.0).text().contains("design/report.json has no hemodynamics_estimate"));
-        assert!(EstimateBeside3d::of(&json!({ "hemodynamics_estimate": 3 }), path, 1.0, 1.0).text().contains("hemodynamics_estimate unreadable"));
+        let absent = EstimateOutcome::Absent { absent_because: "no peak flow given".into() };
+        assert_eq!(EstimateBeside3d::of(Some(&absent), path, 1.0, 1.0).text(), "No reduced-order estimate of dp: no peak flow given.");
+        assert!(EstimateBeside3d::of(None, path, 1.0, 1.0).text().contains("design/report.json has no hemodynamics_estimate"));
+    }
+
+    /// A design's report.json as the design stage writes it (the phantom's), as JSON.
+    fn design_report_json() -> Value {
+        let p = baffle_core::phantom::phantom_default();
+        let target = baffle_core::TargetArea::AreaMm2(60.0);
+        let result = baffle_core::design(&p.surface, &p.suture_points_mm, &target, &Default::default(), &mut |_, _| true).unwrap();
+        serde_json::to_value(&result.report).unwrap()
+    }
+
+    #[test]
+    fn a_stage_file_is_read_as_the_type_that_wrote_it_and_refused_without_a_field() {
+        let dir = std::env::temp_dir().join(format!("baffle-report-typed-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("report.json");
+        let write = |doc: &Value| std::fs::write(&path, serde_json::to_string_pretty(doc).unwrap()).unwrap();
+        let mut doc = design_report_json();
+        write(&doc);
+        let design: DesignReport = read_json(&path).unwrap();
+        assert_eq!(serde_json::to_value(&design).unwrap(), doc, "the design report reads back as written");
+        // A field the report prints, gone (as after a rename): refused, naming the file and the field.
+        doc.as_object_mut().unwrap().remove("baffle_area_mm2");
+        write(&doc);
+        let e = read_json::<DesignReport>(&path).unwrap_err();
+        assert!(e.contains(&path.display().to_string()) && e.contains("missing field `baffle_area_mm2`"), "{e}");
+        // A figure of the wrong kind: refused too, not a blank figure.
+        let mut doc = design_report_json();
+        doc["hemodynamics_estimate"] = json!(3);
+        write(&doc);
+        let e = read_json::<DesignReport>(&path).unwrap_err();
+        assert!(e.starts_with(&path.display().to_string()), "{e}");
+        // A run's summary.json: a null figure is none, a missing one is refused the same way.
+        let mut summary = json!({
+            "status": "completed", "message": null, "mode": "quick", "converged": true, "unconverged_nonlinear_steps": 0,
+            "last_step": 109, "steps_planned": 109, "peak_time_s": 0.109, "dp_peak_mmhg": null, "max_velocity_m_s": 1.5,
+            "q_peak_ml_s": 36.0, "mass_imbalance": 1e-5, "periodicity_nrmsd": null,
+            "inputs": { "q_mean_ml_s": 12.0, "period_s": 0.682, "steady_tolerance": null },
+        });
+        write(&summary);
+        assert_eq!(read_json::<RunSummary>(&path).unwrap().dp_peak_mmhg, None);
+        summary.as_object_mut().unwrap().remove("dp_peak_mmhg");
+        write(&summary);
+        let e = read_json::<RunSummary>(&path).unwrap_err();
+        assert!(e.contains(&path.display().to_string()) && e.contains("missing field `dp_peak_mmhg`"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_designed_domain_is_its_two_fields_in_report_json() {
+        let designed = CfdDomain { extended: false, note: "n", extension: None };
+        assert_eq!(serde_json::to_value(&designed).unwrap(), json!({ "extended": false, "note": "n" }));
+        assert_eq!(domain_text(&designed), "CFD domain: n.");
     }
 
     #[test]

@@ -3,22 +3,49 @@
 //! above the input, and the input inside that patient's folder (e.g.
 //! `data/p2/segmentations` with `data/patients.json` holding `p2`).
 
-use serde_json::Value;
+use serde::Deserialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Our quantity key -> the table's key and the factor from the table's unit to ours.
-const KEYS: &[(&str, &str, f64)] = &[
-    ("target_area_mm2", "target_area_mm2_table4", 1.0),
-    ("flow_centerline_length_mm", "flow_centerline_length_mm", 1.0),
-    ("baffle_area_mm2", "baffle_area_mm2", 1.0),
-    ("baffle_triangles", "baffle_triangles", 1.0),
-    ("tetrahedra", "nominal_tets_thousands", 1000.0),
-    ("min_scaled_jacobian", "min_scaled_jacobian", 1.0),
-    ("p1_scaled_jacobian", "p1_scaled_jacobian", 1.0),
-    ("p99_aspect_ratio", "p99_aspect_ratio", 1.0),
-    ("dp_peak_mmhg", "cfd_dp_peak_mmhg", 1.0),
-    ("max_centerline_velocity_m_s", "cfd_centerline_vmax_m_s", 1.0),
-];
+/// patients.json: the paper's values per patient id (the table holds more).
+#[derive(Deserialize)]
+struct Table {
+    patients: BTreeMap<String, Published>,
+}
+
+/// A patient's published values that the report sets beside ours (absent: not published).
+#[derive(Deserialize)]
+struct Published {
+    target_area_mm2_table4: Option<f64>,
+    flow_centerline_length_mm: Option<f64>,
+    baffle_area_mm2: Option<f64>,
+    baffle_triangles: Option<f64>,
+    nominal_tets_thousands: Option<f64>,
+    min_scaled_jacobian: Option<f64>,
+    p1_scaled_jacobian: Option<f64>,
+    p99_aspect_ratio: Option<f64>,
+    cfd_dp_peak_mmhg: Option<f64>,
+    cfd_centerline_vmax_m_s: Option<f64>,
+}
+
+impl Published {
+    /// The published values by our quantity keys, in our units.
+    fn by_our_keys(&self) -> Vec<(&'static str, f64)> {
+        let values = [
+            ("target_area_mm2", self.target_area_mm2_table4),
+            ("flow_centerline_length_mm", self.flow_centerline_length_mm),
+            ("baffle_area_mm2", self.baffle_area_mm2),
+            ("baffle_triangles", self.baffle_triangles),
+            ("tetrahedra", self.nominal_tets_thousands.map(|k| k * 1000.0)),
+            ("min_scaled_jacobian", self.min_scaled_jacobian),
+            ("p1_scaled_jacobian", self.p1_scaled_jacobian),
+            ("p99_aspect_ratio", self.p99_aspect_ratio),
+            ("dp_peak_mmhg", self.cfd_dp_peak_mmhg),
+            ("max_centerline_velocity_m_s", self.cfd_centerline_vmax_m_s),
+        ];
+        values.into_iter().filter_map(|(key, value)| Some((key, value?))).collect()
+    }
+}
 
 /// A patient of the paper and its published values, by our quantity keys.
 pub struct PaperPatient {
@@ -37,9 +64,8 @@ impl PaperPatient {
                 continue;
             }
             let id = input.strip_prefix(dir).ok()?.components().next()?.as_os_str().to_str()?.to_string();
-            let doc: Value = serde_json::from_str(&std::fs::read_to_string(&table).ok()?).ok()?;
-            let patient = doc["patients"].get(&id)?;
-            let values = KEYS.iter().filter_map(|&(ours, theirs, factor)| Some((ours, patient[theirs].as_f64()? * factor))).collect();
+            let doc: Table = serde_json::from_str(&std::fs::read_to_string(&table).ok()?).ok()?;
+            let values = doc.patients.get(&id)?.by_our_keys();
             return Some(PaperPatient { id, table, values });
         }
         None
@@ -59,7 +85,8 @@ mod tests {
         let root = std::env::temp_dir().join(format!("baffle-paper-{}", std::process::id()));
         let input = root.join("p2").join("segmentations");
         std::fs::create_dir_all(&input).unwrap();
-        let table = r#"{ "patients": { "p2": { "cfd_dp_peak_mmhg": 1.58, "nominal_tets_thousands": 147, "baffle_area_mm2": 246.0 } } }"#;
+        // The table's other fields (of any kind) are not read.
+        let table = r#"{ "source": "x", "patients": { "p2": { "cfd_dp_peak_mmhg": 1.58, "nominal_tets_thousands": 147, "baffle_area_mm2": 246.0, "note": "n", "bsa_m2": [0.37] } } }"#;
         std::fs::write(root.join("patients.json"), table).unwrap();
         let p = PaperPatient::of_input(&input).unwrap();
         assert_eq!(p.id, "p2");

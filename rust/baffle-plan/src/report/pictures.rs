@@ -3,7 +3,8 @@
 //! numpy), which writes PNGs and `pictures.json` into `--out/pictures`. The report embeds
 //! the PNGs; when they cannot be made it says why instead.
 
-use serde_json::Value;
+use crate::files::read_json;
+use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -96,26 +97,40 @@ fn run_renderer(python: &str, out: &Path, frame_ras: bool, labels: &[(&str, i32)
     })
 }
 
+/// pictures.json as the renderer writes it (the fields the report uses).
+#[derive(Deserialize)]
+struct Manifest {
+    pictures: Vec<ManifestEntry>,
+    /// What could not be drawn, in words.
+    notes: Vec<String>,
+}
+
+/// One picture of pictures.json: its PNG file (in the manifest's folder) and its words.
+#[derive(Deserialize)]
+struct ManifestEntry {
+    file: String,
+    title: String,
+    caption: String,
+    section: String,
+}
+
 /// The pictures the renderer listed in `dir/pictures.json`, with their PNG bytes.
 fn read_manifest(dir: &Path) -> Result<Pictures, String> {
     let path = dir.join("pictures.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let doc: Value = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let manifest: Manifest = read_json(&path)?;
     let mut pictures = Vec::new();
-    for entry in doc["pictures"].as_array().into_iter().flatten() {
-        let field = |key: &str| entry[key].as_str().map(str::to_string).ok_or_else(|| format!("{}: a picture without {key}", path.display()));
-        let file = dir.join(field("file")?);
+    for ManifestEntry { file, title, caption, section } in manifest.pictures {
+        let file = dir.join(file);
         let png = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
         if !png.starts_with(b"\x89PNG\r\n\x1a\n") {
             return Err(format!("{}: not a PNG", file.display()));
         }
-        pictures.push(Picture { file, title: field("title")?, caption: field("caption")?, section: field("section")?, png });
+        pictures.push(Picture { file, title, caption, section, png });
     }
     if pictures.is_empty() {
         return Err(format!("{}: lists no picture", path.display()));
     }
-    let notes = doc["notes"].as_array().into_iter().flatten().filter_map(|n| n.as_str().map(str::to_string)).collect();
-    Ok(Pictures::Rendered { pictures, notes })
+    Ok(Pictures::Rendered { pictures, notes: manifest.notes })
 }
 
 /// `bytes` as standard base64 (RFC 4648, padded), for a data: URL.
@@ -141,6 +156,23 @@ mod tests {
         for (plain, encoded) in [("", ""), ("f", "Zg=="), ("fo", "Zm8="), ("foo", "Zm9v"), ("foob", "Zm9vYg=="), ("fooba", "Zm9vYmE="), ("foobar", "Zm9vYmFy")] {
             assert_eq!(base64(plain.as_bytes()), encoded);
         }
+    }
+
+    #[test]
+    fn a_manifest_picture_without_its_caption_is_refused_naming_the_file() {
+        let dir = std::env::temp_dir().join(format!("baffle-manifest-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.png"), b"\x89PNG\r\n\x1a\nrest").unwrap();
+        let write = |picture: &str| std::fs::write(dir.join("pictures.json"), format!(r#"{{ "frame": "lps", "pictures": [{picture}], "notes": ["n"] }}"#)).unwrap();
+        write(r#"{ "file": "a.png", "title": "t", "caption": "c", "section": "flow", "pixels": {} }"#);
+        match read_manifest(&dir) {
+            Ok(Pictures::Rendered { pictures, notes }) => assert_eq!((pictures[0].caption.as_str(), pictures[0].section.as_str(), notes), ("c", "flow", vec!["n".to_string()])),
+            Ok(Pictures::NotRendered(why)) | Err(why) => panic!("{why}"),
+        }
+        write(r#"{ "file": "a.png", "title": "t", "section": "flow" }"#);
+        let e = read_manifest(&dir).err().unwrap();
+        assert!(e.contains("pictures.json") && e.contains("missing field `caption`"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
