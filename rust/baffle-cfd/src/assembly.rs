@@ -71,6 +71,16 @@ pub struct Physics {
     pub vms_advection: bool,
     /// Viscous term in stress form (mu (grad u + grad u^T), grad w), as svMultiPhysics.
     pub stress_viscosity: bool,
+    /// Stabilization (tau, nu_C, the SUPG, PSPG and LSIC terms) at the tetrahedron's four
+    /// Gauss points with the P1 velocity there, as svMultiPhysics integrates it, instead of
+    /// once at the centroid ([`GaussState`]). Its SUPG test is advected by a, not a + u'
+    /// (`vms_advection` acts on the centroid rule only).
+    pub gauss_stabilization: bool,
+    /// svMultiPhysics' VMS "Reynolds stress" term (fluid.cpp, tauB): the diffusion
+    /// tau_B (u'.grad w)(u'.grad u), tau_B = rho / sqrt(u'.G.u'), along the fine-scale
+    /// velocity u' = -tau r_M of the latest iterate (centroid, lagged), about rho |u'| h:
+    /// it acts where the residual is large, in the jet's shear layers.
+    pub vms_reynolds_stress: bool,
 }
 
 /// The metric tensor G of tau's element length and the inverse-estimate constant C_I.
@@ -107,14 +117,7 @@ fn mean3(v: &[[f64; 3]; 4]) -> [f64; 3] {
 /// Stabilization parameters (tau in s, nu_C in cm^2/s) at the element centroid.
 pub fn stabilization(geo: &ElementGeometry, a_bar: [f64; 3], phys: &Physics) -> (f64, f64) {
     let (scale, c_inverse) = phys.tau_metric.constants();
-    let mut g = [[0.0; 3]; 3];
-    for grad in &geo.grads_per_cm {
-        for i in 0..3 {
-            for j in 0..3 {
-                g[i][j] += scale * grad[i] * grad[j];
-            }
-        }
-    }
+    let g = metric(geo, scale);
     let mut aga = 0.0;
     let mut gg = 0.0;
     for i in 0..3 {
@@ -130,6 +133,19 @@ pub fn stabilization(geo: &ElementGeometry, a_bar: [f64; 3], phys: &Physics) -> 
     (tau, 1.0 / (tau * trace))
 }
 
+/// The element metric G = scale sum_a grad N_a (x) grad N_a ([`TauMetric`]).
+fn metric(geo: &ElementGeometry, scale: f64) -> [[f64; 3]; 3] {
+    let mut g = [[0.0; 3]; 3];
+    for grad in &geo.grads_per_cm {
+        for i in 0..3 {
+            for j in 0..3 {
+                g[i][j] += scale * grad[i] * grad[j];
+            }
+        }
+    }
+    g
+}
+
 /// What the four rows of one element's system share: the centroid velocity of the
 /// previous step, the stabilization parameters and s_a = a_bar . grad N_a.
 #[derive(Clone, Copy, Debug, Default)]
@@ -138,6 +154,9 @@ pub struct ElementState {
     tau: f64,
     nu_c: f64,
     s: [f64; 4],
+    /// The Reynolds-stress term's tau_B and u'.grad N_b (0 without it).
+    tau_b: f64,
+    fine_s: [f64; 4],
 }
 
 /// The [`ElementState`] for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
@@ -145,8 +164,122 @@ pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]
     let a_bar = mean3(a);
     let u_old_bar = mean3(u_old);
     let (tau, nu_c) = stabilization(geo, a_bar, phys);
-    let advecting = if phys.vms_advection { add3(a_bar, fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys)) } else { a_bar };
-    ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(advecting, ga)) }
+    let fine = (phys.vms_advection || phys.vms_reynolds_stress).then(|| fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys));
+    let advecting = match fine {
+        Some(u_fine) if phys.vms_advection => add3(a_bar, u_fine),
+        _ => a_bar,
+    };
+    let (tau_b, fine_s) = match fine {
+        Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, u_fine, phys),
+        _ => (0.0, [0.0; 4]),
+    };
+    ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(advecting, ga)), tau_b, fine_s }
+}
+
+/// tau_B = rho / sqrt(u'.G.u') and u'.grad N_b of svMultiPhysics' Reynolds-stress term
+/// (0 where u' vanishes).
+fn reynolds_stress(geo: &ElementGeometry, u_fine: [f64; 3], phys: &Physics) -> (f64, [f64; 4]) {
+    let g = metric(geo, phys.tau_metric.constants().0);
+    let ugu: f64 = (0..3).map(|i| (0..3).map(|j| u_fine[i] * g[i][j] * u_fine[j]).sum::<f64>()).sum();
+    if !(ugu > 0.0) {
+        return (0.0, [0.0; 4]);
+    }
+    (phys.density_g_cm3 / ugu.sqrt(), geo.grads_per_cm.map(|gb| crate::mesh::dot(u_fine, gb)))
+}
+
+/// The 4-point Gauss rule of a tetrahedron (degree 2; weight V/4 each): point g has
+/// barycentric coordinate GAUSS_NEAR on node g and GAUSS_FAR on the other three.
+const GAUSS_NEAR: f64 = 0.585_410_196_624_968_5;
+const GAUSS_FAR: f64 = 0.138_196_601_125_010_5;
+
+fn gauss_weight(g: usize, b: usize) -> f64 {
+    if g == b {
+        GAUSS_NEAR
+    } else {
+        GAUSS_FAR
+    }
+}
+
+fn at_gauss_point(v: &[[f64; 3]; 4], g: usize) -> [f64; 3] {
+    [0, 1, 2].map(|k| (0..4).map(|b| gauss_weight(g, b) * v[b][k]).sum())
+}
+
+/// Stabilization at the four Gauss points: tau and nu_C from the P1 advecting velocity
+/// there, s_b = a(x_g) . grad N_b, and the previous step's velocity there. With one point
+/// (the centroid) tau and the SUPG term see the element's mean velocity only; across a
+/// jet's shear layer, a few elements wide, the velocity varies within an element, and the
+/// SUPG term (a.grad w)(a.grad u), quadratic in a, is then larger on average than at
+/// the mean (svMultiPhysics evaluates all of it at Gauss points; issue 28).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GaussState {
+    tau: [f64; 4],
+    nu_c: [f64; 4],
+    s: [[f64; 4]; 4],
+    u_old: [[f64; 3]; 4],
+}
+
+pub fn gauss_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> GaussState {
+    let mut st = GaussState::default();
+    for g in 0..4 {
+        let a_g = at_gauss_point(a, g);
+        (st.tau[g], st.nu_c[g]) = stabilization(geo, a_g, phys);
+        st.s[g] = geo.grads_per_cm.map(|gb| crate::mesh::dot(a_g, gb));
+        st.u_old[g] = at_gauss_point(u_old, g);
+    }
+    st
+}
+
+/// The stabilization's share of block (ai, bi) and of row ai's right-hand side, per unit
+/// of its factors (see [`element_row`]).
+#[derive(Clone, Copy, Default)]
+struct StabilizationTerms {
+    /// SUPG on the velocity (identity coefficient).
+    supg_u: f64,
+    /// LSIC: nu_C rho V (times grad N_a (x) grad N_b).
+    lsic: f64,
+    /// SUPG on the pressure column: sum tau w s_a grad N_b.
+    supg_p: [f64; 3],
+    /// PSPG on the velocity columns: sum tau w grad N_a (dt-term + s_b).
+    pspg_u: [f64; 3],
+    /// PSPG pressure-pressure: sum tau / rho w grad N_a . grad N_b.
+    pspg_p: f64,
+    /// Right-hand side: the old velocity's SUPG and PSPG shares.
+    rhs_u: [f64; 3],
+    rhs_p: f64,
+}
+
+fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: usize, bi: usize) -> StabilizationTerms {
+    let (rho, idt, v, g) = (phys.density_g_cm3, phys.inv_dt_per_s, geo.volume_cm3, &geo.grads_per_cm);
+    let (tau, s) = (st.tau, &st.s);
+    StabilizationTerms {
+        supg_u: tau * v * s[ai] * rho * (0.25 * idt + s[bi]),
+        lsic: st.nu_c * rho * v,
+        supg_p: g[bi].map(|x| tau * v * s[ai] * x),
+        pspg_u: g[ai].map(|x| tau * v * x * (0.25 * idt + s[bi])),
+        pspg_p: tau / rho * v * crate::mesh::dot(g[ai], g[bi]),
+        rhs_u: st.u_old_bar.map(|x| tau * v * s[ai] * rho * idt * x),
+        rhs_p: tau * v * idt * crate::mesh::dot(g[ai], st.u_old_bar),
+    }
+}
+
+fn gauss_terms(geo: &ElementGeometry, gs: &GaussState, phys: &Physics, ai: usize, bi: usize) -> StabilizationTerms {
+    let (rho, idt, w, g) = (phys.density_g_cm3, phys.inv_dt_per_s, 0.25 * geo.volume_cm3, &geo.grads_per_cm);
+    let gab = crate::mesh::dot(g[ai], g[bi]);
+    let mut t = StabilizationTerms::default();
+    for q in 0..4 {
+        let (tau, s) = (gs.tau[q], &gs.s[q]);
+        let time_and_convection = gauss_weight(q, bi) * idt + s[bi];
+        t.supg_u += tau * w * s[ai] * rho * time_and_convection;
+        t.lsic += gs.nu_c[q] * rho * w;
+        t.pspg_p += tau / rho * w * gab;
+        t.rhs_p += tau * w * idt * crate::mesh::dot(g[ai], gs.u_old[q]);
+        for i in 0..3 {
+            t.supg_p[i] += tau * w * s[ai] * g[bi][i];
+            t.pspg_u[i] += tau * w * g[ai][i] * time_and_convection;
+            t.rhs_u[i] += tau * w * s[ai] * rho * idt * gs.u_old[q][i];
+        }
+    }
+    t
 }
 
 fn add3(x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
@@ -179,47 +312,56 @@ fn fine_scale_velocity(geo: &ElementGeometry, a: &[[f64; 3]; 4], a_bar: [f64; 3]
 /// is V/20 (4 a_bar + a_ai) . grad N_b (the mass matrix's weights again), the one-point
 /// rule's V/4 a_bar . grad N_b drops the second part, an O(h grad a / |a|) relative
 /// error that is not small in the shear layers of a jet a few elements wide.
-pub fn element_row(geo: &ElementGeometry, st: &ElementState, u_old_ai: &[f64; 3], a_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
+/// `gauss`: the stabilization at Gauss points ([`Physics::gauss_stabilization`]), else
+/// at the centroid from `st`.
+pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&GaussState>, u_old_ai: &[f64; 3], a_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
     let rho = phys.density_g_cm3;
     let mu = phys.viscosity_g_cm_s;
     let idt = phys.inv_dt_per_s;
     let v = geo.volume_cm3;
     let g = &geo.grads_per_cm;
-    let ElementState { u_old_bar, tau, nu_c, s } = *st;
+    let s = &st.s;
+    let terms = |bi: usize| match gauss {
+        Some(gs) => gauss_terms(geo, gs, phys, ai, bi),
+        None => centroid_terms(geo, st, phys, ai, bi),
+    };
     let mut k = [[0.0; BB]; 4];
     let mut f = [0.0; B];
+    let mut rhs = StabilizationTerms::default();
     for bi in 0..4 {
+        let t = terms(bi);
         let mass = if ai == bi { v / 10.0 } else { v / 20.0 };
         let convection = if phys.exact_convection { 0.2 * s[bi] + 0.05 * crate::mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
-        let diag = rho * idt * mass
-            + rho * v * convection
-            + mu * v * crate::mesh::dot(g[ai], g[bi])
-            + tau * v * s[ai] * rho * (0.25 * idt + s[bi]);
+        let reynolds = st.tau_b * v * st.fine_s[ai] * st.fine_s[bi];
+        let diag = rho * idt * mass + rho * v * convection + mu * v * crate::mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
         let blk = &mut k[bi];
         let transposed = if phys.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
             blk[i * B + i] += diag;
             for j in 0..3 {
-                blk[i * B + j] += nu_c * rho * v * g[ai][i] * g[bi][j] + transposed * g[ai][j] * g[bi][i];
+                blk[i * B + j] += t.lsic * g[ai][i] * g[bi][j] + transposed * g[ai][j] * g[bi][i];
             }
             // pressure column: -(p, div w) + SUPG grad p
-            blk[i * B + 3] = -0.25 * v * g[ai][i] + tau * v * s[ai] * g[bi][i];
+            blk[i * B + 3] = -0.25 * v * g[ai][i] + t.supg_p[i];
             // continuity row: (q, div u) + PSPG
-            blk[3 * B + i] = 0.25 * v * g[bi][i] + tau * v * g[ai][i] * (0.25 * idt + s[bi]);
+            blk[3 * B + i] = 0.25 * v * g[bi][i] + t.pspg_u[i];
         }
-        blk[3 * B + 3] = tau / rho * v * crate::mesh::dot(g[ai], g[bi]);
+        blk[3 * B + 3] = t.pspg_p;
+        // (the right-hand side's terms are the same for every bi)
+        rhs = t;
     }
     for i in 0..3 {
-        f[i] = rho * idt * (0.2 * v * u_old_bar[i] + 0.05 * v * u_old_ai[i]) + tau * v * s[ai] * rho * idt * u_old_bar[i];
+        f[i] = rho * idt * (0.2 * v * st.u_old_bar[i] + 0.05 * v * u_old_ai[i]) + rhs.rhs_u[i];
     }
-    f[3] = tau * v * idt * crate::mesh::dot(g[ai], u_old_bar);
+    f[3] = rhs.rhs_p;
     (k, f)
 }
 
 /// Element system for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
 pub fn element_system(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> ElementSystem {
     let st = element_state(geo, a, u_old, &[0.0; 4], phys);
-    let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, &u_old[ai], &a[ai], phys, ai));
+    let gs = phys.gauss_stabilization.then(|| gauss_state(geo, a, u_old, phys));
+    let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, gs.as_ref(), &u_old[ai], &a[ai], phys, ai));
     ElementSystem { k: rows.map(|r| r.0), f: rows.map(|r| r.1) }
 }
 
@@ -247,6 +389,8 @@ pub struct Assembler {
     node_elements: Vec<(u32, u32)>,
     /// Each element's [`ElementState`] of the assembly in progress (storage kept across steps).
     states: Vec<ElementState>,
+    /// Each element's [`GaussState`] when the stabilization is at Gauss points (else empty).
+    gauss_states: Vec<GaussState>,
 }
 
 impl Assembler {
@@ -285,7 +429,7 @@ impl Assembler {
             }
         }
         let states = vec![ElementState::default(); tets.len()];
-        Assembler { tets, geometry, positions, parts, node_element_ptr, node_elements, states }
+        Assembler { tets, geometry, positions, parts, node_element_ptr, node_elements, states, gauss_states: Vec::new() }
     }
 
     /// Calls `visit(i, row_vals, first, rhs_i)` for every block row i, the partitions
@@ -366,6 +510,12 @@ impl Assembler {
         self.states.par_iter_mut().zip(tets.par_iter().zip(geometry)).with_min_len(1024).for_each(|(st, (t, geo))| {
             *st = element_state(geo, &nodal(t, a), &nodal(t, u_old), &t.map(|n| a[n as usize * B + 3]), phys);
         });
+        if phys.gauss_stabilization {
+            self.gauss_states.resize(tets.len(), GaussState::default());
+            self.gauss_states.par_iter_mut().zip(tets.par_iter().zip(geometry)).with_min_len(1024).for_each(|(gs, (t, geo))| {
+                *gs = gauss_state(geo, &nodal(t, a), &nodal(t, u_old), phys);
+            });
+        }
         let this = &*self;
         this.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
             row_vals.fill(0.0);
@@ -374,7 +524,8 @@ impl Assembler {
             let a_i = [0, 1, 2].map(|c| a[i * B + c]);
             for &(e, ai) in this.elements_of(i) {
                 let (e, ai) = (e as usize, ai as usize);
-                let (k, f) = element_row(&this.geometry[e], &this.states[e], &u_old_i, &a_i, phys, ai);
+                let gauss = phys.gauss_stabilization.then(|| &this.gauss_states[e]);
+                let (k, f) = element_row(&this.geometry[e], &this.states[e], gauss, &u_old_i, &a_i, phys, ai);
                 (0..4).for_each(|bi| this.add_block(row_vals, first, e, ai, bi, &k[bi]));
                 rhs_i.iter_mut().zip(f).for_each(|(d, s)| *d += s);
             }
@@ -396,7 +547,30 @@ mod tests {
         exact_convection: false,
         vms_advection: false,
         stress_viscosity: false,
+        gauss_stabilization: false,
+        vms_reynolds_stress: false,
     };
+
+    #[test]
+    fn gauss_point_stabilization_is_the_centroids_for_a_uniform_flow_and_not_across_a_shear_layer() {
+        let p = [[0.0, 0.0, 0.0], [0.12, 0.01, 0.0], [0.02, 0.09, 0.01], [0.01, 0.03, 0.11]];
+        let geo = element_geometry(&p, &[0, 1, 2, 3]);
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0, ..TEST_PHYSICS };
+        let systems = |a: &[[f64; 3]; 4], gauss_stabilization: bool| element_system(&geo, a, &a.map(|x| x.map(|c| 0.9 * c)), &Physics { gauss_stabilization, ..phys });
+        let largest_difference = |a: &[[f64; 3]; 4]| {
+            let (c, g) = (systems(a, false), systems(a, true));
+            let scale = c.k.iter().flatten().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+            let k = c.k.iter().flatten().flatten().zip(g.k.iter().flatten().flatten()).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            let f = c.f.iter().flatten().zip(g.f.iter().flatten()).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            (k / scale, f)
+        };
+        // A uniform velocity is the same at every Gauss point: the same element system.
+        let (k, f) = largest_difference(&[[40.0, -10.0, 5.0]; 4]);
+        assert!(k < 1e-12 && f < 1e-9, "uniform flow: {k:e}, {f:e}");
+        // A jet's edge: 150 cm/s on two nodes, at rest on the others.
+        let (k, _) = largest_difference(&[[150.0, 0.0, 0.0], [150.0, 0.0, 0.0], [0.0; 3], [0.0; 3]]);
+        assert!(k > 1e-3, "shear layer: {k:e}");
+    }
 
     #[test]
     fn the_stress_form_annihilates_a_rigid_rotation_and_the_laplacian_form_does_not() {

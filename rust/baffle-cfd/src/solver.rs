@@ -655,6 +655,8 @@ impl<'a> Solver<'a> {
             exact_convection: self.settings.exact_convection,
             vms_advection: self.settings.vms_advection,
             stress_viscosity: self.settings.stress_viscosity,
+            gauss_stabilization: self.settings.gauss_stabilization,
+            vms_reynolds_stress: self.settings.vms_reynolds_stress,
         }
     }
 

@@ -164,11 +164,15 @@ pub struct TimeSpec {
     /// time (docs/validation.md, issue 28): tau's metric "svmultiphysics" (default) or
     /// "invariant" (`baffle_cfd::assembly::TauMetric`), the Galerkin convection
     /// "centroid" (default) or "exact", VMS advection by a + u' (default false), the
-    /// viscous term "laplacian" (default) or "stress".
+    /// viscous term "laplacian" (default) or "stress", the stabilization's quadrature
+    /// "centroid" (default) or "gauss" (four points, as svMultiPhysics), svMultiPhysics'
+    /// VMS Reynolds-stress term (default false).
     pub tau_metric: Option<String>,
     pub convection: Option<String>,
     pub vms_advection: Option<bool>,
     pub viscous_form: Option<String>,
+    pub stabilization_quadrature: Option<String>,
+    pub vms_reynolds_stress: Option<bool>,
 }
 
 impl Default for TimeSpec {
@@ -192,6 +196,8 @@ impl Default for TimeSpec {
             convection: None,
             vms_advection: None,
             viscous_form: None,
+            stabilization_quadrature: None,
+            vms_reynolds_stress: None,
         }
     }
 }
@@ -414,8 +420,14 @@ fn formulation(t: &TimeSpec, s: &mut CaseSettings) -> Result<(), String> {
     if let Some(v) = t.vms_advection {
         s.vms_advection = v;
     }
+    if let Some(v) = t.vms_reynolds_stress {
+        s.vms_reynolds_stress = v;
+    }
     if let Some(k) = pick("viscous_form", &t.viscous_form, &["laplacian", "stress"])? {
         s.stress_viscosity = k == 1;
+    }
+    if let Some(k) = pick("stabilization_quadrature", &t.stabilization_quadrature, &["centroid", "gauss"])? {
+        s.gauss_stabilization = k == 1;
     }
     Ok(())
 }
@@ -571,12 +583,14 @@ mod tests {
         let dt = "\"dt_s\": 0.001";
         let with = |extra: &str| example_with(dt, &format!("{dt}, {extra}"));
         let (d, _) = example_with(dt, dt).unwrap();
-        assert_eq!((d.tau_metric, d.exact_convection, d.vms_advection, d.stress_viscosity), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, false, false, false));
-        let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"exact\", \"vms_advection\": true, \"viscous_form\": \"stress\"").unwrap();
-        assert_eq!((s.tau_metric, s.exact_convection, s.vms_advection, s.stress_viscosity), (baffle_cfd::assembly::TauMetric::Invariant, true, true, true));
+        let ingredients = |s: &CaseSettings| (s.tau_metric, s.exact_convection, s.vms_advection, s.stress_viscosity, s.gauss_stabilization, s.vms_reynolds_stress);
+        assert_eq!(ingredients(&d), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, true, true, false, true, true));
+        let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"centroid\", \"vms_advection\": false, \"viscous_form\": \"stress\", \"stabilization_quadrature\": \"centroid\", \"vms_reynolds_stress\": false").unwrap();
+        assert_eq!(ingredients(&s), (baffle_cfd::assembly::TauMetric::Invariant, false, false, true, false, false));
         let e = with("\"tau_metric\": \"shakib\"").unwrap_err();
         assert!(e.contains("time.tau_metric 'shakib': expected invariant or svmultiphysics"), "{e}");
         assert!(with("\"viscous_form\": \"full\"").unwrap_err().contains("expected laplacian or stress"));
+        assert!(with("\"stabilization_quadrature\": \"exact\"").unwrap_err().contains("expected centroid or gauss"));
     }
 
     #[test]
