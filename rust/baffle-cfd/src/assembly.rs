@@ -16,11 +16,12 @@
 //! G averaged over the node numberings ([`TauMetric::SvMultiPhysics`]); the alternative
 //! [`TauMetric::Invariant`] (G = 2 sum_a grad N_a (x) grad N_a, C_I = 3) has an LSIC
 //! coefficient nu_C 2.7 times smaller and made dp 9-12 % lower than svMultiPhysics early
-//! in the p3 ramp and 8 % lower at p1's peak (docs/validation.md, issue 28). The advecting
-//! velocity in tau and the stabilization terms use one-point (centroid) quadrature, and so
-//! by default does the Galerkin convection (`Physics::exact_convection` integrates it
-//! exactly: +0.9 % dp on p3, but with svMultiPhysics' tau it made p2's steady Newton
-//! iterations diverge); the mass matrix is consistent.
+//! in the p3 ramp and 8 % lower at p1's peak (docs/validation.md, issue 28). The solver's
+//! default adds the rest of svMultiPhysics' VMS: the stabilization at the four Gauss points
+//! ([`GaussState`]), the Galerkin convection integrated exactly, advection by a + u', and
+//! the Reynolds-stress term tau_B (u'.grad w)(u'.grad u) ([`Physics::vms_reynolds_stress`]);
+//! without that term our dp at p3's first peak was 7.3 % below svMultiPhysics' on the same
+//! mesh, with all four +0.1 %. The mass matrix is consistent.
 //! The viscous term is the Laplacian form, whose natural condition at outlets is
 //! mu du/dn - p n = -P n (traction-free up to the outlet pressure P).
 
@@ -73,8 +74,8 @@ pub struct Physics {
     pub stress_viscosity: bool,
     /// Stabilization (tau, nu_C, the SUPG, PSPG and LSIC terms) at the tetrahedron's four
     /// Gauss points with the P1 velocity there, as svMultiPhysics integrates it, instead of
-    /// once at the centroid ([`GaussState`]). Its SUPG test is advected by a, not a + u'
-    /// (`vms_advection` acts on the centroid rule only).
+    /// once at the centroid ([`GaussState`]). Its SUPG test is advected by a(x_g);
+    /// `vms_advection` then adds u' to the Galerkin convection only.
     pub gauss_stabilization: bool,
     /// svMultiPhysics' VMS "Reynolds stress" term (fluid.cpp, tauB): the diffusion
     /// tau_B (u'.grad w)(u'.grad u), tau_B = rho / sqrt(u'.G.u'), along the fine-scale
