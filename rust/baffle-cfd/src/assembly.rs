@@ -213,19 +213,44 @@ fn at_gauss_point(v: &[[f64; 3]; 4], g: usize) -> [f64; 3] {
 /// the mean (svMultiPhysics evaluates all of it at Gauss points; issue 28).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GaussState {
-    tau: [f64; 4],
-    nu_c: [f64; 4],
-    s: [[f64; 4]; 4],
-    u_old: [[f64; 3]; 4],
+    /// The Gauss-point sums each block needs, summed once per element (w = V/4): SUPG
+    /// sum tau w s_a s_b and sum tau w s_a N_b; sum tau w s_a; sum tau w N_b; sum tau w;
+    /// sum nu_C w; the old velocity's sum tau w s_a u_old and sum tau w u_old.
+    supg_convection: [[f64; 4]; 4],
+    supg_time: [[f64; 4]; 4],
+    tau_s: [f64; 4],
+    tau_n: [f64; 4],
+    tau: f64,
+    nu_c: f64,
+    supg_old: [[f64; 3]; 4],
+    tau_old: [f64; 3],
 }
 
 pub fn gauss_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> GaussState {
     let mut st = GaussState::default();
-    for g in 0..4 {
-        let a_g = at_gauss_point(a, g);
-        (st.tau[g], st.nu_c[g]) = stabilization(geo, a_g, phys);
-        st.s[g] = geo.grads_per_cm.map(|gb| crate::mesh::dot(a_g, gb));
-        st.u_old[g] = at_gauss_point(u_old, g);
+    let w = 0.25 * geo.volume_cm3;
+    for q in 0..4 {
+        let a_q = at_gauss_point(a, q);
+        let (tau, nu_c) = stabilization(geo, a_q, phys);
+        let s = geo.grads_per_cm.map(|gb| crate::mesh::dot(a_q, gb));
+        let u_old_q = at_gauss_point(u_old, q);
+        let tw = tau * w;
+        st.tau += tw;
+        st.nu_c += nu_c * w;
+        for a in 0..4 {
+            st.tau_s[a] += tw * s[a];
+            st.tau_n[a] += tw * gauss_weight(q, a);
+            for b in 0..4 {
+                st.supg_convection[a][b] += tw * s[a] * s[b];
+                st.supg_time[a][b] += tw * s[a] * gauss_weight(q, b);
+            }
+            for i in 0..3 {
+                st.supg_old[a][i] += tw * s[a] * u_old_q[i];
+            }
+        }
+        for i in 0..3 {
+            st.tau_old[i] += tw * u_old_q[i];
+        }
     }
     st
 }
@@ -264,23 +289,16 @@ fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: 
 }
 
 fn gauss_terms(geo: &ElementGeometry, gs: &GaussState, phys: &Physics, ai: usize, bi: usize) -> StabilizationTerms {
-    let (rho, idt, w, g) = (phys.density_g_cm3, phys.inv_dt_per_s, 0.25 * geo.volume_cm3, &geo.grads_per_cm);
-    let gab = crate::mesh::dot(g[ai], g[bi]);
-    let mut t = StabilizationTerms::default();
-    for q in 0..4 {
-        let (tau, s) = (gs.tau[q], &gs.s[q]);
-        let time_and_convection = gauss_weight(q, bi) * idt + s[bi];
-        t.supg_u += tau * w * s[ai] * rho * time_and_convection;
-        t.lsic += gs.nu_c[q] * rho * w;
-        t.pspg_p += tau / rho * w * gab;
-        t.rhs_p += tau * w * idt * crate::mesh::dot(g[ai], gs.u_old[q]);
-        for i in 0..3 {
-            t.supg_p[i] += tau * w * s[ai] * g[bi][i];
-            t.pspg_u[i] += tau * w * g[ai][i] * time_and_convection;
-            t.rhs_u[i] += tau * w * s[ai] * rho * idt * gs.u_old[q][i];
-        }
+    let (rho, idt, g) = (phys.density_g_cm3, phys.inv_dt_per_s, &geo.grads_per_cm);
+    StabilizationTerms {
+        supg_u: rho * (idt * gs.supg_time[ai][bi] + gs.supg_convection[ai][bi]),
+        lsic: gs.nu_c * rho,
+        supg_p: g[bi].map(|x| gs.tau_s[ai] * x),
+        pspg_u: g[ai].map(|x| x * (idt * gs.tau_n[bi] + gs.tau_s[bi])),
+        pspg_p: gs.tau / rho * crate::mesh::dot(g[ai], g[bi]),
+        rhs_u: gs.supg_old[ai].map(|x| rho * idt * x),
+        rhs_p: idt * crate::mesh::dot(g[ai], gs.tau_old),
     }
-    t
 }
 
 fn add3(x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
