@@ -4,7 +4,7 @@
 
 use crate::error::DesignError;
 use crate::mesh::{edge_key, FaceLabels, TriMesh};
-use crate::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
+use crate::remesh::{remesh_isotropic, RemeshOptions};
 use std::collections::HashSet;
 
 /// The kept region: an open surface whose one boundary loop is the seam.
@@ -70,12 +70,6 @@ fn check_connected(mesh: &TriMesh, neighbors: &[[u32; 3]]) -> Result<(), DesignE
 /// Remesh the kept region isotropically, preserving the seam (bit-identical
 /// vertices), the cap rims and the labels.
 pub fn remesh_kept(region: &KeptRegion, target_edge_mm: f64) -> Result<KeptRegion, DesignError> {
-    // The kept wall is the user's own surface, and the domain's check looks only at the
-    // baffle's crossings: a wall through itself (a 6 mm bump on p2's) would otherwise
-    // remesh and design into a domain that crosses itself, with no error.
-    if let Some(crossing) = where_it_crosses_itself(&region.mesh) {
-        return Err(DesignError::Surface(format!("the ventricle's kept wall: {crossing}; a surface through itself has no baffle design: repair it there")));
-    }
     let opts = RemeshOptions { target_edge_mm, ..RemeshOptions::default() };
     let remeshed = remesh_isotropic(&region.mesh, &opts).map_err(|m| DesignError::numerical("remesh", m))?;
     region_from_mesh(remeshed, region.discarded_area_mm2)
