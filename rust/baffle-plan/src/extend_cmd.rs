@@ -101,7 +101,7 @@ pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
 /// The designed domain remeshed isotropically at `edge_mm` (caps stay planar: the
 /// remesher keeps label boundaries and projects every point back onto its label's faces).
 fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
-    let options = RemeshOptions { target_edge_mm: edge_mm, ..RemeshOptions::default() };
+    let options = RemeshOptions { target_edge_mm: edge_mm, guard_slivers: true, ..RemeshOptions::default() };
     let remeshed = remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))?;
     // The remesher projects onto the input's own faces; on a tightly curved baffle that
     // can fold the result through itself, which no later stage could mesh.

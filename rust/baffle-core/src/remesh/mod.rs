@@ -27,11 +27,18 @@ pub struct RemeshOptions {
     pub iterations: usize,
     /// Allow splitting boundary (seam) edges; off keeps every boundary vertex an input vertex.
     pub split_boundary: bool,
+    /// Never split slivers (height below [`SLIVER_HEIGHT_REL`] of their longest edge, at
+    /// any target) and skip a smoothing move that turns a face over: what refining a
+    /// finished domain far below its own edge needs (extend's mesh-study levels, the
+    /// synthetic heart's design at 0.42-0.3 mm, p2's at 0.6 mm). Off, the design's remesh
+    /// of the seam-imprinted wall runs as it was validated (the p1-p3 drag family: with the
+    /// guards, three p3 drags no longer designed).
+    pub guard_slivers: bool,
 }
 
 impl Default for RemeshOptions {
     fn default() -> Self {
-        RemeshOptions { target_edge_mm: 0.85, iterations: 5, split_boundary: false }
+        RemeshOptions { target_edge_mm: 0.85, iterations: 5, split_boundary: false, guard_slivers: false }
     }
 }
 
@@ -107,10 +114,8 @@ fn validate_input(mesh: &TriMesh, opts: &RemeshOptions) -> Result<(), String> {
 pub const MAX_REMESH_TRIANGLES: usize = 2_000_000;
 
 /// The work bound of one remesh: an isotropic mesh of the input's area at the target
-/// edge has A / (sqrt(3)/4 L^2) triangles; midpoint splitting overshoots that (edges
-/// just above 4/3 L become 2/3 L: four times the triangles) and more where the input's
-/// triangles are long and thin, so allow eight times it and the input's own count (a
-/// 1.25 mm design refined to 0.25 mm needed 5 times), within the memory bound.
+/// edge has A / (sqrt(3)/4 L^2) triangles; splitting may overshoot that by the
+/// rounding at short features, so allow a few times it (and the input's own count).
 struct TriangleBudget {
     max_triangles: usize,
     area_mm2: f64,
@@ -128,7 +133,7 @@ impl TriangleBudget {
                  at a target edge of {target_edge_mm} mm); use a longer edge"
             ));
         }
-        let max_triangles = (8.0 * needed).min(4.0 * MAX_REMESH_TRIANGLES as f64) as usize + 1024;
+        let max_triangles = (4.0 * needed) as usize + 1024;
         Ok(TriangleBudget { max_triangles, area_mm2, target_edge_mm })
     }
 
@@ -155,12 +160,13 @@ const DEGENERATE_NORMAL_REL: f64 = 1e-4;
 /// its two long edges land within microns of each other, which the crossing test then
 /// finds as the surface through itself (the synthetic heart's baffle at 0.35 mm and
 /// below, where the L^2-relative bound above no longer called its slivers flat).
-const SLIVER_HEIGHT_REL: f64 = 1e-3;
+pub const SLIVER_HEIGHT_REL: f64 = 1e-3;
 
 struct Remesher {
     mesh: HalfEdgeMesh,
     target_mm: f64,
     split_boundary: bool,
+    guard_slivers: bool,
     projector: SurfaceProjector,
     polylines: FeaturePolylines,
     /// Feature edges at each vertex: 0 free, 2 on a feature line, else a locked corner.
@@ -181,6 +187,7 @@ impl Remesher {
             mesh: he,
             target_mm: opts.target_edge_mm,
             split_boundary: opts.split_boundary,
+            guard_slivers: opts.guard_slivers,
             feature_edges: Vec::new(),
             ring: Vec::new(),
             ring2: Vec::new(),
@@ -276,8 +283,8 @@ impl Remesher {
     }
 
     /// Flat triangles (the ear-clipped slivers where the seam was imprinted, and
-    /// whatever a bump of the wall stretches out of them; 2 x area below 1e-4 L^2 or
-    /// height below 1e-3 of the longest edge) are never split: a flat
+    /// whatever a bump of the wall stretches out of them; 2 x area below 1e-4 L^2, or with
+    /// `guard_slivers` height below 1e-3 of the longest edge) are never split: a flat
     /// triangle has no area for the split to converge on, and splitting it at
     /// midpoints only makes more flat triangles (a 3.7 mm bump on p2 grew 40,000 of
     /// them before running out of memory). Collapses and flips remove them instead.
@@ -286,7 +293,7 @@ impl Remesher {
         let t = m.twin[h as usize];
         let flat = |f: usize| {
             let twice_area = m.face_normal2(f).norm();
-            twice_area < self.min_normal_len() || twice_area < SLIVER_HEIGHT_REL * m.longest_edge_sq(f)
+            twice_area < self.min_normal_len() || (self.guard_slivers && twice_area < SLIVER_HEIGHT_REL * m.longest_edge_sq(f))
         };
         (self.split_boundary || t != NONE) && !flat(face_of(h)) && (t == NONE || !flat(face_of(t)))
     }
@@ -513,7 +520,7 @@ impl Remesher {
         for (v, p) in moves {
             let label = self.mesh.label[face_of(self.mesh.out[v as usize])];
             let projected = self.projector.project(p, label).unwrap_or(p);
-            if self.move_keeps_faces_oriented(v, projected) {
+            if !self.guard_slivers || self.move_keeps_faces_oriented(v, projected) {
                 self.mesh.pos[v as usize] = projected;
             }
         }
