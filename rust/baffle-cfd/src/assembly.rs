@@ -115,27 +115,33 @@ fn mean3(v: &[[f64; 3]; 4]) -> [f64; 3] {
     [0, 1, 2].map(|k| 0.25 * (v[0][k] + v[1][k] + v[2][k] + v[3][k]))
 }
 
-/// Stabilization parameters (tau in s, nu_C in cm^2/s) at the element centroid.
-pub fn stabilization(geo: &ElementGeometry, a_bar: [f64; 3], phys: &Physics) -> (f64, f64) {
-    let (scale, c_inverse) = phys.tau_metric.constants();
-    let g = metric(geo, scale);
-    let mut aga = 0.0;
-    let mut gg = 0.0;
-    for i in 0..3 {
-        for j in 0..3 {
-            aga += a_bar[i] * g[i][j] * a_bar[j];
-            gg += g[i][j] * g[i][j];
-        }
-    }
+/// Stabilization parameters (tau in s, nu_C in cm^2/s) for advecting velocity `a` in an
+/// element of metric `g` ([`metric`], made once per element: the centroid, the four Gauss
+/// points and the Reynolds-stress term share it).
+pub fn stabilization(g: &[[f64; 3]; 3], a: [f64; 3], phys: &Physics) -> (f64, f64) {
+    let c_inverse = phys.tau_metric.constants().1;
+    let gg: f64 = g.iter().flatten().map(|x| x * x).sum();
     let nu = phys.viscosity_g_cm_s / phys.density_g_cm3;
     let transient = 2.0 * phys.inv_dt_tau_per_s;
-    let tau = 1.0 / (transient * transient + aga + c_inverse * nu * nu * gg).sqrt();
+    let tau = 1.0 / (transient * transient + quadratic_form(g, a) + c_inverse * nu * nu * gg).sqrt();
     let trace = g[0][0] + g[1][1] + g[2][2];
     (tau, 1.0 / (tau * trace))
 }
 
-/// The element metric G = scale sum_a grad N_a (x) grad N_a ([`TauMetric`]).
-fn metric(geo: &ElementGeometry, scale: f64) -> [[f64; 3]; 3] {
+/// v.G.v
+fn quadratic_form(g: &[[f64; 3]; 3], v: [f64; 3]) -> f64 {
+    let mut vgv = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            vgv += v[i] * g[i][j] * v[j];
+        }
+    }
+    vgv
+}
+
+/// The element metric G = scale sum_a grad N_a (x) grad N_a of phys' [`TauMetric`].
+pub fn metric(geo: &ElementGeometry, phys: &Physics) -> [[f64; 3]; 3] {
+    let scale = phys.tau_metric.constants().0;
     let mut g = [[0.0; 3]; 3];
     for grad in &geo.grads_per_cm {
         for i in 0..3 {
@@ -164,14 +170,15 @@ pub struct ElementState {
 pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], p: &[f64; 4], phys: &Physics) -> ElementState {
     let a_bar = mean3(a);
     let u_old_bar = mean3(u_old);
-    let (tau, nu_c) = stabilization(geo, a_bar, phys);
+    let g = metric(geo, phys);
+    let (tau, nu_c) = stabilization(&g, a_bar, phys);
     let fine = (phys.vms_advection || phys.vms_reynolds_stress).then(|| fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys));
     let advecting = match fine {
         Some(u_fine) if phys.vms_advection => add3(a_bar, u_fine),
         _ => a_bar,
     };
     let (tau_b, fine_s) = match fine {
-        Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, u_fine, phys),
+        Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, &g, u_fine, phys),
         _ => (0.0, [0.0; 4]),
     };
     ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(advecting, ga)), tau_b, fine_s }
@@ -179,9 +186,8 @@ pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]
 
 /// tau_B = rho / sqrt(u'.G.u') and u'.grad N_b of svMultiPhysics' Reynolds-stress term
 /// (0 where u' vanishes).
-fn reynolds_stress(geo: &ElementGeometry, u_fine: [f64; 3], phys: &Physics) -> (f64, [f64; 4]) {
-    let g = metric(geo, phys.tau_metric.constants().0);
-    let ugu: f64 = (0..3).map(|i| (0..3).map(|j| u_fine[i] * g[i][j] * u_fine[j]).sum::<f64>()).sum();
+fn reynolds_stress(geo: &ElementGeometry, g: &[[f64; 3]; 3], u_fine: [f64; 3], phys: &Physics) -> (f64, [f64; 4]) {
+    let ugu = quadratic_form(g, u_fine);
     if !(ugu > 0.0) {
         return (0.0, [0.0; 4]);
     }
@@ -229,9 +235,10 @@ pub struct GaussState {
 pub fn gauss_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> GaussState {
     let mut st = GaussState::default();
     let w = 0.25 * geo.volume_cm3;
+    let g = metric(geo, phys);
     for q in 0..4 {
         let a_q = at_gauss_point(a, q);
-        let (tau, nu_c) = stabilization(geo, a_q, phys);
+        let (tau, nu_c) = stabilization(&g, a_q, phys);
         let s = geo.grads_per_cm.map(|gb| crate::mesh::dot(a_q, gb));
         let u_old_q = at_gauss_point(u_old, q);
         let tw = tau * w;
