@@ -5,6 +5,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use baffle_core::io::{write_vtp, DataArray, PolyData, MODEL_FACE_ID};
+use baffle_core::spatial::Aabb;
 use baffle_core::Vec3;
 use baffle_mesh::tetmesh::face_key;
 use baffle_mesh::{write_vtu, FaceSet, TetMesh};
@@ -33,8 +34,8 @@ pub(crate) fn mesh_in_cm(mesh: &TetMesh) -> TetMesh {
 /// at 2 ranks (no output after 5 min; sorted, 3 steps in 20 s). Node numbers, and so every
 /// nodal result read back, are unchanged.
 fn in_slabs(points: &[Vec3], tets: &[[u32; 4]]) -> Vec<[u32; 4]> {
-    let (lo, hi) = points.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
-    let axis = (hi - lo).imax();
+    let bounds = Aabb::from_points(points);
+    let axis = (bounds.max - bounds.min).imax();
     let centroid = |t: &[u32; 4]| t.iter().map(|&i| points[i as usize][axis]).sum::<f64>();
     let mut sorted = tets.to_vec();
     sorted.sort_by(|a, b| centroid(a).total_cmp(&centroid(b)));

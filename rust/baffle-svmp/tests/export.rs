@@ -205,8 +205,8 @@ fn volume_file_holds_the_tets_in_cm_with_one_based_ids() {
         t
     };
     assert_eq!(sorted(&vtu.mesh.tets), sorted(&mesh.tets));
-    let (lo, hi) = mesh.points_mm.iter().fold((baffle_core::Vec3::repeat(f64::INFINITY), baffle_core::Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
-    let axis = (hi - lo).imax();
+    let bounds = baffle_core::spatial::Aabb::from_points(&mesh.points_mm);
+    let axis = (bounds.max - bounds.min).imax();
     let along: Vec<f64> = vtu.mesh.tets.iter().map(|t| t.iter().map(|&i| vtu.mesh.points_mm[i as usize][axis]).sum()).collect();
     assert!(along.windows(2).all(|w| w[0] <= w[1]), "tets not in slabs along axis {axis}");
     for (p, q) in vtu.mesh.points_mm.iter().zip(&mesh.points_mm) {
