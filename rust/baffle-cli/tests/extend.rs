@@ -119,11 +119,17 @@ fn report_of(extended: &Path) -> serde_json::Value {
 /// segmentations folder.
 fn designed_p2(data: &Path, out: &Path) -> (PathBuf, PathBuf) {
     let segmentations = data.join("p2/segmentations");
+    let domain = prepared_and_designed(&segmentations, &data.join("p2/design_input/suture_points.mrk.json"), "0.37", out);
+    (domain, segmentations)
+}
+
+/// `baffle prepare` of `segmentations` then `baffle design` with `points` at `bsa_m2`,
+/// into `out`: the designed domain.
+fn prepared_and_designed(segmentations: &Path, points: &Path, bsa_m2: &str, out: &Path) -> PathBuf {
     let capped = out.join("capped.vtp");
-    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
-    let points = data.join("p2/design_input/suture_points.mrk.json");
-    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.37", "--out", s(&out.join("design"))]));
-    (out.join("design/domain.vtp"), segmentations)
+    ok(baffle(&["prepare", "--segmentations", s(segmentations), "--out", s(&capped)]));
+    ok(baffle(&["design", "--surface", s(&capped), "--points", s(points), "--bsa", bsa_m2, "--out", s(&out.join("design"))]));
+    out.join("design/domain.vtp")
 }
 
 #[test]
@@ -194,11 +200,8 @@ fn a_missing_lv_and_a_domain_without_caps_are_named() {
 fn designed_synthetic_heart(out: &Path) -> (PathBuf, PathBuf) {
     let segmentations = out.join("heart");
     ok(baffle(&["phantom", "--heart", "--out", s(&segmentations)]));
-    let capped = out.join("capped.vtp");
-    ok(baffle(&["prepare", "--segmentations", s(&segmentations), "--out", s(&capped)]));
-    let points = segmentations.join("suture_points.mrk.json");
-    ok(baffle(&["design", "--surface", s(&capped), "--points", s(&points), "--bsa", "0.2", "--out", s(&out.join("design"))]));
-    (out.join("design/domain.vtp"), segmentations)
+    let domain = prepared_and_designed(&segmentations, &segmentations.join("suture_points.mrk.json"), "0.2", out);
+    (domain, segmentations)
 }
 
 #[test]
