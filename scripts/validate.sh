@@ -10,7 +10,7 @@
 #   extension's inflow/outflow caps moved, and our designs on the paper's design input at
 #   z = -1..4 (--only gci: just the study, --only cycles: the four-cycle runs, --only chain:
 #   the moved caps, --only area: the baffle sizes, --only base: everything else,
-#   --only same-mesh: p1 and p3 published at 1.25 and 0.75 mm run by our engine and by
+#   --only same-mesh: p1 and p3 published at 1.25 and 0.75 mm and p2 designed at 1.25 mm run by our engine and by
 #   svMultiPhysics (skipped, saying so, where svmultiphysics is not on PATH))
 # A stage whose output exists under OUT/work is reused (delete OUT after changing the
 # code); --smoke always starts from an empty OUT. --tables-only rebuilds the tables from

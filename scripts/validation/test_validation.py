@@ -450,11 +450,11 @@ def test_the_same_mesh_table_gives_both_engines_or_says_the_engine_was_not_run()
     import validate
     ours = {"dp_mmhg": 4.5, "dp_largest_mmhg": 4.7, "vmax_m_s": 2.0, "converged": True, "s_per_step": 0.05}
     theirs = {"dp_mmhg": 5.0, "dp_largest_mmhg": 5.1, "vmax_m_s": 2.1, "converged": True, "s_per_step": 2.5}
-    both = validate.Row(patient="p3", mesh="0.85 / 1.25 mm", tets=67553, ours=ours, svmp=theirs)
-    alone = validate.Row(patient="p1", mesh="0.85 / 0.75 mm", tets=160215, ours=ours, svmp=None)
+    both = validate.Row(patient="p3", domain="published", mesh="0.85 / 1.25 mm", tets=67553, ours=ours, svmp=theirs)
+    alone = validate.Row(patient="p2", domain="designed", mesh="0.85 / 0.75 mm", tets=160215, ours=ours, svmp=None)
     text = validate.same_mesh_markdown([both, alone])
-    assert "| p3 | 0.85 / 1.25 mm | 67,553 | 4.50 / 5.00 | -10.0% | 4.70 / 5.10 | 2.00 / 2.10 | 0.050 / 2.500 | True |" in text
-    assert "| p1 | 0.85 / 0.75 mm | 160,215 | 4.50 / - | svMultiPhysics not run | 4.70 / - |" in text
+    assert "| p3 | published | 0.85 / 1.25 mm | 67,553 | 4.50 / 5.00 | -10.0% | 4.70 / 5.10 | 2.00 / 2.10 | 0.050 / 2.500 | True |" in text
+    assert "| p2 | designed | 0.85 / 0.75 mm | 160,215 | 4.50 / - | svMultiPhysics not run | 4.70 / - |" in text
 
 
 def test_the_estimates_3d_rows_are_those_of_validation_md():

@@ -17,7 +17,7 @@ is stored beside its output, so a row's wall_time_s is the sum of its stages' ti
 when a stage was run for an earlier row). Writes OUT/results.json, results.csv,
 results.md (and gci.json / gci.md when a mesh study ran).
 
---only same-mesh: the published p1 and p3 domains at 1.25 and 0.75 mm through the same chain,
+--only same-mesh: the published p1 and p3 domains at 1.25 and 0.75 mm and our p2 design at 1.25 mm through the same chain,
 each mesh run to the first peak by both engines, ours (`baffle simulate --steps 170`) and
 svMultiPhysics (`--engine svmultiphysics --mpi-processes 2`, the same steps); rows are
 skipped, saying so, where svMultiPhysics is not on PATH (SAME_MESH_MPI_PROCESSES sets the ranks).
@@ -288,7 +288,13 @@ def chain_argv(spec):
     return argv
 
 
-SAME_MESH_ROWS = (("p3", 1.25), ("p1", 1.25), ("p3", 0.75), ("p1", 0.75))
+SAME_MESH_ROWS = (
+    ("p3", "published", 1.25),
+    ("p1", "published", 1.25),
+    ("p2", "designed", 1.25),
+    ("p3", "published", 0.75),
+    ("p1", "published", 0.75),
+)
 SVMP_ENGINES = ("svmultiphysics", "svMultiPhysics")
 
 
@@ -313,18 +319,22 @@ def engine_figures(sim: Path, steps):
     }
 
 
-def same_mesh_row(r: Runner, patient, interior, patients, common):
-    """One mesh of the published domain run by both engines to the first peak."""
+def same_mesh_row(r: Runner, patient, kind, interior, patients, common):
+    """One mesh of the published or our designed domain run by both engines to the first peak."""
     info = patients[patient]
-    domain, _ = published_domain(r, patient, DESIGN_BOUNDARY_MM)
-    base = r.work / patient / "published" / f"b{DESIGN_BOUNDARY_MM}"
+    if kind == "published":
+        domain, _ = published_domain(r, patient, DESIGN_BOUNDARY_MM)
+        base = r.work / patient / "published" / f"b{DESIGN_BOUNDARY_MM}"
+    else:
+        domain, _ = designed_domain(r, patient, info)
+        base = domain.parent / f"b{DESIGN_BOUNDARY_MM}"
     extended = base / "extended.vtp"
     r.stage(extended, ["extend", "--domain", domain, "--segmentations", r.data / patient / "segmentations", "--out", extended])
     mesh_dir = base / f"mesh-{interior}"
     mesh = mesh_dir / "mesh.vtu"
     r.stage(mesh, ["mesh", "--surface", extended, "--interior-labels", "11,16", "--edge-length-mm", interior, "--out", mesh])
     steps = FIRST_PEAK_STEPS
-    row = Row(patient=patient, mesh=f"{DESIGN_BOUNDARY_MM} / {interior} mm", tets=json.loads((mesh_dir / "mesh-quality.json").read_text())["tetrahedra"])
+    row = Row(patient=patient, domain=kind, mesh=f"{DESIGN_BOUNDARY_MM} / {interior} mm", tets=json.loads((mesh_dir / "mesh-quality.json").read_text())["tetrahedra"])
     ours = mesh_dir / f"same-mesh-ours-{steps}"
     write_case(ours / "case.json", info, "plug", common["cardiac_index_l_min_m2"], steps)
     r.stage(ours / "summary.json", ["simulate", ours / "case.json", "--out", ours])
@@ -342,8 +352,8 @@ def same_mesh_row(r: Runner, patient, interior, patients, common):
 
 
 def same_mesh_markdown(rows):
-    head = "| patient | mesh | tets | dp ours / svMP (mmHg) | ours - svMP | largest dp ours / svMP | v_max ours / svMP (m/s) | s a step ours / svMP | svMP converged |"
-    return "\n".join([head, "|" + "---|" * 9] + ["| " + " | ".join(same_mesh_cells(x)) + " |" for x in rows]) + "\n"
+    head = "| patient | domain | mesh | tets | dp ours / svMP (mmHg) | ours - svMP | largest dp ours / svMP | v_max ours / svMP (m/s) | s a step ours / svMP | svMP converged |"
+    return "\n".join([head, "|" + "---|" * 10] + ["| " + " | ".join(same_mesh_cells(x)) + " |" for x in rows]) + "\n"
 
 
 def same_mesh_cells(x):
@@ -351,17 +361,17 @@ def same_mesh_cells(x):
     o, t = x["ours"], x.get("svmp")
     pair = lambda k, nd=2: f"{fmt(o[k], nd)} / " + (fmt(t[k], nd) if t else "-")
     diff = f"{100 * (o['dp_mmhg'] / t['dp_mmhg'] - 1):+.1f}%" if t else "svMultiPhysics not run"
-    return [x["patient"], x["mesh"], f"{x['tets']:,}", pair("dp_mmhg"), diff, pair("dp_largest_mmhg"), pair("vmax_m_s"), pair("s_per_step", 3), str(t["converged"]) if t else ""]
+    return [x["patient"], x.get("domain", "published"), x["mesh"], f"{x['tets']:,}", pair("dp_mmhg"), diff, pair("dp_largest_mmhg"), pair("vmax_m_s"), pair("s_per_step", 3), str(t["converged"]) if t else ""]
 
 
 def same_mesh(r: Runner, patients, common, wanted, out: Path):
     rows = []
-    for patient, interior in SAME_MESH_ROWS:
+    for patient, kind, interior in SAME_MESH_ROWS:
         if patient not in wanted:
             continue
-        log(f"== same mesh: {patient} published, interior {interior} mm, both engines")
+        log(f"== same mesh: {patient} {kind}, interior {interior} mm, both engines")
         try:
-            rows.append(same_mesh_row(r, patient, interior, patients, common))
+            rows.append(same_mesh_row(r, patient, kind, interior, patients, common))
         except NotRun as e:
             log(f"  not run yet ({e}): left out")
         except (RuntimeError, ValueError, OSError, KeyError) as e:
