@@ -897,8 +897,10 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
         return Err(DesignError::Baffle("the merged domain encloses no positive volume".into()));
     }
     let bvh = TriangleBvh::new(mesh).map_err(DesignError::Surface)?;
-    let first_baffle = domain.first_baffle_triangle as u32;
-    let pairs = bvh.self_intersections_par(mesh, |a, b| a >= first_baffle || b >= first_baffle);
+    // Every pair, the wall's with itself too: a kept wall that folds through itself
+    // (a dented or badly smoothed ventricle) gives a domain no mesher can fill, even
+    // when the baffle is clear of it.
+    let pairs = bvh.self_intersections_par(mesh, |_, _| true);
     if let Some(&(a, b)) = pairs.iter().find(|(a, b)| {
         (*a as usize) >= domain.first_baffle_triangle || (*b as usize) >= domain.first_baffle_triangle
     }) {
@@ -920,6 +922,16 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
             "reaching the target area makes the baffle pass through {what} near ({:.1}, {:.1}, {:.1}); \
              the suture line leaves too little room for the required tunnel",
             c.x, c.y, c.z
+        )));
+    }
+    if let Some(&(a, _)) = pairs.first() {
+        let [p, q, r] = mesh.triangle_points(a as usize);
+        let c = (p + q + r) / 3.0;
+        return Err(DesignError::Baffle(format!(
+            "the ventricle wall kept in the domain crosses itself near ({:.1}, {:.1}, {:.1}) mm ({} crossing pairs); \
+             the ventricle surface folds there: smooth or re-segment it",
+            c.x, c.y, c.z,
+            pairs.len()
         )));
     }
     Ok(())
