@@ -936,3 +936,33 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The unit cube with its top face a fan to a centre point at height `apex_z`: below
+    /// 0 the fan passes through the bottom face (closed, connected, outward, crossing).
+    fn cube_with_top_apex(apex_z: f64) -> TriMesh {
+        let corners = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.], [0., 0., 1.], [1., 0., 1.], [1., 1., 1.], [0., 1., 1.]];
+        let mut points: Vec<Vec3> = corners.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        points.push(Vec3::new(0.5, 0.5, apex_z));
+        let triangles = vec![[0, 2, 1], [0, 3, 2], [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7], [4, 5, 8], [5, 6, 8], [6, 7, 8], [7, 4, 8]];
+        let face_ids = vec![2; triangles.len()];
+        TriMesh { points, triangles, face_ids }
+    }
+
+    fn wall_only(mesh: &TriMesh) -> Domain {
+        let first = mesh.triangles.len();
+        Domain { mesh: mesh.clone(), disk_vertex: vec![], domain_vertex_of_disk: vec![], first_baffle_triangle: first, first_baffle_vertex: mesh.points.len() }
+    }
+
+    #[test]
+    fn a_kept_wall_through_itself_is_refused_though_no_baffle_triangle_crosses() {
+        let folded = cube_with_top_apex(-0.5);
+        let err = check_domain(&folded, &wall_only(&folded), &FaceLabels::default()).unwrap_err().to_string();
+        assert!(err.contains("the ventricle wall kept in the domain crosses itself near") && err.contains("crossing pairs"), "{err}");
+        let sound = cube_with_top_apex(1.5);
+        assert!(check_domain(&sound, &wall_only(&sound), &FaceLabels::default()).is_ok());
+    }
+}
