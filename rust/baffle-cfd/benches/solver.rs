@@ -54,7 +54,7 @@ struct Options {
     full: bool,
     smoke: bool,
     scaling: bool,
-    /// Two-level preconditioner's aggregate size (0: ILU(0) alone).
+    /// Two-level preconditioner's aggregate size (0: ILU(0) alone; default the case's, 256).
     coarse: usize,
     /// `--scaling` also on a 622k-tet tube.
     big: bool,
@@ -72,7 +72,7 @@ struct Options {
 }
 
 fn options() -> Result<Options, String> {
-    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: 0, big: false, from_size: 0, restart: None, reuse: None, compare_schemes: false, time_accuracy: None, t0_s: 0.1, picard: None };
+    let mut o = Options { runs: 3, steps: 20, precisions: vec![true], steady: false, full: false, smoke: false, scaling: false, coarse: baffle_cfd::TWO_LEVEL_AGGREGATE_NODES, big: false, from_size: 0, restart: None, reuse: None, compare_schemes: false, time_accuracy: None, t0_s: 0.1, picard: None };
     let (mut schemes, mut dts_ms, mut t_end_s) = (None, None, 0.164);
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {

@@ -74,6 +74,84 @@ pub struct CoarseCorrection {
     perm: Vec<usize>,
 }
 
+/// A Z for the block matrix K plus rank-one terms c b b^T, so that the product of a
+/// corrected vector, A (z + Z e), is A z + (A Z) e without another fine product: K Z
+/// as blocks (node row, aggregate reached), the rank-one terms as (c, b, Z^T b). Made
+/// of the current matrix for each solve (the coarse factors may be older).
+pub struct ProlongedOperator {
+    row_ptr: Vec<usize>,
+    aggregate: Vec<u32>,
+    blocks: Vec<[f64; BB]>,
+    rank_one: Vec<(f64, Vec<f64>, Vec<f64>)>,
+}
+
+impl ProlongedOperator {
+    fn new(pattern: &BlockPattern, vals: &[f64], rank_one: &[(f64, &[f64])], aggregates: &Aggregates, free: &[bool]) -> Self {
+        let rows: Vec<Vec<(u32, [f64; BB])>> = (0..pattern.n_rows())
+            .into_par_iter()
+            .map(|i| {
+                let mut row: Vec<(u32, [f64; BB])> = Vec::with_capacity(4);
+                for p in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
+                    let j = pattern.cols[p] as usize;
+                    let agg = aggregates.of_node[j];
+                    let k = match row.iter().position(|(a, _)| *a == agg) {
+                        Some(k) => k,
+                        None => {
+                            row.push((agg, [0.0; BB]));
+                            row.len() - 1
+                        }
+                    };
+                    for c in (0..B).filter(|&c| free[j * B + c]) {
+                        for r in 0..B {
+                            row[k].1[r * B + c] += vals[p * BB + r * B + c];
+                        }
+                    }
+                }
+                row
+            })
+            .collect();
+        let mut row_ptr = Vec::with_capacity(rows.len() + 1);
+        row_ptr.push(0);
+        let (mut aggregate, mut blocks) = (Vec::new(), Vec::new());
+        for row in rows {
+            for (a, b) in row {
+                aggregate.push(a);
+                blocks.push(b);
+            }
+            row_ptr.push(aggregate.len());
+        }
+        let rank_one = rank_one.iter().map(|&(c, b)| (c, b.to_vec(), restrict(b, aggregates, free))).collect();
+        ProlongedOperator { row_ptr, aggregate, blocks, rank_one }
+    }
+
+    /// az += (A Z) e.
+    fn add_product<V: Scalar>(&self, e: &[f64], az: &mut [V]) {
+        let along: Vec<f64> = self.rank_one.iter().map(|(c, _, zb)| c * zb.iter().zip(e).map(|(x, y)| x * y).sum::<f64>()).collect();
+        az.par_chunks_mut(B).enumerate().with_min_len(256).for_each(|(i, azi)| {
+            let mut acc = [0.0; B];
+            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
+                let (block, ec) = (&self.blocks[k], &e[self.aggregate[k] as usize * B..][..B]);
+                for r in 0..B {
+                    acc[r] += (0..B).map(|c| block[r * B + c] * ec[c]).sum::<f64>();
+                }
+            }
+            for (r, a) in acc.iter().enumerate() {
+                let rank_one: f64 = self.rank_one.iter().zip(&along).map(|((_, b, _), s)| s * b[i * B + r]).sum();
+                azi[r] = V::from_f64(azi[r].to_f64() + a + rank_one);
+            }
+        });
+    }
+}
+
+/// Z^T v: `v`'s free unknowns summed per aggregate and component.
+fn restrict<V: Scalar>(v: &[V], aggregates: &Aggregates, free: &[bool]) -> Vec<f64> {
+    let mut rc = vec![0.0; aggregates.count * B];
+    for (k, x) in v.iter().enumerate().filter(|(k, _)| free[*k]) {
+        rc[aggregates.of_node[k / B] as usize * B + k % B] += x.to_f64();
+    }
+    rc
+}
+
 impl CoarseCorrection {
     /// Coarse matrix Z^T A Z of the block matrix `vals` plus the rank-one terms
     /// `rank_one` (coefficient, vector over the fine unknowns), factored.
@@ -94,10 +172,7 @@ impl CoarseCorrection {
             }
         }
         for &(coefficient, v) in rank_one {
-            let mut cv = vec![0.0; nc];
-            for (k, x) in v.iter().enumerate().filter(|(k, _)| free[*k]) {
-                cv[aggregates.of_node[k / B] as usize * B + k % B] += x;
-            }
+            let cv = restrict(v, &aggregates, &free);
             for (r, cr) in cv.iter().enumerate().filter(|(_, c)| **c != 0.0) {
                 for (c, cc) in cv.iter().enumerate() {
                     a[r * nc + c] += coefficient * cr * cc;
@@ -115,17 +190,25 @@ impl CoarseCorrection {
         CoarseCorrection { aggregates, free, lu: a, perm }
     }
 
-    /// z += Z A_c^-1 Z^T w.
-    pub fn add_correction<V: Scalar>(&self, w: &[V], z: &mut [V]) {
-        let nc = self.perm.len();
-        let mut rc = vec![0.0; nc];
-        for (k, x) in w.iter().enumerate().filter(|(k, _)| self.free[*k]) {
-            rc[self.aggregates.of_node[k / B] as usize * B + k % B] += x.to_f64();
-        }
-        let e = lu_solve(&self.lu, &self.perm, &rc);
+    /// A Z of the block matrix `vals` and the rank-one terms `rank_one`.
+    pub fn prolonged_operator(&self, pattern: &BlockPattern, vals: &[f64], rank_one: &[(f64, &[f64])]) -> ProlongedOperator {
+        ProlongedOperator::new(pattern, vals, rank_one, &self.aggregates, &self.free)
+    }
+
+    /// z += Z A_c^-1 Z^T w; returns the coarse solution e = A_c^-1 Z^T w.
+    pub fn add_correction<V: Scalar>(&self, w: &[V], z: &mut [V]) -> Vec<f64> {
+        let e = lu_solve(&self.lu, &self.perm, &restrict(w, &self.aggregates, &self.free));
         for (k, zk) in z.iter_mut().enumerate().filter(|(k, _)| self.free[*k]) {
             *zk = V::from_f64(zk.to_f64() + e[self.aggregates.of_node[k / B] as usize * B + k % B]);
         }
+        e
+    }
+
+    /// As [`Self::add_correction`], and az += A Z e, so that az = A z stays true of the
+    /// corrected z when it held before (A being the operator `prolonged` was made of).
+    pub fn add_correction_and_product<V: Scalar>(&self, prolonged: &ProlongedOperator, w: &[V], z: &mut [V], az: &mut [V]) {
+        let e = self.add_correction(w, z);
+        prolonged.add_product(&e, az);
     }
 }
 
@@ -200,6 +283,33 @@ mod tests {
         assert!(sizes.iter().all(|&s| s <= 8) && sizes.iter().filter(|&&s| s == 8).count() >= 4, "{sizes:?}");
         // On a chain every aggregate is a run of consecutive nodes.
         assert!(agg.of_node.windows(2).all(|w| w[1] == w[0] || w[1] == w[0] + 1), "{:?}", agg.of_node);
+    }
+
+    #[test]
+    fn the_corrected_product_is_the_operators_product_of_the_corrected_vector() {
+        // Several aggregates, prescribed unknowns and a rank-one outlet term: az = A z
+        // before the correction stays az = A z after it (A = K + c b b^T).
+        let n = 40;
+        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
+        let pattern = BlockPattern::from_tets(n, &tets);
+        let vals: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5 + if k % (BB + 1) == 0 { 4.0 } else { 0.0 }).collect();
+        let dirichlet: Vec<bool> = (0..n).map(|i| i % 7 == 0).collect();
+        let b: Vec<f64> = (0..n * B).map(|k| if k / B >= n - 5 && k % B < 3 { 0.1 * (k % 5) as f64 } else { 0.0 }).collect();
+        let rank_one = [(3.0, &b[..])];
+        let coarse = CoarseCorrection::new(&pattern, &vals, &rank_one, aggregate(&pattern, 6), &dirichlet);
+        let operator = |x: &[f64]| {
+            let mut y = vec![0.0; x.len()];
+            crate::sparse::spmv(&pattern, &vals, x, &mut y);
+            let q: f64 = b.iter().zip(x).map(|(p, q)| p * q).sum();
+            y.iter_mut().zip(&b).for_each(|(yi, bi)| *yi += 3.0 * q * bi);
+            y
+        };
+        let mut z: Vec<f64> = (0..n * B).map(|i| (i as f64 * 0.7).cos()).collect();
+        let mut az = operator(&z);
+        let w: Vec<f64> = (0..n * B).map(|i| (i as f64 * 0.3).sin()).collect();
+        coarse.add_correction_and_product(&coarse.prolonged_operator(&pattern, &vals, &rank_one), &w, &mut z, &mut az);
+        let expected = operator(&z);
+        assert!(az.iter().zip(&expected).all(|(a, e)| (a - e).abs() < 1e-12 * (1.0 + e.abs())), "{az:?}\n{expected:?}");
     }
 
     #[test]

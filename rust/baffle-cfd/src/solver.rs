@@ -136,10 +136,12 @@
 use std::collections::HashSet;
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
-use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection};
-use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome};
+use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection, ProlongedOperator};
+use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome, Preconditioner};
 use crate::mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
@@ -553,6 +555,11 @@ impl Attempt {
     }
 }
 
+/// The outlets' resistance couplings as rank-one terms (coefficient, flux weights).
+fn rank_one_terms(problem: &Problem) -> Vec<(f64, &[f64])> {
+    problem.outlets.iter().map(|o| (o.resistance_dyn_s_cm5, &o.flux_weights[..])).collect()
+}
+
 /// The coarse correction of the two-level preconditioner for the matrix `vals` (None
 /// when `aggregate_nodes` is 0); the aggregates are made on the first call.
 fn coarse_correction(aggregates: &mut Option<Aggregates>, problem: &Problem, vals: &[f64], aggregate_nodes: usize) -> Option<CoarseCorrection> {
@@ -561,18 +568,33 @@ fn coarse_correction(aggregates: &mut Option<Aggregates>, problem: &Problem, val
     }
     let size = aggregate_size(problem.pattern.n_rows(), aggregate_nodes);
     let aggregates = aggregates.get_or_insert_with(|| aggregate(&problem.pattern, size)).clone();
-    let rank_one: Vec<(f64, &[f64])> = problem.outlets.iter().map(|o| (o.resistance_dyn_s_cm5, &o.flux_weights[..])).collect();
-    Some(CoarseCorrection::new(&problem.pattern, vals, &rank_one, aggregates, &problem.dirichlet))
+    Some(CoarseCorrection::new(&problem.pattern, vals, &rank_one_terms(problem), aggregates, &problem.dirichlet))
 }
 
-/// z = M^-1 r: ILU(0), then (two-level) the coarse correction of the residual it leaves.
-fn two_level<S: Scalar, T: Scalar>(ilu: &BlockIlu<S>, coarse: Option<&CoarseCorrection>, apply_a: &dyn Fn(&[T], &mut [T]), r: &[T], z: &mut [T]) {
-    ilu.apply(r, z);
-    if let Some(coarse) = coarse {
-        let mut w = vec![T::default(); r.len()];
-        apply_a(z, &mut w);
-        w.iter_mut().zip(r).for_each(|(wi, ri)| *wi = T::from_f64(ri.to_f64() - wi.to_f64()));
-        coarse.add_correction(&w, z);
+/// z = M^-1 r: ILU(0), then (two-level) the coarse correction of the residual it leaves,
+/// z = z_ilu + Z A_c^-1 Z^T (r - A z_ilu). A z_ilu is formed on the way, so A z for
+/// GMRES is A z_ilu + (A Z) e: one fine product an iteration instead of two.
+struct TwoLevel<'a, S: Scalar, T> {
+    ilu: &'a BlockIlu<S>,
+    coarse: Option<(&'a CoarseCorrection, &'a ProlongedOperator)>,
+    apply_a: &'a dyn Fn(&[T], &mut [T]),
+}
+
+impl<S: Scalar, T: Scalar> Preconditioner<T> for TwoLevel<'_, S, T> {
+    fn apply(&self, r: &[T], z: &mut [T]) {
+        match self.coarse {
+            None => self.ilu.apply(r, z),
+            Some(_) => self.apply_with_product(self.apply_a, r, z, &mut vec![T::default(); r.len()]),
+        }
+    }
+
+    fn apply_with_product(&self, apply_a: &dyn Fn(&[T], &mut [T]), r: &[T], z: &mut [T], az: &mut [T]) {
+        self.ilu.apply(r, z);
+        apply_a(z, az);
+        if let Some((coarse, prolonged)) = self.coarse {
+            let w: Vec<T> = r.par_iter().zip(az.par_iter()).map(|(ri, ai)| T::from_f64(ri.to_f64() - ai.to_f64())).collect();
+            coarse.add_correction_and_product(prolonged, &w, z, az);
+        }
     }
 }
 
@@ -852,27 +874,30 @@ impl<'a> Solver<'a> {
     /// Solve A dx = r with the current factors ([`Self::refresh_preconditioner`]); with
     /// `reused` factors within [`FactorsUse::reused_budget`] iterations.
     fn solve_linear(&self, effort: Effort, r: &[f64], dx: &mut [f64], reused: bool) -> GmresOutcome {
-        let (problem, vals, s, coarse) = (&self.problem, &self.vals, self.settings, self.coarse.as_ref());
+        let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
         let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
         let (tol, restart) = (s.linear_tolerance, s.gmres_restart);
         let max_iterations = if reused { self.factors.reused_budget(restart).min(s.max_linear_iterations) } else { s.max_linear_iterations };
         let factors = "factored by refresh_preconditioner";
+        // A Z of this matrix: the coarse factors may be older than it.
+        let prolonged = self.coarse.as_ref().map(|c| c.prolonged_operator(&problem.pattern, vals, &rank_one_terms(problem)));
+        let coarse = self.coarse.as_ref().zip(prolonged.as_ref());
         match effort {
             Effort::Normal if s.mixed_precision => {
                 let ilu = self.ilu_low.as_ref().expect(factors);
                 let vals_low = &self.vals_low;
                 let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
-                let apply_m = |v: &[f64], z: &mut [f64]| two_level(ilu, coarse, &apply_a, v, z);
-                let apply_m_low = |v: &[f32], z: &mut [f32]| two_level(ilu, coarse, &apply_a_low, v, z);
+                let apply_m = TwoLevel { ilu, coarse, apply_a: &apply_a };
+                let apply_m_low = TwoLevel { ilu, coarse, apply_a: &apply_a_low };
                 solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, tol, restart, max_iterations)
             }
             Effort::Normal => {
                 let ilu = self.ilu.as_ref().expect(factors);
-                gmres(&apply_a, &|v, z| two_level(ilu, coarse, &apply_a, v, z), r, dx, tol, restart, max_iterations)
+                gmres(&apply_a, &TwoLevel { ilu, coarse, apply_a: &apply_a }, r, dx, tol, restart, max_iterations)
             }
             Effort::Strong => {
                 let ilu = self.ilu_whole.as_ref().expect(factors);
-                let apply_m = |v: &[f64], z: &mut [f64]| two_level(ilu, coarse, &apply_a, v, z);
+                let apply_m = TwoLevel { ilu, coarse, apply_a: &apply_a };
                 gmres(&apply_a, &apply_m, r, dx, tol, 2 * restart, STRONG_BUDGET_FACTOR * s.max_linear_iterations)
             }
         }
