@@ -276,9 +276,18 @@ struct StabilizationTerms {
     pspg_u: [f64; 3],
     /// PSPG pressure-pressure: sum tau / rho w grad N_a . grad N_b.
     pspg_p: f64,
-    /// Right-hand side: the old velocity's SUPG and PSPG shares.
-    rhs_u: [f64; 3],
-    rhs_p: f64,
+}
+
+/// The old velocity's SUPG and PSPG shares of row ai's right-hand side (velocity, pressure).
+fn stabilization_rhs(geo: &ElementGeometry, st: &ElementState, gauss: Option<&GaussState>, phys: &Physics, ai: usize) -> ([f64; 3], f64) {
+    let (rho, idt, g) = (phys.density_g_cm3, phys.inv_dt_per_s, &geo.grads_per_cm);
+    match gauss {
+        Some(gs) => (gs.supg_old[ai].map(|x| rho * idt * x), idt * crate::mesh::dot(g[ai], gs.tau_old)),
+        None => {
+            let (tau, v) = (st.tau, geo.volume_cm3);
+            (st.u_old_bar.map(|x| tau * v * st.s[ai] * rho * idt * x), tau * v * idt * crate::mesh::dot(g[ai], st.u_old_bar))
+        }
+    }
 }
 
 fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: usize, bi: usize) -> StabilizationTerms {
@@ -290,8 +299,6 @@ fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: 
         supg_p: g[bi].map(|x| tau * v * s[ai] * x),
         pspg_u: g[ai].map(|x| tau * v * x * (0.25 * idt + s[bi])),
         pspg_p: tau / rho * v * crate::mesh::dot(g[ai], g[bi]),
-        rhs_u: st.u_old_bar.map(|x| tau * v * s[ai] * rho * idt * x),
-        rhs_p: tau * v * idt * crate::mesh::dot(g[ai], st.u_old_bar),
     }
 }
 
@@ -303,8 +310,6 @@ fn gauss_terms(geo: &ElementGeometry, gs: &GaussState, phys: &Physics, ai: usize
         supg_p: g[bi].map(|x| gs.tau_s[ai] * x),
         pspg_u: g[ai].map(|x| x * (idt * gs.tau_n[bi] + gs.tau_s[bi])),
         pspg_p: gs.tau / rho * crate::mesh::dot(g[ai], g[bi]),
-        rhs_u: gs.supg_old[ai].map(|x| rho * idt * x),
-        rhs_p: idt * crate::mesh::dot(g[ai], gs.tau_old),
     }
 }
 
@@ -353,7 +358,6 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
     };
     let mut k = [[0.0; BB]; 4];
     let mut f = [0.0; B];
-    let mut rhs = StabilizationTerms::default();
     for bi in 0..4 {
         let t = terms(bi);
         let mass = if ai == bi { v / 10.0 } else { v / 20.0 };
@@ -373,13 +377,12 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
             blk[3 * B + i] = 0.25 * v * g[bi][i] + t.pspg_u[i];
         }
         blk[3 * B + 3] = t.pspg_p;
-        // (the right-hand side's terms are the same for every bi)
-        rhs = t;
     }
+    let (rhs_u, rhs_p) = stabilization_rhs(geo, st, gauss, phys, ai);
     for i in 0..3 {
-        f[i] = rho * idt * (0.2 * v * st.u_old_bar[i] + 0.05 * v * u_old_ai[i]) + rhs.rhs_u[i];
+        f[i] = rho * idt * (0.2 * v * st.u_old_bar[i] + 0.05 * v * u_old_ai[i]) + rhs_u[i];
     }
-    f[3] = rhs.rhs_p;
+    f[3] = rhs_p;
     (k, f)
 }
 
