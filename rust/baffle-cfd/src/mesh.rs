@@ -67,9 +67,14 @@ pub(crate) fn tri_key(t: [u32; 3]) -> [u32; 3] {
     k
 }
 
+/// A hash map keyed by a sorted node triple, hashed as core's edge maps are (Fx-style):
+/// node numbers are not adversarial, and SipHash made the element-face map a fifth of a
+/// short run's set-up.
+pub(crate) type TriangleMap<V> = HashMap<[u32; 3], V, std::hash::BuildHasherDefault<baffle_core::mesh::EdgeHasher>>;
+
 /// Element faces: sorted triple -> (tet, local index of the opposite node, count).
-pub(crate) fn element_faces(tets: &[[u32; 4]]) -> HashMap<[u32; 3], (u32, u8, u8)> {
-    let mut map: HashMap<[u32; 3], (u32, u8, u8)> = HashMap::with_capacity(tets.len() * 2 + 16);
+pub(crate) fn element_faces(tets: &[[u32; 4]]) -> TriangleMap<(u32, u8, u8)> {
+    let mut map: TriangleMap<(u32, u8, u8)> = TriangleMap::with_capacity_and_hasher(tets.len() * 2 + 16, Default::default());
     for (e, t) in tets.iter().enumerate() {
         for opposite in 0..4u8 {
             let tri = opposite_triangle(t, opposite as usize);
@@ -143,7 +148,7 @@ impl FlowMesh {
         Ok(reoriented)
     }
 
-    fn check_faces(&self, element_faces: &HashMap<[u32; 3], (u32, u8, u8)>) -> Result<(), CfdError> {
+    fn check_faces(&self, element_faces: &TriangleMap<(u32, u8, u8)>) -> Result<(), CfdError> {
         let n = self.points_cm.len();
         let mut ids = std::collections::HashSet::new();
         for face in &self.faces {
