@@ -1360,6 +1360,40 @@ mod tests {
     use crate::{Outlet, Waveform};
 
     #[test]
+    fn the_two_level_product_is_the_operator_applied_to_the_preconditioned_vector() {
+        // GMRES takes A z from the preconditioner (A z_ilu + (A Z) e): it must be what the
+        // operator gives for z, with older coarse factors (a reused preconditioner) too.
+        let n = 60;
+        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
+        let pattern = BlockPattern::from_tets(n, &tets);
+        let matrix = |shift: f64| -> Vec<f64> {
+            let mut v: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5).collect();
+            (0..n).for_each(|i| (0..B).for_each(|c| v[pattern.diag[i] * BB + c * B + c] += 6.0 + shift));
+            v
+        };
+        let (old, vals) = (matrix(0.0), matrix(0.7));
+        let b: Vec<f64> = (0..n * B).map(|k| if k / B >= n - 4 && k % B < 3 { 0.2 } else { 0.0 }).collect();
+        let rank_one = [(5.0, &b[..])];
+        let dirichlet: Vec<bool> = (0..n).map(|i| i % 9 == 0).collect();
+        let coarse = CoarseCorrection::new(&pattern, &old, &rank_one, aggregate(&pattern, 8), &dirichlet);
+        let prolonged = coarse.prolonged_operator(&pattern, &vals, &rank_one);
+        let ilu = BlockIlu::<f32>::factor(&pattern, &old, partitions(&pattern, 2)).unwrap();
+        let apply_a = |x: &[f64], y: &mut [f64]| {
+            spmv(&pattern, &vals, x, y);
+            let q = dot(&b, x);
+            y.iter_mut().zip(&b).for_each(|(yi, bi)| *yi += 5.0 * q * bi);
+        };
+        let m = TwoLevel { ilu: &ilu, coarse: Some((&coarse, &prolonged)), apply_a: &apply_a };
+        let r: Vec<f64> = (0..n * B).map(|i| (i as f64 * 0.41).sin()).collect();
+        let (mut z, mut az, mut z_alone, mut expected) = (vec![0.0; n * B], vec![0.0; n * B], vec![0.0; n * B], vec![0.0; n * B]);
+        m.apply_with_product(&apply_a, &r, &mut z, &mut az);
+        m.apply(&r, &mut z_alone);
+        apply_a(&z, &mut expected);
+        assert_eq!(z, z_alone, "apply and apply_with_product give the same z");
+        assert!(az.iter().zip(&expected).all(|(x, y)| (x - y).abs() <= 1e-10 * (1.0 + y.abs())), "{az:?}\n{expected:?}");
+    }
+
+    #[test]
     fn factors_are_renewed_once_aging_has_cost_a_renewal() {
         let mut s = CaseSettings::new(1, Waveform::Ejection { period_s: 0.01, q_mean_ml_s: 1.0 }, vec![Outlet { face_id: 2, resistance_dyn_s_cm5: 1.0 }]);
         let mut use_ = FactorsUse::default();
