@@ -1,6 +1,6 @@
 //! baffle_design(): the whole design through the ABI, with a C progress callback.
 
-use crate::mesh::BaffleMesh;
+use crate::mesh_handle::BaffleMesh;
 use crate::options::read_options;
 use crate::result::BaffleResult;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};

@@ -11,7 +11,7 @@
 mod alloc;
 mod design;
 mod flow;
-mod mesh;
+mod mesh_handle;
 mod options;
 mod points;
 mod result;
@@ -21,7 +21,7 @@ mod template;
 pub use alloc::baffle_free;
 pub use design::{baffle_design, BaffleProgressFn};
 pub use flow::baffle_peak_flow_ml_s;
-pub use mesh::{
+pub use mesh_handle::{
     baffle_mesh_copy_labels, baffle_mesh_copy_points, baffle_mesh_copy_triangles, baffle_mesh_free, baffle_mesh_new,
     baffle_mesh_new_vtk, baffle_mesh_point_count, baffle_mesh_triangle_count, BaffleMesh,
 };

@@ -2,7 +2,7 @@
 //! reads), and the built-in synthetic phantom, for callers without a reader.
 
 use crate::alloc::malloc_copy;
-use crate::mesh::BaffleMesh;
+use crate::mesh_handle::BaffleMesh;
 use crate::status::{guarded, out_ref, BaffleStatus, CallError};
 use baffle_core::io::{read_points, CoordinateSystem};
 use baffle_core::phantom::{phantom_default, phantom_with_suture_half_angle, Phantom};

@@ -2,7 +2,7 @@
 //! buffers; the report as a JSON string the caller frees with baffle_free).
 
 use crate::alloc::malloc_string;
-use crate::mesh::{copy_points, BaffleMesh};
+use crate::mesh_handle::{copy_points, BaffleMesh};
 use crate::status::{arg_ref, guarded, out_ref, out_slice, BaffleStatus, CallError};
 use baffle_core::DesignResult;
 use std::ffi::c_char;

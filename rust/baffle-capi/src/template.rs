@@ -3,7 +3,7 @@
 //! printable A4 page (PDF, SVG or PNG) are copied out of it.
 
 use crate::alloc::{malloc_copy, malloc_string};
-use crate::mesh::BaffleMesh;
+use crate::mesh_handle::BaffleMesh;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, xyz_count, BaffleStatus, CallError};
 use baffle_core::template::drawing::{today_utc, TemplateText};
 use baffle_core::template::raster::DEFAULT_DPI;

@@ -40,10 +40,10 @@ pub fn element_geometry(p: &[[f64; 3]], t: &[u32; 4]) -> ElementGeometry {
     let x = t.map(|i| p[i as usize]);
     let d = |k: usize| [x[k][0] - x[0][0], x[k][1] - x[0][1], x[k][2] - x[0][2]];
     let (e1, e2, e3) = (d(1), d(2), d(3));
-    let c23 = crate::mesh::cross(e2, e3);
-    let c31 = crate::mesh::cross(e3, e1);
-    let c12 = crate::mesh::cross(e1, e2);
-    let det = crate::mesh::dot(e1, c23);
+    let c23 = crate::flow_mesh::cross(e2, e3);
+    let c31 = crate::flow_mesh::cross(e3, e1);
+    let c12 = crate::flow_mesh::cross(e1, e2);
+    let det = crate::flow_mesh::dot(e1, c23);
     let g1 = c23.map(|v| v / det);
     let g2 = c31.map(|v| v / det);
     let g3 = c12.map(|v| v / det);
@@ -181,7 +181,7 @@ pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]
         Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, &g, u_fine, phys),
         _ => (0.0, [0.0; 4]),
     };
-    ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::mesh::dot(advecting, ga)), tau_b, fine_s }
+    ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::flow_mesh::dot(advecting, ga)), tau_b, fine_s }
 }
 
 /// tau_B = rho / sqrt(u'.G.u') and u'.grad N_b of svMultiPhysics' Reynolds-stress term
@@ -191,7 +191,7 @@ fn reynolds_stress(geo: &ElementGeometry, g: &[[f64; 3]; 3], u_fine: [f64; 3], p
     if !(ugu > 0.0) {
         return (0.0, [0.0; 4]);
     }
-    (phys.density_g_cm3 / ugu.sqrt(), geo.grads_per_cm.map(|gb| crate::mesh::dot(u_fine, gb)))
+    (phys.density_g_cm3 / ugu.sqrt(), geo.grads_per_cm.map(|gb| crate::flow_mesh::dot(u_fine, gb)))
 }
 
 /// The 4-point Gauss rule of a tetrahedron (degree 2; weight V/4 each): point g has
@@ -239,7 +239,7 @@ pub fn gauss_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 
     for q in 0..4 {
         let a_q = at_gauss_point(a, q);
         let (tau, nu_c) = stabilization(&g, a_q, phys);
-        let s = geo.grads_per_cm.map(|gb| crate::mesh::dot(a_q, gb));
+        let s = geo.grads_per_cm.map(|gb| crate::flow_mesh::dot(a_q, gb));
         let u_old_q = at_gauss_point(u_old, q);
         let tw = tau * w;
         st.tau += tw;
@@ -282,10 +282,10 @@ struct StabilizationTerms {
 fn stabilization_rhs(geo: &ElementGeometry, st: &ElementState, gauss: Option<&GaussState>, phys: &Physics, ai: usize) -> ([f64; 3], f64) {
     let (rho, idt, g) = (phys.density_g_cm3, phys.inv_dt_per_s, &geo.grads_per_cm);
     match gauss {
-        Some(gs) => (gs.supg_old[ai].map(|x| rho * idt * x), idt * crate::mesh::dot(g[ai], gs.tau_old)),
+        Some(gs) => (gs.supg_old[ai].map(|x| rho * idt * x), idt * crate::flow_mesh::dot(g[ai], gs.tau_old)),
         None => {
             let (tau, v) = (st.tau, geo.volume_cm3);
-            (st.u_old_bar.map(|x| tau * v * st.s[ai] * rho * idt * x), tau * v * idt * crate::mesh::dot(g[ai], st.u_old_bar))
+            (st.u_old_bar.map(|x| tau * v * st.s[ai] * rho * idt * x), tau * v * idt * crate::flow_mesh::dot(g[ai], st.u_old_bar))
         }
     }
 }
@@ -298,7 +298,7 @@ fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: 
         lsic: st.nu_c * rho * v,
         supg_p: g[bi].map(|x| tau * v * s[ai] * x),
         pspg_u: g[ai].map(|x| tau * v * x * (0.25 * idt + s[bi])),
-        pspg_p: tau / rho * v * crate::mesh::dot(g[ai], g[bi]),
+        pspg_p: tau / rho * v * crate::flow_mesh::dot(g[ai], g[bi]),
     }
 }
 
@@ -309,7 +309,7 @@ fn gauss_terms(geo: &ElementGeometry, gs: &GaussState, phys: &Physics, ai: usize
         lsic: gs.nu_c * rho,
         supg_p: g[bi].map(|x| gs.tau_s[ai] * x),
         pspg_u: g[ai].map(|x| x * (idt * gs.tau_n[bi] + gs.tau_s[bi])),
-        pspg_p: gs.tau / rho * crate::mesh::dot(g[ai], g[bi]),
+        pspg_p: gs.tau / rho * crate::flow_mesh::dot(g[ai], g[bi]),
     }
 }
 
@@ -326,7 +326,7 @@ fn fine_scale_velocity(geo: &ElementGeometry, a: &[[f64; 3]; 4], a_bar: [f64; 3]
         let mut convective = 0.0;
         let mut grad_p = 0.0;
         for n in 0..4 {
-            convective += crate::mesh::dot(a_bar, g[n]) * a[n][k];
+            convective += crate::flow_mesh::dot(a_bar, g[n]) * a[n][k];
             grad_p += g[n][k] * p[n];
         }
         r[k] = phys.inv_dt_per_s * (a_bar[k] - u_old_bar[k]) + convective + grad_p / phys.density_g_cm3;
@@ -361,9 +361,9 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
     for bi in 0..4 {
         let t = terms(bi);
         let mass = if ai == bi { v / 10.0 } else { v / 20.0 };
-        let convection = if phys.exact_convection { 0.2 * s[bi] + 0.05 * crate::mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
+        let convection = if phys.exact_convection { 0.2 * s[bi] + 0.05 * crate::flow_mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
         let reynolds = st.tau_b * v * st.fine_s[ai] * st.fine_s[bi];
-        let diag = rho * idt * mass + rho * v * convection + mu * v * crate::mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
+        let diag = rho * idt * mass + rho * v * convection + mu * v * crate::flow_mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
         let blk = &mut k[bi];
         let transposed = if phys.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
@@ -608,7 +608,7 @@ mod tests {
         let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
         let geo = element_geometry(&p, &[0, 1, 2, 3]);
         let omega = [0.3, -0.7, 1.1];
-        let u: [[f64; 3]; 4] = p.map(|x| crate::mesh::cross(omega, x));
+        let u: [[f64; 3]; 4] = p.map(|x| crate::flow_mesh::cross(omega, x));
         let force = |stress_viscosity: bool| {
             let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, stress_viscosity, ..TEST_PHYSICS };
             let es = element_system(&geo, &[[0.0; 3]; 4], &[[0.0; 3]; 4], &phys);
@@ -634,16 +634,16 @@ mod tests {
         let geo = element_geometry(&p, &[0, 1, 2, 3]);
         let a = [[10.0, -5.0, 3.0]; 4];
         let grad_p = [40.0, -20.0, 7.0];
-        let pressure = p.map(|x| crate::mesh::dot(grad_p, x));
+        let pressure = p.map(|x| crate::flow_mesh::dot(grad_p, x));
         let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1e3, inv_dt_tau_per_s: 1e3, ..TEST_PHYSICS };
         let plain = element_state(&geo, &a, &a, &pressure, &phys);
         let vms = element_state(&geo, &a, &a, &pressure, &Physics { vms_advection: true, ..phys });
         assert_eq!(plain.tau, vms.tau);
         let fine = grad_p.map(|g| -plain.tau * g / phys.density_g_cm3);
         for b in 0..4 {
-            let expected = crate::mesh::dot(add3(a[0], fine), geo.grads_per_cm[b]);
+            let expected = crate::flow_mesh::dot(add3(a[0], fine), geo.grads_per_cm[b]);
             assert!((vms.s[b] - expected).abs() < 1e-12 * expected.abs().max(1.0), "node {b}: {} vs {expected}", vms.s[b]);
-            assert!((plain.s[b] - crate::mesh::dot(a[0], geo.grads_per_cm[b])).abs() < 1e-12);
+            assert!((plain.s[b] - crate::flow_mesh::dot(a[0], geo.grads_per_cm[b])).abs() < 1e-12);
         }
         // Without a pressure gradient the uniform flow has no residual: nothing is added.
         let still = element_state(&geo, &a, &a, &[5.0; 4], &Physics { vms_advection: true, ..phys });
@@ -780,7 +780,7 @@ mod tests {
                 for q in 0..4 {
                     let n: [f64; 4] = std::array::from_fn(|c| if c == q { alpha } else { beta });
                     let a_q: [f64; 3] = std::array::from_fn(|k| (0..4).map(|c| n[c] * a[c][k]).sum());
-                    expected += 0.25 * geo.volume_cm3 * n[ai] * crate::mesh::dot(a_q, geo.grads_per_cm[bi]);
+                    expected += 0.25 * geo.volume_cm3 * n[ai] * crate::flow_mesh::dot(a_q, geo.grads_per_cm[bi]);
                 }
                 expected *= phys.density_g_cm3;
                 let got = with_a.k[ai][bi][0] - without.k[ai][bi][0];

@@ -2,7 +2,7 @@
 
 use std::collections::HashMap;
 
-use crate::mesh::{cross, dot, element_faces, opposite_triangle, sub, tri_key, Face, FlowMesh};
+use crate::flow_mesh::{cross, dot, element_faces, opposite_triangle, sub, tri_key, Face, FlowMesh};
 use crate::CfdError;
 
 /// Whether a face lies on the domain boundary or inside it.

@@ -11,7 +11,7 @@ mod error;
 pub mod hemodynamics;
 pub mod linear;
 pub mod memory;
-pub mod mesh;
+pub mod flow_mesh;
 pub mod periodicity;
 pub mod settings;
 pub mod solver;
@@ -26,7 +26,7 @@ pub mod waveform;
 mod test_data;
 
 pub use error::CfdError;
-pub use mesh::{Face, FlowMesh, ValidationReport};
+pub use flow_mesh::{Face, FlowMesh, ValidationReport};
 pub use settings::{CaseSettings, InflowProfile, NonlinearIterations, Outlet, RunMode, AUTO_NONLINEAR_CAP, TWO_LEVEL_AGGREGATE_NODES};
 pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, SteadyProgress, StepResult, StepView, Summary, Timings};
 pub use periodicity::periodicity_nrmsd;

@@ -142,7 +142,7 @@ use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
 use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection, ProlongedOperator};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome, Preconditioner};
-use crate::mesh::{tri_key, Face, FlowMesh};
+use crate::flow_mesh::{tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
 use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
@@ -331,7 +331,7 @@ fn inflow_profile(
     let mut free: Vec<(u32, f64)> = weights
         .iter()
         .filter(|(&i, _)| !wall[i as usize])
-        .map(|(&i, b)| (i, -crate::mesh::dot(inward, *b)))
+        .map(|(&i, b)| (i, -crate::flow_mesh::dot(inward, *b)))
         .collect();
     free.sort_unstable_by_key(|e| e.0);
     let shape: Vec<f64> = match kind {
@@ -354,19 +354,19 @@ fn cap_poisson(face: &FaceGeometry, wall: &[bool], p: &[[f64; 3]], free: &[u32])
     let mut entries: std::collections::HashMap<(usize, usize), f64> = std::collections::HashMap::new();
     let mut load = vec![0.0; n];
     for (tri, an) in face.triangles.iter().zip(&face.area_normals_cm2) {
-        let area = crate::mesh::dot(*an, *an).sqrt();
+        let area = crate::flow_mesh::dot(*an, *an).sqrt();
         if area == 0.0 {
             continue;
         }
         // Edge opposite vertex a (cyclic): K_ab = e_a . e_b / (4 A).
         let x = tri.map(|i| p[i as usize]);
-        let e = [0, 1, 2].map(|a| crate::mesh::sub(x[(a + 2) % 3], x[(a + 1) % 3]));
+        let e = [0, 1, 2].map(|a| crate::flow_mesh::sub(x[(a + 2) % 3], x[(a + 1) % 3]));
         for a in 0..3 {
             let Some(ia) = index(tri[a]).filter(|_| !wall[tri[a] as usize]) else { continue };
             load[ia] += area / 3.0;
             for b in 0..3 {
                 if let Some(ib) = index(tri[b]).filter(|_| !wall[tri[b] as usize]) {
-                    *entries.entry((ia, ib)).or_insert(0.0) += crate::mesh::dot(e[a], e[b]) / (4.0 * area);
+                    *entries.entry((ia, ib)).or_insert(0.0) += crate::flow_mesh::dot(e[a], e[b]) / (4.0 * area);
                 }
             }
         }
@@ -409,7 +409,7 @@ fn outlet_data(face: &FaceGeometry, k: usize, resistance: f64, dirichlet: &[bool
     }
     let mut lumped_area = Vec::new();
     for (tri, an) in face.triangles.iter().zip(&face.area_normals_cm2) {
-        let area = crate::mesh::dot(*an, *an).sqrt();
+        let area = crate::flow_mesh::dot(*an, *an).sqrt();
         let unit = an.map(|x| x / area);
         for &i in tri {
             if !dirichlet[i as usize] {
@@ -933,7 +933,7 @@ impl<'a> Solver<'a> {
                 let mut p_int = 0.0;
                 let mut q = 0.0;
                 for (tri, an) in f.triangles.iter().zip(&f.area_normals_cm2) {
-                    let area = crate::mesh::dot(*an, *an).sqrt();
+                    let area = crate::flow_mesh::dot(*an, *an).sqrt();
                     let nodes = tri.map(|i| i as usize * B);
                     p_int += area * nodes.iter().map(|&k| x[k + 3]).sum::<f64>() / 3.0;
                     for c in 0..3 {

@@ -7,7 +7,7 @@
 
 use std::f64::consts::PI;
 
-use crate::mesh::{Face, FlowMesh};
+use crate::flow_mesh::{Face, FlowMesh};
 
 pub const INLET: i32 = 1;
 pub const OUTLET: i32 = 2;

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use vtkio::model::{Attribute, CellType, DataSet, VertexNumbers};
 
-use crate::mesh::{Face, FlowMesh};
+use crate::flow_mesh::{Face, FlowMesh};
 use crate::CfdError;
 
 /// Tetrahedral volume as stored: points (file units), tets, and the point array

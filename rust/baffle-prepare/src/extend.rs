@@ -38,7 +38,7 @@
 //! The extension's walls carry the wall label. The result's first points and triangles
 //! are the designed domain's, bit-identical.
 
-use crate::caps::{close_with_caps, remesh_wall, zip_rings};
+use crate::capping::{close_with_caps, remesh_wall, zip_rings};
 use crate::polygon2d::{distance_to_polygon_mm, inside_polygon};
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;

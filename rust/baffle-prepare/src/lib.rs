@@ -3,7 +3,7 @@
 //! [`voxelize`] (inside/outside masks), [`union_surface`] (one manifold surface
 //! without internal walls), [`interfaces`] (labels by nearest structure, VSD and
 //! aortic loops), [`clip`] (cut along both loops, keep the RV between them),
-//! [`caps`] (planar caps and the final remesh), joined by [`prepare::prepare`].
+//! [`capping`] (planar caps and the final remesh), joined by [`prepare::prepare`].
 //! [`extend`] grows a designed domain into the extended CFD domain (paper 2.5): the LV
 //! back to a mid-LV plane and the aorta up to the sinotubular junction.
 //!
@@ -16,7 +16,7 @@ pub mod error;
 pub mod input;
 pub mod interfaces;
 pub mod clip;
-pub mod caps;
+pub mod capping;
 pub mod cap_checks;
 mod planar_cap;
 mod polygon2d;

@@ -234,7 +234,7 @@ impl CapMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::caps::ear_clip;
+    use crate::capping::ear_clip;
 
     fn square_plane() -> Plane {
         Plane { centroid: Vec3::zeros(), normal: Vec3::z(), axis_u: Vec3::x(), axis_v: Vec3::y(), singular_values: [1.0, 1.0, 0.0] }

@@ -1,7 +1,7 @@
 //! The whole of paper section 2.2.2: blood pools in, capped ventricle out.
 
 use crate::cap_checks::{prepared_cap_checks, BridgedGap};
-use crate::caps::{close_with_caps, remesh_wall};
+use crate::capping::{close_with_caps, remesh_wall};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
 use crate::interfaces::{interface_edges, interface_loop, label_by_nearest, InterfaceLoop, LoopOptions, Structure};
