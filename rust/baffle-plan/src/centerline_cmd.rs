@@ -6,10 +6,10 @@
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use crate::progress::{Progress, Style};
-use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
+use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
 use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
-use baffle_core::TriMesh;
+use baffle_core::{FaceLabels, TriMesh};
 use clap::Args;
 use serde::Deserialize;
 use serde_json::json;
@@ -23,7 +23,7 @@ pub struct CenterlineArgs {
     pub surface: PathBuf,
     /// The measurement planes, inflow first, as ModelFaceIDs: caps of --surface, or
     /// face sets of --plane-faces.
-    #[arg(long, value_delimiter = ',', default_value = "11,16")]
+    #[arg(long, value_delimiter = ',', default_values_t = CenterlineArgs::default().planes)]
     pub planes: Vec<i32>,
     /// The end caps of --surface the path runs between (inflow first), when the planes
     /// are not caps of it (an extended domain, e.g. `baffle extend`'s 20,21); default: the
@@ -35,23 +35,23 @@ pub struct CenterlineArgs {
     #[arg(long)]
     pub plane_faces: Option<PathBuf>,
     /// Factor from the files' units to mm (10 for the paper's published files, in cm).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = CenterlineArgs::default().scale)]
     pub scale: f64,
     /// A `baffle simulate` result (peak.vtu: mm, velocity_m_s, pressure_mmhg) to sample along the centerline.
     #[arg(long)]
     pub results: Option<PathBuf>,
     /// Voxel size of the distance field (mm).
-    #[arg(long, default_value_t = CenterlineOptions::default().voxel_mm)]
+    #[arg(long, default_value_t = CenterlineArgs::default().voxel_mm)]
     pub voxel_mm: f64,
     /// Largest distance between centerline points (mm); the paper used 0.5.
-    #[arg(long, default_value_t = PAPER_SPACING_MM)]
+    #[arg(long, default_value_t = CenterlineArgs::default().spacing_mm)]
     pub spacing_mm: f64,
     /// Half-width of the moving average smoothing the path (mm).
-    #[arg(long, default_value_t = CenterlineOptions::default().smoothing_mm)]
+    #[arg(long, default_value_t = CenterlineArgs::default().smoothing_mm)]
     pub smoothing_mm: f64,
     /// Largest re-centring shift of a path point in its normal plane, as a fraction of
     /// its inscribed radius (0: the minimal path as found on the voxels, smoothed).
-    #[arg(long, default_value_t = CenterlineOptions::default().recenter_fraction)]
+    #[arg(long, default_value_t = CenterlineArgs::default().recenter_fraction)]
     pub recenter_fraction: f64,
     /// The peak flow (ml/s): <stem>.json then holds hemodynamics_estimate, dp at peak flow
     /// between the planes and the peak velocity from the sections normal to the centerline
@@ -62,6 +62,27 @@ pub struct CenterlineArgs {
     /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
     #[arg(long)]
     pub out: PathBuf,
+}
+
+impl Default for CenterlineArgs {
+    fn default() -> Self {
+        let labels = FaceLabels::default();
+        let o = CenterlineOptions::default();
+        CenterlineArgs {
+            surface: PathBuf::new(),
+            planes: vec![labels.vsd_cap, labels.aortic_cap],
+            ends: None,
+            plane_faces: None,
+            scale: 1.0,
+            results: None,
+            voxel_mm: o.voxel_mm,
+            spacing_mm: o.spacing_mm,
+            smoothing_mm: o.smoothing_mm,
+            recenter_fraction: o.recenter_fraction,
+            peak_flow_ml_s: None,
+            out: PathBuf::new(),
+        }
+    }
 }
 
 fn read_mm(path: &Path, scale: f64) -> Result<TriMesh, String> {

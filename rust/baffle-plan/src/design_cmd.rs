@@ -32,40 +32,40 @@ pub struct DesignArgs {
     pub target: TargetArgs,
     /// Frame of the surface file; suture points are converted into it. Slicer writes
     /// models in LPS.
-    #[arg(long, value_enum, default_value_t = Frame::Lps)]
+    #[arg(long, value_enum, default_value_t = DesignArgs::default().surface_frame)]
     pub surface_frame: Frame,
     /// Target edge length of the isotropic remeshing of the kept wall (mm).
-    #[arg(long, default_value_t = 0.85)]
+    #[arg(long, default_value_t = DesignArgs::default().remesh_edge_mm)]
     pub remesh_edge_mm: f64,
     /// Keep the input's wall triangles (no isotropic remeshing).
     #[arg(long)]
     pub no_remesh: bool,
     /// Target edge length of the baffle (mm).
-    #[arg(long, default_value_t = 0.85)]
+    #[arg(long, default_value_t = DesignArgs::default().baffle_edge_mm)]
     pub baffle_edge_mm: f64,
     /// Points the seam spline is resampled at.
-    #[arg(long, default_value_t = 600)]
+    #[arg(long, default_value_t = DesignArgs::default().seam_samples)]
     pub seam_samples: usize,
     /// Centerline section spacing (mm).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = DesignArgs::default().centerline_spacing_mm)]
     pub centerline_spacing_mm: f64,
     /// Interior TPS control points of the initial patch.
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = DesignArgs::default().control_points)]
     pub control_points: usize,
     /// Largest distance of a suture point from the surface (mm).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = DesignArgs::default().max_point_distance_mm)]
     pub max_point_distance_mm: f64,
     /// ModelFaceID of the RV wall.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = DesignArgs::default().wall_label)]
     pub wall_label: i32,
     /// ModelFaceID given to the baffle.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = DesignArgs::default().baffle_label)]
     pub baffle_label: i32,
     /// ModelFaceID of the VSD cap.
-    #[arg(long, default_value_t = 11)]
+    #[arg(long, default_value_t = DesignArgs::default().vsd_label)]
     pub vsd_label: i32,
     /// ModelFaceID of the aortic-annulus cap.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = DesignArgs::default().aortic_label)]
     pub aortic_label: i32,
     /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
     /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
@@ -79,7 +79,7 @@ pub struct DesignArgs {
     #[arg(long)]
     pub reference_baffle: Option<PathBuf>,
     /// Scale of the reference's coordinates to mm (10 for the published files, in cm).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = DesignArgs::default().reference_scale)]
     pub reference_scale: f64,
     /// Closed surface of the pulmonary artery (mm, the surface's frame), e.g. a
     /// segmentation's pulmonary.vtp: measures the smallest section of the RV-to-pulmonary
@@ -104,7 +104,7 @@ pub struct DesignArgs {
     pub progress_tags: bool,
 }
 
-#[derive(Args, Clone)]
+#[derive(Args, Clone, Default)]
 pub struct TargetArgs {
     /// Target cross-section area (mm2).
     #[arg(long, group = "target_kind")]
@@ -123,13 +123,48 @@ pub struct TargetArgs {
     pub weight_kg: Option<f64>,
     /// Annulus z-score for --bsa or --height-cm/--weight-kg (not with a given area or diameter,
     /// which it would not change).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, conflicts_with_all = ["target_area_mm2", "annulus_diameter_mm"])]
+    #[arg(long, default_value_t = TargetArgs::default().z_score, allow_negative_numbers = true, conflicts_with_all = ["target_area_mm2", "annulus_diameter_mm"])]
     pub z_score: f64,
 }
 
+/// The defaults are `baffle_core`'s (`DesignOptions::default()`, `FaceLabels::default()`).
+impl Default for DesignArgs {
+    fn default() -> Self {
+        let o = DesignOptions::default();
+        DesignArgs {
+            surface: None,
+            points: None,
+            phantom: false,
+            out: PathBuf::new(),
+            target: TargetArgs::default(),
+            surface_frame: Frame::default(),
+            remesh_edge_mm: o.remesh_edge_mm.unwrap_or_default(),
+            no_remesh: o.remesh_edge_mm.is_none(),
+            baffle_edge_mm: o.baffle_edge_mm,
+            seam_samples: o.seam_samples,
+            centerline_spacing_mm: o.centerline_spacing_mm,
+            control_points: o.interior_control_points,
+            max_point_distance_mm: o.max_point_distance_mm,
+            wall_label: o.labels.wall,
+            baffle_label: o.labels.baffle,
+            vsd_label: o.labels.vsd_cap,
+            aortic_label: o.labels.aortic_cap,
+            vsd_cap_point: None,
+            aortic_cap_point: None,
+            reference_baffle: None,
+            reference_scale: 1.0,
+            pulmonary: None,
+            flow_sections: false,
+            peak_flow_ml_s: None,
+            progress_tags: false,
+        }
+    }
+}
+
 /// The frame a surface's coordinates are in (the points are converted into it).
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Default, ValueEnum)]
 pub enum Frame {
+    #[default]
     Lps,
     Ras,
 }

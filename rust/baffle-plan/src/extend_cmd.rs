@@ -78,6 +78,29 @@ pub struct ExtendArgs {
     pub no_baffle: bool,
 }
 
+impl Default for ExtendArgs {
+    fn default() -> Self {
+        let labels = FaceLabels::default();
+        ExtendArgs {
+            domain: PathBuf::new(),
+            source: PrepareSource::default(),
+            out: PathBuf::new(),
+            inflow_label: INFLOW_CAP_LABEL,
+            outflow_label: OUTFLOW_CAP_LABEL,
+            wall_label: labels.wall,
+            baffle_label: labels.baffle,
+            vsd_label: labels.vsd_cap,
+            aortic_label: labels.aortic_cap,
+            voxel_mm: PrepareOptions::default().voxel_mm,
+            remesh_edge_mm: None,
+            remesh_domain_edge_mm: None,
+            inflow_offset_mm: None,
+            outflow_diameters: None,
+            no_baffle: false,
+        }
+    }
+}
+
 pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = progress.while_running("extend", || extend_to_file(args));

@@ -16,24 +16,31 @@ Example (an extended domain, its VSD and aortic caps kept inside as measurement 
 pub struct MeshArgs {
     /// Closed, labelled surface (e.g. domain.vtp from `baffle design`), mm.
     #[arg(long)]
-    surface: PathBuf,
+    pub surface: PathBuf,
     /// Largest tetrahedron edge length (mm); the paper used 1.25 / 0.95 / 0.75.
-    #[arg(long, default_value_t = 0.95)]
-    edge_length_mm: f64,
+    #[arg(long, default_value_t = MeshOptions::default().edge_length_mm)]
+    pub edge_length_mm: f64,
     /// Output volume mesh (.vtu). Beside it: <stem>-faces.vtp (ModelFaceID,
     /// GlobalNodeID) and <stem>-quality.json.
     #[arg(long)]
-    out: PathBuf,
+    pub out: PathBuf,
     /// Remesh the boundary at the edge length first (labels and rims kept).
     #[arg(long)]
-    remesh_surface: bool,
+    pub remesh_surface: bool,
     /// ModelFaceIDs of the surface that lie inside the domain (measurement planes, e.g.
     /// 11,16 in `baffle extend`'s output): meshed as conforming interior face sets.
     #[arg(long, value_delimiter = ',')]
-    interior_labels: Vec<i32>,
+    pub interior_labels: Vec<i32>,
     /// gmsh executable (default: $BAFFLE_GMSH, then gmsh on PATH, then the Python wheel).
     #[arg(long)]
-    gmsh: Option<PathBuf>,
+    pub gmsh: Option<PathBuf>,
+}
+
+impl Default for MeshArgs {
+    fn default() -> Self {
+        let o = MeshOptions::default();
+        MeshArgs { surface: PathBuf::new(), edge_length_mm: o.edge_length_mm, out: PathBuf::new(), remesh_surface: o.remesh_surface, interior_labels: Vec::new(), gmsh: None }
+    }
 }
 
 pub fn run_mesh(args: &MeshArgs) -> Result<(), String> {

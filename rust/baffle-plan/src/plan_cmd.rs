@@ -8,21 +8,24 @@
 //! (no LV or aorta known) the domain stays the designed one, inflow at the VSD cap.
 //!
 //! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
-//! `run_mesh`, `run_simulate_tagged`) with the arguments a user would type for them, so the plan
-//! keeps each command's defaults and checks. A stage reads its inputs from the files
+//! `run_mesh_with`, `run_simulate_with`) with each command's typed options: its defaults
+//! (`Default`) and the plan's values, so the plan keeps each command's defaults and checks. A stage reads its inputs from the files
 //! of the stages before it, so what the report shows is what those files hold.
 
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::design_cmd::{design_reporting, DesignArgs};
 use crate::plan_stages::{
-    command_args, extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, level_extended_surface_path, mesh_path, plan_stages, prepared_surface_path,
+    extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, level_extended_surface_path, mesh_path, plan_stages, prepared_surface_path,
     FlowCase, PlanArgs, Stage, StageRecord, Step,
 };
-use crate::prepare_cmd;
+use crate::centerline_cmd::{self, CenterlineArgs};
+use crate::extend_cmd::{self, ExtendArgs};
+use crate::mesh_cmd::{self, MeshArgs};
+use crate::prepare_cmd::{self, PrepareArgs};
 use crate::progress::{Progress, Style};
-use crate::{centerline_cmd, extend_cmd, mesh_cmd, report, simulate_cmd};
+use crate::report;
+use crate::simulate_cmd::{self, SimulateArgs};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
-use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -93,74 +96,85 @@ fn design_peak_flow_ml_s(args: &PlanArgs) -> Result<f64, String> {
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
 pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
-    let out = &args.design.out;
     match &stage.step {
-        Step::Prepare => {
-            let mut argv: Vec<OsString> = vec!["--out".into(), prepared_surface_path(out).into()];
-            if let Some(edge) = args.prepare_remesh_edge_mm {
-                argv.extend(["--remesh-edge-mm".into(), edge.to_string().into()]);
-            }
-            let mut prepare = command_args::<prepare_cmd::PrepareArgs>("prepare", &argv)?;
-            prepare.source = args.prepare.clone();
-            progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare)).map(|_| ())
-        }
+        Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args))).map(|_| ()),
         Step::Design => {
-            let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
-            let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
-            let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
-            let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() };
+            let design = design_stage(args, dir)?;
             design_reporting(&design, &mut |f, s| {
                 progress.report(f, "design", s);
                 true
             })
         }
-        Step::Centerline => {
-            let d = &args.design;
-            let planes = format!("{},{}", d.vsd_label, d.aortic_label);
-            let mut argv: Vec<OsString> = vec!["--planes".into(), planes.into(), "--out".into(), flow_centerline_path(out).into()];
-            if is_extended(args) {
-                // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to
-                // the STJ cap, trimmed at the VSD and aortic caps (interior planes).
-                let ends = format!("{INFLOW_CAP_LABEL},{OUTFLOW_CAP_LABEL}");
-                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--ends".into(), ends.into()]);
-            } else {
-                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into()]);
-            }
-            let centerline = command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?;
-            centerline_cmd::run_centerline_with(&centerline, progress)
-        }
+        Step::Centerline => centerline_cmd::run_centerline_with(&centerline_stage(args), progress),
         Step::Extend { level, remesh_domain_edge_mm } => {
-            let domain = out.join("design").join("domain.vtp");
-            let d = &args.design;
-            let extended = level.map_or_else(|| extended_surface_path(out), |l| level_extended_surface_path(args, l));
-            let mut argv: Vec<OsString> = vec!["--domain".into(), domain.into(), "--out".into(), extended.into()];
-            if let Some(edge_mm) = remesh_domain_edge_mm {
-                argv.extend(["--remesh-domain-edge-mm".into(), edge_mm.to_string().into()]);
-            }
-            for (flag, label) in [("--wall-label", d.wall_label), ("--baffle-label", d.baffle_label), ("--vsd-label", d.vsd_label), ("--aortic-label", d.aortic_label)] {
-                argv.extend([flag.into(), label.to_string().into()]);
-            }
-            let mut extend = command_args::<extend_cmd::ExtendArgs>("extend", &argv)?;
-            extend.source = args.prepare.clone();
+            let extend = extend_stage(args, *level, *remesh_domain_edge_mm);
             progress.while_running("extend", || extend_cmd::extend_to_file(&extend)).map(|_| ())
         }
-        Step::Mesh { level, edge_length_mm } => {
-            let mut argv: Vec<OsString> = vec!["--edge-length-mm".into(), edge_length_mm.to_string().into(), "--out".into(), mesh_path(out, level).into()];
-            if is_extended(args) {
-                // The interior caps share the boundary's rim points: the boundary is meshed as built.
-                let interior = format!("{},{}", args.design.vsd_label, args.design.aortic_label);
-                argv.extend(["--surface".into(), level_extended_surface_path(args, level).into(), "--interior-labels".into(), interior.into()]);
-            } else {
-                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into(), "--remesh-surface".into()]);
-            }
-            mesh_cmd::run_mesh_with(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?, progress)
-        }
+        Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh_with(&mesh_stage(args, level, *edge_length_mm), progress),
         Step::Simulate { level, flow } => {
-            let case_path = write_case(dir, &simulate_case(args, level, *flow)?)?;
-            let argv: Vec<OsString> = vec![case_path.into(), "--out".into(), dir.into()];
-            let simulate = command_args::<simulate_cmd::SimulateArgs>("simulate", &argv)?;
-            simulate_cmd::run_simulate_with(&simulate, progress)
+            let case = write_case(dir, &simulate_case(args, level, *flow)?)?;
+            simulate_cmd::run_simulate_with(&SimulateArgs { case, out: dir.to_path_buf(), ..SimulateArgs::default() }, progress)
         }
+    }
+}
+
+/// The prepare stage: `baffle prepare`'s defaults, the plan's source and remesh edge.
+fn prepare_stage(args: &PlanArgs) -> PrepareArgs {
+    let defaults = PrepareArgs::default();
+    PrepareArgs {
+        source: args.prepare.clone(),
+        out: prepared_surface_path(&args.design.out),
+        remesh_edge_mm: args.prepare_remesh_edge_mm.unwrap_or(defaults.remesh_edge_mm),
+        ..defaults
+    }
+}
+
+/// The design stage: the plan's design options, from the prepared surface when there is
+/// one, with the pulmonary artery and the peak flow the plan knows.
+fn design_stage(args: &PlanArgs, dir: &Path) -> Result<DesignArgs, String> {
+    let out = &args.design.out;
+    let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
+    let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
+    Ok(DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() })
+}
+
+/// The centerline stage between the VSD and aortic caps.
+fn centerline_stage(args: &PlanArgs) -> CenterlineArgs {
+    let (d, out) = (&args.design, &args.design.out);
+    let (surface, ends) = match is_extended(args) {
+        // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to the
+        // STJ cap, trimmed at the VSD and aortic caps (interior planes).
+        true => (extended_surface_path(out), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
+        false => (out.join("design").join("domain.vtp"), None),
+    };
+    CenterlineArgs { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: flow_centerline_path(out), ..CenterlineArgs::default() }
+}
+
+/// An extend stage: the designed domain, with a mesh-study level's own remesh.
+fn extend_stage(args: &PlanArgs, level: Option<&str>, remesh_domain_edge_mm: Option<f64>) -> ExtendArgs {
+    let (d, out) = (&args.design, &args.design.out);
+    ExtendArgs {
+        domain: out.join("design").join("domain.vtp"),
+        source: args.prepare.clone(),
+        out: level.map_or_else(|| extended_surface_path(out), |l| level_extended_surface_path(args, l)),
+        remesh_domain_edge_mm,
+        wall_label: d.wall_label,
+        baffle_label: d.baffle_label,
+        vsd_label: d.vsd_label,
+        aortic_label: d.aortic_label,
+        ..ExtendArgs::default()
+    }
+}
+
+/// A mesh stage: the extended domain as built (its interior caps share the boundary's
+/// rim points), or the designed domain with its boundary remeshed.
+fn mesh_stage(args: &PlanArgs, level: &str, edge_length_mm: f64) -> MeshArgs {
+    let (d, out) = (&args.design, &args.design.out);
+    let mesh = MeshArgs { edge_length_mm, out: mesh_path(out, level), ..MeshArgs::default() };
+    match is_extended(args) {
+        true => MeshArgs { surface: level_extended_surface_path(args, level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
+        false => MeshArgs { surface: out.join("design").join("domain.vtp"), remesh_surface: true, ..mesh },
     }
 }
 

@@ -5,8 +5,7 @@
 use crate::design_cmd::{target_from, DesignArgs};
 use crate::prepare_cmd::PrepareSource;
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
-use clap::{Args, FromArgMatches};
-use std::ffi::OsString;
+use clap::Args;
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
@@ -50,10 +49,10 @@ pub struct PlanArgs {
     #[arg(long)]
     pub pulsatile: bool,
     /// Cardiac cycles of a pulsatile run (the last one is reported).
-    #[arg(long, default_value_t = 4, value_parser = crate::case::at_least_one)]
+    #[arg(long, default_value_t = PlanArgs::default().cycles, value_parser = crate::case::at_least_one)]
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
-    #[arg(long, default_value_t = 0.95)]
+    #[arg(long, default_value_t = PlanArgs::default().edge_length_mm)]
     pub edge_length_mm: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
@@ -71,7 +70,7 @@ pub struct PlanArgs {
     #[arg(long)]
     pub elevated_flow: bool,
     /// Cardiac index of the nominal runs (L/min/m2): the mean flow is BSA x cardiac index.
-    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2)]
+    #[arg(long, default_value_t = PlanArgs::default().cardiac_index)]
     pub cardiac_index: f64,
     /// Target edge of the prepare stage's final isotropic remesh (mm; `baffle prepare
     /// --remesh-edge-mm`, default 0.5). The design remeshes the kept wall at --remesh-edge-mm.
@@ -81,6 +80,33 @@ pub struct PlanArgs {
     /// lies in one of its patients' folders).
     #[arg(long)]
     pub patient_label: Option<String>,
+}
+
+/// Cardiac cycles of a pulsatile run by default.
+pub const CYCLES: usize = 4;
+
+/// The paper's settings; no blood pressure (NaN: a plan needs the patient's) and no
+/// output folder.
+impl Default for PlanArgs {
+    fn default() -> Self {
+        PlanArgs {
+            design: DesignArgs::default(),
+            prepare: PrepareSource::default(),
+            bp: (f64::NAN, f64::NAN),
+            hr: None,
+            steady: false,
+            quick: false,
+            pulsatile: false,
+            cycles: CYCLES,
+            edge_length_mm: PAPER_NOMINAL_MM,
+            mesh_study: false,
+            single_mesh: false,
+            elevated_flow: false,
+            cardiac_index: CARDIAC_INDEX_DEFAULT_L_MIN_M2,
+            prepare_remesh_edge_mm: None,
+            patient_label: None,
+        }
+    }
 }
 
 impl PlanArgs {
@@ -101,7 +127,7 @@ pub(crate) fn parse_bp(text: &str) -> Result<(f64, f64), String> {
 
 /// The nominal mesh size and the paper's mesh-study sizes (mm) at 0.95 mm nominal.
 const PAPER_NOMINAL_MM: f64 = 0.95;
-const PAPER_COARSE_MM: f64 = 1.25;
+pub const PAPER_COARSE_MM: f64 = 1.25;
 const PAPER_FINE_MM: f64 = 0.75;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -284,13 +310,6 @@ pub fn flow_bsa_m2(args: &PlanArgs) -> Result<f64, String> {
     }
 }
 
-/// Parse `argv` as the arguments of the command whose `Args` are `A`.
-pub fn command_args<A: Args + FromArgMatches>(name: &'static str, argv: &[OsString]) -> Result<A, String> {
-    let command = A::augment_args(clap::Command::new(name).no_binary_name(true));
-    let matches = command.try_get_matches_from(argv).map_err(|e| format!("{name} arguments: {e}"))?;
-    A::from_arg_matches(&matches).map_err(|e| format!("{name} arguments: {e}"))
-}
-
 /// The flow-domain centerline a centerline stage writes (its figures in the .json beside it).
 pub fn flow_centerline_path(out: &Path) -> PathBuf {
     out.join("centerline").join("centerline.vtp")
@@ -304,31 +323,46 @@ pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
 mod tests {
     use super::*;
 
-    fn stage_names(source: &[&str]) -> Vec<String> {
-        let mut argv: Vec<OsString> = source.iter().map(OsString::from).collect();
-        argv.extend(["--points", "p.mrk.json", "--bsa", "0.37", "--bp", "107/78", "--out", "o"].map(OsString::from));
-        let args = command_args::<PlanArgs>("plan", &argv).unwrap();
-        plan_stages(&args).unwrap().into_iter().map(|s| s.name).collect()
+    /// A plan of the suture points p.mrk.json, BSA 0.37 and 107/78 into `o`, with `edit` applied.
+    fn plan(edit: impl FnOnce(&mut PlanArgs)) -> PlanArgs {
+        let mut args = PlanArgs { bp: (107.0, 78.0), ..PlanArgs::default() };
+        args.design.points = Some("p.mrk.json".into());
+        args.design.target.bsa = Some(0.37);
+        args.design.out = "o".into();
+        edit(&mut args);
+        args
+    }
+
+    fn stage_names(edit: impl FnOnce(&mut PlanArgs)) -> Vec<String> {
+        plan_stages(&plan(edit)).unwrap().into_iter().map(|s| s.name).collect()
+    }
+
+    fn segmentations(a: &mut PlanArgs) {
+        a.prepare.segmentations = Some("seg".into());
     }
 
     #[test]
     fn segmentations_or_a_label_map_put_a_prepare_stage_first() {
         let rest = ["design", "centerline", "mesh-nominal", "simulate-nominal"];
         let extended = ["design", "extend", "centerline", "mesh-nominal", "simulate-nominal"];
-        assert_eq!(stage_names(&["--segmentations", "seg", "--single-mesh"]), [&["prepare"][..], &extended].concat());
-        assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8", "--single-mesh"]), [&["prepare"][..], &extended].concat());
-        assert_eq!(stage_names(&["--surface", "capped.vtp", "--single-mesh"]), rest);
+        let single = |a: &mut PlanArgs| a.single_mesh = true;
+        assert_eq!(stage_names(|a| (segmentations(a), single(a)).1), [&["prepare"][..], &extended].concat());
+        let labelmap = |a: &mut PlanArgs| {
+            (a.prepare.labelmap, a.prepare.aorta_label) = (Some("heart.nrrd".into()), 8);
+            single(a)
+        };
+        assert_eq!(stage_names(labelmap), [&["prepare"][..], &extended].concat());
+        assert_eq!(stage_names(|a| (a.design.surface = Some("capped.vtp".into()), single(a)).1), rest);
     }
 
     #[test]
     fn an_extended_mesh_study_extends_every_level_at_its_own_size() {
         // The study is the default; --mesh-study says so explicitly.
-        assert_eq!(stage_names(&["--segmentations", "seg"]), stage_names(&["--segmentations", "seg", "--mesh-study"]));
-        let names = stage_names(&["--segmentations", "seg", "--edge-length-mm", "0.95"]);
+        assert_eq!(stage_names(segmentations), stage_names(|a| (segmentations(a), a.mesh_study = true).1));
+        let names = stage_names(|a| (segmentations(a), a.edge_length_mm = 0.95).1);
         let levels = ["nominal", "coarse", "fine"].map(|l| [format!("extend-{l}"), format!("mesh-{l}"), format!("simulate-{l}")]).concat();
         assert_eq!(names, [&["prepare", "design", "extend", "centerline"].map(String::from)[..], &levels].concat());
-        let argv: Vec<OsString> = ["--segmentations", "seg", "--mesh-study", "--points", "p", "--bsa", "0.37", "--bp", "107/78", "--out", "o"].map(OsString::from).to_vec();
-        let args = command_args::<PlanArgs>("plan", &argv).unwrap();
+        let args = plan(|a| (segmentations(a), a.mesh_study = true).1);
         let extends: Vec<Option<f64>> = plan_stages(&args)
             .unwrap()
             .into_iter()
@@ -342,7 +376,7 @@ mod tests {
         let study: Vec<(String, Option<&str>)> = plan_stages(&args).unwrap().into_iter().map(|s| (s.name.clone(), s.study_level())).collect();
         assert!(study.iter().all(|(name, level)| level.is_some() == (name.ends_with("-coarse") || name.ends_with("-fine"))), "{study:?}");
         // From a surface the mesh stage remeshes the boundary itself: no extend stages.
-        let names = stage_names(&["--surface", "capped.vtp"]);
+        let names = stage_names(|a| a.design.surface = Some("capped.vtp".into()));
         assert!(!names.iter().any(|n| n.starts_with("extend")) && names.contains(&"mesh-fine".to_string()), "{names:?}");
     }
 

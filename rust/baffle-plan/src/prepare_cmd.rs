@@ -26,22 +26,40 @@ pub struct PrepareSource {
     #[arg(long)]
     pub labelmap: Option<PathBuf>,
     /// Label value of the LV blood pool in --labelmap.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = PrepareSource::default().lv_label)]
     pub lv_label: i32,
     /// Label value of the RV blood pool in --labelmap.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = PrepareSource::default().rv_label)]
     pub rv_label: i32,
     /// Label value of the aorta in --labelmap.
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = PrepareSource::default().aorta_label)]
     pub aorta_label: i32,
     /// Label value of the pulmonary artery in --labelmap: its surface is written beside
     /// the capped ventricle (<stem>-pulmonary.vtp) and ends the RV outflow path. A label
     /// map without it still prepares; the RV outflow is then not measured.
-    #[arg(long, default_value_t = 7)]
+    #[arg(long, default_value_t = PrepareSource::default().pulmonary_label)]
     pub pulmonary_label: i32,
     /// Skip the 3x3x3 median filter of each --labelmap label mask.
     #[arg(long)]
     pub no_median: bool,
+}
+
+/// The label map's pulmonary artery label by default (the convention: PA 7).
+pub const PULMONARY_LABEL: i32 = 7;
+
+impl Default for PrepareSource {
+    fn default() -> Self {
+        let pools = PoolLabels::default();
+        PrepareSource {
+            segmentations: None,
+            labelmap: None,
+            lv_label: pools.lv,
+            rv_label: pools.rv,
+            aorta_label: pools.aorta,
+            pulmonary_label: PULMONARY_LABEL,
+            no_median: false,
+        }
+    }
 }
 
 impl PrepareSource {
@@ -83,23 +101,40 @@ pub struct PrepareArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Voxel edge of the union grid (mm).
-    #[arg(long, default_value_t = 0.3)]
-    voxel_mm: f64,
+    #[arg(long, default_value_t = PrepareArgs::default().voxel_mm)]
+    pub voxel_mm: f64,
     /// Margin of the union grid around the RV (mm); the LV and aorta beyond it are cut off.
-    #[arg(long, default_value_t = 5.0)]
-    crop_margin_mm: f64,
+    #[arg(long, default_value_t = PrepareArgs::default().crop_margin_mm)]
+    pub crop_margin_mm: f64,
     /// Radius of the morphological closing of the union mask (mm).
-    #[arg(long, default_value_t = 0.6)]
-    closing_radius_mm: f64,
+    #[arg(long, default_value_t = PrepareArgs::default().closing_radius_mm)]
+    pub closing_radius_mm: f64,
     /// Target edge of the final isotropic remesh (mm).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = PrepareArgs::default().remesh_edge_mm)]
     pub remesh_edge_mm: f64,
     /// Keep the contour's triangles (no final remesh).
     #[arg(long)]
-    no_remesh: bool,
+    pub no_remesh: bool,
     /// Taubin smoothing iterations of the union surface.
-    #[arg(long, default_value_t = 20)]
-    smoothing_iterations: usize,
+    #[arg(long, default_value_t = PrepareArgs::default().smoothing_iterations)]
+    pub smoothing_iterations: usize,
+}
+
+/// The defaults are `baffle_prepare`'s own (`PrepareOptions::default()`).
+impl Default for PrepareArgs {
+    fn default() -> Self {
+        let o = PrepareOptions::default();
+        PrepareArgs {
+            source: PrepareSource::default(),
+            out: PathBuf::new(),
+            voxel_mm: o.voxel_mm,
+            crop_margin_mm: o.crop_margin_mm,
+            closing_radius_mm: o.closing_radius_mm,
+            remesh_edge_mm: o.remesh_edge_mm.unwrap_or_default(),
+            no_remesh: o.remesh_edge_mm.is_none(),
+            smoothing_iterations: o.smoothing.iterations,
+        }
+    }
 }
 
 pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
