@@ -10,65 +10,52 @@ use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smalle
 use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::{FaceLabels, TriMesh};
-use clap::Args;
 use serde::Deserialize;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-#[derive(Args, Clone)]
-pub struct CenterlineArgs {
+#[derive(Clone)]
+pub struct CenterlineSettings {
     /// Closed lumen surface with ModelFaceID (e.g. domain.vtp of `baffle design`).
-    #[arg(long)]
     pub surface: PathBuf,
     /// The measurement planes, inflow first, as ModelFaceIDs: caps of --surface, or
     /// face sets of --plane-faces.
-    #[arg(long, value_delimiter = ',', default_values_t = CenterlineArgs::default().planes)]
     pub planes: Vec<i32>,
     /// The end caps of --surface the path runs between (inflow first), when the planes
     /// are not caps of it (an extended domain, e.g. `baffle extend`'s 20,21); default: the
     /// planes. Plane triangles of --surface that are not end caps are taken as interior.
-    #[arg(long, value_delimiter = ',')]
     pub ends: Option<Vec<i32>>,
     /// A face file holding the planes' triangles (e.g. mesh-faces.vtp of `baffle mesh`,
     /// whose interior face sets are the measurement planes).
-    #[arg(long)]
     pub plane_faces: Option<PathBuf>,
     /// Factor from the files' units to mm (10 for the paper's published files, in cm).
-    #[arg(long, default_value_t = CenterlineArgs::default().scale)]
     pub scale: f64,
     /// A `baffle simulate` result (peak.vtu: mm, velocity_m_s, pressure_mmhg) to sample along the centerline.
-    #[arg(long)]
     pub results: Option<PathBuf>,
     /// Voxel size of the distance field (mm).
-    #[arg(long, default_value_t = CenterlineArgs::default().voxel_mm)]
     pub voxel_mm: f64,
     /// Largest distance between centerline points (mm); the paper used 0.5.
-    #[arg(long, default_value_t = CenterlineArgs::default().spacing_mm)]
     pub spacing_mm: f64,
     /// Half-width of the moving average smoothing the path (mm).
-    #[arg(long, default_value_t = CenterlineArgs::default().smoothing_mm)]
     pub smoothing_mm: f64,
     /// Largest re-centring shift of a path point in its normal plane, as a fraction of
     /// its inscribed radius (0: the minimal path as found on the voxels, smoothed).
-    #[arg(long, default_value_t = CenterlineArgs::default().recenter_fraction)]
     pub recenter_fraction: f64,
     /// The peak flow (ml/s): <stem>.json then holds hemodynamics_estimate, dp at peak flow
     /// between the planes and the peak velocity from the sections normal to the centerline
     /// (baffle_core::hemodynamics_estimate; the planes' areas from their triangles).
-    #[arg(long, allow_hyphen_values = true)]
     pub peak_flow_ml_s: Option<f64>,
     /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,
     /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
-    #[arg(long)]
     pub out: PathBuf,
 }
 
-impl Default for CenterlineArgs {
+impl Default for CenterlineSettings {
     fn default() -> Self {
         let labels = FaceLabels::default();
         let o = CenterlineOptions::default();
-        CenterlineArgs {
+        CenterlineSettings {
             surface: PathBuf::new(),
             planes: vec![labels.vsd_cap, labels.aortic_cap],
             ends: None,
@@ -110,7 +97,7 @@ pub struct Measured {
 }
 
 /// The centerline of `args`, its flow-normal sections, and its profile when --results is given.
-pub fn compute(args: &CenterlineArgs) -> Result<Measured, String> {
+pub fn compute(args: &CenterlineSettings) -> Result<Measured, String> {
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));
     }
@@ -180,7 +167,7 @@ fn radius_range(line: &FlowCenterline) -> (f64, f64) {
 }
 
 /// The figures written to <stem>.json (also read back by the plan's report).
-fn summary(args: &CenterlineArgs, m: &Measured, wall_time_s: f64) -> serde_json::Value {
+fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_json::Value {
     let (line, profile) = (&m.line, m.profile.as_ref());
     let smallest = smallest_section(&line.s_mm, &m.sections_mm2);
     let (r_min, r_max) = radius_range(line);
@@ -223,7 +210,7 @@ pub fn output_paths(out: &Path) -> (PathBuf, PathBuf) {
     (out.with_extension("vtp"), out.with_extension("json"))
 }
 
-pub fn run_centerline(args: &CenterlineArgs) -> Result<(), String> {
+pub fn run_centerline(args: &CenterlineSettings) -> Result<(), String> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = run_centerline_with(args, &progress);
     progress.finish(None);
@@ -231,7 +218,7 @@ pub fn run_centerline(args: &CenterlineArgs) -> Result<(), String> {
 }
 
 /// `baffle centerline`, its computation shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result<(), String> {
+pub fn run_centerline_with(args: &CenterlineSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     let measured = progress.while_running("centerline", || compute(args))?;
     let wall_time_s = start.elapsed().as_secs_f64();

@@ -7,136 +7,106 @@ use baffle_core::outputs::write_design_outputs;
 use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::phantom::phantom_default;
 use baffle_core::rv_outflow::{rv_outflow, RvOutflow};
-use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh, Vec3};
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh};
+/// The point type of `DesignSettings`' cap points.
+pub use baffle_core::Vec3;
 use crate::{feasibility, files};
-use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 
 // Required-ness of --surface/--points is checked at run time (read_inputs), so that
 // `baffle plan` can offer other sources of the surface.
-#[derive(Args, Clone)]
-pub struct DesignArgs {
+#[derive(Clone)]
+pub struct DesignSettings {
     /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm (required unless --phantom).
-    #[arg(long)]
     pub surface: Option<PathBuf>,
     /// Suture points: Slicer markups (.mrk.json), .fcsv, CSV (x,y,z per line) or JSON (required unless --phantom).
-    #[arg(long)]
     pub points: Option<PathBuf>,
     /// Use the built-in synthetic phantom as surface and points (BSA 0.37 m2 unless given).
-    #[arg(long, conflicts_with_all = ["surface", "points"])]
     pub phantom: bool,
     /// Output directory.
-    #[arg(long)]
     pub out: PathBuf,
-    #[command(flatten)]
-    pub target: TargetArgs,
+    pub target: TargetSettings,
     /// Frame of the surface file; suture points are converted into it. Slicer writes
     /// models in LPS.
-    #[arg(long, value_enum, default_value_t = DesignArgs::default().surface_frame)]
     pub surface_frame: Frame,
     /// Target edge length of the isotropic remeshing of the kept wall (mm).
-    #[arg(long, default_value_t = DesignArgs::default().remesh_edge_mm)]
     pub remesh_edge_mm: f64,
     /// Keep the input's wall triangles (no isotropic remeshing).
-    #[arg(long)]
     pub no_remesh: bool,
     /// Target edge length of the baffle (mm).
-    #[arg(long, default_value_t = DesignArgs::default().baffle_edge_mm)]
     pub baffle_edge_mm: f64,
     /// Points the seam spline is resampled at.
-    #[arg(long, default_value_t = DesignArgs::default().seam_samples)]
     pub seam_samples: usize,
     /// Centerline section spacing (mm).
-    #[arg(long, default_value_t = DesignArgs::default().centerline_spacing_mm)]
     pub centerline_spacing_mm: f64,
     /// Interior TPS control points of the initial patch.
-    #[arg(long, default_value_t = DesignArgs::default().control_points)]
     pub control_points: usize,
     /// Largest distance of a suture point from the surface (mm).
-    #[arg(long, default_value_t = DesignArgs::default().max_point_distance_mm)]
     pub max_point_distance_mm: f64,
     /// ModelFaceID of the RV wall.
-    #[arg(long, default_value_t = DesignArgs::default().wall_label)]
     pub wall_label: i32,
     /// ModelFaceID given to the baffle.
-    #[arg(long, default_value_t = DesignArgs::default().baffle_label)]
     pub baffle_label: i32,
     /// ModelFaceID of the VSD cap.
-    #[arg(long, default_value_t = DesignArgs::default().vsd_label)]
     pub vsd_label: i32,
     /// ModelFaceID of the aortic-annulus cap.
-    #[arg(long, default_value_t = DesignArgs::default().aortic_label)]
     pub aortic_label: i32,
     /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
     /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
-    #[arg(long, value_parser = parse_point, requires = "aortic_cap_point", allow_hyphen_values = true)]
     pub vsd_cap_point: Option<Vec3>,
     /// A point on the aortic-annulus cap (see --vsd-cap-point).
-    #[arg(long, value_parser = parse_point, requires = "vsd_cap_point", allow_hyphen_values = true)]
     pub aortic_cap_point: Option<Vec3>,
     /// A reference baffle to compare with (area ratio, symmetric surface distance),
     /// written to reference_comparison.json; e.g. the paper's published_baffle.vtp.
-    #[arg(long)]
     pub reference_baffle: Option<PathBuf>,
     /// Scale of the reference's coordinates to mm (10 for the published files, in cm).
-    #[arg(long, default_value_t = DesignArgs::default().reference_scale)]
     pub reference_scale: f64,
     /// Closed surface of the pulmonary artery (mm, the surface's frame), e.g. a
     /// segmentation's pulmonary.vtp: measures the smallest section of the RV-to-pulmonary
     /// pathway before and after the baffle (report.json rv_outflow_*). Taken from
     /// --segmentations by `baffle plan` and `baffle sweep`.
-    #[arg(long)]
     pub pulmonary: Option<PathBuf>,
     /// Apply the target to the tunnel's sections normal to the flow too: the paper
     /// constrains sections normal to its centerline between the cap centroids, which runs
     /// oblique to the flow near the caps, so the flow's own sections can be smaller (up to
     /// 25% on p3). The design is run again at a raised target until the smallest section
     /// normal to the flow-domain centerline reaches the target (report.json flow_sections).
-    #[arg(long)]
     pub flow_sections: bool,
     /// The patient's peak flow (ml/s; the paper's is 3.26 x CI x BSA): report.json then
     /// holds hemodynamics_estimate, dp at peak flow and the peak velocity from the tunnel's
     /// flow-normal sections (baffle_core::hemodynamics_estimate, docs/hemodynamics_estimate.md).
-    #[arg(long, allow_hyphen_values = true)]
     pub peak_flow_ml_s: Option<f64>,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
-    #[arg(long)]
     pub progress_tags: bool,
 }
 
-#[derive(Args, Clone, Default)]
-pub struct TargetArgs {
+#[derive(Clone, Default)]
+pub struct TargetSettings {
     /// Target cross-section area (mm2).
-    #[arg(long, group = "target_kind")]
     pub target_area_mm2: Option<f64>,
     /// Target aortic annulus diameter (mm): A = pi (D/2)^2.
-    #[arg(long, group = "target_kind")]
     pub annulus_diameter_mm: Option<f64>,
     /// Body surface area (m2): Boston (Colan 2006) aortic annulus at --z-score.
-    #[arg(long, group = "target_kind")]
     pub bsa: Option<f64>,
     /// Height (cm), with --weight-kg: Haycock BSA, then the Boston annulus.
-    #[arg(long, requires = "weight_kg", group = "target_kind")]
     pub height_cm: Option<f64>,
     /// Weight (kg), with --height-cm.
-    #[arg(long, requires = "height_cm")]
     pub weight_kg: Option<f64>,
     /// Annulus z-score for --bsa or --height-cm/--weight-kg (not with a given area or diameter,
     /// which it would not change).
-    #[arg(long, default_value_t = TargetArgs::default().z_score, allow_negative_numbers = true, conflicts_with_all = ["target_area_mm2", "annulus_diameter_mm"])]
     pub z_score: f64,
 }
 
 /// The defaults are `baffle_core`'s (`DesignOptions::default()`, `FaceLabels::default()`).
-impl Default for DesignArgs {
+impl Default for DesignSettings {
     fn default() -> Self {
         let o = DesignOptions::default();
-        DesignArgs {
+        DesignSettings {
             surface: None,
             points: None,
             phantom: false,
             out: PathBuf::new(),
-            target: TargetArgs::default(),
+            target: TargetSettings::default(),
             surface_frame: Frame::default(),
             remesh_edge_mm: o.remesh_edge_mm.unwrap_or_default(),
             no_remesh: o.remesh_edge_mm.is_none(),
@@ -162,7 +132,7 @@ impl Default for DesignArgs {
 }
 
 /// The frame a surface's coordinates are in (the points are converted into it).
-#[derive(Clone, Copy, Default, ValueEnum)]
+#[derive(Clone, Copy, Default)]
 pub enum Frame {
     #[default]
     Lps,
@@ -179,7 +149,7 @@ impl From<Frame> for CoordinateSystem {
 }
 
 /// The target area the arguments give (`default_bsa_m2`, the phantom's, when none does).
-pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
+pub fn target_from(args: &TargetSettings, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
     let z_score = args.z_score;
     if let Some(a) = args.target_area_mm2 {
         return Ok(TargetArea::AreaMm2(a));
@@ -197,7 +167,7 @@ pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<Tar
 }
 
 /// `baffle design`: Slicer's progress tags on stdout with --progress-tags.
-pub fn run_design(args: &DesignArgs) -> Result<(), String> {
+pub fn run_design(args: &DesignSettings) -> Result<(), String> {
     let tags = args.progress_tags;
     design_reporting(args, &mut |fraction, stage| {
         if tags {
@@ -213,7 +183,7 @@ fn print_progress_tag(fraction: f64, stage: &str) {
 }
 
 /// `baffle design` with the progress sent to `progress`.
-pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
+pub fn design_reporting(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     // Options first: a bad number is refused before any file is read.
     let options = design_options(args)?;
     if let Some(q) = args.peak_flow_ml_s.filter(|q| !(q.is_finite() && *q > 0.0)) {
@@ -299,7 +269,7 @@ fn flow_sections_line(f: &baffle_core::flow_target::FlowSections) -> String {
 
 /// Surface, suture points (in the surface's frame) and the BSA that comes with the
 /// phantom (None for files).
-pub fn design_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>, Option<f64>), String> {
+pub fn design_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>, Option<f64>), String> {
     if args.phantom {
         let p = phantom_default();
         return Ok((p.surface, p.suture_points_mm, Some(p.bsa_m2)));
@@ -363,7 +333,7 @@ pub fn most_narrowed_text(n: Option<&baffle_core::rv_outflow::NarrowedSection>) 
 }
 
 /// The design options of the command line, range-checked in the one place the C ABI also uses.
-pub fn design_options(args: &DesignArgs) -> Result<DesignOptions, String> {
+pub fn design_options(args: &DesignSettings) -> Result<DesignOptions, String> {
     let options = DesignOptions {
         labels: FaceLabels {
             wall: args.wall_label,
@@ -401,7 +371,7 @@ fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path)
     files::write_atomic(&file, text.as_bytes())
 }
 
-fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
+fn read_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>), String> {
     let (Some(surface_path), Some(points_path)) = (&args.surface, &args.points) else {
         return Err("--surface and --points are required (or --phantom)".into());
     };
@@ -421,16 +391,6 @@ fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
     Ok((mesh, points.to_frame(args.surface_frame.into())))
 }
 
-fn parse_point(text: &str) -> Result<Vec3, String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{v}' is not a number")))
-        .collect::<Result<_, _>>()?;
-    match values[..] {
-        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok(Vec3::new(x, y, z)),
-        _ => Err(format!("expected x,y,z (three finite numbers), got '{text}'")),
-    }
-}
 
 /// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
 pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), String> {

@@ -1,7 +1,9 @@
 //! The work behind the `baffle` command line, as a library: the plan pipeline (its
 //! stages, the CFD case it writes, the embedded and svMultiPhysics runs, the sampling
-//! along the centerline, the verdict and the report) and each command's own run, so the
-//! command line only parses arguments and other front ends can call the same pipeline.
+//! along the centerline, the verdict and the report) and each command's own run, each
+//! taking plain typed settings (`*Settings`, their defaults in `Default`), so the command
+//! line (baffle-cli, the only user of clap) only parses arguments into them and other
+//! front ends can call the same pipeline.
 //!
 //! Module dependency order: a module uses only modules above it, so there are no circles
 //! (the test `each_module_uses_only_modules_declared_before_it` holds lib.rs to it).
@@ -16,7 +18,7 @@
 //! 3. `design_cmd` (feasibility), `extend_cmd` (prepare_cmd), `simulate_report` (case,
 //!    run_summary, verdict: the summary both engines write), `template_cmd` (design_cmd).
 //! 4. `simulate_svmp` (svmp_case, simulate_report), `plan_stages` (design_cmd,
-//!    prepare_cmd: the plan's arguments, stages and paths).
+//!    prepare_cmd: the plan's settings, stages and paths).
 //! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict, mesh_convergence,
 //!    sampling, centerline_cmd, prepare_cmd, design_cmd).
 //! 6. `plan_cmd` (every stage, report).

@@ -13,24 +13,24 @@
 //! of the stages before it, so what the report shows is what those files hold.
 
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
-use crate::design_cmd::{design_reporting, DesignArgs};
+use crate::design_cmd::{design_reporting, DesignSettings};
 use crate::plan_stages::{
     extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, level_extended_surface_path, mesh_path, plan_stages, prepared_surface_path,
-    FlowCase, PlanArgs, Stage, StageRecord, Step,
+    FlowCase, PlanSettings, Stage, StageRecord, Step,
 };
-use crate::centerline_cmd::{self, CenterlineArgs};
-use crate::extend_cmd::{self, ExtendArgs};
-use crate::mesh_cmd::{self, MeshArgs};
-use crate::prepare_cmd::{self, PrepareArgs};
+use crate::centerline_cmd::{self, CenterlineSettings};
+use crate::extend_cmd::{self, ExtendSettings};
+use crate::mesh_cmd::{self, MeshSettings};
+use crate::prepare_cmd::{self, PrepareSettings};
 use crate::progress::{Progress, Style};
 use crate::report;
-use crate::simulate_cmd::{self, SimulateArgs};
+use crate::simulate_cmd::{self, SimulateSettings};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The `baffle simulate` case of one run, its mesh given relative to the case file.
-fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, String> {
+fn simulate_case(args: &PlanSettings, level: &str, flow: FlowCase) -> Result<Case, String> {
     let mesh_dir = PathBuf::from("..").join(format!("mesh-{level}"));
     Ok(Case {
         mesh: MeshSpec {
@@ -55,7 +55,7 @@ fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, S
 }
 
 /// The case's time.mode: steady, quick (rest to the first flow peak) or transient.
-fn run_mode(args: &PlanArgs) -> &'static str {
+fn run_mode(args: &PlanSettings) -> &'static str {
     match (args.steady, args.quick) {
         (true, _) => "steady",
         (_, true) => crate::case::QUICK_MODE,
@@ -65,7 +65,7 @@ fn run_mode(args: &PlanArgs) -> &'static str {
 
 /// Extended: inflow cap in, STJ cap out, dp between the VSD and aortic caps (interior);
 /// otherwise in at the VSD cap, out at the aortic cap.
-fn face_roles(args: &PlanArgs) -> FaceRoles {
+fn face_roles(args: &PlanSettings) -> FaceRoles {
     let d = &args.design;
     let walls = vec![d.wall_label, d.baffle_label];
     if is_extended(args) {
@@ -85,7 +85,7 @@ fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
 /// The peak flow the design's reduced-order estimate is made at (ml/s): --peak-flow-ml-s
 /// when given, else the nominal CFD case's own (BSA x cardiac index through its inflow
 /// waveform), so the plan's design/report.json always holds the estimate (issue 31).
-fn design_peak_flow_ml_s(args: &PlanArgs) -> Result<f64, String> {
+fn design_peak_flow_ml_s(args: &PlanSettings) -> Result<f64, String> {
     if let Some(q) = args.design.peak_flow_ml_s {
         return Ok(q);
     }
@@ -95,7 +95,7 @@ fn design_peak_flow_ml_s(args: &PlanArgs) -> Result<f64, String> {
 }
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
-pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
+pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
     match &stage.step {
         Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args))).map(|_| ()),
         Step::Design => {
@@ -113,15 +113,15 @@ pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &P
         Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh_with(&mesh_stage(args, level, *edge_length_mm), progress),
         Step::Simulate { level, flow } => {
             let case = write_case(dir, &simulate_case(args, level, *flow)?)?;
-            simulate_cmd::run_simulate_with(&SimulateArgs { case, out: dir.to_path_buf(), ..SimulateArgs::default() }, progress)
+            simulate_cmd::run_simulate_with(&SimulateSettings { case, out: dir.to_path_buf(), ..SimulateSettings::default() }, progress)
         }
     }
 }
 
 /// The prepare stage: `baffle prepare`'s defaults, the plan's source and remesh edge.
-fn prepare_stage(args: &PlanArgs) -> PrepareArgs {
-    let defaults = PrepareArgs::default();
-    PrepareArgs {
+fn prepare_stage(args: &PlanSettings) -> PrepareSettings {
+    let defaults = PrepareSettings::default();
+    PrepareSettings {
         source: args.prepare.clone(),
         out: prepared_surface_path(&args.design.out),
         remesh_edge_mm: args.prepare_remesh_edge_mm.unwrap_or(defaults.remesh_edge_mm),
@@ -131,16 +131,16 @@ fn prepare_stage(args: &PlanArgs) -> PrepareArgs {
 
 /// The design stage: the plan's design options, from the prepared surface when there is
 /// one, with the pulmonary artery and the peak flow the plan knows.
-fn design_stage(args: &PlanArgs, dir: &Path) -> Result<DesignArgs, String> {
+fn design_stage(args: &PlanSettings, dir: &Path) -> Result<DesignSettings, String> {
     let out = &args.design.out;
     let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
     let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
     let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
-    Ok(DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() })
+    Ok(DesignSettings { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() })
 }
 
 /// The centerline stage between the VSD and aortic caps.
-fn centerline_stage(args: &PlanArgs) -> CenterlineArgs {
+fn centerline_stage(args: &PlanSettings) -> CenterlineSettings {
     let (d, out) = (&args.design, &args.design.out);
     let (surface, ends) = match is_extended(args) {
         // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to the
@@ -148,13 +148,13 @@ fn centerline_stage(args: &PlanArgs) -> CenterlineArgs {
         true => (extended_surface_path(out), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
         false => (out.join("design").join("domain.vtp"), None),
     };
-    CenterlineArgs { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: flow_centerline_path(out), ..CenterlineArgs::default() }
+    CenterlineSettings { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: flow_centerline_path(out), ..CenterlineSettings::default() }
 }
 
 /// An extend stage: the designed domain, with a mesh-study level's own remesh.
-fn extend_stage(args: &PlanArgs, level: Option<&str>, remesh_domain_edge_mm: Option<f64>) -> ExtendArgs {
+fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm: Option<f64>) -> ExtendSettings {
     let (d, out) = (&args.design, &args.design.out);
-    ExtendArgs {
+    ExtendSettings {
         domain: out.join("design").join("domain.vtp"),
         source: args.prepare.clone(),
         out: level.map_or_else(|| extended_surface_path(out), |l| level_extended_surface_path(args, l)),
@@ -163,22 +163,22 @@ fn extend_stage(args: &PlanArgs, level: Option<&str>, remesh_domain_edge_mm: Opt
         baffle_label: d.baffle_label,
         vsd_label: d.vsd_label,
         aortic_label: d.aortic_label,
-        ..ExtendArgs::default()
+        ..ExtendSettings::default()
     }
 }
 
 /// A mesh stage: the extended domain as built (its interior caps share the boundary's
 /// rim points), or the designed domain with its boundary remeshed.
-fn mesh_stage(args: &PlanArgs, level: &str, edge_length_mm: f64) -> MeshArgs {
+fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSettings {
     let (d, out) = (&args.design, &args.design.out);
-    let mesh = MeshArgs { edge_length_mm, out: mesh_path(out, level), ..MeshArgs::default() };
+    let mesh = MeshSettings { edge_length_mm, out: mesh_path(out, level), ..MeshSettings::default() };
     match is_extended(args) {
-        true => MeshArgs { surface: level_extended_surface_path(args, level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
-        false => MeshArgs { surface: out.join("design").join("domain.vtp"), remesh_surface: true, ..mesh },
+        true => MeshSettings { surface: level_extended_surface_path(args, level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
+        false => MeshSettings { surface: out.join("design").join("domain.vtp"), remesh_surface: true, ..mesh },
     }
 }
 
-pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
+pub fn run_plan(args: &PlanSettings) -> Result<(), String> {
     let stages = plan_stages(args)?;
     let out = &args.design.out;
     let progress = Progress::new(Style::detect(args.design.progress_tags), Instant::now(), (0.0, 1.0));

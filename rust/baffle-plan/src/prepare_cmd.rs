@@ -10,37 +10,29 @@ use baffle_prepare::{
     PrepareReport,
 };
 use crate::progress::{Progress, Style};
-use clap::Args;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Where the blood pools come from: per-structure surfaces or a label map (also
 /// `baffle plan`'s arguments for its prepare stage).
-#[derive(Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct PrepareSource {
     /// Folder of closed per-structure surfaces in mm: LV, RV and aorta (.vtp, .vtk or .stl).
-    #[arg(long, conflicts_with = "labelmap")]
     pub segmentations: Option<PathBuf>,
     /// Multi-label label map (.nrrd, .nii, .nii.gz); labels LV 1, RV 2, LA 3, RA 4,
     /// myo 5, aorta 6, PA 7 unless remapped. Surfaces are made in LPS mm.
-    #[arg(long)]
     pub labelmap: Option<PathBuf>,
     /// Label value of the LV blood pool in --labelmap.
-    #[arg(long, default_value_t = PrepareSource::default().lv_label)]
     pub lv_label: i32,
     /// Label value of the RV blood pool in --labelmap.
-    #[arg(long, default_value_t = PrepareSource::default().rv_label)]
     pub rv_label: i32,
     /// Label value of the aorta in --labelmap.
-    #[arg(long, default_value_t = PrepareSource::default().aorta_label)]
     pub aorta_label: i32,
     /// Label value of the pulmonary artery in --labelmap: its surface is written beside
     /// the capped ventricle (<stem>-pulmonary.vtp) and ends the RV outflow path. A label
     /// map without it still prepares; the RV outflow is then not measured.
-    #[arg(long, default_value_t = PrepareSource::default().pulmonary_label)]
     pub pulmonary_label: i32,
     /// Skip the 3x3x3 median filter of each --labelmap label mask.
-    #[arg(long)]
     pub no_median: bool,
 }
 
@@ -87,44 +79,30 @@ impl PrepareSource {
     }
 }
 
-#[derive(Args)]
-#[command(after_help = "Example (LV.vtp, RV.vtp and aorta.vtp exported from Slicer's segments):\n  \
-    baffle prepare --segmentations ../shared/data/p2/segmentations --out out/p2/capped_ventricle.vtp\n\
-Example (a label map, the aorta labelled 8):\n  \
-    baffle prepare --labelmap heart.nii.gz --aorta-label 8 --out out/capped_ventricle.vtp\n\
-Then: baffle design --surface out/p2/capped_ventricle.vtp --points P.mrk.json --bsa 0.37 --out out/p2/design")]
-pub struct PrepareArgs {
-    #[command(flatten)]
+pub struct PrepareSettings {
     pub source: PrepareSource,
     /// Output capped ventricle (.vtp): ModelFaceID 2 RV wall, 11 VSD cap, 16 aortic cap.
     /// A report (<stem>-report.json) is written beside it.
-    #[arg(long)]
     pub out: PathBuf,
     /// Voxel edge of the union grid (mm).
-    #[arg(long, default_value_t = PrepareArgs::default().voxel_mm)]
     pub voxel_mm: f64,
     /// Margin of the union grid around the RV (mm); the LV and aorta beyond it are cut off.
-    #[arg(long, default_value_t = PrepareArgs::default().crop_margin_mm)]
     pub crop_margin_mm: f64,
     /// Radius of the morphological closing of the union mask (mm).
-    #[arg(long, default_value_t = PrepareArgs::default().closing_radius_mm)]
     pub closing_radius_mm: f64,
     /// Target edge of the final isotropic remesh (mm).
-    #[arg(long, default_value_t = PrepareArgs::default().remesh_edge_mm)]
     pub remesh_edge_mm: f64,
     /// Keep the contour's triangles (no final remesh).
-    #[arg(long)]
     pub no_remesh: bool,
     /// Taubin smoothing iterations of the union surface.
-    #[arg(long, default_value_t = PrepareArgs::default().smoothing_iterations)]
     pub smoothing_iterations: usize,
 }
 
 /// The defaults are `baffle_prepare`'s own (`PrepareOptions::default()`).
-impl Default for PrepareArgs {
+impl Default for PrepareSettings {
     fn default() -> Self {
         let o = PrepareOptions::default();
-        PrepareArgs {
+        PrepareSettings {
             source: PrepareSource::default(),
             out: PathBuf::new(),
             voxel_mm: o.voxel_mm,
@@ -137,7 +115,7 @@ impl Default for PrepareArgs {
     }
 }
 
-pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
+pub fn run_prepare(args: &PrepareSettings) -> Result<(), String> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = progress.while_running("prepare", || prepare_to_file(args));
     progress.finish(None);
@@ -169,7 +147,7 @@ pub fn pulmonary_path(out: &Path) -> PathBuf {
 
 /// Build the capped ventricle and write it and its report (each written whole or
 /// not at all); returns the report and its path.
-pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), String> {
+pub fn prepare_to_file(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf), String> {
     let (pools, pulmonary) = read_inputs(&args.source)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,

@@ -7,13 +7,12 @@ use crate::files::write_atomic;
 use crate::run_summary::RunSummary;
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{CaseSettings, FlowMesh, RunMode, StepResult};
-use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     #[default]
     Embedded,

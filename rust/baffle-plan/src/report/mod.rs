@@ -6,7 +6,7 @@ mod paper;
 mod pictures;
 pub(crate) mod svg_plot;
 
-use crate::plan_stages::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
+use crate::plan_stages::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanSettings, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
 use crate::files::{read_json, write_atomic};
 use crate::centerline_cmd::CenterlineFigures;
@@ -87,7 +87,7 @@ impl Run {
     }
 }
 
-fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage], records: &[StageRecord]) -> Result<Vec<Run>, String> {
+fn load_runs(args: &PlanSettings, out: &Path, stages: &[Stage], records: &[StageRecord]) -> Result<Vec<Run>, String> {
     let edge = |level: &str| {
         stages.iter().find_map(|s| match s.step {
             Step::Mesh { level: l, edge_length_mm } if l == level => Some(edge_length_mm),
@@ -400,7 +400,7 @@ fn plan_verdict(nominal: &Run, study: Option<&Result<MeshStudy, String>>, design
 
 /// The mesh study of the nominal-flow runs (None with --single-mesh); a level whose stage
 /// failed makes it an error that says which and why.
-fn mesh_study(args: &PlanArgs, runs: &[Run], records: &[StageRecord]) -> Option<Result<MeshStudy, String>> {
+fn mesh_study(args: &PlanSettings, runs: &[Run], records: &[StageRecord]) -> Option<Result<MeshStudy, String>> {
     if !args.runs_mesh_study() {
         return None;
     }
@@ -616,7 +616,7 @@ struct Extension {
 }
 
 /// The CFD domain: the extend stage's figures, or why the designed domain was kept.
-fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Result<CfdDomain, String> {
+fn domain_summary(args: &PlanSettings, out: &Path, records: &[StageRecord]) -> Result<CfdDomain, String> {
     let Some(record) = records.iter().find(|r| r.name == "extend").filter(|_| crate::plan_stages::is_extended(args)) else {
         return Ok(CfdDomain {
             extended: false,
@@ -697,7 +697,7 @@ fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, 
 }
 
 /// What the ventricle came from, for the report's first line.
-fn surface_source(args: &PlanArgs) -> String {
+fn surface_source(args: &PlanSettings) -> String {
     let p = &args.prepare;
     match (&p.segmentations, &p.labelmap, &args.design.surface) {
         (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", short_path(dir)),
@@ -708,7 +708,7 @@ fn surface_source(args: &PlanArgs) -> String {
 }
 
 /// The patient's name in the report: --patient-label, else the paper's patient id.
-fn patient_label(args: &PlanArgs, paper: Option<&paper::PaperPatient>) -> String {
+fn patient_label(args: &PlanSettings, paper: Option<&paper::PaperPatient>) -> String {
     match (&args.patient_label, paper, args.design.phantom) {
         (Some(label), _, _) => label.clone(),
         (None, Some(p), _) => p.id.clone(),
@@ -718,7 +718,7 @@ fn patient_label(args: &PlanArgs, paper: Option<&paper::PaperPatient>) -> String
 }
 
 /// The plan's input file or folder (for the paper's patient it belongs to).
-fn input_path(args: &PlanArgs) -> Option<&Path> {
+fn input_path(args: &PlanSettings) -> Option<&Path> {
     let p = &args.prepare;
     p.segmentations.as_deref().or(p.labelmap.as_deref()).or(args.design.surface.as_deref())
 }
@@ -732,7 +732,7 @@ pub struct Outcome {
 }
 
 /// Write report.json and report.html from the stages' files.
-pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
+pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
     let out = &args.design.out;
     let labels = (args.design.vsd_label, args.design.aortic_label);
     let design_dir = out.join("design");
