@@ -3,6 +3,7 @@
 //! inscribed radii, and with `--results` the pressure and speed of a `baffle simulate`
 //! result sampled along it (v_max along the centerline).
 
+use crate::error::PlanError;
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use crate::progress::{Progress, Style};
@@ -97,7 +98,12 @@ pub struct Measured {
 }
 
 /// The centerline of `args`, its flow-normal sections, and its profile when --results is given.
-pub fn compute(args: &CenterlineSettings) -> Result<Measured, String> {
+pub fn compute(args: &CenterlineSettings) -> Result<Measured, PlanError> {
+    measure(args).map_err(PlanError::Centerline)
+}
+
+/// The body of [`compute`].
+fn measure(args: &CenterlineSettings) -> Result<Measured, String> {
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));
     }
@@ -210,7 +216,7 @@ pub fn output_paths(out: &Path) -> (PathBuf, PathBuf) {
     (out.with_extension("vtp"), out.with_extension("json"))
 }
 
-pub fn run_centerline(args: &CenterlineSettings) -> Result<(), String> {
+pub fn run_centerline(args: &CenterlineSettings) -> Result<(), PlanError> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = run_centerline_with(args, &progress);
     progress.finish(None);
@@ -218,7 +224,12 @@ pub fn run_centerline(args: &CenterlineSettings) -> Result<(), String> {
 }
 
 /// `baffle centerline`, its computation shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_centerline_with(args: &CenterlineSettings, progress: &Progress) -> Result<(), String> {
+pub fn run_centerline_with(args: &CenterlineSettings, progress: &Progress) -> Result<(), PlanError> {
+    centerline_and_write(args, progress).map_err(PlanError::Centerline)
+}
+
+/// The body of [`run_centerline_with`].
+fn centerline_and_write(args: &CenterlineSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     let measured = progress.while_running("centerline", || compute(args))?;
     let wall_time_s = start.elapsed().as_secs_f64();

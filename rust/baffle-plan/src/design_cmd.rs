@@ -1,6 +1,7 @@
 //! `baffle design`: its arguments, the target from them, the design run with its
 //! progress and summary lines (also the plan's design stage and the sweep's rows).
 
+use crate::error::PlanError;
 use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
 use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
@@ -167,7 +168,7 @@ pub fn target_from(args: &TargetSettings, default_bsa_m2: Option<f64>) -> Result
 }
 
 /// `baffle design`: Slicer's progress tags on stdout with --progress-tags.
-pub fn run_design(args: &DesignSettings) -> Result<(), String> {
+pub fn run_design(args: &DesignSettings) -> Result<(), PlanError> {
     let tags = args.progress_tags;
     design_reporting(args, &mut |fraction, stage| {
         if tags {
@@ -183,7 +184,12 @@ fn print_progress_tag(fraction: f64, stage: &str) {
 }
 
 /// `baffle design` with the progress sent to `progress`.
-pub fn design_reporting(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
+pub fn design_reporting(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), PlanError> {
+    design_and_write(args, progress).map_err(PlanError::Design)
+}
+
+/// The body of [`design_reporting`].
+fn design_and_write(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     // Options first: a bad number is refused before any file is read.
     let options = design_options(args)?;
     if let Some(q) = args.peak_flow_ml_s.filter(|q| !(q.is_finite() && *q > 0.0)) {
@@ -393,7 +399,12 @@ fn read_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>), String> {
 
 
 /// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
-pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), String> {
+pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), PlanError> {
+    phantom_files(out, suture_half_angle_deg).map_err(PlanError::Phantom)
+}
+
+/// The body of [`write_phantom`].
+fn phantom_files(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), String> {
     let p = match suture_half_angle_deg {
         None => phantom_default(),
         Some(angle) => baffle_core::phantom::phantom_with_suture_half_angle(angle).map_err(|e| format!("--suture-half-angle-deg: {e}"))?,

@@ -1,6 +1,7 @@
 //! `baffle export-svmp`: hand the same JSON case as `baffle simulate` to
 //! svMultiPhysics (the paper's solver), for a cluster run.
 
+use crate::error::PlanError;
 use crate::case;
 use crate::svmp_case::export_to;
 use baffle_cfd::RunMode;
@@ -26,7 +27,12 @@ impl Default for ExportSettings {
     }
 }
 
-pub fn run_export(args: &ExportSettings) -> Result<(), String> {
+pub fn run_export(args: &ExportSettings) -> Result<(), PlanError> {
+    export(args).map_err(PlanError::Export)
+}
+
+/// The body of [`run_export`].
+fn export(args: &ExportSettings) -> Result<(), String> {
     let case = case::read_case(&args.case)?;
     let mesh = case::load_mesh(&case)?;
     let (mut settings, _) = case::settings(&case)?;

@@ -3,6 +3,7 @@
 //! junction, with inflow and outflow caps; the VSD and aortic caps stay inside it as
 //! measurement planes.
 
+use crate::error::PlanError;
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
@@ -84,7 +85,7 @@ impl Default for ExtendSettings {
     }
 }
 
-pub fn run_extend(args: &ExtendSettings) -> Result<(), String> {
+pub fn run_extend(args: &ExtendSettings) -> Result<(), PlanError> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = progress.while_running("extend", || extend_to_file(args));
     progress.finish(None);
@@ -118,7 +119,12 @@ fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
 }
 
 /// Build the extended domain and write it and its report (each whole or not at all).
-pub fn extend_to_file(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), String> {
+pub fn extend_to_file(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), PlanError> {
+    extend_and_write(args).map_err(PlanError::Extend)
+}
+
+/// The body of [`extend_to_file`].
+fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), String> {
     let labeled = read_surface_labeled(&args.domain).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the designed domain's caps need their labels", args.domain.display()));

@@ -2,14 +2,14 @@
 //! stages, the CFD case it writes, the embedded and svMultiPhysics runs, the sampling
 //! along the centerline, the verdict and the report) and each command's own run, each
 //! taking plain typed settings (`*Settings`, their defaults in `Default`), so the command
-//! line (baffle-cli, the only user of clap) only parses arguments into them and other
+//! line (baffle-cli) only parses its arguments into them and other
 //! front ends can call the same pipeline.
 //!
 //! Module dependency order: a module uses only modules above it, so there are no circles
 //! (the test `each_module_uses_only_modules_declared_before_it` holds lib.rs to it).
 //!
-//! 1. `files`, `progress`, `sampling`, `case`, `run_summary`, `mesh_convergence`: atomic
-//!    writes and typed reads, the progress model, fields sampled along a centerline, the
+//! 1. `error`, `files`, `progress`, `sampling`, `case`, `run_summary`, `mesh_convergence`:
+//!    the stages' error type (`PlanError`), atomic writes and typed reads, the progress model, fields sampled along a centerline, the
 //!    simulate case (JSON) and its settings, a run's summary.json read back, the grid
 //!    convergence index of a mesh study.
 //! 2. `feasibility`, `verdict` (run_summary, mesh_convergence), `svmp_case` (case: the svMultiPhysics export),
@@ -24,6 +24,7 @@
 //! 6. `plan_cmd` (every stage, report).
 //! 7. `sweep_cmd` (design_cmd, report's plots, plan_cmd's stages for `--cfd`).
 
+pub mod error;
 pub mod files;
 pub mod progress;
 pub mod sampling;

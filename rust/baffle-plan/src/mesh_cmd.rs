@@ -1,6 +1,7 @@
 //! `baffle mesh`: tetrahedral mesh of a closed labelled surface, by gmsh run as a
 //! separate process, with the paper's quality figures.
 
+use crate::error::PlanError;
 use baffle_core::io::read_surface_labeled;
 use baffle_mesh::{check_resolves_flow, mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshError, MeshOptions};
 use crate::progress::{Progress, Style};
@@ -31,7 +32,7 @@ impl Default for MeshSettings {
     }
 }
 
-pub fn run_mesh(args: &MeshSettings) -> Result<(), String> {
+pub fn run_mesh(args: &MeshSettings) -> Result<(), PlanError> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = run_mesh_with(args, &progress);
     progress.finish(None);
@@ -39,7 +40,12 @@ pub fn run_mesh(args: &MeshSettings) -> Result<(), String> {
 }
 
 /// `baffle mesh`, gmsh's run shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_mesh_with(args: &MeshSettings, progress: &Progress) -> Result<(), String> {
+pub fn run_mesh_with(args: &MeshSettings, progress: &Progress) -> Result<(), PlanError> {
+    mesh_and_write(args, progress).map_err(PlanError::Mesh)
+}
+
+/// The body of [`run_mesh_with`].
+fn mesh_and_write(args: &MeshSettings, progress: &Progress) -> Result<(), String> {
     let labeled = read_surface_labeled(&args.surface).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the faces need labels", args.surface.display()));

@@ -12,6 +12,7 @@
 //! (`Default`) and the plan's values, so the plan keeps each command's defaults and checks. A stage reads its inputs from the files
 //! of the stages before it, so what the report shows is what those files hold.
 
+use crate::error::PlanError;
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::design_cmd::{design_reporting, DesignSettings};
 use crate::plan_stages::{
@@ -95,11 +96,11 @@ fn design_peak_flow_ml_s(args: &PlanSettings) -> Result<f64, String> {
 }
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
-pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
+pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), PlanError> {
     match &stage.step {
         Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args))).map(|_| ()),
         Step::Design => {
-            let design = design_stage(args, dir)?;
+            let design = design_stage(args, dir).map_err(PlanError::Design)?;
             design_reporting(&design, &mut |f, s| {
                 progress.report(f, "design", s);
                 true
@@ -112,7 +113,7 @@ pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress
         }
         Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh_with(&mesh_stage(args, level, *edge_length_mm), progress),
         Step::Simulate { level, flow } => {
-            let case = write_case(dir, &simulate_case(args, level, *flow)?)?;
+            let case = simulate_case(args, level, *flow).and_then(|case| write_case(dir, &case)).map_err(PlanError::Simulate)?;
             simulate_cmd::run_simulate_with(&SimulateSettings { case, out: dir.to_path_buf(), ..SimulateSettings::default() }, progress)
         }
     }
@@ -178,7 +179,12 @@ fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSett
     }
 }
 
-pub fn run_plan(args: &PlanSettings) -> Result<(), String> {
+pub fn run_plan(args: &PlanSettings) -> Result<(), PlanError> {
+    plan(args).map_err(PlanError::Plan)
+}
+
+/// The body of [`run_plan`].
+fn plan(args: &PlanSettings) -> Result<(), String> {
     let stages = plan_stages(args)?;
     let out = &args.design.out;
     let progress = Progress::new(Style::detect(args.design.progress_tags), Instant::now(), (0.0, 1.0));
@@ -202,7 +208,7 @@ pub fn run_plan(args: &PlanSettings) -> Result<(), String> {
         part.report(0.0, &stage.name, "starting");
         let dir = out.join(&stage.name);
         let start = Instant::now();
-        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| run_stage(args, stage, &dir, &part));
+        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| Ok(run_stage(args, stage, &dir, &part)?));
         part.finish(None);
         let record = &mut records[k];
         record.wall_time_s = Some(start.elapsed().as_secs_f64());

@@ -3,6 +3,7 @@
 //! stage runs.
 
 use crate::design_cmd::{target_from, DesignSettings};
+use crate::error::PlanError;
 use crate::prepare_cmd::PrepareSource;
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use std::path::{Path, PathBuf};
@@ -236,8 +237,8 @@ fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     Ok(())
 }
 
-pub fn plan_stages(args: &PlanSettings) -> Result<Vec<Stage>, String> {
-    check_arguments(args)?;
+pub fn plan_stages(args: &PlanSettings) -> Result<Vec<Stage>, PlanError> {
+    check_arguments(args).map_err(PlanError::Plan)?;
     let simulate_weight = if args.steady || args.quick { 4.0 } else { 4.0 * args.cycles as f64 };
     let mut stages = Vec::new();
     if args.prepare.is_given() {

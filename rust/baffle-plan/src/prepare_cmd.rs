@@ -1,6 +1,7 @@
 //! `baffle prepare`: the capped ventricle (design input) from segmented blood
 //! pools (paper section 2.2.2).
 
+use crate::error::PlanError;
 use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
 use crate::files::write_atomic;
@@ -115,7 +116,7 @@ impl Default for PrepareSettings {
     }
 }
 
-pub fn run_prepare(args: &PrepareSettings) -> Result<(), String> {
+pub fn run_prepare(args: &PrepareSettings) -> Result<(), PlanError> {
     let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let result = progress.while_running("prepare", || prepare_to_file(args));
     progress.finish(None);
@@ -147,7 +148,12 @@ pub fn pulmonary_path(out: &Path) -> PathBuf {
 
 /// Build the capped ventricle and write it and its report (each written whole or
 /// not at all); returns the report and its path.
-pub fn prepare_to_file(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf), String> {
+pub fn prepare_to_file(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf), PlanError> {
+    prepare_and_write(args).map_err(PlanError::Prepare)
+}
+
+/// The body of [`prepare_to_file`].
+fn prepare_and_write(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf), String> {
     let (pools, pulmonary) = read_inputs(&args.source)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,
@@ -192,7 +198,12 @@ fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32) -> Resul
 }
 
 /// `baffle phantom --heart`: the synthetic heart's segment surfaces and suture points in `out`.
-pub fn write_synthetic_heart(out: &Path) -> Result<(), String> {
+pub fn write_synthetic_heart(out: &Path) -> Result<(), PlanError> {
+    synthetic_heart_files(out).map_err(PlanError::Phantom)
+}
+
+/// The body of [`write_synthetic_heart`].
+fn synthetic_heart_files(out: &Path) -> Result<(), String> {
     let heart = baffle_prepare::shapes::synthetic_heart();
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     for (name, surface) in [("LV.vtp", &heart.lv), ("RV.vtp", &heart.rv), ("aorta.vtp", &heart.aorta)] {

@@ -5,6 +5,7 @@
 //! `--engine svmultiphysics` hands the same case to svMultiPhysics instead
 //! ([`crate::simulate_svmp`]); both engines' results go through [`crate::simulate_report::Report`].
 
+use crate::error::PlanError;
 use crate::case;
 use baffle_cfd::{simulate_from, CaseSettings, RunMode, SolverState, SteadyProgress};
 use serde::{Deserialize, Serialize};
@@ -212,13 +213,18 @@ impl Output<'_> {
     }
 }
 
-pub fn run_simulate(args: &SimulateSettings) -> Result<(), String> {
+pub fn run_simulate(args: &SimulateSettings) -> Result<(), PlanError> {
     let start = Instant::now();
     run_simulate_with(args, &Progress::new(Style::detect(args.progress_tags), start, (0.0, 1.0)))
 }
 
 /// `baffle simulate` showing its progress on `progress` (a stage of `baffle plan`, or the whole command).
-pub fn run_simulate_with(args: &SimulateSettings, progress: &Progress) -> Result<(), String> {
+pub fn run_simulate_with(args: &SimulateSettings, progress: &Progress) -> Result<(), PlanError> {
+    simulate(args, progress).map_err(PlanError::Simulate)
+}
+
+/// The body of [`run_simulate_with`].
+fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     // Refused before the case and its mesh are read: nothing of them is needed to say so.
     if args.read_back && args.engine != Engine::Svmultiphysics {

@@ -10,6 +10,7 @@
 //! `mesh-nominal/` and `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
 //! the pressure difference and to the right ventricle side by side.
 
+use crate::error::PlanError;
 use crate::files::{read_json, write_atomic};
 use crate::plan_cmd;
 use crate::plan_stages::{self, PlanSettings, Stage, Step};
@@ -165,7 +166,12 @@ fn folder_name(z_score: Option<f64>, target_area_mm2: f64) -> String {
     }
 }
 
-pub fn run_sweep(args: &SweepSettings) -> Result<(), String> {
+pub fn run_sweep(args: &SweepSettings) -> Result<(), PlanError> {
+    sweep(args).map_err(PlanError::Sweep)
+}
+
+/// The body of [`run_sweep`].
+fn sweep(args: &SweepSettings) -> Result<(), String> {
     // Design options that make no sense per target are refused, not silently dropped.
     if args.design.reference_baffle.is_some() || args.design.progress_tags {
         return Err("baffle sweep takes neither --reference-baffle nor --progress-tags (run baffle design on one target)".into());

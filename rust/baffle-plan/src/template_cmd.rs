@@ -4,6 +4,7 @@
 //! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %, or a
 //! PNG with its resolution in the file (pHYs).
 
+use crate::error::PlanError;
 use crate::files::write_atomic;
 use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
@@ -64,7 +65,12 @@ impl Default for TemplateSettings {
     }
 }
 
-pub fn run_template(args: &TemplateSettings) -> Result<(), String> {
+pub fn run_template(args: &TemplateSettings) -> Result<(), PlanError> {
+    template(args).map_err(PlanError::Template)
+}
+
+/// The body of [`run_template`].
+fn template(args: &TemplateSettings) -> Result<(), String> {
     let format = PageFormat::from_path(&args.out, args.dpi)?;
     let domain = read_surface(&args.domain).map_err(|e| e.to_string())?;
     let points = read_points(&args.points).map_err(|e| e.to_string())?;
