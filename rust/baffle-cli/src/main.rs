@@ -3,10 +3,14 @@
 
 mod args;
 
+use baffle_plan::error::PlanError;
+use baffle_plan::progress::{Console, Progress};
 use baffle_plan::{centerline_cmd, design_cmd, export_cmd, extend_cmd, mesh_cmd, plan_cmd, prepare_cmd, simulate_cmd, sweep_cmd, template_cmd};
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 #[derive(Parser)]
 #[command(name = "baffle", version, about = "Area-constrained baffle design for DORV repair (Martinez et al.)")]
@@ -74,26 +78,61 @@ enum Command {
 fn main() -> ExitCode {
     restore_default_sigpipe();
     let cli = parse_arguments();
-    let result = match cli.command {
-        Command::Design(args) => design_cmd::run_design(&args.into()),
-        Command::Prepare(args) => prepare_cmd::run_prepare(&args.into()),
-        Command::Extend(args) => extend_cmd::run_extend(&args.into()),
-        Command::Mesh(args) => mesh_cmd::run_mesh(&args.into()),
-        Command::Simulate(args) => simulate_cmd::run_simulate(&args.into()),
-        Command::Centerline(args) => centerline_cmd::run_centerline(&args.into()),
-        Command::ExportSvmp(args) => export_cmd::run_export(&args.into()),
-        Command::Plan(args) => plan_cmd::run_plan(&args.into()),
-        Command::Template(args) => template_cmd::run_template(&args.into()),
-        Command::Sweep(args) => sweep_cmd::run_sweep(&args.into()),
-        Command::Phantom { out, heart: false, suture_half_angle_deg } => design_cmd::write_phantom(&out, suture_half_angle_deg),
-        Command::Phantom { out, heart: true, .. } => prepare_cmd::write_synthetic_heart(&out),
-    };
+    let result = run(cli.command);
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => {
             eprintln!("baffle: error: {message}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Run the command, its progress and lines on this terminal: Slicer's progress tags with
+/// `baffle simulate --progress-tags` and `baffle plan --progress-tags` (`baffle design`
+/// writes its own).
+fn run(command: Command) -> Result<(), PlanError> {
+    let tags = match &command {
+        Command::Simulate(args) => args.progress_tags,
+        Command::Plan(args) => args.design.progress_tags,
+        _ => false,
+    };
+    let progress = Progress::start(Arc::new(Terminal), tags);
+    let p = &progress;
+    let result = match command {
+        Command::Design(args) => design_cmd::run_design(&args.into(), p),
+        Command::Prepare(args) => prepare_cmd::run_prepare(&args.into(), p),
+        Command::Extend(args) => extend_cmd::run_extend(&args.into(), p),
+        Command::Mesh(args) => mesh_cmd::run_mesh(&args.into(), p),
+        Command::Simulate(args) => simulate_cmd::run_simulate(&args.into(), p),
+        Command::Centerline(args) => centerline_cmd::run_centerline(&args.into(), p),
+        Command::ExportSvmp(args) => export_cmd::run_export(&args.into(), p),
+        Command::Plan(args) => plan_cmd::run_plan(&args.into(), p),
+        Command::Template(args) => template_cmd::run_template(&args.into(), p),
+        Command::Sweep(args) => sweep_cmd::run_sweep(&args.into(), p),
+        Command::Phantom { out, heart: false, suture_half_angle_deg } => design_cmd::write_phantom(&out, suture_half_angle_deg, p),
+        Command::Phantom { out, heart: true, .. } => prepare_cmd::write_synthetic_heart(&out, p),
+    };
+    progress.finish(None);
+    result
+}
+
+/// The command's lines (and Slicer's tags) on stdout, its progress on stderr.
+struct Terminal;
+
+impl Console for Terminal {
+    fn line(&self, text: &str) {
+        println!("{text}");
+    }
+
+    fn status(&self, text: &str) {
+        let mut err = std::io::stderr().lock();
+        let _ = err.write_all(text.as_bytes());
+        let _ = err.flush();
+    }
+
+    fn status_is_terminal(&self) -> bool {
+        std::io::stderr().is_terminal()
     }
 }
 

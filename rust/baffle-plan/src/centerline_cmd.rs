@@ -6,7 +6,7 @@
 use crate::error::PlanError;
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
 use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
@@ -216,19 +216,13 @@ pub fn output_paths(out: &Path) -> (PathBuf, PathBuf) {
     (out.with_extension("vtp"), out.with_extension("json"))
 }
 
-pub fn run_centerline(args: &CenterlineSettings) -> Result<(), PlanError> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
-    let result = run_centerline_with(args, &progress);
-    progress.finish(None);
-    result
-}
-
-/// `baffle centerline`, its computation shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_centerline_with(args: &CenterlineSettings, progress: &Progress) -> Result<(), PlanError> {
+/// `baffle centerline`, its computation shown and its figures said on `progress` (a
+/// stage of `baffle plan`, or the command).
+pub fn run_centerline(args: &CenterlineSettings, progress: &Progress) -> Result<(), PlanError> {
     centerline_and_write(args, progress).map_err(PlanError::Centerline)
 }
 
-/// The body of [`run_centerline_with`].
+/// The centerline of `args` and its figures written.
 fn centerline_and_write(args: &CenterlineSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     let measured = progress.while_running("centerline", || compute(args))?;
@@ -240,14 +234,14 @@ fn centerline_and_write(args: &CenterlineSettings, progress: &Progress) -> Resul
     let (line, profile) = (&measured.line, &measured.profile);
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
     let (r_min, r_max) = radius_range(line);
-    print!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
+    let mut said = format!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
     if let Some((a, at)) = smallest_section(&line.s_mm, &measured.sections_mm2) {
-        print!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
+        said += &format!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
     }
-    match &profile {
-        Some(p) => println!("; v_max along it {:.3} m/s", p.v_max_m_s()),
-        None => println!(),
+    if let Some(p) = &profile {
+        said += &format!("; v_max along it {:.3} m/s", p.v_max_m_s());
     }
-    println!("wrote {} and {}", vtp.display(), json_path.display());
+    progress.say(&said);
+    progress.say(&format!("wrote {} and {}", vtp.display(), json_path.display()));
     Ok(())
 }

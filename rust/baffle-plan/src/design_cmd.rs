@@ -2,6 +2,7 @@
 //! progress and summary lines (also the plan's design stage and the sweep's rows).
 
 use crate::error::PlanError;
+use crate::progress::Progress;
 use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
 use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
@@ -167,29 +168,30 @@ pub fn target_from(args: &TargetSettings, default_bsa_m2: Option<f64>) -> Result
     }
 }
 
-/// `baffle design`: Slicer's progress tags on stdout with --progress-tags.
-pub fn run_design(args: &DesignSettings) -> Result<(), PlanError> {
+/// `baffle design`: its lines said on `progress`, with --progress-tags Slicer's progress
+/// tags too.
+pub fn run_design(args: &DesignSettings, progress: &Progress) -> Result<(), PlanError> {
     let tags = args.progress_tags;
-    design_reporting(args, &mut |fraction, stage| {
+    design_reporting(args, progress, &mut |fraction, stage| {
         if tags {
-            print_progress_tag(fraction, stage);
+            progress.say(&progress_tag(fraction, stage));
         }
         true
     })
 }
 
-/// A Slicer CLI progress tag and the stage it is in, on stdout.
-fn print_progress_tag(fraction: f64, stage: &str) {
-    println!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>");
+/// A Slicer CLI progress tag and the stage it is in (two lines).
+fn progress_tag(fraction: f64, stage: &str) -> String {
+    format!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>")
 }
 
-/// `baffle design` with the progress sent to `progress`.
-pub fn design_reporting(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), PlanError> {
-    design_and_write(args, progress).map_err(PlanError::Design)
+/// `baffle design`, its summary lines said on `progress` and each step's fraction sent to `on_step`.
+pub fn design_reporting(args: &DesignSettings, progress: &Progress, on_step: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), PlanError> {
+    design_and_write(args, progress, on_step).map_err(PlanError::Design)
 }
 
-/// The body of [`design_reporting`].
-fn design_and_write(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
+/// The design of `args`, its files written and its summary said on `progress`.
+fn design_and_write(args: &DesignSettings, progress: &Progress, on_step: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     // Options first: a bad number is refused before any file is read.
     let options = design_options(args)?;
     if let Some(q) = args.peak_flow_ml_s.filter(|q| !(q.is_finite() && *q > 0.0)) {
@@ -197,7 +199,7 @@ fn design_and_write(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -
     }
     let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
-    let mut result = design_by_rule(args.flow_sections, &surface, &points, &target, &options, progress).map_err(|e| match e {
+    let mut result = design_by_rule(args.flow_sections, &surface, &points, &target, &options, on_step).map_err(|e| match e {
         // A fault of the surface file: say which file.
         DesignError::Surface(_) | DesignError::MissingLabel { .. } => match &args.surface {
             Some(path) => format!("{}: {e}", path.display()),
@@ -210,7 +212,7 @@ fn design_and_write(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -
     result.report.hemodynamics_estimate = Some(estimate);
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
-    println!(
+    progress.say(&format!(
         "target {:.1} mm2 ({}); centerline {:.2} mm; baffle {:.1} mm2, {} triangles; {} constrained sections, smallest {:.1} mm2; {:.0} ms",
         r.target_area_mm2,
         r.target,
@@ -220,19 +222,19 @@ fn design_and_write(args: &DesignSettings, progress: &mut dyn FnMut(f64, &str) -
         r.constrained_sections,
         r.min_constrained_final_area_mm2,
         r.timings.total_ms
-    );
+    ));
     if let Some(f) = &r.flow_sections {
-        println!("{}", flow_sections_line(f));
+        progress.say(&flow_sections_line(f));
     }
     if let Some(EstimateOutcome::Estimated(e)) = &r.hemodynamics_estimate {
-        println!("{}", estimate_line(e));
+        progress.say(&estimate_line(e));
     }
-    println!("{}", rv_cost_line(&r.rv_cost));
-    println!("{}", rv_outflow_line(&r.rv_cost.rv_outflow));
+    progress.say(&rv_cost_line(&r.rv_cost));
+    progress.say(&rv_outflow_line(&r.rv_cost.rv_outflow));
     if let Some(path) = &args.reference_baffle {
-        compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?;
+        progress.say(&compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?);
     }
-    println!("wrote {}", args.out.display());
+    progress.say(&format!("wrote {}", args.out.display()));
     Ok(())
 }
 
@@ -359,11 +361,12 @@ pub fn design_options(args: &DesignSettings) -> Result<DesignOptions, String> {
     Ok(options)
 }
 
-fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<(), String> {
+/// Compare the baffle with the reference baffle at `path` (reference_comparison.json); the comparison's line.
+fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<String, String> {
     let mut reference = baffle_core::io::read_surface(path).map_err(|e| e.to_string())?;
     reference.points.iter_mut().for_each(|p| *p *= scale);
     let c = baffle_core::compare::compare_surfaces(baffle, &reference).map_err(|e| format!("{}: {e}", path.display()))?;
-    println!(
+    let line = format!(
         "reference {}: area {:.1} vs {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
         path.display(),
         c.area_mm2,
@@ -374,7 +377,8 @@ fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path)
     );
     let file = out.join("reference_comparison.json");
     let text = serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?;
-    files::write_atomic(&file, text.as_bytes())
+    files::write_atomic(&file, text.as_bytes())?;
+    Ok(line)
 }
 
 fn read_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>), String> {
@@ -399,12 +403,12 @@ fn read_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>), String> {
 
 
 /// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
-pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), PlanError> {
-    phantom_files(out, suture_half_angle_deg).map_err(PlanError::Phantom)
+pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>, progress: &Progress) -> Result<(), PlanError> {
+    phantom_files(out, suture_half_angle_deg, progress).map_err(PlanError::Phantom)
 }
 
-/// The body of [`write_phantom`].
-fn phantom_files(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), String> {
+/// The phantom's files in `out`, said on `progress`.
+fn phantom_files(out: &Path, suture_half_angle_deg: Option<f64>, progress: &Progress) -> Result<(), String> {
     let p = match suture_half_angle_deg {
         None => phantom_default(),
         Some(angle) => baffle_core::phantom::phantom_with_suture_half_angle(angle).map_err(|e| format!("--suture-half-angle-deg: {e}"))?,
@@ -413,6 +417,6 @@ fn phantom_files(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), S
     write_trimesh_vtp(&out.join("capped_ventricle.vtp"), &p.surface).map_err(|e| e.to_string())?;
     write_markups_closed_curve(&out.join("suture_points.mrk.json"), "BC", &p.suture_points_mm, CoordinateSystem::Lps)
         .map_err(|e| e.to_string())?;
-    println!("wrote {} (BSA {} m2)", out.display(), p.bsa_m2);
+    progress.say(&format!("wrote {} (BSA {} m2)", out.display(), p.bsa_m2));
     Ok(())
 }

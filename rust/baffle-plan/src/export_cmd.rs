@@ -3,7 +3,8 @@
 
 use crate::error::PlanError;
 use crate::case;
-use crate::svmp_case::export_to;
+use crate::progress::Progress;
+use crate::svmp_case::{export_to, inflow_line};
 use baffle_cfd::RunMode;
 use std::path::PathBuf;
 
@@ -27,19 +28,21 @@ impl Default for ExportSettings {
     }
 }
 
-pub fn run_export(args: &ExportSettings) -> Result<(), PlanError> {
-    export(args).map_err(PlanError::Export)
+/// `baffle export-svmp`, what it wrote said on `progress`.
+pub fn run_export(args: &ExportSettings, progress: &Progress) -> Result<(), PlanError> {
+    export(args, progress).map_err(PlanError::Export)
 }
 
-/// The body of [`run_export`].
-fn export(args: &ExportSettings) -> Result<(), String> {
+/// The case of `args` exported for svMultiPhysics.
+fn export(args: &ExportSettings, progress: &Progress) -> Result<(), String> {
     let case = case::read_case(&args.case)?;
     let mesh = case::load_mesh(&case)?;
     let (mut settings, _) = case::settings(&case)?;
     if args.steady {
         settings.mode = RunMode::Steady;
     }
-    export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
-    println!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display());
+    let exported = export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
+    progress.say(&inflow_line(&exported));
+    progress.say(&format!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display()));
     Ok(())
 }

@@ -11,9 +11,8 @@ use baffle_core::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptio
 use baffle_core::{FaceLabels, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use std::path::PathBuf;
-use std::time::Instant;
 
 pub struct ExtendSettings {
     /// Designed domain (domain.vtp from `baffle design`): closed, mm, ModelFaceID.
@@ -85,23 +84,23 @@ impl Default for ExtendSettings {
     }
 }
 
-pub fn run_extend(args: &ExtendSettings) -> Result<(), PlanError> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+/// `baffle extend`, shown and said on `progress`.
+pub fn run_extend(args: &ExtendSettings, progress: &Progress) -> Result<(), PlanError> {
     let result = progress.while_running("extend", || extend_to_file(args));
     progress.finish(None);
     let (r, report) = result?;
-    println!(
+    progress.say(&format!(
         "{} triangles ({} designed), {:.0} mm3 (designed {:.0}); inflow cap {:.1} mm2 {:.1} mm beyond the VSD, outflow cap {:.1} mm2 {:.1} mm above the annulus; baffle area change {:+.2e}",
         r.triangles, r.designed_triangles, r.volume_mm3, r.designed_volume_mm3, r.inflow_cap.area_mm2, r.mid_lv_plane.distance_from_vsd_mm,
         r.outflow_cap.area_mm2, r.stj.distance_from_annulus_mm, r.baffle_area_relative_change
-    );
+    ));
     let m = &r.mid_lv_plane;
-    println!("inflow: {}, {:.1} mm beyond the VSD (moved {:+.0} mm from the LV centroid); the LV part with {}", m.rule, m.distance_from_vsd_mm, m.moved_from_centroid_mm, m.rv_in_lv_part);
+    progress.say(&format!("inflow: {}, {:.1} mm beyond the VSD (moved {:+.0} mm from the LV centroid); the LV part with {}", m.rule, m.distance_from_vsd_mm, m.moved_from_centroid_mm, m.rv_in_lv_part));
     if let Some(contact) = &m.other_lv_rv_contact {
-        println!("note: {contact}");
+        progress.say(&format!("note: {contact}"));
     }
-    println!("outflow: {}", r.stj.note);
-    println!("wrote {}, {}", args.out.display(), report.display());
+    progress.say(&format!("outflow: {}", r.stj.note));
+    progress.say(&format!("wrote {}, {}", args.out.display(), report.display()));
     Ok(())
 }
 

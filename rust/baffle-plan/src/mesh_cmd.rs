@@ -4,9 +4,8 @@
 use crate::error::PlanError;
 use baffle_core::io::read_surface_labeled;
 use baffle_mesh::{check_resolves_flow, mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshError, MeshOptions};
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use std::path::PathBuf;
-use std::time::Instant;
 
 pub struct MeshSettings {
     /// Closed, labelled surface (e.g. domain.vtp from `baffle design`), mm.
@@ -32,19 +31,13 @@ impl Default for MeshSettings {
     }
 }
 
-pub fn run_mesh(args: &MeshSettings) -> Result<(), PlanError> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
-    let result = run_mesh_with(args, &progress);
-    progress.finish(None);
-    result
-}
-
-/// `baffle mesh`, gmsh's run shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_mesh_with(args: &MeshSettings, progress: &Progress) -> Result<(), PlanError> {
+/// `baffle mesh`, gmsh's run shown and the mesh's figures said on `progress` (a stage of
+/// `baffle plan`, or the command).
+pub fn run_mesh(args: &MeshSettings, progress: &Progress) -> Result<(), PlanError> {
     mesh_and_write(args, progress).map_err(PlanError::Mesh)
 }
 
-/// The body of [`run_mesh_with`].
+/// The volume mesh of `args` and its faces and quality files.
 fn mesh_and_write(args: &MeshSettings, progress: &Progress) -> Result<(), String> {
     let labeled = read_surface_labeled(&args.surface).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
@@ -72,10 +65,10 @@ fn mesh_and_write(args: &MeshSettings, progress: &Progress) -> Result<(), String
     let quality_path = PathBuf::from(format!("{}-quality.json", stem.display()));
     let text = serde_json::to_string_pretty(&quality).map_err(|e| e.to_string())?;
     crate::files::write_atomic(&quality_path, text.as_bytes())?;
-    println!(
+    progress.say(&format!(
         "{} tetrahedra; scaled Jacobian min {:.3}, 1st percentile {:.3}; aspect ratio 99th percentile {:.2}",
         quality.tetrahedra, quality.min_scaled_jacobian, quality.p1_scaled_jacobian, quality.p99_aspect_ratio
-    );
-    println!("wrote {}, {}, {}", args.out.display(), faces_path.display(), quality_path.display());
+    ));
+    progress.say(&format!("wrote {}, {}, {}", args.out.display(), faces_path.display(), quality_path.display()));
     Ok(())
 }

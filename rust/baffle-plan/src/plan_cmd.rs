@@ -8,7 +8,7 @@
 //! (no LV or aorta known) the domain stays the designed one, inflow at the VSD cap.
 //!
 //! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
-//! `run_mesh_with`, `run_simulate_with`) with each command's typed options: its defaults
+//! `run_mesh`, `run_simulate`) with each command's typed options: its defaults
 //! (`Default`) and the plan's values, so the plan keeps each command's defaults and checks. A stage reads its inputs from the files
 //! of the stages before it, so what the report shows is what those files hold.
 
@@ -23,7 +23,7 @@ use crate::centerline_cmd::{self, CenterlineSettings};
 use crate::extend_cmd::{self, ExtendSettings};
 use crate::mesh_cmd::{self, MeshSettings};
 use crate::prepare_cmd::{self, PrepareSettings};
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use crate::report;
 use crate::simulate_cmd::{self, SimulateSettings};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
@@ -98,23 +98,23 @@ fn design_peak_flow_ml_s(args: &PlanSettings) -> Result<f64, String> {
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
 pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), PlanError> {
     match &stage.step {
-        Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args))).map(|_| ()),
+        Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args), progress)).map(|_| ()),
         Step::Design => {
             let design = design_stage(args, dir).map_err(PlanError::Design)?;
-            design_reporting(&design, &mut |f, s| {
+            design_reporting(&design, progress, &mut |f, s| {
                 progress.report(f, "design", s);
                 true
             })
         }
-        Step::Centerline => centerline_cmd::run_centerline_with(&centerline_stage(args), progress),
+        Step::Centerline => centerline_cmd::run_centerline(&centerline_stage(args), progress),
         Step::Extend { level, remesh_domain_edge_mm } => {
             let extend = extend_stage(args, *level, *remesh_domain_edge_mm);
             progress.while_running("extend", || extend_cmd::extend_to_file(&extend)).map(|_| ())
         }
-        Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh_with(&mesh_stage(args, level, *edge_length_mm), progress),
+        Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh(&mesh_stage(args, level, *edge_length_mm), progress),
         Step::Simulate { level, flow } => {
             let case = simulate_case(args, level, *flow).and_then(|case| write_case(dir, &case)).map_err(PlanError::Simulate)?;
-            simulate_cmd::run_simulate_with(&SimulateSettings { case, out: dir.to_path_buf(), ..SimulateSettings::default() }, progress)
+            simulate_cmd::run_simulate(&SimulateSettings { case, out: dir.to_path_buf(), ..SimulateSettings::default() }, progress)
         }
     }
 }
@@ -179,15 +179,16 @@ fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSett
     }
 }
 
-pub fn run_plan(args: &PlanSettings) -> Result<(), PlanError> {
-    plan(args).map_err(PlanError::Plan)
+/// `baffle plan`: each stage's progress shown on `progress` (the caller applies
+/// --progress-tags), the stages' lines, the report's warnings and the verdict said on it.
+pub fn run_plan(args: &PlanSettings, progress: &Progress) -> Result<(), PlanError> {
+    plan(args, progress).map_err(PlanError::Plan)
 }
 
-/// The body of [`run_plan`].
-fn plan(args: &PlanSettings) -> Result<(), String> {
+/// The stages of `args` in order, then the report; the verdict is the last line said.
+fn plan(args: &PlanSettings, progress: &Progress) -> Result<(), String> {
     let stages = plan_stages(args)?;
     let out = &args.design.out;
-    let progress = Progress::new(Style::detect(args.design.progress_tags), Instant::now(), (0.0, 1.0));
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let total: f64 = stages.iter().map(|s| s.weight).sum();
     let mut records: Vec<StageRecord> =
@@ -203,7 +204,7 @@ fn plan(args: &PlanSettings) -> Result<(), String> {
             done += stage.weight;
             continue;
         }
-        println!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name);
+        progress.say(&format!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name));
         let part = progress.part(range);
         part.report(0.0, &stage.name, "starting");
         let dir = out.join(&stage.name);
@@ -219,7 +220,7 @@ fn plan(args: &PlanSettings) -> Result<(), String> {
             record.error = Some(e.clone());
             if let Some(level) = stage.study_level() {
                 // The nominal result stands; the report's mesh study says why it has no band.
-                println!("plan: stage {} failed: {e}\nplan: the mesh study goes on without its {level} level", stage.name);
+                progress.say(&format!("plan: stage {} failed: {e}\nplan: the mesh study goes on without its {level} level", stage.name));
                 failed_levels.push((level, format!("the {level} level's stage {} failed: {e}", stage.name)));
                 done += stage.weight;
                 continue;
@@ -230,22 +231,27 @@ fn plan(args: &PlanSettings) -> Result<(), String> {
             return Err(format!("stage {} failed: {e}\n(finished stages' files kept: {kept})", stage.name));
         }
         record.status = "completed";
-        println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
+        progress.say(&format!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0)));
         done += stage.weight;
     }
     progress.report(1.0, "report", "writing the report and rendering its pictures (VTK)");
     let outcome = report::write_reports(args, &stages, &records)?;
     progress.report(1.0, "report", "written");
     progress.finish(None);
-    println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
+    progress.say(&format!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display()));
+    say_outcome(&outcome, progress);
+    Ok(())
+}
+
+/// The report's warnings and note, then the verdict as the last line: PASSES, FAILS or
+/// INCONCLUSIVE with its reason.
+fn say_outcome(outcome: &report::Outcome, progress: &Progress) {
     for warning in &outcome.warnings {
-        println!("warning: {warning}");
+        progress.say(&format!("warning: {warning}"));
     }
     if let Some(reason) = &outcome.pictures_missing {
-        println!("note: the report has no 3D pictures: {reason}");
+        progress.say(&format!("note: the report has no 3D pictures: {reason}"));
     }
-    // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
-    println!("{}", outcome.verdict_line);
-    Ok(())
+    progress.say(&outcome.verdict_line);
 }
 

@@ -10,9 +10,8 @@ use baffle_prepare::{
     pools_from_labelmap, prepare, pulmonary_from_labelmap, read_labelmap, read_segmentations, BloodPools, LabelMap, LabelSurfaceOptions, PoolLabels, PrepareOptions,
     PrepareReport,
 };
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// Where the blood pools come from: per-structure surfaces or a label map (also
 /// `baffle plan`'s arguments for its prepare stage).
@@ -116,22 +115,22 @@ impl Default for PrepareSettings {
     }
 }
 
-pub fn run_prepare(args: &PrepareSettings) -> Result<(), PlanError> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
-    let result = progress.while_running("prepare", || prepare_to_file(args));
+/// `baffle prepare`, shown and said on `progress`.
+pub fn run_prepare(args: &PrepareSettings, progress: &Progress) -> Result<(), PlanError> {
+    let result = progress.while_running("prepare", || prepare_to_file(args, progress));
     progress.finish(None);
     let (report, report_path) = result?;
-    println!(
+    progress.say(&format!(
         "{} triangles, {:.0} mm3; VSD cap {:.1} mm2, aortic cap {:.1} mm2; {:.0} ms",
         report.triangles, report.volume_mm3, report.vsd_cap.area_mm2, report.aortic_cap.area_mm2, report.timings.total_ms
-    );
+    ));
     // The caps' distance from the true interfaces when the cuts had to be moved apart.
-    println!("{}", report.separation.summary());
+    progress.say(&report.separation.summary());
     // A failed check is an error before anything is written: here they all passed.
-    println!("{} self-checks passed (each cap's centroid, area and rim against the segmentations' opening; listed in the report)", report.checks.len());
+    progress.say(&format!("{} self-checks passed (each cap's centroid, area and rim against the segmentations' opening; listed in the report)", report.checks.len()));
     let pulmonary = Some(pulmonary_path(&args.out)).filter(|p| args.source.labelmap.is_some() && p.is_file());
     let pulmonary = pulmonary.map(|p| format!(", {}", p.display())).unwrap_or_default();
-    println!("wrote {}, {}{pulmonary}", args.out.display(), report_path.display());
+    progress.say(&format!("wrote {}, {}{pulmonary}", args.out.display(), report_path.display()));
     Ok(())
 }
 
@@ -148,12 +147,12 @@ pub fn pulmonary_path(out: &Path) -> PathBuf {
 
 /// Build the capped ventricle and write it and its report (each written whole or
 /// not at all); returns the report and its path.
-pub fn prepare_to_file(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf), PlanError> {
-    prepare_and_write(args).map_err(PlanError::Prepare)
+pub fn prepare_to_file(args: &PrepareSettings, progress: &Progress) -> Result<(PrepareReport, PathBuf), PlanError> {
+    prepare_and_write(args, progress).map_err(PlanError::Prepare)
 }
 
-/// The body of [`prepare_to_file`].
-fn prepare_and_write(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf), String> {
+/// The capped ventricle and its report written; a note on `progress` when a label map has no pulmonary artery.
+fn prepare_and_write(args: &PrepareSettings, progress: &Progress) -> Result<(PrepareReport, PathBuf), String> {
     let (pools, pulmonary) = read_inputs(&args.source)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,
@@ -176,19 +175,19 @@ fn prepare_and_write(args: &PrepareSettings) -> Result<(PrepareReport, PathBuf),
         return Err(e);
     }
     if let Some(pulmonary) = pulmonary {
-        write_pulmonary(&args.out, pulmonary.as_ref(), args.source.pulmonary_label)?;
+        write_pulmonary(&args.out, pulmonary.as_ref(), args.source.pulmonary_label, progress)?;
     }
     Ok((report, report_path))
 }
 
 /// The label map's pulmonary artery beside the capped ventricle `out`; without it, no
 /// such file (not one left from an earlier run) and a note.
-fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32) -> Result<(), String> {
+fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32, progress: &Progress) -> Result<(), String> {
     let path = pulmonary_path(out);
     match pulmonary {
         Some(mesh) => write_trimesh_vtp(&path, mesh).map_err(|e| e.to_string()),
         None => {
-            println!("note: no voxel of the label map has the pulmonary artery's label {label} (--pulmonary-label): the RV outflow will not be measured");
+            progress.say(&format!("note: no voxel of the label map has the pulmonary artery's label {label} (--pulmonary-label): the RV outflow will not be measured"));
             match std::fs::remove_file(&path) {
                 Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(format!("{}: {e}", path.display())),
                 _ => Ok(()),
@@ -198,12 +197,12 @@ fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32) -> Resul
 }
 
 /// `baffle phantom --heart`: the synthetic heart's segment surfaces and suture points in `out`.
-pub fn write_synthetic_heart(out: &Path) -> Result<(), PlanError> {
-    synthetic_heart_files(out).map_err(PlanError::Phantom)
+pub fn write_synthetic_heart(out: &Path, progress: &Progress) -> Result<(), PlanError> {
+    synthetic_heart_files(out, progress).map_err(PlanError::Phantom)
 }
 
-/// The body of [`write_synthetic_heart`].
-fn synthetic_heart_files(out: &Path) -> Result<(), String> {
+/// The synthetic heart's files in `out`, said on `progress`.
+fn synthetic_heart_files(out: &Path, progress: &Progress) -> Result<(), String> {
     let heart = baffle_prepare::shapes::synthetic_heart();
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     for (name, surface) in [("LV.vtp", &heart.lv), ("RV.vtp", &heart.rv), ("aorta.vtp", &heart.aorta)] {
@@ -212,7 +211,7 @@ fn synthetic_heart_files(out: &Path) -> Result<(), String> {
     let points = out.join("suture_points.mrk.json");
     baffle_core::io::write_markups_closed_curve(&points, "BC", &heart.suture_points_mm, baffle_core::io::CoordinateSystem::Lps)
         .map_err(|e| e.to_string())?;
-    println!("wrote {} (LV, RV and aorta segment surfaces, suture points; BSA {} m2)", out.display(), heart.bsa_m2);
+    progress.say(&format!("wrote {} (LV, RV and aorta segment surfaces, suture points; BSA {} m2)", out.display(), heart.bsa_m2));
     Ok(())
 }
 

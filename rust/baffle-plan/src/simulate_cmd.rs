@@ -10,7 +10,7 @@ use crate::case;
 use baffle_cfd::{simulate_from, CaseSettings, RunMode, SolverState, SteadyProgress};
 use serde::{Deserialize, Serialize};
 use crate::files::write_atomic;
-use crate::progress::{steady_fraction, Progress, Style};
+use crate::progress::{steady_fraction, Progress};
 use crate::simulate_report::{cycle_end_step, stop_on_signals, Engine, Ending, Output, Report, Row};
 use crate::simulate_svmp::{self, SvmpRun};
 use std::path::{Path, PathBuf};
@@ -213,17 +213,13 @@ impl Output<'_> {
     }
 }
 
-pub fn run_simulate(args: &SimulateSettings) -> Result<(), PlanError> {
-    let start = Instant::now();
-    run_simulate_with(args, &Progress::new(Style::detect(args.progress_tags), start, (0.0, 1.0)))
-}
-
-/// `baffle simulate` showing its progress on `progress` (a stage of `baffle plan`, or the whole command).
-pub fn run_simulate_with(args: &SimulateSettings, progress: &Progress) -> Result<(), PlanError> {
+/// `baffle simulate` showing its progress and saying its summary on `progress` (a stage
+/// of `baffle plan`, or the whole command; --progress-tags is the caller's to apply).
+pub fn run_simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), PlanError> {
     simulate(args, progress).map_err(PlanError::Simulate)
 }
 
-/// The body of [`run_simulate_with`].
+/// The run of `args`: its fields, time series, summary and checkpoints written.
 fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     // Refused before the case and its mesh are read: nothing of them is needed to say so.
@@ -392,7 +388,7 @@ fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> 
     };
     let message = message.or(note);
     let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, &residuals, wall)?;
-    report.print(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall);
+    progress.say(&report.summary_line(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall));
     if status == "stopped" {
         return Err(message.unwrap_or_default());
     }

@@ -15,7 +15,7 @@ use crate::files::{read_json, write_atomic};
 use crate::plan_cmd;
 use crate::plan_stages::{self, PlanSettings, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use crate::run_summary::RunSummary;
 use crate::report::svg_plot::{line_chart, with_note, Series};
 use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignSettings, TargetSettings};
@@ -166,18 +166,18 @@ fn folder_name(z_score: Option<f64>, target_area_mm2: f64) -> String {
     }
 }
 
-pub fn run_sweep(args: &SweepSettings) -> Result<(), PlanError> {
-    sweep(args).map_err(PlanError::Sweep)
+pub fn run_sweep(args: &SweepSettings, progress: &Progress) -> Result<(), PlanError> {
+    sweep(args, progress).map_err(PlanError::Sweep)
 }
 
 /// The body of [`run_sweep`].
-fn sweep(args: &SweepSettings) -> Result<(), String> {
+fn sweep(args: &SweepSettings, progress: &Progress) -> Result<(), String> {
     // Design options that make no sense per target are refused, not silently dropped.
     if args.design.reference_baffle.is_some() || args.design.progress_tags {
         return Err("baffle sweep takes neither --reference-baffle nor --progress-tags (run baffle design on one target)".into());
     }
     let options = design_options(&args.design)?;
-    let prepared = prepare_once(args)?;
+    let prepared = prepare_once(args, progress)?;
     let (surface, points, default_bsa) = design_inputs(&DesignSettings { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
     let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&plan_stages::prepared_surface_path(&args.design.out)));
@@ -206,11 +206,11 @@ fn sweep(args: &SweepSettings) -> Result<(), String> {
         };
         let design_ms = clock.elapsed().as_secs_f64() * 1e3;
         let quick = match &outcome {
-            Outcome::Designed(report) if args.cfd.cfd => Some(quick_estimate(&plan_args(args, &row_dir, target_area_mm2), report)),
+            Outcome::Designed(report) if args.cfd.cfd => Some(quick_estimate(&plan_args(args, &row_dir, target_area_mm2), report, progress)),
             _ => None,
         };
         let row = Row { z_score, target_area_mm2, outcome, design_ms, quick };
-        println!("{}", summary_line(&row));
+        progress.say(&summary_line(&row));
         rows.push(row);
     }
     let total_s = started.elapsed().as_secs_f64();
@@ -219,7 +219,7 @@ fn sweep(args: &SweepSettings) -> Result<(), String> {
     write_atomic(&out.join("sweep.md"), markdown(&rows).as_bytes())?;
     write_atomic(&out.join("sweep.svg"), plot(&rows).as_bytes())?;
     write_atomic(&out.join("sweep.json"), json_doc(&rows, total_s).to_string().as_bytes())?;
-    println!("{} targets in {total_s:.1} s; wrote {}", rows.len(), out.display());
+    progress.say(&format!("{} targets in {total_s:.1} s; wrote {}", rows.len(), out.display()));
     Ok(())
 }
 
@@ -253,7 +253,7 @@ fn plan_args(args: &SweepSettings, row_dir: &Path, target_area_mm2: f64) -> Plan
 
 /// With --segmentations or --labelmap: the plan's prepare stage into --out/prepare, once
 /// for every target; the capped ventricle it wrote.
-fn prepare_once(args: &SweepSettings) -> Result<Option<PathBuf>, String> {
+fn prepare_once(args: &SweepSettings, progress: &Progress) -> Result<Option<PathBuf>, String> {
     if !args.prepare.is_given() {
         return Ok(None);
     }
@@ -264,7 +264,7 @@ fn prepare_once(args: &SweepSettings) -> Result<Option<PathBuf>, String> {
     let stage = Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 };
     let dir = out.join(&stage.name);
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let progress = progress.restart();
     plan_cmd::run_stage(&plan_args(args, out, f64::NAN), &stage, &dir, &progress).map_err(|e| format!("stage prepare failed: {e}"))?;
     progress.finish(None);
     Ok(Some(plan_stages::prepared_surface_path(out)))
@@ -273,9 +273,9 @@ fn prepare_once(args: &SweepSettings) -> Result<Option<PathBuf>, String> {
 /// Mesh the designed domain and run the quick estimate with the plan's own stages
 /// (everything after its design), then judge dp as the plan does. A stage that fails
 /// makes the row inconclusive with the stage and its reason, not the sweep's end.
-fn quick_estimate(plan: &PlanSettings, report: &DesignReport) -> Quick {
+fn quick_estimate(plan: &PlanSettings, report: &DesignReport, progress: &Progress) -> Quick {
     let clock = Instant::now();
-    let result = run_after_design(plan);
+    let result = run_after_design(plan, &progress.restart());
     let cfd_s = clock.elapsed().as_secs_f64();
     let design_doubt = verdict::design_doubt(report.min_constrained_final_area_mm2, report.target_area_mm2);
     match result {
@@ -294,14 +294,13 @@ fn quick_estimate(plan: &PlanSettings, report: &DesignReport) -> Quick {
 const AFTER_DESIGN: [&str; 3] = ["extend", "mesh-", "simulate-"];
 
 /// The plan's extend (when prepared), mesh and simulate stages into the row's folder; the run's summary.json.
-fn run_after_design(plan: &PlanSettings) -> Result<RunSummary, String> {
+fn run_after_design(plan: &PlanSettings, progress: &Progress) -> Result<RunSummary, String> {
     let out = &plan.design.out;
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
     let mut summary = None;
     for stage in plan_stages::plan_stages(plan)?.iter().filter(|s| AFTER_DESIGN.iter().any(|p| s.name.starts_with(p))) {
         let dir: PathBuf = out.join(&stage.name);
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        plan_cmd::run_stage(plan, stage, &dir, &progress).map_err(|e| format!("stage {} failed: {e}", stage.name))?;
+        plan_cmd::run_stage(plan, stage, &dir, progress).map_err(|e| format!("stage {} failed: {e}", stage.name))?;
         summary = Some(dir.join("summary.json"));
     }
     progress.finish(None);

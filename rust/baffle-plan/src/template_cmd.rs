@@ -5,6 +5,7 @@
 //! PNG with its resolution in the file (pHYs).
 
 use crate::error::PlanError;
+use crate::progress::Progress;
 use crate::files::write_atomic;
 use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
@@ -65,12 +66,13 @@ impl Default for TemplateSettings {
     }
 }
 
-pub fn run_template(args: &TemplateSettings) -> Result<(), PlanError> {
-    template(args).map_err(PlanError::Template)
+/// `baffle template`, its figures said on `progress`.
+pub fn run_template(args: &TemplateSettings, progress: &Progress) -> Result<(), PlanError> {
+    template(args, progress).map_err(PlanError::Template)
 }
 
-/// The body of [`run_template`].
-fn template(args: &TemplateSettings) -> Result<(), String> {
+/// The template of `args` and its report written.
+fn template(args: &TemplateSettings, progress: &Progress) -> Result<(), String> {
     let format = PageFormat::from_path(&args.out, args.dpi)?;
     let domain = read_surface(&args.domain).map_err(|e| e.to_string())?;
     let points = read_points(&args.points).map_err(|e| e.to_string())?;
@@ -102,7 +104,7 @@ fn template(args: &TemplateSettings) -> Result<(), String> {
     let report_path = args.out.with_file_name(format!("{stem}-report.json"));
     write_atomic(&report_path, serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?.as_bytes())?;
     let r = &template.flat.report;
-    println!(
+    progress.say(&format!(
         "{}: seam {:.2} mm, perimeter {:.2} mm (error {:.1e}, map scaled by {:.4}); area change median {:.2} % max {:.2} %; angle change median {:.2} max {:.2} deg",
         args.out.display(),
         r.seam_length_3d_mm,
@@ -113,6 +115,6 @@ fn template(args: &TemplateSettings) -> Result<(), String> {
         100.0 * r.area_distortion_max,
         r.angle_distortion_median_deg,
         r.angle_distortion_max_deg
-    );
+    ));
     Ok(())
 }
