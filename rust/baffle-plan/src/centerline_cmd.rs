@@ -102,7 +102,7 @@ pub fn compute(args: &CenterlineSettings) -> Result<Measured, PlanError> {
     measure(args).map_err(PlanError::Centerline)
 }
 
-/// The body of [`compute`].
+/// The measurement of `args` (its errors as messages; [`compute`] names the stage).
 fn measure(args: &CenterlineSettings) -> Result<Measured, String> {
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));

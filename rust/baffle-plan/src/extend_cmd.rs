@@ -122,7 +122,7 @@ pub fn extend_to_file(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), 
     extend_and_write(args).map_err(PlanError::Extend)
 }
 
-/// The body of [`extend_to_file`].
+/// The extended domain of `args` and its report written (its errors as messages).
 fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), String> {
     let labeled = read_surface_labeled(&args.domain).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {

@@ -18,7 +18,7 @@
 //! 3. `design_cmd` (feasibility), `extend_cmd` (prepare_cmd), `simulate_report` (case,
 //!    run_summary, verdict: the summary both engines write), `template_cmd` (design_cmd).
 //! 4. `simulate_svmp` (svmp_case, simulate_report), `plan_stages` (design_cmd,
-//!    prepare_cmd: the plan's settings, stages and paths).
+//!    prepare_cmd: the plan's settings, stages and folder layout, `PlanLayout`).
 //! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict, mesh_convergence,
 //!    sampling, centerline_cmd, prepare_cmd, design_cmd).
 //! 6. `plan_cmd` (every stage, report).

@@ -16,8 +16,7 @@ use crate::error::PlanError;
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
 use crate::design_cmd::{design_reporting, DesignSettings};
 use crate::plan_stages::{
-    extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, level_extended_surface_path, mesh_path, plan_stages, prepared_surface_path,
-    FlowCase, PlanSettings, Stage, StageRecord, Step,
+    flow_bsa_m2, is_extended, plan_stages, FlowCase, PlanLayout, PlanSettings, Stage, StageRecord, Step,
 };
 use crate::centerline_cmd::{self, CenterlineSettings};
 use crate::extend_cmd::{self, ExtendSettings};
@@ -124,7 +123,7 @@ fn prepare_stage(args: &PlanSettings) -> PrepareSettings {
     let defaults = PrepareSettings::default();
     PrepareSettings {
         source: args.prepare.clone(),
-        out: prepared_surface_path(&args.design.out),
+        out: PlanLayout::of(args).prepared_surface(),
         remesh_edge_mm: args.prepare_remesh_edge_mm.unwrap_or(defaults.remesh_edge_mm),
         ..defaults
     }
@@ -133,32 +132,32 @@ fn prepare_stage(args: &PlanSettings) -> PrepareSettings {
 /// The design stage: the plan's design options, from the prepared surface when there is
 /// one, with the pulmonary artery and the peak flow the plan knows.
 fn design_stage(args: &PlanSettings, dir: &Path) -> Result<DesignSettings, String> {
-    let out = &args.design.out;
-    let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
-    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
+    let prepared_surface = PlanLayout::of(args).prepared_surface();
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface));
+    let prepared = args.prepare.is_given().then_some(prepared_surface);
     let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
     Ok(DesignSettings { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() })
 }
 
 /// The centerline stage between the VSD and aortic caps.
 fn centerline_stage(args: &PlanSettings) -> CenterlineSettings {
-    let (d, out) = (&args.design, &args.design.out);
+    let (d, layout) = (&args.design, PlanLayout::of(args));
     let (surface, ends) = match is_extended(args) {
         // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to the
         // STJ cap, trimmed at the VSD and aortic caps (interior planes).
-        true => (extended_surface_path(out), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
-        false => (out.join("design").join("domain.vtp"), None),
+        true => (layout.extended_surface(), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
+        false => (layout.designed_domain(), None),
     };
-    CenterlineSettings { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: flow_centerline_path(out), ..CenterlineSettings::default() }
+    CenterlineSettings { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: layout.flow_centerline(), ..CenterlineSettings::default() }
 }
 
 /// An extend stage: the designed domain, with a mesh-study level's own remesh.
 fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm: Option<f64>) -> ExtendSettings {
-    let (d, out) = (&args.design, &args.design.out);
+    let (d, layout) = (&args.design, PlanLayout::of(args));
     ExtendSettings {
-        domain: out.join("design").join("domain.vtp"),
+        domain: layout.designed_domain(),
         source: args.prepare.clone(),
-        out: level.map_or_else(|| extended_surface_path(out), |l| level_extended_surface_path(args, l)),
+        out: level.map_or_else(|| layout.extended_surface(), |l| layout.level_extended_surface(l)),
         remesh_domain_edge_mm,
         wall_label: d.wall_label,
         baffle_label: d.baffle_label,
@@ -171,11 +170,11 @@ fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm:
 /// A mesh stage: the extended domain as built (its interior caps share the boundary's
 /// rim points), or the designed domain with its boundary remeshed.
 fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSettings {
-    let (d, out) = (&args.design, &args.design.out);
-    let mesh = MeshSettings { edge_length_mm, out: mesh_path(out, level), ..MeshSettings::default() };
+    let (d, layout) = (&args.design, PlanLayout::of(args));
+    let mesh = MeshSettings { edge_length_mm, out: layout.mesh(level), ..MeshSettings::default() };
     match is_extended(args) {
-        true => MeshSettings { surface: level_extended_surface_path(args, level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
-        false => MeshSettings { surface: out.join("design").join("domain.vtp"), remesh_surface: true, ..mesh },
+        true => MeshSettings { surface: layout.level_extended_surface(level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
+        false => MeshSettings { surface: layout.designed_domain(), remesh_surface: true, ..mesh },
     }
 }
 
@@ -188,7 +187,8 @@ pub fn run_plan(args: &PlanSettings, progress: &Progress) -> Result<(), PlanErro
 /// The stages of `args` in order, then the report; the verdict is the last line said.
 fn plan(args: &PlanSettings, progress: &Progress) -> Result<(), String> {
     let stages = plan_stages(args)?;
-    let out = &args.design.out;
+    let layout = PlanLayout::of(args);
+    let out = layout.root();
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let total: f64 = stages.iter().map(|s| s.weight).sum();
     let mut records: Vec<StageRecord> =
@@ -207,7 +207,7 @@ fn plan(args: &PlanSettings, progress: &Progress) -> Result<(), String> {
         progress.say(&format!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name));
         let part = progress.part(range);
         part.report(0.0, &stage.name, "starting");
-        let dir = out.join(&stage.name);
+        let dir = layout.stage_dir(&stage.name);
         let start = Instant::now();
         let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| Ok(run_stage(args, stage, &dir, &part)?));
         part.finish(None);
@@ -225,8 +225,8 @@ fn plan(args: &PlanSettings, progress: &Progress) -> Result<(), String> {
                 done += stage.weight;
                 continue;
             }
-            report::write_failure_json(out, &stage.name, &e, &records)?;
-            let kept: Vec<String> = stages[..k].iter().map(|s| out.join(&s.name).display().to_string()).collect();
+            report::write_failure_json(&layout, &stage.name, &e, &records)?;
+            let kept: Vec<String> = stages[..k].iter().map(|s| layout.stage_dir(&s.name).display().to_string()).collect();
             let kept = if kept.is_empty() { "none".to_string() } else { kept.join(", ") };
             return Err(format!("stage {} failed: {e}\n(finished stages' files kept: {kept})", stage.name));
         }
@@ -238,7 +238,7 @@ fn plan(args: &PlanSettings, progress: &Progress) -> Result<(), String> {
     let outcome = report::write_reports(args, &stages, &records)?;
     progress.report(1.0, "report", "written");
     progress.finish(None);
-    progress.say(&format!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display()));
+    progress.say(&format!("wrote {} and {}", layout.report_json().display(), layout.report_html().display()));
     say_outcome(&outcome, progress);
     Ok(())
 }

@@ -1,5 +1,5 @@
 //! `baffle plan`'s settings and its stages: which run, in what order, and where each
-//! writes (the paths `plan_cmd` writes to and `report` reads from). Checked before any
+//! writes ([`PlanLayout`]: the paths `plan_cmd` writes to and `report` reads from). Checked before any
 //! stage runs.
 
 use crate::design_cmd::{target_from, DesignSettings};
@@ -186,29 +186,87 @@ fn check_one_surface_source(args: &PlanSettings) -> Result<(), String> {
     }
 }
 
-/// The extended domain an extend stage writes.
-pub fn extended_surface_path(out: &Path) -> PathBuf {
-    out.join("extend").join("extended.vtp")
+/// Every path of a plan folder: each stage's subfolder and the files the stages write
+/// there and the report reads back, so the folder's layout is said in one place.
+#[derive(Clone, Debug)]
+pub struct PlanLayout {
+    root: PathBuf,
+    /// Whether each mesh-study level extends the designed domain at its own size.
+    level_extensions: bool,
 }
 
-/// The extended domain a mesh level is meshed from: a mesh study's own extension of the
-/// level, else the one extend stage's.
-pub fn level_extended_surface_path(args: &PlanSettings, level: &str) -> PathBuf {
-    let out = &args.design.out;
-    match args.runs_mesh_study() {
-        true => out.join(format!("extend-{level}")).join("extended.vtp"),
-        false => extended_surface_path(out),
+impl PlanLayout {
+    /// The folder `root`; `level_extensions` when each mesh-study level has its own
+    /// extend stage (an extended domain's mesh study).
+    pub fn new(root: &Path, level_extensions: bool) -> PlanLayout {
+        PlanLayout { root: root.to_path_buf(), level_extensions }
+    }
+
+    /// The layout of the plan `args` (its --out).
+    pub fn of(args: &PlanSettings) -> PlanLayout {
+        PlanLayout::new(&args.design.out, args.runs_mesh_study())
+    }
+
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// A stage's subfolder, named after the stage.
+    pub fn stage_dir(&self, stage: &str) -> PathBuf {
+        self.root.join(stage)
+    }
+
+    /// The capped ventricle a prepare stage writes.
+    pub fn prepared_surface(&self) -> PathBuf {
+        self.stage_dir("prepare").join("capped_ventricle.vtp")
+    }
+
+    /// The design stage's folder (domain.vtp, report.json and the rest of `baffle design`'s files).
+    pub fn design_dir(&self) -> PathBuf {
+        self.stage_dir("design")
+    }
+
+    /// The designed domain.
+    pub fn designed_domain(&self) -> PathBuf {
+        self.design_dir().join("domain.vtp")
+    }
+
+    /// The extended domain the extend stage writes.
+    pub fn extended_surface(&self) -> PathBuf {
+        self.stage_dir("extend").join("extended.vtp")
+    }
+
+    /// The extended domain a mesh level is meshed from: a mesh study's own extension of
+    /// the level, else the one extend stage's.
+    pub fn level_extended_surface(&self, level: &str) -> PathBuf {
+        match self.level_extensions {
+            true => self.stage_dir(&format!("extend-{level}")).join("extended.vtp"),
+            false => self.extended_surface(),
+        }
+    }
+
+    /// The flow-domain centerline a centerline stage writes (its figures in the .json beside it).
+    pub fn flow_centerline(&self) -> PathBuf {
+        self.stage_dir("centerline").join("centerline.vtp")
+    }
+
+    /// A mesh level's volume mesh (its faces and quality files beside it).
+    pub fn mesh(&self, level: &str) -> PathBuf {
+        self.stage_dir(&format!("mesh-{level}")).join("mesh.vtu")
+    }
+
+    pub fn report_json(&self) -> PathBuf {
+        self.root.join("report.json")
+    }
+
+    pub fn report_html(&self) -> PathBuf {
+        self.root.join("report.html")
     }
 }
 
 /// Whether the CFD runs on the extended domain: the LV and aorta are known (a prepare stage).
 pub fn is_extended(args: &PlanSettings) -> bool {
     args.prepare.is_given()
-}
-
-/// The capped ventricle a prepare stage writes.
-pub fn prepared_surface_path(out: &Path) -> PathBuf {
-    out.join("prepare").join("capped_ventricle.vtp")
 }
 
 /// Everything the stages need that can be checked before any of them runs, so a
@@ -273,14 +331,6 @@ pub fn flow_bsa_m2(args: &PlanSettings) -> Result<f64, String> {
     }
 }
 
-/// The flow-domain centerline a centerline stage writes (its figures in the .json beside it).
-pub fn flow_centerline_path(out: &Path) -> PathBuf {
-    out.join("centerline").join("centerline.vtp")
-}
-
-pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
-    out.join(format!("mesh-{level}")).join("mesh.vtu")
-}
 
 #[cfg(test)]
 mod tests {
@@ -335,7 +385,7 @@ mod tests {
             })
             .collect();
         assert_eq!(extends, [None, Some(0.95), Some(1.25), Some(0.75)]);
-        assert_eq!(level_extended_surface_path(&args, "fine"), PathBuf::from("o/extend-fine/extended.vtp"));
+        assert_eq!(PlanLayout::of(&args).level_extended_surface("fine"), PathBuf::from("o/extend-fine/extended.vtp"));
         let study: Vec<(String, Option<&str>)> = plan_stages(&args).unwrap().into_iter().map(|s| (s.name.clone(), s.study_level())).collect();
         assert!(study.iter().all(|(name, level)| level.is_some() == (name.ends_with("-coarse") || name.ends_with("-fine"))), "{study:?}");
         // From a surface the mesh stage remeshes the boundary itself: no extend stages.

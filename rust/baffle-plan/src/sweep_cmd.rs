@@ -13,7 +13,7 @@
 use crate::error::PlanError;
 use crate::files::{read_json, write_atomic};
 use crate::plan_cmd;
-use crate::plan_stages::{self, PlanSettings, Stage, Step};
+use crate::plan_stages::{self, PlanLayout, PlanSettings, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
 use crate::progress::Progress;
 use crate::run_summary::RunSummary;
@@ -170,7 +170,7 @@ pub fn run_sweep(args: &SweepSettings, progress: &Progress) -> Result<(), PlanEr
     sweep(args, progress).map_err(PlanError::Sweep)
 }
 
-/// The body of [`run_sweep`].
+/// The designs (and with --cfd the quick estimates) of every target, and the tables and plot.
 fn sweep(args: &SweepSettings, progress: &Progress) -> Result<(), String> {
     // Design options that make no sense per target are refused, not silently dropped.
     if args.design.reference_baffle.is_some() || args.design.progress_tags {
@@ -180,7 +180,7 @@ fn sweep(args: &SweepSettings, progress: &Progress) -> Result<(), String> {
     let prepared = prepare_once(args, progress)?;
     let (surface, points, default_bsa) = design_inputs(&DesignSettings { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
-    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&plan_stages::prepared_surface_path(&args.design.out)));
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&PlanLayout::new(&args.design.out, false).prepared_surface()));
     if args.cfd.cfd {
         // Every stage's arguments are checked before the first design, as the plan does.
         plan_stages::plan_stages(&plan_args(args, &args.design.out, f64::NAN))?;
@@ -260,14 +260,14 @@ fn prepare_once(args: &SweepSettings, progress: &Progress) -> Result<Option<Path
     if args.design.surface.is_some() || args.design.phantom {
         return Err("baffle sweep takes one source of the ventricle: --surface, --phantom, --segmentations or --labelmap".into());
     }
-    let out = &args.design.out;
+    let (out, layout) = (&args.design.out, PlanLayout::new(&args.design.out, false));
     let stage = Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 };
-    let dir = out.join(&stage.name);
+    let dir = layout.stage_dir(&stage.name);
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let progress = progress.restart();
     plan_cmd::run_stage(&plan_args(args, out, f64::NAN), &stage, &dir, &progress).map_err(|e| format!("stage prepare failed: {e}"))?;
     progress.finish(None);
-    Ok(Some(plan_stages::prepared_surface_path(out)))
+    Ok(Some(layout.prepared_surface()))
 }
 
 /// Mesh the designed domain and run the quick estimate with the plan's own stages
@@ -295,10 +295,10 @@ const AFTER_DESIGN: [&str; 3] = ["extend", "mesh-", "simulate-"];
 
 /// The plan's extend (when prepared), mesh and simulate stages into the row's folder; the run's summary.json.
 fn run_after_design(plan: &PlanSettings, progress: &Progress) -> Result<RunSummary, String> {
-    let out = &plan.design.out;
+    let layout = PlanLayout::of(plan);
     let mut summary = None;
     for stage in plan_stages::plan_stages(plan)?.iter().filter(|s| AFTER_DESIGN.iter().any(|p| s.name.starts_with(p))) {
-        let dir: PathBuf = out.join(&stage.name);
+        let dir = layout.stage_dir(&stage.name);
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         plan_cmd::run_stage(plan, stage, &dir, progress).map_err(|e| format!("stage {} failed: {e}", stage.name))?;
         summary = Some(dir.join("summary.json"));
