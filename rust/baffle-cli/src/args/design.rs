@@ -1,7 +1,7 @@
 //! `baffle design`'s arguments: the design options and the target.
 
-use baffle_plan::design_cmd::{self as plan, DesignSettings, TargetSettings, Vec3};
-use clap::{Args, ValueEnum};
+use baffle_plan::design_cmd::{DesignSettings, Frame as PlanFrame, TargetSettings, Vec3};
+use clap::Args;
 use std::path::PathBuf;
 
 // Required-ness of --surface/--points is checked at run time (read_inputs), so that
@@ -119,11 +119,9 @@ pub struct TargetArgs {
     pub z_score: f64,
 }
 
-/// The frame a surface's coordinates are in (the points are converted into it).
-#[derive(Clone, Copy, ValueEnum)]
-pub enum Frame {
-    Lps,
-    Ras,
+super::value_enum! {
+    /// The frame a surface's coordinates are in (the points are converted into it).
+    Frame mirrors PlanFrame { Lps, Ras }
 }
 
 impl From<DesignArgs> for DesignSettings {
@@ -167,24 +165,6 @@ impl From<TargetArgs> for TargetSettings {
             height_cm: a.height_cm,
             weight_kg: a.weight_kg,
             z_score: a.z_score,
-        }
-    }
-}
-
-impl From<Frame> for plan::Frame {
-    fn from(v: Frame) -> Self {
-        match v {
-            Frame::Lps => plan::Frame::Lps,
-            Frame::Ras => plan::Frame::Ras,
-        }
-    }
-}
-
-impl From<plan::Frame> for Frame {
-    fn from(v: plan::Frame) -> Self {
-        match v {
-            plan::Frame::Lps => Frame::Lps,
-            plan::Frame::Ras => Frame::Ras,
         }
     }
 }

@@ -1,6 +1,35 @@
 //! The `baffle` command's arguments (clap), one module a command, each turned into the
 //! typed settings baffle-plan's stages take (`From`); the defaults are baffle-plan's.
 
+/// A clap value enum with the variants of the baffle-plan enum `$plan` (imported under
+/// that name), converted both ways.
+macro_rules! value_enum {
+    ($(#[$doc:meta])* $name:ident mirrors $plan:ident { $($variant:ident),+ $(,)? }) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+        pub enum $name {
+            $($variant),+
+        }
+
+        impl From<$name> for $plan {
+            fn from(v: $name) -> Self {
+                match v {
+                    $($name::$variant => $plan::$variant),+
+                }
+            }
+        }
+
+        impl From<$plan> for $name {
+            fn from(v: $plan) -> Self {
+                match v {
+                    $($plan::$variant => $name::$variant),+
+                }
+            }
+        }
+    };
+}
+pub(crate) use value_enum;
+
 pub mod centerline;
 pub mod design;
 pub mod export;

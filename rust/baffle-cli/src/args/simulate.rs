@@ -2,9 +2,9 @@
 
 use super::at_least_one;
 use baffle_plan::simulate_cmd::SimulateSettings;
-use baffle_plan::simulate_report as plan;
+use baffle_plan::simulate_report::Engine as PlanEngine;
 use baffle_plan::case;
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -76,10 +76,9 @@ pub struct SimulateArgs {
     pub progress_tags: bool,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Engine {
-    Embedded,
-    Svmultiphysics,
+super::value_enum! {
+    /// The solver of `baffle simulate --engine`.
+    Engine mirrors PlanEngine { Embedded, Svmultiphysics }
 }
 
 impl From<SimulateArgs> for SimulateSettings {
@@ -101,24 +100,6 @@ impl From<SimulateArgs> for SimulateSettings {
             read_back: a.read_back,
             mpi_processes: a.mpi_processes,
             progress_tags: a.progress_tags,
-        }
-    }
-}
-
-impl From<Engine> for plan::Engine {
-    fn from(v: Engine) -> Self {
-        match v {
-            Engine::Embedded => plan::Engine::Embedded,
-            Engine::Svmultiphysics => plan::Engine::Svmultiphysics,
-        }
-    }
-}
-
-impl From<plan::Engine> for Engine {
-    fn from(v: plan::Engine) -> Self {
-        match v {
-            plan::Engine::Embedded => Engine::Embedded,
-            plan::Engine::Svmultiphysics => Engine::Svmultiphysics,
         }
     }
 }

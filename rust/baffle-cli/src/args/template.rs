@@ -1,8 +1,8 @@
 //! `baffle template`'s arguments.
 
 use super::design::Frame;
-use baffle_plan::template_cmd::{self as plan, TemplateSettings};
-use clap::{Args, ValueEnum};
+use baffle_plan::template_cmd::{TemplateMethod as PlanMethod, TemplateSettings};
+use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -42,10 +42,9 @@ pub struct TemplateArgs {
     pub aortic_label: i32,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum TemplateMethod {
-    Lscm,
-    Arap,
+super::value_enum! {
+    /// The flattening of `baffle template --method`.
+    TemplateMethod mirrors PlanMethod { Lscm, Arap }
 }
 
 impl From<TemplateArgs> for TemplateSettings {
@@ -62,24 +61,6 @@ impl From<TemplateArgs> for TemplateSettings {
             baffle_label: a.baffle_label,
             vsd_label: a.vsd_label,
             aortic_label: a.aortic_label,
-        }
-    }
-}
-
-impl From<TemplateMethod> for plan::TemplateMethod {
-    fn from(v: TemplateMethod) -> Self {
-        match v {
-            TemplateMethod::Lscm => plan::TemplateMethod::Lscm,
-            TemplateMethod::Arap => plan::TemplateMethod::Arap,
-        }
-    }
-}
-
-impl From<plan::TemplateMethod> for TemplateMethod {
-    fn from(v: plan::TemplateMethod) -> Self {
-        match v {
-            plan::TemplateMethod::Lscm => TemplateMethod::Lscm,
-            plan::TemplateMethod::Arap => TemplateMethod::Arap,
         }
     }
 }
