@@ -26,14 +26,6 @@ fn check_steps_per_cycle(s: &CaseSettings) -> Result<(), String> {
     }
 }
 
-/// A count option that must be at least 1 (a parser for clap).
-pub fn at_least_one(text: &str) -> Result<usize, String> {
-    match text.parse::<usize>() {
-        Ok(n) if n >= 1 => Ok(n),
-        Ok(_) => Err("must be at least 1".into()),
-        Err(e) => Err(e.to_string()),
-    }
-}
 
 pub const EXAMPLE: &str = r#"{
   "mesh": { "volume": "mesh.vtu", "faces": "mesh-faces.vtp", "format": "baffle", "units": "mm" },
@@ -610,10 +602,4 @@ mod tests {
         }
     }
 
-    #[test]
-    fn counts_below_one_are_refused() {
-        assert_eq!(at_least_one("3"), Ok(3));
-        assert!(at_least_one("0").unwrap_err().contains("at least 1"));
-        assert!(at_least_one("-2").is_err() && at_least_one("two").is_err());
-    }
 }

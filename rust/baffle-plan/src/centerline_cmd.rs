@@ -3,65 +3,74 @@
 //! inscribed radii, and with `--results` the pressure and speed of a `baffle simulate`
 //! result sampled along it (v_max along the centerline).
 
+use crate::error::PlanError;
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
-use crate::progress::{Progress, Style};
-use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane, PAPER_SPACING_MM};
+use crate::progress::Progress;
+use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
 use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
-use baffle_core::TriMesh;
-use clap::Args;
+use baffle_core::{FaceLabels, TriMesh};
 use serde::Deserialize;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-#[derive(Args, Clone)]
-pub struct CenterlineArgs {
+#[derive(Clone)]
+pub struct CenterlineSettings {
     /// Closed lumen surface with ModelFaceID (e.g. domain.vtp of `baffle design`).
-    #[arg(long)]
     pub surface: PathBuf,
     /// The measurement planes, inflow first, as ModelFaceIDs: caps of --surface, or
     /// face sets of --plane-faces.
-    #[arg(long, value_delimiter = ',', default_value = "11,16")]
     pub planes: Vec<i32>,
     /// The end caps of --surface the path runs between (inflow first), when the planes
     /// are not caps of it (an extended domain, e.g. `baffle extend`'s 20,21); default: the
     /// planes. Plane triangles of --surface that are not end caps are taken as interior.
-    #[arg(long, value_delimiter = ',')]
     pub ends: Option<Vec<i32>>,
     /// A face file holding the planes' triangles (e.g. mesh-faces.vtp of `baffle mesh`,
     /// whose interior face sets are the measurement planes).
-    #[arg(long)]
     pub plane_faces: Option<PathBuf>,
     /// Factor from the files' units to mm (10 for the paper's published files, in cm).
-    #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
     /// A `baffle simulate` result (peak.vtu: mm, velocity_m_s, pressure_mmhg) to sample along the centerline.
-    #[arg(long)]
     pub results: Option<PathBuf>,
     /// Voxel size of the distance field (mm).
-    #[arg(long, default_value_t = CenterlineOptions::default().voxel_mm)]
     pub voxel_mm: f64,
     /// Largest distance between centerline points (mm); the paper used 0.5.
-    #[arg(long, default_value_t = PAPER_SPACING_MM)]
     pub spacing_mm: f64,
     /// Half-width of the moving average smoothing the path (mm).
-    #[arg(long, default_value_t = CenterlineOptions::default().smoothing_mm)]
     pub smoothing_mm: f64,
     /// Largest re-centring shift of a path point in its normal plane, as a fraction of
     /// its inscribed radius (0: the minimal path as found on the voxels, smoothed).
-    #[arg(long, default_value_t = CenterlineOptions::default().recenter_fraction)]
     pub recenter_fraction: f64,
     /// The peak flow (ml/s): <stem>.json then holds hemodynamics_estimate, dp at peak flow
     /// between the planes and the peak velocity from the sections normal to the centerline
     /// (baffle_core::hemodynamics_estimate; the planes' areas from their triangles).
-    #[arg(long, allow_hyphen_values = true)]
     pub peak_flow_ml_s: Option<f64>,
     /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,
     /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
-    #[arg(long)]
     pub out: PathBuf,
+}
+
+impl Default for CenterlineSettings {
+    fn default() -> Self {
+        let labels = FaceLabels::default();
+        let o = CenterlineOptions::default();
+        CenterlineSettings {
+            surface: PathBuf::new(),
+            planes: vec![labels.vsd_cap, labels.aortic_cap],
+            ends: None,
+            plane_faces: None,
+            scale: 1.0,
+            results: None,
+            voxel_mm: o.voxel_mm,
+            spacing_mm: o.spacing_mm,
+            smoothing_mm: o.smoothing_mm,
+            recenter_fraction: o.recenter_fraction,
+            peak_flow_ml_s: None,
+            out: PathBuf::new(),
+        }
+    }
 }
 
 fn read_mm(path: &Path, scale: f64) -> Result<TriMesh, String> {
@@ -89,7 +98,12 @@ pub struct Measured {
 }
 
 /// The centerline of `args`, its flow-normal sections, and its profile when --results is given.
-pub fn compute(args: &CenterlineArgs) -> Result<Measured, String> {
+pub fn compute(args: &CenterlineSettings) -> Result<Measured, PlanError> {
+    measure(args).map_err(PlanError::Centerline)
+}
+
+/// The measurement of `args` (its errors as messages; [`compute`] names the stage).
+fn measure(args: &CenterlineSettings) -> Result<Measured, String> {
     if !(args.scale > 0.0) {
         return Err(format!("--scale must be positive, got {}", args.scale));
     }
@@ -159,7 +173,7 @@ fn radius_range(line: &FlowCenterline) -> (f64, f64) {
 }
 
 /// The figures written to <stem>.json (also read back by the plan's report).
-fn summary(args: &CenterlineArgs, m: &Measured, wall_time_s: f64) -> serde_json::Value {
+fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_json::Value {
     let (line, profile) = (&m.line, m.profile.as_ref());
     let smallest = smallest_section(&line.s_mm, &m.sections_mm2);
     let (r_min, r_max) = radius_range(line);
@@ -202,15 +216,14 @@ pub fn output_paths(out: &Path) -> (PathBuf, PathBuf) {
     (out.with_extension("vtp"), out.with_extension("json"))
 }
 
-pub fn run_centerline(args: &CenterlineArgs) -> Result<(), String> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
-    let result = run_centerline_with(args, &progress);
-    progress.finish(None);
-    result
+/// `baffle centerline`, its computation shown and its figures said on `progress` (a
+/// stage of `baffle plan`, or the command).
+pub fn run_centerline(args: &CenterlineSettings, progress: &Progress) -> Result<(), PlanError> {
+    centerline_and_write(args, progress).map_err(PlanError::Centerline)
 }
 
-/// `baffle centerline`, its computation shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result<(), String> {
+/// The centerline of `args` and its figures written.
+fn centerline_and_write(args: &CenterlineSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     let measured = progress.while_running("centerline", || compute(args))?;
     let wall_time_s = start.elapsed().as_secs_f64();
@@ -221,14 +234,14 @@ pub fn run_centerline_with(args: &CenterlineArgs, progress: &Progress) -> Result
     let (line, profile) = (&measured.line, &measured.profile);
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
     let (r_min, r_max) = radius_range(line);
-    print!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
+    let mut said = format!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
     if let Some((a, at)) = smallest_section(&line.s_mm, &measured.sections_mm2) {
-        print!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
+        said += &format!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
     }
-    match &profile {
-        Some(p) => println!("; v_max along it {:.3} m/s", p.v_max_m_s()),
-        None => println!(),
+    if let Some(p) = &profile {
+        said += &format!("; v_max along it {:.3} m/s", p.v_max_m_s());
     }
-    println!("wrote {} and {}", vtp.display(), json_path.display());
+    progress.say(&said);
+    progress.say(&format!("wrote {} and {}", vtp.display(), json_path.display()));
     Ok(())
 }

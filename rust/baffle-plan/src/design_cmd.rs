@@ -1,135 +1,142 @@
 //! `baffle design`: its arguments, the target from them, the design run with its
 //! progress and summary lines (also the plan's design stage and the sweep's rows).
 
+use crate::error::PlanError;
+use crate::progress::Progress;
 use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
 use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::phantom::phantom_default;
 use baffle_core::rv_outflow::{rv_outflow, RvOutflow};
-use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh, Vec3};
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh};
+/// The point type of `DesignSettings`' cap points.
+pub use baffle_core::Vec3;
 use crate::{feasibility, files};
-use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 
 // Required-ness of --surface/--points is checked at run time (read_inputs), so that
 // `baffle plan` can offer other sources of the surface.
-#[derive(Args, Clone)]
-pub struct DesignArgs {
+#[derive(Clone)]
+pub struct DesignSettings {
     /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm (required unless --phantom).
-    #[arg(long)]
     pub surface: Option<PathBuf>,
     /// Suture points: Slicer markups (.mrk.json), .fcsv, CSV (x,y,z per line) or JSON (required unless --phantom).
-    #[arg(long)]
     pub points: Option<PathBuf>,
     /// Use the built-in synthetic phantom as surface and points (BSA 0.37 m2 unless given).
-    #[arg(long, conflicts_with_all = ["surface", "points"])]
     pub phantom: bool,
     /// Output directory.
-    #[arg(long)]
     pub out: PathBuf,
-    #[command(flatten)]
-    pub target: TargetArgs,
+    pub target: TargetSettings,
     /// Frame of the surface file; suture points are converted into it. Slicer writes
     /// models in LPS.
-    #[arg(long, value_enum, default_value_t = Frame::Lps)]
     pub surface_frame: Frame,
     /// Target edge length of the isotropic remeshing of the kept wall (mm).
-    #[arg(long, default_value_t = 0.85)]
     pub remesh_edge_mm: f64,
     /// Keep the input's wall triangles (no isotropic remeshing).
-    #[arg(long)]
     pub no_remesh: bool,
     /// Target edge length of the baffle (mm).
-    #[arg(long, default_value_t = 0.85)]
     pub baffle_edge_mm: f64,
     /// Points the seam spline is resampled at.
-    #[arg(long, default_value_t = 600)]
     pub seam_samples: usize,
     /// Centerline section spacing (mm).
-    #[arg(long, default_value_t = 0.5)]
     pub centerline_spacing_mm: f64,
     /// Interior TPS control points of the initial patch.
-    #[arg(long, default_value_t = 9)]
     pub control_points: usize,
     /// Largest distance of a suture point from the surface (mm).
-    #[arg(long, default_value_t = 2.0)]
     pub max_point_distance_mm: f64,
     /// ModelFaceID of the RV wall.
-    #[arg(long, default_value_t = 2)]
     pub wall_label: i32,
     /// ModelFaceID given to the baffle.
-    #[arg(long, default_value_t = 10)]
     pub baffle_label: i32,
     /// ModelFaceID of the VSD cap.
-    #[arg(long, default_value_t = 11)]
     pub vsd_label: i32,
     /// ModelFaceID of the aortic-annulus cap.
-    #[arg(long, default_value_t = 16)]
     pub aortic_label: i32,
     /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
     /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
-    #[arg(long, value_parser = parse_point, requires = "aortic_cap_point", allow_hyphen_values = true)]
     pub vsd_cap_point: Option<Vec3>,
     /// A point on the aortic-annulus cap (see --vsd-cap-point).
-    #[arg(long, value_parser = parse_point, requires = "vsd_cap_point", allow_hyphen_values = true)]
     pub aortic_cap_point: Option<Vec3>,
     /// A reference baffle to compare with (area ratio, symmetric surface distance),
     /// written to reference_comparison.json; e.g. the paper's published_baffle.vtp.
-    #[arg(long)]
     pub reference_baffle: Option<PathBuf>,
     /// Scale of the reference's coordinates to mm (10 for the published files, in cm).
-    #[arg(long, default_value_t = 1.0)]
     pub reference_scale: f64,
     /// Closed surface of the pulmonary artery (mm, the surface's frame), e.g. a
     /// segmentation's pulmonary.vtp: measures the smallest section of the RV-to-pulmonary
     /// pathway before and after the baffle (report.json rv_outflow_*). Taken from
     /// --segmentations by `baffle plan` and `baffle sweep`.
-    #[arg(long)]
     pub pulmonary: Option<PathBuf>,
     /// Apply the target to the tunnel's sections normal to the flow too: the paper
     /// constrains sections normal to its centerline between the cap centroids, which runs
     /// oblique to the flow near the caps, so the flow's own sections can be smaller (up to
     /// 25% on p3). The design is run again at a raised target until the smallest section
     /// normal to the flow-domain centerline reaches the target (report.json flow_sections).
-    #[arg(long)]
     pub flow_sections: bool,
     /// The patient's peak flow (ml/s; the paper's is 3.26 x CI x BSA): report.json then
     /// holds hemodynamics_estimate, dp at peak flow and the peak velocity from the tunnel's
     /// flow-normal sections (baffle_core::hemodynamics_estimate, docs/hemodynamics_estimate.md).
-    #[arg(long, allow_hyphen_values = true)]
     pub peak_flow_ml_s: Option<f64>,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
-    #[arg(long)]
     pub progress_tags: bool,
 }
 
-#[derive(Args, Clone)]
-pub struct TargetArgs {
+#[derive(Clone, Default)]
+pub struct TargetSettings {
     /// Target cross-section area (mm2).
-    #[arg(long, group = "target_kind")]
     pub target_area_mm2: Option<f64>,
     /// Target aortic annulus diameter (mm): A = pi (D/2)^2.
-    #[arg(long, group = "target_kind")]
     pub annulus_diameter_mm: Option<f64>,
     /// Body surface area (m2): Boston (Colan 2006) aortic annulus at --z-score.
-    #[arg(long, group = "target_kind")]
     pub bsa: Option<f64>,
     /// Height (cm), with --weight-kg: Haycock BSA, then the Boston annulus.
-    #[arg(long, requires = "weight_kg", group = "target_kind")]
     pub height_cm: Option<f64>,
     /// Weight (kg), with --height-cm.
-    #[arg(long, requires = "height_cm")]
     pub weight_kg: Option<f64>,
     /// Annulus z-score for --bsa or --height-cm/--weight-kg (not with a given area or diameter,
     /// which it would not change).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, conflicts_with_all = ["target_area_mm2", "annulus_diameter_mm"])]
     pub z_score: f64,
 }
 
+/// The defaults are `baffle_core`'s (`DesignOptions::default()`, `FaceLabels::default()`).
+impl Default for DesignSettings {
+    fn default() -> Self {
+        let o = DesignOptions::default();
+        DesignSettings {
+            surface: None,
+            points: None,
+            phantom: false,
+            out: PathBuf::new(),
+            target: TargetSettings::default(),
+            surface_frame: Frame::default(),
+            remesh_edge_mm: o.remesh_edge_mm.unwrap_or_default(),
+            no_remesh: o.remesh_edge_mm.is_none(),
+            baffle_edge_mm: o.baffle_edge_mm,
+            seam_samples: o.seam_samples,
+            centerline_spacing_mm: o.centerline_spacing_mm,
+            control_points: o.interior_control_points,
+            max_point_distance_mm: o.max_point_distance_mm,
+            wall_label: o.labels.wall,
+            baffle_label: o.labels.baffle,
+            vsd_label: o.labels.vsd_cap,
+            aortic_label: o.labels.aortic_cap,
+            vsd_cap_point: None,
+            aortic_cap_point: None,
+            reference_baffle: None,
+            reference_scale: 1.0,
+            pulmonary: None,
+            flow_sections: false,
+            peak_flow_ml_s: None,
+            progress_tags: false,
+        }
+    }
+}
+
 /// The frame a surface's coordinates are in (the points are converted into it).
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Default)]
 pub enum Frame {
+    #[default]
     Lps,
     Ras,
 }
@@ -144,7 +151,7 @@ impl From<Frame> for CoordinateSystem {
 }
 
 /// The target area the arguments give (`default_bsa_m2`, the phantom's, when none does).
-pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
+pub fn target_from(args: &TargetSettings, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
     let z_score = args.z_score;
     if let Some(a) = args.target_area_mm2 {
         return Ok(TargetArea::AreaMm2(a));
@@ -161,24 +168,30 @@ pub fn target_from(args: &TargetArgs, default_bsa_m2: Option<f64>) -> Result<Tar
     }
 }
 
-/// `baffle design`: Slicer's progress tags on stdout with --progress-tags.
-pub fn run_design(args: &DesignArgs) -> Result<(), String> {
+/// `baffle design`: its lines said on `progress`, with --progress-tags Slicer's progress
+/// tags too.
+pub fn run_design(args: &DesignSettings, progress: &Progress) -> Result<(), PlanError> {
     let tags = args.progress_tags;
-    design_reporting(args, &mut |fraction, stage| {
+    design_reporting(args, progress, &mut |fraction, stage| {
         if tags {
-            print_progress_tag(fraction, stage);
+            progress.say(&progress_tag(fraction, stage));
         }
         true
     })
 }
 
-/// A Slicer CLI progress tag and the stage it is in, on stdout.
-fn print_progress_tag(fraction: f64, stage: &str) {
-    println!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>");
+/// A Slicer CLI progress tag and the stage it is in (two lines).
+fn progress_tag(fraction: f64, stage: &str) -> String {
+    format!("<filter-progress>{fraction:.3}</filter-progress>\n<filter-stage>{stage}</filter-stage>")
 }
 
-/// `baffle design` with the progress sent to `progress`.
-pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
+/// `baffle design`, its summary lines said on `progress` and each step's fraction sent to `on_step`.
+pub fn design_reporting(args: &DesignSettings, progress: &Progress, on_step: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), PlanError> {
+    design_and_write(args, progress, on_step).map_err(PlanError::Design)
+}
+
+/// The design of `args`, its files written and its summary said on `progress`.
+fn design_and_write(args: &DesignSettings, progress: &Progress, on_step: &mut dyn FnMut(f64, &str) -> bool) -> Result<(), String> {
     // Options first: a bad number is refused before any file is read.
     let options = design_options(args)?;
     if let Some(q) = args.peak_flow_ml_s.filter(|q| !(q.is_finite() && *q > 0.0)) {
@@ -186,7 +199,7 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     }
     let (surface, points, default_bsa) = design_inputs(args)?;
     let target = target_from(&args.target, default_bsa)?;
-    let mut result = design_by_rule(args.flow_sections, &surface, &points, &target, &options, progress).map_err(|e| match e {
+    let mut result = design_by_rule(args.flow_sections, &surface, &points, &target, &options, on_step).map_err(|e| match e {
         // A fault of the surface file: say which file.
         DesignError::Surface(_) | DesignError::MissingLabel { .. } => match &args.surface {
             Some(path) => format!("{}: {e}", path.display()),
@@ -199,7 +212,7 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
     result.report.hemodynamics_estimate = Some(estimate);
     write_design_outputs(&args.out, &result).map_err(|e| e.to_string())?;
     let r = &result.report;
-    println!(
+    progress.say(&format!(
         "target {:.1} mm2 ({}); centerline {:.2} mm; baffle {:.1} mm2, {} triangles; {} constrained sections, smallest {:.1} mm2; {:.0} ms",
         r.target_area_mm2,
         r.target,
@@ -209,19 +222,19 @@ pub fn design_reporting(args: &DesignArgs, progress: &mut dyn FnMut(f64, &str) -
         r.constrained_sections,
         r.min_constrained_final_area_mm2,
         r.timings.total_ms
-    );
+    ));
     if let Some(f) = &r.flow_sections {
-        println!("{}", flow_sections_line(f));
+        progress.say(&flow_sections_line(f));
     }
     if let Some(EstimateOutcome::Estimated(e)) = &r.hemodynamics_estimate {
-        println!("{}", estimate_line(e));
+        progress.say(&estimate_line(e));
     }
-    println!("{}", rv_cost_line(&r.rv_cost));
-    println!("{}", rv_outflow_line(&r.rv_cost.rv_outflow));
+    progress.say(&rv_cost_line(&r.rv_cost));
+    progress.say(&rv_outflow_line(&r.rv_cost.rv_outflow));
     if let Some(path) = &args.reference_baffle {
-        compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?;
+        progress.say(&compare_with_reference(&result.baffle, path, args.reference_scale, &args.out)?);
     }
-    println!("wrote {}", args.out.display());
+    progress.say(&format!("wrote {}", args.out.display()));
     Ok(())
 }
 
@@ -264,7 +277,7 @@ fn flow_sections_line(f: &baffle_core::flow_target::FlowSections) -> String {
 
 /// Surface, suture points (in the surface's frame) and the BSA that comes with the
 /// phantom (None for files).
-pub fn design_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>, Option<f64>), String> {
+pub fn design_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>, Option<f64>), String> {
     if args.phantom {
         let p = phantom_default();
         return Ok((p.surface, p.suture_points_mm, Some(p.bsa_m2)));
@@ -328,7 +341,7 @@ pub fn most_narrowed_text(n: Option<&baffle_core::rv_outflow::NarrowedSection>) 
 }
 
 /// The design options of the command line, range-checked in the one place the C ABI also uses.
-pub fn design_options(args: &DesignArgs) -> Result<DesignOptions, String> {
+pub fn design_options(args: &DesignSettings) -> Result<DesignOptions, String> {
     let options = DesignOptions {
         labels: FaceLabels {
             wall: args.wall_label,
@@ -348,11 +361,12 @@ pub fn design_options(args: &DesignArgs) -> Result<DesignOptions, String> {
     Ok(options)
 }
 
-fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<(), String> {
+/// Compare the baffle with the reference baffle at `path` (reference_comparison.json); the comparison's line.
+fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<String, String> {
     let mut reference = baffle_core::io::read_surface(path).map_err(|e| e.to_string())?;
     reference.points.iter_mut().for_each(|p| *p *= scale);
     let c = baffle_core::compare::compare_surfaces(baffle, &reference).map_err(|e| format!("{}: {e}", path.display()))?;
-    println!(
+    let line = format!(
         "reference {}: area {:.1} vs {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
         path.display(),
         c.area_mm2,
@@ -363,10 +377,11 @@ fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path)
     );
     let file = out.join("reference_comparison.json");
     let text = serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?;
-    files::write_atomic(&file, text.as_bytes())
+    files::write_atomic(&file, text.as_bytes())?;
+    Ok(line)
 }
 
-fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
+fn read_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>), String> {
     let (Some(surface_path), Some(points_path)) = (&args.surface, &args.points) else {
         return Err("--surface and --points are required (or --phantom)".into());
     };
@@ -386,19 +401,14 @@ fn read_inputs(args: &DesignArgs) -> Result<(TriMesh, Vec<Vec3>), String> {
     Ok((mesh, points.to_frame(args.surface_frame.into())))
 }
 
-fn parse_point(text: &str) -> Result<Vec3, String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{v}' is not a number")))
-        .collect::<Result<_, _>>()?;
-    match values[..] {
-        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok(Vec3::new(x, y, z)),
-        _ => Err(format!("expected x,y,z (three finite numbers), got '{text}'")),
-    }
-}
 
 /// `baffle phantom`: the built-in synthetic phantom's capped ventricle and suture points.
-pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(), String> {
+pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>, progress: &Progress) -> Result<(), PlanError> {
+    phantom_files(out, suture_half_angle_deg, progress).map_err(PlanError::Phantom)
+}
+
+/// The phantom's files in `out`, said on `progress`.
+fn phantom_files(out: &Path, suture_half_angle_deg: Option<f64>, progress: &Progress) -> Result<(), String> {
     let p = match suture_half_angle_deg {
         None => phantom_default(),
         Some(angle) => baffle_core::phantom::phantom_with_suture_half_angle(angle).map_err(|e| format!("--suture-half-angle-deg: {e}"))?,
@@ -407,6 +417,6 @@ pub fn write_phantom(out: &Path, suture_half_angle_deg: Option<f64>) -> Result<(
     write_trimesh_vtp(&out.join("capped_ventricle.vtp"), &p.surface).map_err(|e| e.to_string())?;
     write_markups_closed_curve(&out.join("suture_points.mrk.json"), "BC", &p.suture_points_mm, CoordinateSystem::Lps)
         .map_err(|e| e.to_string())?;
-    println!("wrote {} (BSA {} m2)", out.display(), p.bsa_m2);
+    progress.say(&format!("wrote {} (BSA {} m2)", out.display(), p.bsa_m2));
     Ok(())
 }

@@ -1,35 +1,48 @@
 //! `baffle export-svmp`: hand the same JSON case as `baffle simulate` to
 //! svMultiPhysics (the paper's solver), for a cluster run.
 
+use crate::error::PlanError;
 use crate::case;
-use crate::svmp_case::export_to;
+use crate::progress::Progress;
+use crate::svmp_case::{export_to, inflow_line};
 use baffle_cfd::RunMode;
-use clap::Args;
 use std::path::PathBuf;
 
-#[derive(Args)]
-pub struct ExportArgs {
+pub struct ExportSettings {
     /// Case file (JSON), as for `baffle simulate`.
-    case: PathBuf,
+    pub case: PathBuf,
     /// Output directory: mesh-complete/, solver.xml, the inflow file, run.sh, README.md.
-    #[arg(long)]
-    out: PathBuf,
+    pub out: PathBuf,
     /// MPI processes in run.sh.
-    #[arg(long, default_value_t = 4, value_parser = crate::case::at_least_one)]
-    mpi_processes: usize,
+    pub mpi_processes: usize,
     /// Export the steady estimate (constant inflow at Q_peak) instead of the pulsatile run.
-    #[arg(long)]
-    steady: bool,
+    pub steady: bool,
 }
 
-pub fn run_export(args: &ExportArgs) -> Result<(), String> {
+/// MPI processes of run.sh by default.
+pub const MPI_PROCESSES: usize = 4;
+
+impl Default for ExportSettings {
+    fn default() -> Self {
+        ExportSettings { case: PathBuf::new(), out: PathBuf::new(), mpi_processes: MPI_PROCESSES, steady: false }
+    }
+}
+
+/// `baffle export-svmp`, what it wrote said on `progress`.
+pub fn run_export(args: &ExportSettings, progress: &Progress) -> Result<(), PlanError> {
+    export(args, progress).map_err(PlanError::Export)
+}
+
+/// The case of `args` exported for svMultiPhysics.
+fn export(args: &ExportSettings, progress: &Progress) -> Result<(), String> {
     let case = case::read_case(&args.case)?;
     let mesh = case::load_mesh(&case)?;
     let (mut settings, _) = case::settings(&case)?;
     if args.steady {
         settings.mode = RunMode::Steady;
     }
-    export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
-    println!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display());
+    let exported = export_to(&args.out, &case, &mesh, &settings, args.mpi_processes)?;
+    progress.say(&inflow_line(&exported));
+    progress.say(&format!("wrote the svMultiPhysics case to {} (run it with run.sh)", args.out.display()));
     Ok(())
 }

@@ -3,6 +3,7 @@
 //! junction, with inflow and outflow caps; the VSD and aortic caps stay inside it as
 //! measurement planes.
 
+use crate::error::PlanError;
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
@@ -10,91 +11,96 @@ use baffle_core::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptio
 use baffle_core::{FaceLabels, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
-use crate::progress::{Progress, Style};
-use clap::Args;
+use crate::progress::Progress;
 use std::path::PathBuf;
-use std::time::Instant;
 
-#[derive(Args)]
-pub struct ExtendArgs {
+pub struct ExtendSettings {
     /// Designed domain (domain.vtp from `baffle design`): closed, mm, ModelFaceID.
-    #[arg(long)]
     pub domain: PathBuf,
     /// The LV and aorta blood pools (the RV is read too, as `prepare` reads them).
-    #[command(flatten)]
     pub source: PrepareSource,
     /// Output extended surface (.vtp): the designed domain's faces unchanged (its VSD and
     /// aortic caps now inside: mesh with `baffle mesh --interior-labels 11,16`), the LV
     /// and aortic walls (wall label), the inflow and outflow caps. The report
     /// (<stem>-report.json) is written beside it.
-    #[arg(long)]
     pub out: PathBuf,
     /// ModelFaceID of the new inflow cap (mid-LV plane).
-    #[arg(long, default_value_t = INFLOW_CAP_LABEL)]
     pub inflow_label: i32,
     /// ModelFaceID of the new outflow cap (sinotubular junction).
-    #[arg(long, default_value_t = OUTFLOW_CAP_LABEL)]
     pub outflow_label: i32,
     /// ModelFaceID of the domain's walls (the extension's walls get it too).
-    #[arg(long, default_value_t = FaceLabels::default().wall)]
     pub wall_label: i32,
     /// ModelFaceID of the domain's baffle.
-    #[arg(long, default_value_t = FaceLabels::default().baffle)]
     pub baffle_label: i32,
     /// ModelFaceID of the domain's VSD cap.
-    #[arg(long, default_value_t = FaceLabels::default().vsd_cap)]
     pub vsd_label: i32,
     /// ModelFaceID of the domain's aortic-annulus cap.
-    #[arg(long, default_value_t = FaceLabels::default().aortic_cap)]
     pub aortic_label: i32,
     /// Voxel edge of the union grid the LV and aorta are cut from (mm).
-    #[arg(long, default_value_t = PrepareOptions::default().voxel_mm)]
     pub voxel_mm: f64,
     /// Target edge of the extension's triangles (mm); default: the designed caps' rim edge.
-    #[arg(long)]
     pub remesh_edge_mm: Option<f64>,
     /// Remesh the designed domain at this edge (mm; labels and rims kept, as `baffle mesh
     /// --remesh-surface`) before extending, and the extension at the same edge unless
     /// --remesh-edge-mm says otherwise: the whole boundary at one size with the measurement
     /// planes conforming, for a mesh study that refines the boundary too (the interior caps
     /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
-    #[arg(long)]
     pub remesh_domain_edge_mm: Option<f64>,
     /// Move the inflow cap (mid-LV plane) this far (mm) from the LV volume centroid along
     /// the VSD normal (positive: away from the VSD, toward the apex), for a sensitivity
     /// study; an offset that leaves no clean cut of the LV is an error (no fallback).
     /// Default: through the centroid, moved only when that cut is not clean.
-    #[arg(long, allow_hyphen_values = true)]
     pub inflow_offset_mm: Option<f64>,
     /// Put the outflow cap this many annulus diameters above the annulus instead of at the
     /// sinotubular junction (the STJ search still runs and is reported), for a sensitivity
     /// study of the outflow length; a height past the aortic root's sections is an error.
-    #[arg(long)]
     pub outflow_diameters: Option<f64>,
     /// The domain has no baffle (no triangle of --baffle-label), and is to be extended
     /// as it is (e.g. a capped ventricle, for a pre-repair flow). Without it such a
     /// domain is refused: `baffle extend` expects `baffle design`'s domain.
-    #[arg(long)]
     pub no_baffle: bool,
 }
 
-pub fn run_extend(args: &ExtendArgs) -> Result<(), String> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+impl Default for ExtendSettings {
+    fn default() -> Self {
+        let labels = FaceLabels::default();
+        ExtendSettings {
+            domain: PathBuf::new(),
+            source: PrepareSource::default(),
+            out: PathBuf::new(),
+            inflow_label: INFLOW_CAP_LABEL,
+            outflow_label: OUTFLOW_CAP_LABEL,
+            wall_label: labels.wall,
+            baffle_label: labels.baffle,
+            vsd_label: labels.vsd_cap,
+            aortic_label: labels.aortic_cap,
+            voxel_mm: PrepareOptions::default().voxel_mm,
+            remesh_edge_mm: None,
+            remesh_domain_edge_mm: None,
+            inflow_offset_mm: None,
+            outflow_diameters: None,
+            no_baffle: false,
+        }
+    }
+}
+
+/// `baffle extend`, shown and said on `progress`.
+pub fn run_extend(args: &ExtendSettings, progress: &Progress) -> Result<(), PlanError> {
     let result = progress.while_running("extend", || extend_to_file(args));
     progress.finish(None);
     let (r, report) = result?;
-    println!(
+    progress.say(&format!(
         "{} triangles ({} designed), {:.0} mm3 (designed {:.0}); inflow cap {:.1} mm2 {:.1} mm beyond the VSD, outflow cap {:.1} mm2 {:.1} mm above the annulus; baffle area change {:+.2e}",
         r.triangles, r.designed_triangles, r.volume_mm3, r.designed_volume_mm3, r.inflow_cap.area_mm2, r.mid_lv_plane.distance_from_vsd_mm,
         r.outflow_cap.area_mm2, r.stj.distance_from_annulus_mm, r.baffle_area_relative_change
-    );
+    ));
     let m = &r.mid_lv_plane;
-    println!("inflow: {}, {:.1} mm beyond the VSD (moved {:+.0} mm from the LV centroid); the LV part with {}", m.rule, m.distance_from_vsd_mm, m.moved_from_centroid_mm, m.rv_in_lv_part);
+    progress.say(&format!("inflow: {}, {:.1} mm beyond the VSD (moved {:+.0} mm from the LV centroid); the LV part with {}", m.rule, m.distance_from_vsd_mm, m.moved_from_centroid_mm, m.rv_in_lv_part));
     if let Some(contact) = &m.other_lv_rv_contact {
-        println!("note: {contact}");
+        progress.say(&format!("note: {contact}"));
     }
-    println!("outflow: {}", r.stj.note);
-    println!("wrote {}, {}", args.out.display(), report.display());
+    progress.say(&format!("outflow: {}", r.stj.note));
+    progress.say(&format!("wrote {}, {}", args.out.display(), report.display()));
     Ok(())
 }
 
@@ -112,7 +118,12 @@ fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
 }
 
 /// Build the extended domain and write it and its report (each whole or not at all).
-pub fn extend_to_file(args: &ExtendArgs) -> Result<(ExtendReport, PathBuf), String> {
+pub fn extend_to_file(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), PlanError> {
+    extend_and_write(args).map_err(PlanError::Extend)
+}
+
+/// The extended domain of `args` and its report written (its errors as messages).
+fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), String> {
     let labeled = read_surface_labeled(&args.domain).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the designed domain's caps need their labels", args.domain.display()));

@@ -1,13 +1,15 @@
 //! The work behind the `baffle` command line, as a library: the plan pipeline (its
 //! stages, the CFD case it writes, the embedded and svMultiPhysics runs, the sampling
-//! along the centerline, the verdict and the report) and each command's own run, so the
-//! command line only parses arguments and other front ends can call the same pipeline.
+//! along the centerline, the verdict and the report) and each command's own run, each
+//! taking plain typed settings (`*Settings`, their defaults in `Default`), so the command
+//! line (baffle-cli) only parses its arguments into them and other
+//! front ends can call the same pipeline.
 //!
 //! Module dependency order: a module uses only modules above it, so there are no circles
 //! (the test `each_module_uses_only_modules_declared_before_it` holds lib.rs to it).
 //!
-//! 1. `files`, `progress`, `sampling`, `case`, `run_summary`, `mesh_convergence`: atomic
-//!    writes and typed reads, the progress model, fields sampled along a centerline, the
+//! 1. `error`, `files`, `progress`, `sampling`, `case`, `run_summary`, `mesh_convergence`:
+//!    the stages' error type (`PlanError`), atomic writes and typed reads, the progress model, fields sampled along a centerline, the
 //!    simulate case (JSON) and its settings, a run's summary.json read back, the grid
 //!    convergence index of a mesh study.
 //! 2. `feasibility`, `verdict` (run_summary, mesh_convergence), `svmp_case` (case: the svMultiPhysics export),
@@ -16,12 +18,13 @@
 //! 3. `design_cmd` (feasibility), `extend_cmd` (prepare_cmd), `simulate_report` (case,
 //!    run_summary, verdict: the summary both engines write), `template_cmd` (design_cmd).
 //! 4. `simulate_svmp` (svmp_case, simulate_report), `plan_stages` (design_cmd,
-//!    prepare_cmd: the plan's arguments, stages and paths).
+//!    prepare_cmd: the plan's settings, stages and folder layout, `PlanLayout`).
 //! 5. `simulate_cmd` (simulate_report, simulate_svmp), `report` (plan_stages, verdict, mesh_convergence,
 //!    sampling, centerline_cmd, prepare_cmd, design_cmd).
 //! 6. `plan_cmd` (every stage, report).
 //! 7. `sweep_cmd` (design_cmd, report's plots, plan_cmd's stages for `--cfd`).
 
+pub mod error;
 pub mod files;
 pub mod progress;
 pub mod sampling;

@@ -1,50 +1,44 @@
 //! `baffle mesh`: tetrahedral mesh of a closed labelled surface, by gmsh run as a
 //! separate process, with the paper's quality figures.
 
+use crate::error::PlanError;
 use baffle_core::io::read_surface_labeled;
 use baffle_mesh::{check_resolves_flow, mesh_surface, split_interior_labels, write_faces_vtp, write_vtu, MeshError, MeshOptions};
-use crate::progress::{Progress, Style};
-use clap::Args;
+use crate::progress::Progress;
 use std::path::PathBuf;
-use std::time::Instant;
 
-#[derive(Args)]
-#[command(after_help = "Example (the designed domain, the paper's nominal size):\n  \
-    baffle mesh --surface out/p2/domain.vtp --edge-length-mm 0.95 --remesh-surface --out out/p2/mesh.vtu\n\
-Example (an extended domain, its VSD and aortic caps kept inside as measurement planes):\n  \
-    baffle mesh --surface out/p2/extended.vtp --interior-labels 11,16 --edge-length-mm 1.25 --out out/p2/mesh.vtu")]
-pub struct MeshArgs {
+pub struct MeshSettings {
     /// Closed, labelled surface (e.g. domain.vtp from `baffle design`), mm.
-    #[arg(long)]
-    surface: PathBuf,
+    pub surface: PathBuf,
     /// Largest tetrahedron edge length (mm); the paper used 1.25 / 0.95 / 0.75.
-    #[arg(long, default_value_t = 0.95)]
-    edge_length_mm: f64,
+    pub edge_length_mm: f64,
     /// Output volume mesh (.vtu). Beside it: <stem>-faces.vtp (ModelFaceID,
     /// GlobalNodeID) and <stem>-quality.json.
-    #[arg(long)]
-    out: PathBuf,
+    pub out: PathBuf,
     /// Remesh the boundary at the edge length first (labels and rims kept).
-    #[arg(long)]
-    remesh_surface: bool,
+    pub remesh_surface: bool,
     /// ModelFaceIDs of the surface that lie inside the domain (measurement planes, e.g.
     /// 11,16 in `baffle extend`'s output): meshed as conforming interior face sets.
-    #[arg(long, value_delimiter = ',')]
-    interior_labels: Vec<i32>,
+    pub interior_labels: Vec<i32>,
     /// gmsh executable (default: $BAFFLE_GMSH, then gmsh on PATH, then the Python wheel).
-    #[arg(long)]
-    gmsh: Option<PathBuf>,
+    pub gmsh: Option<PathBuf>,
 }
 
-pub fn run_mesh(args: &MeshArgs) -> Result<(), String> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
-    let result = run_mesh_with(args, &progress);
-    progress.finish(None);
-    result
+impl Default for MeshSettings {
+    fn default() -> Self {
+        let o = MeshOptions::default();
+        MeshSettings { surface: PathBuf::new(), edge_length_mm: o.edge_length_mm, out: PathBuf::new(), remesh_surface: o.remesh_surface, interior_labels: Vec::new(), gmsh: None }
+    }
 }
 
-/// `baffle mesh`, gmsh's run shown on `progress` (a stage of `baffle plan`, or the command).
-pub fn run_mesh_with(args: &MeshArgs, progress: &Progress) -> Result<(), String> {
+/// `baffle mesh`, gmsh's run shown and the mesh's figures said on `progress` (a stage of
+/// `baffle plan`, or the command).
+pub fn run_mesh(args: &MeshSettings, progress: &Progress) -> Result<(), PlanError> {
+    mesh_and_write(args, progress).map_err(PlanError::Mesh)
+}
+
+/// The volume mesh of `args` and its faces and quality files.
+fn mesh_and_write(args: &MeshSettings, progress: &Progress) -> Result<(), String> {
     let labeled = read_surface_labeled(&args.surface).map_err(|e| e.to_string())?;
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the faces need labels", args.surface.display()));
@@ -71,10 +65,10 @@ pub fn run_mesh_with(args: &MeshArgs, progress: &Progress) -> Result<(), String>
     let quality_path = PathBuf::from(format!("{}-quality.json", stem.display()));
     let text = serde_json::to_string_pretty(&quality).map_err(|e| e.to_string())?;
     crate::files::write_atomic(&quality_path, text.as_bytes())?;
-    println!(
+    progress.say(&format!(
         "{} tetrahedra; scaled Jacobian min {:.3}, 1st percentile {:.3}; aspect ratio 99th percentile {:.2}",
         quality.tetrahedra, quality.min_scaled_jacobian, quality.p1_scaled_jacobian, quality.p99_aspect_ratio
-    );
-    println!("wrote {}, {}, {}", args.out.display(), faces_path.display(), quality_path.display());
+    ));
+    progress.say(&format!("wrote {}, {}, {}", args.out.display(), faces_path.display(), quality_path.display()));
     Ok(())
 }

@@ -8,26 +8,29 @@
 //! (no LV or aorta known) the domain stays the designed one, inflow at the VSD cap.
 //!
 //! The stages run the commands' own code (`prepare_to_file`, `design_reporting`,
-//! `run_mesh`, `run_simulate_tagged`) with the arguments a user would type for them, so the plan
-//! keeps each command's defaults and checks. A stage reads its inputs from the files
+//! `run_mesh`, `run_simulate`) with each command's typed options: its defaults
+//! (`Default`) and the plan's values, so the plan keeps each command's defaults and checks. A stage reads its inputs from the files
 //! of the stages before it, so what the report shows is what those files hold.
 
+use crate::error::PlanError;
 use crate::case::{Case, FaceRoles, Inflow, MeshSpec, OutletSpec, TimeSpec};
-use crate::design_cmd::{design_reporting, DesignArgs};
+use crate::design_cmd::{design_reporting, DesignSettings};
 use crate::plan_stages::{
-    command_args, extended_surface_path, flow_bsa_m2, flow_centerline_path, is_extended, level_extended_surface_path, mesh_path, plan_stages, prepared_surface_path,
-    FlowCase, PlanArgs, Stage, StageRecord, Step,
+    flow_bsa_m2, is_extended, plan_stages, FlowCase, PlanLayout, PlanSettings, Stage, StageRecord, Step,
 };
-use crate::prepare_cmd;
-use crate::progress::{Progress, Style};
-use crate::{centerline_cmd, extend_cmd, mesh_cmd, report, simulate_cmd};
+use crate::centerline_cmd::{self, CenterlineSettings};
+use crate::extend_cmd::{self, ExtendSettings};
+use crate::mesh_cmd::{self, MeshSettings};
+use crate::prepare_cmd::{self, PrepareSettings};
+use crate::progress::Progress;
+use crate::report;
+use crate::simulate_cmd::{self, SimulateSettings};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
-use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The `baffle simulate` case of one run, its mesh given relative to the case file.
-fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, String> {
+fn simulate_case(args: &PlanSettings, level: &str, flow: FlowCase) -> Result<Case, String> {
     let mesh_dir = PathBuf::from("..").join(format!("mesh-{level}"));
     Ok(Case {
         mesh: MeshSpec {
@@ -52,7 +55,7 @@ fn simulate_case(args: &PlanArgs, level: &str, flow: FlowCase) -> Result<Case, S
 }
 
 /// The case's time.mode: steady, quick (rest to the first flow peak) or transient.
-fn run_mode(args: &PlanArgs) -> &'static str {
+fn run_mode(args: &PlanSettings) -> &'static str {
     match (args.steady, args.quick) {
         (true, _) => "steady",
         (_, true) => crate::case::QUICK_MODE,
@@ -62,7 +65,7 @@ fn run_mode(args: &PlanArgs) -> &'static str {
 
 /// Extended: inflow cap in, STJ cap out, dp between the VSD and aortic caps (interior);
 /// otherwise in at the VSD cap, out at the aortic cap.
-fn face_roles(args: &PlanArgs) -> FaceRoles {
+fn face_roles(args: &PlanSettings) -> FaceRoles {
     let d = &args.design;
     let walls = vec![d.wall_label, d.baffle_label];
     if is_extended(args) {
@@ -82,7 +85,7 @@ fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
 /// The peak flow the design's reduced-order estimate is made at (ml/s): --peak-flow-ml-s
 /// when given, else the nominal CFD case's own (BSA x cardiac index through its inflow
 /// waveform), so the plan's design/report.json always holds the estimate (issue 31).
-fn design_peak_flow_ml_s(args: &PlanArgs) -> Result<f64, String> {
+fn design_peak_flow_ml_s(args: &PlanSettings) -> Result<f64, String> {
     if let Some(q) = args.design.peak_flow_ml_s {
         return Ok(q);
     }
@@ -92,82 +95,100 @@ fn design_peak_flow_ml_s(args: &PlanArgs) -> Result<f64, String> {
 }
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
-pub(crate) fn run_stage(args: &PlanArgs, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), String> {
-    let out = &args.design.out;
+pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), PlanError> {
     match &stage.step {
-        Step::Prepare => {
-            let mut argv: Vec<OsString> = vec!["--out".into(), prepared_surface_path(out).into()];
-            if let Some(edge) = args.prepare_remesh_edge_mm {
-                argv.extend(["--remesh-edge-mm".into(), edge.to_string().into()]);
-            }
-            let mut prepare = command_args::<prepare_cmd::PrepareArgs>("prepare", &argv)?;
-            prepare.source = args.prepare.clone();
-            progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare)).map(|_| ())
-        }
+        Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args), progress)).map(|_| ()),
         Step::Design => {
-            let prepared = args.prepare.is_given().then(|| prepared_surface_path(out));
-            let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface_path(out)));
-            let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
-            let design = DesignArgs { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() };
-            design_reporting(&design, &mut |f, s| {
+            let design = design_stage(args, dir).map_err(PlanError::Design)?;
+            design_reporting(&design, progress, &mut |f, s| {
                 progress.report(f, "design", s);
                 true
             })
         }
-        Step::Centerline => {
-            let d = &args.design;
-            let planes = format!("{},{}", d.vsd_label, d.aortic_label);
-            let mut argv: Vec<OsString> = vec!["--planes".into(), planes.into(), "--out".into(), flow_centerline_path(out).into()];
-            if is_extended(args) {
-                // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to
-                // the STJ cap, trimmed at the VSD and aortic caps (interior planes).
-                let ends = format!("{INFLOW_CAP_LABEL},{OUTFLOW_CAP_LABEL}");
-                argv.extend(["--surface".into(), extended_surface_path(out).into(), "--ends".into(), ends.into()]);
-            } else {
-                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into()]);
-            }
-            let centerline = command_args::<centerline_cmd::CenterlineArgs>("centerline", &argv)?;
-            centerline_cmd::run_centerline_with(&centerline, progress)
-        }
+        Step::Centerline => centerline_cmd::run_centerline(&centerline_stage(args), progress),
         Step::Extend { level, remesh_domain_edge_mm } => {
-            let domain = out.join("design").join("domain.vtp");
-            let d = &args.design;
-            let extended = level.map_or_else(|| extended_surface_path(out), |l| level_extended_surface_path(args, l));
-            let mut argv: Vec<OsString> = vec!["--domain".into(), domain.into(), "--out".into(), extended.into()];
-            if let Some(edge_mm) = remesh_domain_edge_mm {
-                argv.extend(["--remesh-domain-edge-mm".into(), edge_mm.to_string().into()]);
-            }
-            for (flag, label) in [("--wall-label", d.wall_label), ("--baffle-label", d.baffle_label), ("--vsd-label", d.vsd_label), ("--aortic-label", d.aortic_label)] {
-                argv.extend([flag.into(), label.to_string().into()]);
-            }
-            let mut extend = command_args::<extend_cmd::ExtendArgs>("extend", &argv)?;
-            extend.source = args.prepare.clone();
+            let extend = extend_stage(args, *level, *remesh_domain_edge_mm);
             progress.while_running("extend", || extend_cmd::extend_to_file(&extend)).map(|_| ())
         }
-        Step::Mesh { level, edge_length_mm } => {
-            let mut argv: Vec<OsString> = vec!["--edge-length-mm".into(), edge_length_mm.to_string().into(), "--out".into(), mesh_path(out, level).into()];
-            if is_extended(args) {
-                // The interior caps share the boundary's rim points: the boundary is meshed as built.
-                let interior = format!("{},{}", args.design.vsd_label, args.design.aortic_label);
-                argv.extend(["--surface".into(), level_extended_surface_path(args, level).into(), "--interior-labels".into(), interior.into()]);
-            } else {
-                argv.extend(["--surface".into(), out.join("design").join("domain.vtp").into(), "--remesh-surface".into()]);
-            }
-            mesh_cmd::run_mesh_with(&command_args::<mesh_cmd::MeshArgs>("mesh", &argv)?, progress)
-        }
+        Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh(&mesh_stage(args, level, *edge_length_mm), progress),
         Step::Simulate { level, flow } => {
-            let case_path = write_case(dir, &simulate_case(args, level, *flow)?)?;
-            let argv: Vec<OsString> = vec![case_path.into(), "--out".into(), dir.into()];
-            let simulate = command_args::<simulate_cmd::SimulateArgs>("simulate", &argv)?;
-            simulate_cmd::run_simulate_with(&simulate, progress)
+            let case = simulate_case(args, level, *flow).and_then(|case| write_case(dir, &case)).map_err(PlanError::Simulate)?;
+            simulate_cmd::run_simulate(&SimulateSettings { case, out: dir.to_path_buf(), ..SimulateSettings::default() }, progress)
         }
     }
 }
 
-pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
+/// The prepare stage: `baffle prepare`'s defaults, the plan's source and remesh edge.
+fn prepare_stage(args: &PlanSettings) -> PrepareSettings {
+    let defaults = PrepareSettings::default();
+    PrepareSettings {
+        source: args.prepare.clone(),
+        out: PlanLayout::of(args).prepared_surface(),
+        remesh_edge_mm: args.prepare_remesh_edge_mm.unwrap_or(defaults.remesh_edge_mm),
+        ..defaults
+    }
+}
+
+/// The design stage: the plan's design options, from the prepared surface when there is
+/// one, with the pulmonary artery and the peak flow the plan knows.
+fn design_stage(args: &PlanSettings, dir: &Path) -> Result<DesignSettings, String> {
+    let prepared_surface = PlanLayout::of(args).prepared_surface();
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&prepared_surface));
+    let prepared = args.prepare.is_given().then_some(prepared_surface);
+    let peak_flow_ml_s = Some(design_peak_flow_ml_s(args)?);
+    Ok(DesignSettings { out: dir.to_path_buf(), surface: prepared.or(args.design.surface.clone()), pulmonary, peak_flow_ml_s, ..args.design.clone() })
+}
+
+/// The centerline stage between the VSD and aortic caps.
+fn centerline_stage(args: &PlanSettings) -> CenterlineSettings {
+    let (d, layout) = (&args.design, PlanLayout::of(args));
+    let (surface, ends) = match is_extended(args) {
+        // Paper 2.5: the medial path of the extended lumen, from the mid-LV cap to the
+        // STJ cap, trimmed at the VSD and aortic caps (interior planes).
+        true => (layout.extended_surface(), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
+        false => (layout.designed_domain(), None),
+    };
+    CenterlineSettings { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: layout.flow_centerline(), ..CenterlineSettings::default() }
+}
+
+/// An extend stage: the designed domain, with a mesh-study level's own remesh.
+fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm: Option<f64>) -> ExtendSettings {
+    let (d, layout) = (&args.design, PlanLayout::of(args));
+    ExtendSettings {
+        domain: layout.designed_domain(),
+        source: args.prepare.clone(),
+        out: level.map_or_else(|| layout.extended_surface(), |l| layout.level_extended_surface(l)),
+        remesh_domain_edge_mm,
+        wall_label: d.wall_label,
+        baffle_label: d.baffle_label,
+        vsd_label: d.vsd_label,
+        aortic_label: d.aortic_label,
+        ..ExtendSettings::default()
+    }
+}
+
+/// A mesh stage: the extended domain as built (its interior caps share the boundary's
+/// rim points), or the designed domain with its boundary remeshed.
+fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSettings {
+    let (d, layout) = (&args.design, PlanLayout::of(args));
+    let mesh = MeshSettings { edge_length_mm, out: layout.mesh(level), ..MeshSettings::default() };
+    match is_extended(args) {
+        true => MeshSettings { surface: layout.level_extended_surface(level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
+        false => MeshSettings { surface: layout.designed_domain(), remesh_surface: true, ..mesh },
+    }
+}
+
+/// `baffle plan`: each stage's progress shown on `progress` (the caller applies
+/// --progress-tags), the stages' lines, the report's warnings and the verdict said on it.
+pub fn run_plan(args: &PlanSettings, progress: &Progress) -> Result<(), PlanError> {
+    plan(args, progress).map_err(PlanError::Plan)
+}
+
+/// The stages of `args` in order, then the report; the verdict is the last line said.
+fn plan(args: &PlanSettings, progress: &Progress) -> Result<(), String> {
     let stages = plan_stages(args)?;
-    let out = &args.design.out;
-    let progress = Progress::new(Style::detect(args.design.progress_tags), Instant::now(), (0.0, 1.0));
+    let layout = PlanLayout::of(args);
+    let out = layout.root();
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let total: f64 = stages.iter().map(|s| s.weight).sum();
     let mut records: Vec<StageRecord> =
@@ -183,12 +204,12 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
             done += stage.weight;
             continue;
         }
-        println!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name);
+        progress.say(&format!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name));
         let part = progress.part(range);
         part.report(0.0, &stage.name, "starting");
-        let dir = out.join(&stage.name);
+        let dir = layout.stage_dir(&stage.name);
         let start = Instant::now();
-        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| run_stage(args, stage, &dir, &part));
+        let result = std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display())).and_then(|_| Ok(run_stage(args, stage, &dir, &part)?));
         part.finish(None);
         let record = &mut records[k];
         record.wall_time_s = Some(start.elapsed().as_secs_f64());
@@ -199,33 +220,38 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), String> {
             record.error = Some(e.clone());
             if let Some(level) = stage.study_level() {
                 // The nominal result stands; the report's mesh study says why it has no band.
-                println!("plan: stage {} failed: {e}\nplan: the mesh study goes on without its {level} level", stage.name);
+                progress.say(&format!("plan: stage {} failed: {e}\nplan: the mesh study goes on without its {level} level", stage.name));
                 failed_levels.push((level, format!("the {level} level's stage {} failed: {e}", stage.name)));
                 done += stage.weight;
                 continue;
             }
-            report::write_failure_json(out, &stage.name, &e, &records)?;
-            let kept: Vec<String> = stages[..k].iter().map(|s| out.join(&s.name).display().to_string()).collect();
+            report::write_failure_json(&layout, &stage.name, &e, &records)?;
+            let kept: Vec<String> = stages[..k].iter().map(|s| layout.stage_dir(&s.name).display().to_string()).collect();
             let kept = if kept.is_empty() { "none".to_string() } else { kept.join(", ") };
             return Err(format!("stage {} failed: {e}\n(finished stages' files kept: {kept})", stage.name));
         }
         record.status = "completed";
-        println!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0));
+        progress.say(&format!("plan: stage {} done in {:.1} s", stage.name, record.wall_time_s.unwrap_or(0.0)));
         done += stage.weight;
     }
     progress.report(1.0, "report", "writing the report and rendering its pictures (VTK)");
     let outcome = report::write_reports(args, &stages, &records)?;
     progress.report(1.0, "report", "written");
     progress.finish(None);
-    println!("wrote {} and {}", out.join("report.json").display(), out.join("report.html").display());
+    progress.say(&format!("wrote {} and {}", layout.report_json().display(), layout.report_html().display()));
+    say_outcome(&outcome, progress);
+    Ok(())
+}
+
+/// The report's warnings and note, then the verdict as the last line: PASSES, FAILS or
+/// INCONCLUSIVE with its reason.
+fn say_outcome(outcome: &report::Outcome, progress: &Progress) {
     for warning in &outcome.warnings {
-        println!("warning: {warning}");
+        progress.say(&format!("warning: {warning}"));
     }
     if let Some(reason) = &outcome.pictures_missing {
-        println!("note: the report has no 3D pictures: {reason}");
+        progress.say(&format!("note: the report has no 3D pictures: {reason}"));
     }
-    // The verdict is the last line: PASSES, FAILS or INCONCLUSIVE with its reason.
-    println!("{}", outcome.verdict_line);
-    Ok(())
+    progress.say(&outcome.verdict_line);
 }
 

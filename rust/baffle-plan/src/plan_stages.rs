@@ -1,59 +1,35 @@
-//! `baffle plan`'s arguments and its stages: which run, in what order, and where each
-//! writes (the paths `plan_cmd` writes to and `report` reads from). Checked before any
+//! `baffle plan`'s settings and its stages: which run, in what order, and where each
+//! writes ([`PlanLayout`]: the paths `plan_cmd` writes to and `report` reads from). Checked before any
 //! stage runs.
 
-use crate::design_cmd::{target_from, DesignArgs};
+use crate::design_cmd::{target_from, DesignSettings};
+use crate::error::PlanError;
 use crate::prepare_cmd::PrepareSource;
 use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
-use clap::{Args, FromArgMatches};
-use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
-#[derive(Args)]
-#[command(
-    mut_arg("surface", |a| a.help("Capped ventricle (.vtp, .vtk or .stl, mm, ModelFaceID); or give --segmentations DIR, --labelmap FILE or --phantom instead")),
-    after_help = "Examples:\n  \
-    # quick estimate (from rest to the first flow peak) from Slicer's segment surfaces (LV, RV, aorta), CFD on the extended domain\n  \
-    baffle plan --segmentations ../shared/data/p2/segmentations --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
-    --bsa 0.37 --bp 107/78 --hr 133 --quick --edge-length-mm 1.25 --out out/plan-p2\n  \
-    # the paper's pulsatile run with its mesh study, from a capped ventricle\n  \
-    baffle plan --surface ../shared/data/p2/design_input/capped_ventricle.vtp --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
-    --bsa 0.37 --bp 107/78 --hr 133 --pulsatile --out out/plan-p2-full\n  \
-    # the built-in synthetic phantom\n  \
-    baffle plan --phantom --bp 107/78 --quick --out out/plan-phantom\n\
-Ends with report.json and report.html in --out; the last line printed is the verdict: PASSES, FAILS or INCONCLUSIVE (with its reason)."
-)]
-pub struct PlanArgs {
-    #[command(flatten)]
-    pub design: DesignArgs,
+pub struct PlanSettings {
+    pub design: DesignSettings,
     /// Build the capped ventricle from segmentations or a label map first (a `prepare`
     /// stage), instead of --surface; the CFD then runs on the extended domain (an
     /// `extend` stage after the design: mid-LV inflow cap 20, STJ outflow cap 21, dp
     /// between the VSD and aortic caps as interior planes).
-    #[command(flatten)]
     pub prepare: PrepareSource,
     /// Blood pressure SBP/DBP (mmHg), e.g. 107/78: the outlet resistance R = MAP / Q_mean.
-    #[arg(long, value_parser = parse_bp)]
     pub bp: (f64, f64),
     /// Heart rate (beats/min); default: the built-in period of 0.682 s.
-    #[arg(long)]
     pub hr: Option<f64>,
     /// Steady run with the inflow held at Q_peak. It may not converge where the peak flow
     /// is not steady (p2's and p3's extended domains); the verdict is then INCONCLUSIVE.
-    #[arg(long, conflicts_with_all = ["pulsatile", "quick"])]
     pub steady: bool,
     /// Quick estimate: a pulsatile run from rest up to the first flow peak (a twentieth of
     /// 4 cycles' steps; on p2 and p3 within 0.6 % of the fourth cycle's peak dp).
-    #[arg(long, conflicts_with = "pulsatile")]
     pub quick: bool,
     /// Pulsatile run over --cycles cardiac cycles (the default, as the paper).
-    #[arg(long)]
     pub pulsatile: bool,
     /// Cardiac cycles of a pulsatile run (the last one is reported).
-    #[arg(long, default_value_t = 4, value_parser = crate::case::at_least_one)]
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
-    #[arg(long, default_value_t = 0.95)]
     pub edge_length_mm: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
@@ -61,47 +37,60 @@ pub struct PlanArgs {
     /// remeshed at its size); the report gives dp's grid convergence index and judges the
     /// verdict with its band. No single edge length converges dp on every patient (the
     /// dataset's p3 needs about 0.45 mm for 5 %: docs/validation.md).
-    #[arg(long, conflicts_with = "single_mesh")]
     pub mesh_study: bool,
     /// The nominal mesh only (about a third of the study's time): the report then cannot
     /// say whether dp is mesh-converged, and warns so.
-    #[arg(long)]
     pub single_mesh: bool,
     /// Also simulate the nominal mesh at cardiac index 4.22 L/min/m2.
-    #[arg(long)]
     pub elevated_flow: bool,
     /// Cardiac index of the nominal runs (L/min/m2): the mean flow is BSA x cardiac index.
-    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2)]
     pub cardiac_index: f64,
     /// Target edge of the prepare stage's final isotropic remesh (mm; `baffle prepare
     /// --remesh-edge-mm`, default 0.5). The design remeshes the kept wall at --remesh-edge-mm.
-    #[arg(long)]
     pub prepare_remesh_edge_mm: Option<f64>,
     /// How the report names the patient (default: the paper's patient id when the input
     /// lies in one of its patients' folders).
-    #[arg(long)]
     pub patient_label: Option<String>,
 }
 
-impl PlanArgs {
+/// Cardiac cycles of a pulsatile run by default.
+pub const CYCLES: usize = 4;
+
+/// The paper's settings; no blood pressure (NaN: a plan needs the patient's) and no
+/// output folder.
+impl Default for PlanSettings {
+    fn default() -> Self {
+        PlanSettings {
+            design: DesignSettings::default(),
+            prepare: PrepareSource::default(),
+            bp: (f64::NAN, f64::NAN),
+            hr: None,
+            steady: false,
+            quick: false,
+            pulsatile: false,
+            cycles: CYCLES,
+            edge_length_mm: PAPER_NOMINAL_MM,
+            mesh_study: false,
+            single_mesh: false,
+            elevated_flow: false,
+            cardiac_index: CARDIAC_INDEX_DEFAULT_L_MIN_M2,
+            prepare_remesh_edge_mm: None,
+            patient_label: None,
+        }
+    }
+}
+
+impl PlanSettings {
     /// Whether the plan runs the three-level mesh study (unless --single-mesh).
     pub fn runs_mesh_study(&self) -> bool {
         !self.single_mesh
     }
 }
 
-pub(crate) fn parse_bp(text: &str) -> Result<(f64, f64), String> {
-    let parts: Vec<&str> = text.split('/').collect();
-    let numbers: Vec<f64> = parts.iter().filter_map(|p| p.trim().parse::<f64>().ok()).filter(|v| v.is_finite()).collect();
-    match numbers[..] {
-        [sbp, dbp] if parts.len() == 2 && dbp > 0.0 && sbp > dbp => Ok((sbp, dbp)),
-        _ => Err(format!("expected SBP/DBP in mmHg with SBP > DBP > 0 (e.g. 107/78), got '{text}'")),
-    }
-}
 
 /// The nominal mesh size and the paper's mesh-study sizes (mm) at 0.95 mm nominal.
 const PAPER_NOMINAL_MM: f64 = 0.95;
-const PAPER_COARSE_MM: f64 = 1.25;
+pub const PAPER_COARSE_MM: f64 = 1.25;
 const PAPER_FINE_MM: f64 = 0.75;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,7 +101,7 @@ pub enum FlowCase {
 
 impl FlowCase {
     /// The run's cardiac index: the plan's --cardiac-index, or the paper's elevated one.
-    pub fn cardiac_index_l_min_m2(self, args: &PlanArgs) -> f64 {
+    pub fn cardiac_index_l_min_m2(self, args: &PlanSettings) -> f64 {
         match self {
             FlowCase::Nominal => args.cardiac_index,
             FlowCase::Elevated => CARDIAC_INDEX_ELEVATED_L_MIN_M2,
@@ -167,7 +156,7 @@ pub struct StageRecord {
 }
 
 /// (level, edge length mm) of each mesh: the nominal one first.
-fn mesh_levels(args: &PlanArgs) -> Vec<(&'static str, f64)> {
+fn mesh_levels(args: &PlanSettings) -> Vec<(&'static str, f64)> {
     let nominal = args.edge_length_mm;
     let mut levels = vec![("nominal", nominal)];
     if args.runs_mesh_study() {
@@ -180,7 +169,7 @@ fn mesh_levels(args: &PlanArgs) -> Vec<(&'static str, f64)> {
 
 /// The source of the capped ventricle: exactly one of --surface, --segmentations,
 /// --labelmap and --phantom.
-fn check_one_surface_source(args: &PlanArgs) -> Result<(), String> {
+fn check_one_surface_source(args: &PlanSettings) -> Result<(), String> {
     let given: Vec<&str> = [
         ("--surface", args.design.surface.is_some()),
         ("--segmentations", args.prepare.segmentations.is_some()),
@@ -197,34 +186,92 @@ fn check_one_surface_source(args: &PlanArgs) -> Result<(), String> {
     }
 }
 
-/// The extended domain an extend stage writes.
-pub fn extended_surface_path(out: &Path) -> PathBuf {
-    out.join("extend").join("extended.vtp")
+/// Every path of a plan folder: each stage's subfolder and the files the stages write
+/// there and the report reads back, so the folder's layout is said in one place.
+#[derive(Clone, Debug)]
+pub struct PlanLayout {
+    root: PathBuf,
+    /// Whether each mesh-study level extends the designed domain at its own size.
+    level_extensions: bool,
 }
 
-/// The extended domain a mesh level is meshed from: a mesh study's own extension of the
-/// level, else the one extend stage's.
-pub fn level_extended_surface_path(args: &PlanArgs, level: &str) -> PathBuf {
-    let out = &args.design.out;
-    match args.runs_mesh_study() {
-        true => out.join(format!("extend-{level}")).join("extended.vtp"),
-        false => extended_surface_path(out),
+impl PlanLayout {
+    /// The folder `root`; `level_extensions` when each mesh-study level has its own
+    /// extend stage (an extended domain's mesh study).
+    pub fn new(root: &Path, level_extensions: bool) -> PlanLayout {
+        PlanLayout { root: root.to_path_buf(), level_extensions }
+    }
+
+    /// The layout of the plan `args` (its --out).
+    pub fn of(args: &PlanSettings) -> PlanLayout {
+        PlanLayout::new(&args.design.out, args.runs_mesh_study())
+    }
+
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// A stage's subfolder, named after the stage.
+    pub fn stage_dir(&self, stage: &str) -> PathBuf {
+        self.root.join(stage)
+    }
+
+    /// The capped ventricle a prepare stage writes.
+    pub fn prepared_surface(&self) -> PathBuf {
+        self.stage_dir("prepare").join("capped_ventricle.vtp")
+    }
+
+    /// The design stage's folder (domain.vtp, report.json and the rest of `baffle design`'s files).
+    pub fn design_dir(&self) -> PathBuf {
+        self.stage_dir("design")
+    }
+
+    /// The designed domain.
+    pub fn designed_domain(&self) -> PathBuf {
+        self.design_dir().join("domain.vtp")
+    }
+
+    /// The extended domain the extend stage writes.
+    pub fn extended_surface(&self) -> PathBuf {
+        self.stage_dir("extend").join("extended.vtp")
+    }
+
+    /// The extended domain a mesh level is meshed from: a mesh study's own extension of
+    /// the level, else the one extend stage's.
+    pub fn level_extended_surface(&self, level: &str) -> PathBuf {
+        match self.level_extensions {
+            true => self.stage_dir(&format!("extend-{level}")).join("extended.vtp"),
+            false => self.extended_surface(),
+        }
+    }
+
+    /// The flow-domain centerline a centerline stage writes (its figures in the .json beside it).
+    pub fn flow_centerline(&self) -> PathBuf {
+        self.stage_dir("centerline").join("centerline.vtp")
+    }
+
+    /// A mesh level's volume mesh (its faces and quality files beside it).
+    pub fn mesh(&self, level: &str) -> PathBuf {
+        self.stage_dir(&format!("mesh-{level}")).join("mesh.vtu")
+    }
+
+    pub fn report_json(&self) -> PathBuf {
+        self.root.join("report.json")
+    }
+
+    pub fn report_html(&self) -> PathBuf {
+        self.root.join("report.html")
     }
 }
 
 /// Whether the CFD runs on the extended domain: the LV and aorta are known (a prepare stage).
-pub fn is_extended(args: &PlanArgs) -> bool {
+pub fn is_extended(args: &PlanSettings) -> bool {
     args.prepare.is_given()
-}
-
-/// The capped ventricle a prepare stage writes.
-pub fn prepared_surface_path(out: &Path) -> PathBuf {
-    out.join("prepare").join("capped_ventricle.vtp")
 }
 
 /// Everything the stages need that can be checked before any of them runs, so a
 /// missing argument is named at once rather than after minutes of work.
-fn check_arguments(args: &PlanArgs) -> Result<(), String> {
+fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     check_one_surface_source(args)?;
     if args.design.points.is_none() && !args.design.phantom {
         return Err("baffle plan needs the suture points: give --points FILE (.mrk.json, .fcsv, .csv or .json), or use --phantom".into());
@@ -248,8 +295,8 @@ fn check_arguments(args: &PlanArgs) -> Result<(), String> {
     Ok(())
 }
 
-pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
-    check_arguments(args)?;
+pub fn plan_stages(args: &PlanSettings) -> Result<Vec<Stage>, PlanError> {
+    check_arguments(args).map_err(PlanError::Plan)?;
     let simulate_weight = if args.steady || args.quick { 4.0 } else { 4.0 * args.cycles as f64 };
     let mut stages = Vec::new();
     if args.prepare.is_given() {
@@ -276,7 +323,7 @@ pub fn plan_stages(args: &PlanArgs) -> Result<Vec<Stage>, String> {
 }
 
 /// BSA (m2) for the flow: --bsa, or the phantom's.
-pub fn flow_bsa_m2(args: &PlanArgs) -> Result<f64, String> {
+pub fn flow_bsa_m2(args: &PlanSettings) -> Result<f64, String> {
     match (args.design.target.bsa, args.design.phantom) {
         (Some(bsa), _) => Ok(bsa),
         (None, true) => Ok(baffle_core::phantom::phantom_default().bsa_m2),
@@ -284,51 +331,51 @@ pub fn flow_bsa_m2(args: &PlanArgs) -> Result<f64, String> {
     }
 }
 
-/// Parse `argv` as the arguments of the command whose `Args` are `A`.
-pub fn command_args<A: Args + FromArgMatches>(name: &'static str, argv: &[OsString]) -> Result<A, String> {
-    let command = A::augment_args(clap::Command::new(name).no_binary_name(true));
-    let matches = command.try_get_matches_from(argv).map_err(|e| format!("{name} arguments: {e}"))?;
-    A::from_arg_matches(&matches).map_err(|e| format!("{name} arguments: {e}"))
-}
-
-/// The flow-domain centerline a centerline stage writes (its figures in the .json beside it).
-pub fn flow_centerline_path(out: &Path) -> PathBuf {
-    out.join("centerline").join("centerline.vtp")
-}
-
-pub fn mesh_path(out: &Path, level: &str) -> PathBuf {
-    out.join(format!("mesh-{level}")).join("mesh.vtu")
-}
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn stage_names(source: &[&str]) -> Vec<String> {
-        let mut argv: Vec<OsString> = source.iter().map(OsString::from).collect();
-        argv.extend(["--points", "p.mrk.json", "--bsa", "0.37", "--bp", "107/78", "--out", "o"].map(OsString::from));
-        let args = command_args::<PlanArgs>("plan", &argv).unwrap();
-        plan_stages(&args).unwrap().into_iter().map(|s| s.name).collect()
+    /// A plan of the suture points p.mrk.json, BSA 0.37 and 107/78 into `o`, with `edit` applied.
+    fn plan(edit: impl FnOnce(&mut PlanSettings)) -> PlanSettings {
+        let mut args = PlanSettings { bp: (107.0, 78.0), ..PlanSettings::default() };
+        args.design.points = Some("p.mrk.json".into());
+        args.design.target.bsa = Some(0.37);
+        args.design.out = "o".into();
+        edit(&mut args);
+        args
+    }
+
+    fn stage_names(edit: impl FnOnce(&mut PlanSettings)) -> Vec<String> {
+        plan_stages(&plan(edit)).unwrap().into_iter().map(|s| s.name).collect()
+    }
+
+    fn segmentations(a: &mut PlanSettings) {
+        a.prepare.segmentations = Some("seg".into());
     }
 
     #[test]
     fn segmentations_or_a_label_map_put_a_prepare_stage_first() {
         let rest = ["design", "centerline", "mesh-nominal", "simulate-nominal"];
         let extended = ["design", "extend", "centerline", "mesh-nominal", "simulate-nominal"];
-        assert_eq!(stage_names(&["--segmentations", "seg", "--single-mesh"]), [&["prepare"][..], &extended].concat());
-        assert_eq!(stage_names(&["--labelmap", "heart.nrrd", "--aorta-label", "8", "--single-mesh"]), [&["prepare"][..], &extended].concat());
-        assert_eq!(stage_names(&["--surface", "capped.vtp", "--single-mesh"]), rest);
+        let single = |a: &mut PlanSettings| a.single_mesh = true;
+        assert_eq!(stage_names(|a| (segmentations(a), single(a)).1), [&["prepare"][..], &extended].concat());
+        let labelmap = |a: &mut PlanSettings| {
+            (a.prepare.labelmap, a.prepare.aorta_label) = (Some("heart.nrrd".into()), 8);
+            single(a)
+        };
+        assert_eq!(stage_names(labelmap), [&["prepare"][..], &extended].concat());
+        assert_eq!(stage_names(|a| (a.design.surface = Some("capped.vtp".into()), single(a)).1), rest);
     }
 
     #[test]
     fn an_extended_mesh_study_extends_every_level_at_its_own_size() {
         // The study is the default; --mesh-study says so explicitly.
-        assert_eq!(stage_names(&["--segmentations", "seg"]), stage_names(&["--segmentations", "seg", "--mesh-study"]));
-        let names = stage_names(&["--segmentations", "seg", "--edge-length-mm", "0.95"]);
+        assert_eq!(stage_names(segmentations), stage_names(|a| (segmentations(a), a.mesh_study = true).1));
+        let names = stage_names(|a| (segmentations(a), a.edge_length_mm = 0.95).1);
         let levels = ["nominal", "coarse", "fine"].map(|l| [format!("extend-{l}"), format!("mesh-{l}"), format!("simulate-{l}")]).concat();
         assert_eq!(names, [&["prepare", "design", "extend", "centerline"].map(String::from)[..], &levels].concat());
-        let argv: Vec<OsString> = ["--segmentations", "seg", "--mesh-study", "--points", "p", "--bsa", "0.37", "--bp", "107/78", "--out", "o"].map(OsString::from).to_vec();
-        let args = command_args::<PlanArgs>("plan", &argv).unwrap();
+        let args = plan(|a| (segmentations(a), a.mesh_study = true).1);
         let extends: Vec<Option<f64>> = plan_stages(&args)
             .unwrap()
             .into_iter()
@@ -338,19 +385,12 @@ mod tests {
             })
             .collect();
         assert_eq!(extends, [None, Some(0.95), Some(1.25), Some(0.75)]);
-        assert_eq!(level_extended_surface_path(&args, "fine"), PathBuf::from("o/extend-fine/extended.vtp"));
+        assert_eq!(PlanLayout::of(&args).level_extended_surface("fine"), PathBuf::from("o/extend-fine/extended.vtp"));
         let study: Vec<(String, Option<&str>)> = plan_stages(&args).unwrap().into_iter().map(|s| (s.name.clone(), s.study_level())).collect();
         assert!(study.iter().all(|(name, level)| level.is_some() == (name.ends_with("-coarse") || name.ends_with("-fine"))), "{study:?}");
         // From a surface the mesh stage remeshes the boundary itself: no extend stages.
-        let names = stage_names(&["--surface", "capped.vtp"]);
+        let names = stage_names(|a| a.design.surface = Some("capped.vtp".into()));
         assert!(!names.iter().any(|n| n.starts_with("extend")) && names.contains(&"mesh-fine".to_string()), "{names:?}");
     }
 
-    #[test]
-    fn blood_pressure_is_sbp_over_dbp() {
-        assert_eq!(parse_bp("107/78").unwrap(), (107.0, 78.0));
-        for bad in ["78/107", "107", "107/78/1", "a/b", "107/0"] {
-            assert!(parse_bp(bad).unwrap_err().contains(bad), "{bad}");
-        }
-    }
 }

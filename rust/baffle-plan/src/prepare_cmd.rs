@@ -1,6 +1,7 @@
 //! `baffle prepare`: the capped ventricle (design input) from segmented blood
 //! pools (paper section 2.2.2).
 
+use crate::error::PlanError;
 use baffle_core::io::write_trimesh_vtp;
 use baffle_core::FaceLabels;
 use crate::files::write_atomic;
@@ -9,39 +10,48 @@ use baffle_prepare::{
     pools_from_labelmap, prepare, pulmonary_from_labelmap, read_labelmap, read_segmentations, BloodPools, LabelMap, LabelSurfaceOptions, PoolLabels, PrepareOptions,
     PrepareReport,
 };
-use crate::progress::{Progress, Style};
-use clap::Args;
+use crate::progress::Progress;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// Where the blood pools come from: per-structure surfaces or a label map (also
 /// `baffle plan`'s arguments for its prepare stage).
-#[derive(Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct PrepareSource {
     /// Folder of closed per-structure surfaces in mm: LV, RV and aorta (.vtp, .vtk or .stl).
-    #[arg(long, conflicts_with = "labelmap")]
     pub segmentations: Option<PathBuf>,
     /// Multi-label label map (.nrrd, .nii, .nii.gz); labels LV 1, RV 2, LA 3, RA 4,
     /// myo 5, aorta 6, PA 7 unless remapped. Surfaces are made in LPS mm.
-    #[arg(long)]
     pub labelmap: Option<PathBuf>,
     /// Label value of the LV blood pool in --labelmap.
-    #[arg(long, default_value_t = 1)]
     pub lv_label: i32,
     /// Label value of the RV blood pool in --labelmap.
-    #[arg(long, default_value_t = 2)]
     pub rv_label: i32,
     /// Label value of the aorta in --labelmap.
-    #[arg(long, default_value_t = 6)]
     pub aorta_label: i32,
     /// Label value of the pulmonary artery in --labelmap: its surface is written beside
     /// the capped ventricle (<stem>-pulmonary.vtp) and ends the RV outflow path. A label
     /// map without it still prepares; the RV outflow is then not measured.
-    #[arg(long, default_value_t = 7)]
     pub pulmonary_label: i32,
     /// Skip the 3x3x3 median filter of each --labelmap label mask.
-    #[arg(long)]
     pub no_median: bool,
+}
+
+/// The label map's pulmonary artery label by default (the issue's convention: PA 7).
+pub const PULMONARY_LABEL: i32 = 7;
+
+impl Default for PrepareSource {
+    fn default() -> Self {
+        let pools = PoolLabels::default();
+        PrepareSource {
+            segmentations: None,
+            labelmap: None,
+            lv_label: pools.lv,
+            rv_label: pools.rv,
+            aorta_label: pools.aorta,
+            pulmonary_label: PULMONARY_LABEL,
+            no_median: false,
+        }
+    }
 }
 
 impl PrepareSource {
@@ -69,55 +79,58 @@ impl PrepareSource {
     }
 }
 
-#[derive(Args)]
-#[command(after_help = "Example (LV.vtp, RV.vtp and aorta.vtp exported from Slicer's segments):\n  \
-    baffle prepare --segmentations ../shared/data/p2/segmentations --out out/p2/capped_ventricle.vtp\n\
-Example (a label map, the aorta labelled 8):\n  \
-    baffle prepare --labelmap heart.nii.gz --aorta-label 8 --out out/capped_ventricle.vtp\n\
-Then: baffle design --surface out/p2/capped_ventricle.vtp --points P.mrk.json --bsa 0.37 --out out/p2/design")]
-pub struct PrepareArgs {
-    #[command(flatten)]
+pub struct PrepareSettings {
     pub source: PrepareSource,
     /// Output capped ventricle (.vtp): ModelFaceID 2 RV wall, 11 VSD cap, 16 aortic cap.
     /// A report (<stem>-report.json) is written beside it.
-    #[arg(long)]
     pub out: PathBuf,
     /// Voxel edge of the union grid (mm).
-    #[arg(long, default_value_t = 0.3)]
-    voxel_mm: f64,
+    pub voxel_mm: f64,
     /// Margin of the union grid around the RV (mm); the LV and aorta beyond it are cut off.
-    #[arg(long, default_value_t = 5.0)]
-    crop_margin_mm: f64,
+    pub crop_margin_mm: f64,
     /// Radius of the morphological closing of the union mask (mm).
-    #[arg(long, default_value_t = 0.6)]
-    closing_radius_mm: f64,
+    pub closing_radius_mm: f64,
     /// Target edge of the final isotropic remesh (mm).
-    #[arg(long, default_value_t = 0.5)]
     pub remesh_edge_mm: f64,
     /// Keep the contour's triangles (no final remesh).
-    #[arg(long)]
-    no_remesh: bool,
+    pub no_remesh: bool,
     /// Taubin smoothing iterations of the union surface.
-    #[arg(long, default_value_t = 20)]
-    smoothing_iterations: usize,
+    pub smoothing_iterations: usize,
 }
 
-pub fn run_prepare(args: &PrepareArgs) -> Result<(), String> {
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
-    let result = progress.while_running("prepare", || prepare_to_file(args));
+/// The defaults are `baffle_prepare`'s own (`PrepareOptions::default()`).
+impl Default for PrepareSettings {
+    fn default() -> Self {
+        let o = PrepareOptions::default();
+        PrepareSettings {
+            source: PrepareSource::default(),
+            out: PathBuf::new(),
+            voxel_mm: o.voxel_mm,
+            crop_margin_mm: o.crop_margin_mm,
+            closing_radius_mm: o.closing_radius_mm,
+            remesh_edge_mm: o.remesh_edge_mm.unwrap_or_default(),
+            no_remesh: o.remesh_edge_mm.is_none(),
+            smoothing_iterations: o.smoothing.iterations,
+        }
+    }
+}
+
+/// `baffle prepare`, shown and said on `progress`.
+pub fn run_prepare(args: &PrepareSettings, progress: &Progress) -> Result<(), PlanError> {
+    let result = progress.while_running("prepare", || prepare_to_file(args, progress));
     progress.finish(None);
     let (report, report_path) = result?;
-    println!(
+    progress.say(&format!(
         "{} triangles, {:.0} mm3; VSD cap {:.1} mm2, aortic cap {:.1} mm2; {:.0} ms",
         report.triangles, report.volume_mm3, report.vsd_cap.area_mm2, report.aortic_cap.area_mm2, report.timings.total_ms
-    );
+    ));
     // The caps' distance from the true interfaces when the cuts had to be moved apart.
-    println!("{}", report.separation.summary());
+    progress.say(&report.separation.summary());
     // A failed check is an error before anything is written: here they all passed.
-    println!("{} self-checks passed (each cap's centroid, area and rim against the segmentations' opening; listed in the report)", report.checks.len());
+    progress.say(&format!("{} self-checks passed (each cap's centroid, area and rim against the segmentations' opening; listed in the report)", report.checks.len()));
     let pulmonary = Some(pulmonary_path(&args.out)).filter(|p| args.source.labelmap.is_some() && p.is_file());
     let pulmonary = pulmonary.map(|p| format!(", {}", p.display())).unwrap_or_default();
-    println!("wrote {}, {}{pulmonary}", args.out.display(), report_path.display());
+    progress.say(&format!("wrote {}, {}{pulmonary}", args.out.display(), report_path.display()));
     Ok(())
 }
 
@@ -134,7 +147,12 @@ pub fn pulmonary_path(out: &Path) -> PathBuf {
 
 /// Build the capped ventricle and write it and its report (each written whole or
 /// not at all); returns the report and its path.
-pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), String> {
+pub fn prepare_to_file(args: &PrepareSettings, progress: &Progress) -> Result<(PrepareReport, PathBuf), PlanError> {
+    prepare_and_write(args, progress).map_err(PlanError::Prepare)
+}
+
+/// The capped ventricle and its report written; a note on `progress` when a label map has no pulmonary artery.
+fn prepare_and_write(args: &PrepareSettings, progress: &Progress) -> Result<(PrepareReport, PathBuf), String> {
     let (pools, pulmonary) = read_inputs(&args.source)?;
     let mut options = PrepareOptions {
         voxel_mm: args.voxel_mm,
@@ -157,19 +175,19 @@ pub fn prepare_to_file(args: &PrepareArgs) -> Result<(PrepareReport, PathBuf), S
         return Err(e);
     }
     if let Some(pulmonary) = pulmonary {
-        write_pulmonary(&args.out, pulmonary.as_ref(), args.source.pulmonary_label)?;
+        write_pulmonary(&args.out, pulmonary.as_ref(), args.source.pulmonary_label, progress)?;
     }
     Ok((report, report_path))
 }
 
 /// The label map's pulmonary artery beside the capped ventricle `out`; without it, no
 /// such file (not one left from an earlier run) and a note.
-fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32) -> Result<(), String> {
+fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32, progress: &Progress) -> Result<(), String> {
     let path = pulmonary_path(out);
     match pulmonary {
         Some(mesh) => write_trimesh_vtp(&path, mesh).map_err(|e| e.to_string()),
         None => {
-            println!("note: no voxel of the label map has the pulmonary artery's label {label} (--pulmonary-label): the RV outflow will not be measured");
+            progress.say(&format!("note: no voxel of the label map has the pulmonary artery's label {label} (--pulmonary-label): the RV outflow will not be measured"));
             match std::fs::remove_file(&path) {
                 Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(format!("{}: {e}", path.display())),
                 _ => Ok(()),
@@ -179,7 +197,12 @@ fn write_pulmonary(out: &Path, pulmonary: Option<&TriMesh>, label: i32) -> Resul
 }
 
 /// `baffle phantom --heart`: the synthetic heart's segment surfaces and suture points in `out`.
-pub fn write_synthetic_heart(out: &Path) -> Result<(), String> {
+pub fn write_synthetic_heart(out: &Path, progress: &Progress) -> Result<(), PlanError> {
+    synthetic_heart_files(out, progress).map_err(PlanError::Phantom)
+}
+
+/// The synthetic heart's files in `out`, said on `progress`.
+fn synthetic_heart_files(out: &Path, progress: &Progress) -> Result<(), String> {
     let heart = baffle_prepare::shapes::synthetic_heart();
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     for (name, surface) in [("LV.vtp", &heart.lv), ("RV.vtp", &heart.rv), ("aorta.vtp", &heart.aorta)] {
@@ -188,7 +211,7 @@ pub fn write_synthetic_heart(out: &Path) -> Result<(), String> {
     let points = out.join("suture_points.mrk.json");
     baffle_core::io::write_markups_closed_curve(&points, "BC", &heart.suture_points_mm, baffle_core::io::CoordinateSystem::Lps)
         .map_err(|e| e.to_string())?;
-    println!("wrote {} (LV, RV and aorta segment surfaces, suture points; BSA {} m2)", out.display(), heart.bsa_m2);
+    progress.say(&format!("wrote {} (LV, RV and aorta segment surfaces, suture points; BSA {} m2)", out.display(), heart.bsa_m2));
     Ok(())
 }
 

@@ -1,13 +1,37 @@
 //! One progress model for every command and every stage of `baffle plan`: the fraction
-//! of the work done and what runs now. It is shown as Slicer's CLI tags on stdout only
-//! when asked (`--progress-tags`, or `BAFFLE_PROGRESS_TAGS=1` in the environment), as a
-//! bar on stderr when stderr is a terminal, and otherwise as plain lines on stderr, so a
-//! log gets readable lines and a terminal never sees tags.
+//! of the work done and what runs now, and the lines a command says. Nothing here prints:
+//! the text goes to the front end's [`Console`] (baffle-cli's: the lines and Slicer's tags
+//! on stdout, the rest on stderr). Progress is shown as Slicer's CLI tags only when asked
+//! (`--progress-tags`, or `BAFFLE_PROGRESS_TAGS=1` in the environment), as a bar when the
+//! console's status text reaches a terminal, and otherwise as plain lines, so a log gets
+//! readable lines and a terminal never sees tags.
 
 use std::cell::{Cell, RefCell};
-use std::io::{IsTerminal, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// Where a command's text goes; the front end decides how it is shown.
+pub trait Console: Send + Sync {
+    /// One line of the command's own output (the command line: stdout).
+    fn line(&self, text: &str);
+    /// Progress text, exactly as given (newlines and carriage returns included; the
+    /// command line: stderr, flushed).
+    fn status(&self, text: &str);
+    /// Whether the status text reaches a terminal (a bar redrawn in place) or a log.
+    fn status_is_terminal(&self) -> bool;
+}
+
+/// A console that drops all text: for callers that want none, and tests.
+pub struct Quiet;
+
+impl Console for Quiet {
+    fn line(&self, _: &str) {}
+    fn status(&self, _: &str) {}
+    fn status_is_terminal(&self) -> bool {
+        false
+    }
+}
 
 /// Environment variable that turns Slicer's tags on (for a caller that cannot pass the flag).
 pub const TAGS_ENV: &str = "BAFFLE_PROGRESS_TAGS";
@@ -24,9 +48,9 @@ pub enum Style {
 
 impl Style {
     /// Tags when asked for (flag or environment), else a bar on a terminal, else lines.
-    pub fn detect(tags_flag: bool) -> Style {
+    pub fn detect(tags_flag: bool, terminal: bool) -> Style {
         let env_tags = std::env::var(TAGS_ENV).is_ok_and(|v| v == "1");
-        match (tags_flag || env_tags, std::io::stderr().is_terminal()) {
+        match (tags_flag || env_tags, terminal) {
             (true, _) => Style::Tags,
             (false, true) => Style::Bar,
             (false, false) => Style::Lines,
@@ -41,6 +65,7 @@ const LINE_EVERY: Duration = Duration::from_secs(30);
 const TICK: Duration = Duration::from_secs(1);
 
 pub struct Progress {
+    console: Arc<dyn Console>,
     style: Style,
     /// When the whole job (a command, or the whole plan) started: the time-left estimate.
     start: Instant,
@@ -52,14 +77,36 @@ pub struct Progress {
 }
 
 impl Progress {
-    pub fn new(style: Style, start: Instant, range: (f64, f64)) -> Progress {
-        Progress { style, start, range, last_line: Cell::new((f64::NEG_INFINITY, start)), last_stage: RefCell::new(String::new()), drawn: Cell::new(false) }
+    pub fn new(console: Arc<dyn Console>, style: Style, start: Instant, range: (f64, f64)) -> Progress {
+        let last_line = Cell::new((f64::NEG_INFINITY, start));
+        Progress { console, style, start, range, last_line, last_stage: RefCell::new(String::new()), drawn: Cell::new(false) }
+    }
+
+    /// A whole job starting now on `console`: tags when `tags` (or the environment) asks.
+    pub fn start(console: Arc<dyn Console>, tags: bool) -> Progress {
+        let style = Style::detect(tags, console.status_is_terminal());
+        Progress::new(console, style, Instant::now(), (0.0, 1.0))
+    }
+
+    /// Another whole job on the same console and in the same style, starting now.
+    pub fn restart(&self) -> Progress {
+        Progress::new(self.console.clone(), self.style, Instant::now(), (0.0, 1.0))
     }
 
     /// The same display for a sub-range of this one (a stage of the plan).
     pub fn part(&self, range: (f64, f64)) -> Progress {
         let (lo, hi) = self.range;
-        Progress::new(self.style, self.start, (lo + (hi - lo) * range.0, lo + (hi - lo) * range.1))
+        Progress::new(self.console.clone(), self.style, self.start, (lo + (hi - lo) * range.0, lo + (hi - lo) * range.1))
+    }
+
+    /// A line of the command's output.
+    pub fn say(&self, text: &str) {
+        self.console.line(text);
+    }
+
+    /// A line beside the progress (a warning the run goes on after).
+    pub fn note(&self, text: &str) {
+        self.console.status(&format!("{text}\n"));
     }
 
     fn overall(&self, fraction: f64) -> f64 {
@@ -82,33 +129,28 @@ impl Progress {
         let overall = self.overall(fraction);
         match self.style {
             Style::Tags => {
-                let mut out = std::io::stdout().lock();
-                let _ = writeln!(out, "<filter-progress>{overall:.4}</filter-progress>");
+                self.say(&format!("<filter-progress>{overall:.4}</filter-progress>"));
                 if *self.last_stage.borrow() != stage {
-                    let _ = writeln!(out, "<filter-stage>{stage}</filter-stage>");
+                    self.say(&format!("<filter-stage>{stage}</filter-stage>"));
                     *self.last_stage.borrow_mut() = stage.to_string();
                 }
-                let _ = writeln!(out, "<filter-comment>{message}</filter-comment>");
-                let _ = out.flush();
+                self.say(&format!("<filter-comment>{message}</filter-comment>"));
             }
             Style::Bar => {
                 let width = 30;
                 let done = (overall * width as f64).round() as usize;
                 let text: String = format!("{stage}: {message}").chars().take(90).collect();
-                let mut err = std::io::stderr().lock();
-                let _ = write!(err, "\r[{}{}] {:5.1}% {} | {text}\x1b[K", "#".repeat(done), " ".repeat(width - done), 100.0 * overall, self.timing(overall));
                 // A finished piece ends its line, so what the command prints next starts on its own.
-                if fraction >= 1.0 {
-                    let _ = writeln!(err);
-                }
-                let _ = err.flush();
+                let end = if fraction >= 1.0 { "\n" } else { "" };
+                let bar = format!("\r[{}{}] {:5.1}% {} | {text}\x1b[K{end}", "#".repeat(done), " ".repeat(width - done), 100.0 * overall, self.timing(overall));
+                self.console.status(&bar);
                 self.drawn.set(fraction < 1.0);
             }
             Style::Lines => {
                 let (last, at) = self.last_line.get();
                 let stage_changed = *self.last_stage.borrow() != stage;
                 if stage_changed || overall - last >= LINE_STEP || at.elapsed() >= LINE_EVERY || fraction >= 1.0 {
-                    eprintln!("{:5.1}% {} | {stage}: {message}", 100.0 * overall, self.timing(overall));
+                    self.note(&format!("{:5.1}% {} | {stage}: {message}", 100.0 * overall, self.timing(overall)));
                     self.last_line.set((overall, Instant::now()));
                     *self.last_stage.borrow_mut() = stage.to_string();
                 }
@@ -119,9 +161,9 @@ impl Progress {
     /// Ends the bar's line, with `note` (e.g. why a full bar does not mean success).
     pub fn finish(&self, note: Option<&str>) {
         match (self.style, note) {
-            (Style::Bar, Some(note)) if self.drawn.get() => eprintln!(" -- {note}"),
-            (Style::Bar, None) if self.drawn.get() => eprintln!(),
-            (Style::Bar | Style::Lines, Some(note)) => eprintln!("{note}"),
+            (Style::Bar, Some(note)) if self.drawn.get() => self.note(&format!(" -- {note}")),
+            (Style::Bar, None) if self.drawn.get() => self.note(""),
+            (Style::Bar | Style::Lines, Some(note)) => self.note(note),
             _ => {}
         }
         self.drawn.set(false);
@@ -135,10 +177,10 @@ impl Progress {
         let done = AtomicBool::new(false);
         let result = std::thread::scope(|scope| {
             if self.style == Style::Bar {
-                let (style, start, range) = (self.style, self.start, self.range);
+                let (console, style, start, range) = (self.console.clone(), self.style, self.start, self.range);
                 let done = &done;
                 scope.spawn(move || {
-                    let ticker = Progress::new(style, start, range);
+                    let ticker = Progress::new(console, style, start, range);
                     let mut next = TICK;
                     // Short sleeps, so the stage's end is not held up by a whole tick.
                     while !done.load(Ordering::Relaxed) {
@@ -194,7 +236,7 @@ mod tests {
 
     #[test]
     fn a_part_maps_into_its_parents_range() {
-        let whole = Progress::new(Style::Lines, Instant::now(), (0.0, 1.0));
+        let whole = Progress::new(Arc::new(Quiet), Style::Lines, Instant::now(), (0.0, 1.0));
         let stage = whole.part((0.5, 0.75));
         let inner = stage.part((0.5, 1.0));
         assert_eq!(inner.range, (0.625, 0.75));
@@ -214,8 +256,9 @@ mod tests {
     fn tags_are_used_only_when_asked() {
         // Without the flag and without the variable, never tags (a terminal or a log).
         if std::env::var(TAGS_ENV).is_err() {
-            assert_ne!(Style::detect(false), Style::Tags);
+            assert_ne!(Style::detect(false, true), Style::Tags);
+            assert_ne!(Style::detect(false, false), Style::Tags);
         }
-        assert_eq!(Style::detect(true), Style::Tags);
+        assert_eq!(Style::detect(true, true), Style::Tags);
     }
 }

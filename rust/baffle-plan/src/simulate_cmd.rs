@@ -5,85 +5,69 @@
 //! `--engine svmultiphysics` hands the same case to svMultiPhysics instead
 //! ([`crate::simulate_svmp`]); both engines' results go through [`crate::simulate_report::Report`].
 
+use crate::error::PlanError;
 use crate::case;
 use baffle_cfd::{simulate_from, CaseSettings, RunMode, SolverState, SteadyProgress};
-use clap::Args;
 use serde::{Deserialize, Serialize};
 use crate::files::write_atomic;
-use crate::progress::{steady_fraction, Progress, Style};
+use crate::progress::{steady_fraction, Progress};
 use crate::simulate_report::{cycle_end_step, stop_on_signals, Engine, Ending, Output, Report, Row};
 use crate::simulate_svmp::{self, SvmpRun};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-#[derive(Args)]
-#[command(after_help = format!("Example case (relative paths are relative to the case file):\n{}", case::EXAMPLE))]
-pub struct SimulateArgs {
+#[derive(Default)]
+pub struct SimulateSettings {
     /// Case file (JSON): mesh, face roles, fluid, inflow, outlet, time stepping, output.
-    pub(crate) case: PathBuf,
+    pub case: PathBuf,
     /// Output directory: summary.json, timeseries.csv, peak.vtu, final.vtu, checkpoint.json
     /// (with --engine svmultiphysics: summary.json, timeseries.csv, peak.vtu, svmultiphysics/).
     /// The .vtu files are in mm like every surface (they overlay the domain without
     /// scaling), with point arrays velocity_m_s (vector), speed_m_s and pressure_mmhg.
     /// summary.json and timeseries.csv give pressures in mmHg, velocities in m/s, flows
     /// in mL/s.
-    #[arg(long)]
-    pub(crate) out: PathBuf,
+    pub out: PathBuf,
     /// Steady run with the inflow held at Q_peak (overrides time.mode), a quick estimate
     /// of the peak dp. summary.json: q_held_ml_s is the held flow, q_mean_ml_s the case's
     /// mean flow; outlet_mean_pressure_mmhg is R x Q_peak, far above MAP because R = MAP /
     /// Q_mean. dp is unaffected: with rigid walls the outlet pressure only offsets the
     /// pressure field uniformly.
-    #[arg(long, conflicts_with = "quick")]
-    steady: bool,
+    pub steady: bool,
     /// Quick estimate of the peak dp (overrides time.mode with "quick"): time-accurate
     /// from rest up to the first flow peak of the waveform (about 110-170 steps instead of
     /// 4 cycles); unlike --steady it converges where the peak flow is not steady.
-    #[arg(long)]
-    quick: bool,
+    pub quick: bool,
     /// Stop after this time step (overrides time.steps).
-    #[arg(long)]
-    pub(crate) steps: Option<usize>,
+    pub steps: Option<usize>,
     /// Time step (s) (overrides time.dt_s).
-    #[arg(long)]
-    dt_s: Option<f64>,
+    pub dt_s: Option<f64>,
     /// Preconditioner of the linear solves: ilu or two-level (overrides time.preconditioner).
-    #[arg(long, value_parser = ["ilu", "two-level"])]
-    preconditioner: Option<String>,
+    pub preconditioner: Option<String>,
     /// Time integration of a transient run: backward-euler or generalized-alpha (second
     /// order, as svMultiPhysics; overrides time.time_integration).
-    #[arg(long, value_parser = ["backward-euler", "generalized-alpha"])]
-    time_integration: Option<String>,
+    pub time_integration: Option<String>,
     /// Generalized-alpha's spectral radius at infinite time step, 0-1 (default 0.5;
     /// overrides time.rho_inf).
-    #[arg(long)]
-    rho_inf: Option<f64>,
+    pub rho_inf: Option<f64>,
     /// Cardiac cycles (overrides time.cycles).
-    #[arg(long, value_parser = crate::case::at_least_one)]
-    cycles: Option<usize>,
+    pub cycles: Option<usize>,
     /// Write fields_<step>.vtu every N steps (overrides output.vtu_every_steps).
-    #[arg(long)]
-    pub(crate) vtu_every: Option<usize>,
+    pub vtu_every: Option<usize>,
     /// Continue the run (transient, or with --steady the steady solve) from OUT/checkpoint.json.
-    #[arg(long)]
-    pub(crate) resume: bool,
+    pub resume: bool,
     /// Solver: the embedded one, or svMultiPhysics (exported to OUT/svmultiphysics/ and
     /// run there with mpiexec; needs svmultiphysics or svMultiPhysics, and mpiexec, on PATH).
-    #[arg(long, value_enum, default_value_t = Engine::Embedded)]
-    pub(crate) engine: Engine,
+    pub engine: Engine,
     /// With --engine svmultiphysics: read back the case already exported to
     /// OUT/svmultiphysics/ and run elsewhere (a cluster; the directory copied back in
     /// place), without exporting or running it again. It must be this case's export.
-    #[arg(long)]
-    pub(crate) read_back: bool,
+    pub read_back: bool,
     /// MPI processes of an svMultiPhysics run (default: the available cores).
-    #[arg(long, value_parser = crate::case::at_least_one)]
-    pub(crate) mpi_processes: Option<usize>,
+    pub mpi_processes: Option<usize>,
     /// Print Slicer CLI progress tags (<filter-progress>) on stdout (also with
     /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).
-    #[arg(long)]
-    pub(crate) progress_tags: bool,
+    pub progress_tags: bool,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -229,13 +213,14 @@ impl Output<'_> {
     }
 }
 
-pub fn run_simulate(args: &SimulateArgs) -> Result<(), String> {
-    let start = Instant::now();
-    run_simulate_with(args, &Progress::new(Style::detect(args.progress_tags), start, (0.0, 1.0)))
+/// `baffle simulate` showing its progress and saying its summary on `progress` (a stage
+/// of `baffle plan`, or the whole command; --progress-tags is the caller's to apply).
+pub fn run_simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), PlanError> {
+    simulate(args, progress).map_err(PlanError::Simulate)
 }
 
-/// `baffle simulate` showing its progress on `progress` (a stage of `baffle plan`, or the whole command).
-pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(), String> {
+/// The run of `args`: its fields, time series, summary and checkpoints written.
+fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> {
     let start = Instant::now();
     // Refused before the case and its mesh are read: nothing of them is needed to say so.
     if args.read_back && args.engine != Engine::Svmultiphysics {
@@ -403,7 +388,7 @@ pub fn run_simulate_with(args: &SimulateArgs, progress: &Progress) -> Result<(),
     };
     let message = message.or(note);
     let summary = report.write(&rows, &Ending { status, message: message.clone(), converged: run.summary.converged }, &residuals, wall)?;
-    report.print(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall);
+    progress.say(&report.summary_line(&summary, rows.len(), rows.len() - first_row.min(rows.len()), wall));
     if status == "stopped" {
         return Err(message.unwrap_or_default());
     }

@@ -7,14 +7,14 @@ use crate::files::write_atomic;
 use crate::run_summary::RunSummary;
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
 use baffle_cfd::{CaseSettings, FlowMesh, RunMode, StepResult};
-use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
+    #[default]
     Embedded,
     Svmultiphysics,
 }
@@ -136,13 +136,13 @@ impl Report<'_> {
         Ok(summary)
     }
 
-    /// The one-line account of a run on stdout.
-    pub(crate) fn print(&self, summary: &RunSummary, rows: usize, rows_this_run: usize, wall_time_s: f64) {
+    /// The one-line account of a run.
+    pub(crate) fn summary_line(&self, summary: &RunSummary, rows: usize, rows_this_run: usize, wall_time_s: f64) -> String {
         let (a, b) = dp_faces(self.case);
         let number = |v: Option<f64>| v.unwrap_or(f64::NAN);
         // An unconverged solve's numbers are not presented as a plain result.
         let converged = if summary.converged { "" } else { " (NOT CONVERGED)" };
-        println!(
+        format!(
             "{}{converged} {rows} steps ({rows_this_run} this run): dp {:.3} mmHg (faces {a} - {b}), v_max {:.3} m/s, Q_peak {:.2} mL/s, {:.1} s; wrote {}",
             summary.status,
             number(summary.dp_peak_mmhg),
@@ -150,7 +150,7 @@ impl Report<'_> {
             number(summary.q_peak_ml_s),
             wall_time_s,
             self.dir.display()
-        );
+        )
     }
 }
 

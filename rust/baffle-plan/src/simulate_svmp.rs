@@ -3,7 +3,7 @@
 //! its outputs (`B_NS_*.txt`, the peak `result_*.vtu`) read back into the same rows, and
 //! so the same timeseries.csv and summary.json, as the embedded engine's.
 
-use crate::svmp_case::{check_returned_case, export_to};
+use crate::svmp_case::{check_returned_case, export_to, inflow_line};
 use crate::progress::Progress;
 use crate::simulate_report::{stop_on_signals, Ending, Output, Report, Row};
 use baffle_cfd::hemodynamics::DYN_CM2_PER_MMHG;
@@ -41,7 +41,7 @@ pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Insta
                 ending = ended_early;
             }
             engine_convergence(&mut ending, &summary);
-            rows_of(&summary, report, output)?
+            rows_of(&summary, report, output, progress)?
         }
         Err(e) => {
             // Nothing to read back (a run stopped or failed early): say both, keep the case.
@@ -54,7 +54,7 @@ pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Insta
     };
     let wall = start.elapsed().as_secs_f64();
     let summary = report.write(&rows, &ending, &[], wall)?;
-    report.print(&summary, rows.len(), rows.len(), wall);
+    progress.say(&report.summary_line(&summary, rows.len(), rows.len(), wall));
     match ending.status {
         "completed" => Ok(()),
         _ => Err(ending.message.unwrap_or_default()),
@@ -64,7 +64,8 @@ pub(crate) fn run(args: &SvmpRun, report: &Report, output: &Output, start: Insta
 /// Export the case to `case_dir` and run svMultiPhysics there; how the run ended.
 fn export_and_run(args: &SvmpRun, case_dir: &Path, report: &Report, output: &Output, progress: &Progress) -> Result<Ending, String> {
     let processes = args.mpi_processes.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    export_to(case_dir, report.case, output.mesh, report.settings, processes)?;
+    let exported = export_to(case_dir, report.case, output.mesh, report.settings, processes)?;
+    progress.say(&inflow_line(&exported));
     let engine = find_engine().map_err(|e| {
         format!(
             "{e}; the exported case is ready in {}: run its run.sh where svMultiPhysics is installed, bring the directory back there and read it with --read-back",
@@ -135,9 +136,9 @@ fn ending_of<T>(run: &Result<T, SvmpError>, signalled: bool, case_dir: &Path) ->
 
 /// The read-back steps as time-series rows, named as the embedded engine names the faces;
 /// the peak fields also become peak.vtu and that step's maximum velocity.
-fn rows_of(summary: &SvmpSummary, report: &Report, output: &Output) -> Result<Vec<Row>, String> {
+fn rows_of(summary: &SvmpSummary, report: &Report, output: &Output, progress: &Progress) -> Result<Vec<Row>, String> {
     for warning in &summary.warnings {
-        eprintln!("baffle: warning: {warning}");
+        progress.note(&format!("baffle: warning: {warning}"));
     }
     let settings = report.settings;
     let prescribed = |time_s: f64| match settings.mode {

@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
-/// first step); says how the inflow was fitted.
+/// first step); [`inflow_line`] says how the inflow was fitted.
 /// svMultiPhysics always integrates by generalized-alpha: a case that chose it keeps its
 /// rho_inf, a backward-Euler case gets svMultiPhysics' default.
 fn spectral_radius(settings: &CaseSettings) -> f64 {
@@ -36,12 +36,15 @@ pub(crate) fn export_to(
         max_time_steps: step_limit(case, settings),
         ..ExportOptions::new(face_names(&case.faces, mesh), planes)
     };
-    let exported = export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())?;
+    export_case(dir, &tet_mesh, settings, &options).map_err(|e| e.to_string())
+}
+
+/// How the export fitted the inflow, in one line.
+pub(crate) fn inflow_line(exported: &ExportedCase) -> String {
     match (exported.fourier_modes, exported.fourier_max_deviation_ml_s) {
-        (Some(modes), Some(dev)) => println!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
-        _ => println!("inflow: constant (steady)"),
+        (Some(modes), Some(dev)) => format!("inflow: {modes} Fourier modes, largest deviation {dev:.3} mL/s"),
+        _ => "inflow: constant (steady)".to_string(),
     }
-    Ok(exported)
 }
 
 /// Where a transient run stops before its last cycle, as on the embedded engine: the

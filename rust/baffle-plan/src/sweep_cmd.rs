@@ -10,70 +10,58 @@
 //! `mesh-nominal/` and `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
 //! the pressure difference and to the right ventricle side by side.
 
+use crate::error::PlanError;
 use crate::files::{read_json, write_atomic};
 use crate::plan_cmd;
-use crate::plan_stages::{self, PlanArgs, Stage, Step};
+use crate::plan_stages::{self, PlanLayout, PlanSettings, Stage, Step};
 use crate::prepare_cmd::PrepareSource;
-use crate::progress::{Progress, Style};
+use crate::progress::Progress;
 use crate::run_summary::RunSummary;
 use crate::report::svg_plot::{line_chart, with_note, Series};
-use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignArgs, TargetArgs};
+use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignSettings, TargetSettings};
 use crate::verdict::{self, Verdict};
-use baffle_cfd::hemodynamics::CARDIAC_INDEX_DEFAULT_L_MIN_M2;
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::rv_outflow::NarrowedSection;
 use baffle_core::{DesignError, DesignReport, TargetArea};
-use clap::Args;
 use serde_json::json;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-#[derive(Args)]
-#[command(after_help = "Examples:\n  \
-    baffle sweep --surface ../shared/data/p2/design_input/capped_ventricle.vtp \\\n      \
-    --points ../shared/data/p2/design_input/suture_points.mrk.json --bsa 0.37 --z-scores=-2,-1,0,1,2 --out out/p2-sweep\n  \
-    baffle sweep --phantom --areas-mm2 40,60,80,120 --out out/phantom-sweep\n  \
-    # with the quick dp estimate per target, on the extended domains (p2: about 2 minutes)\n  \
-    baffle sweep --segmentations ../shared/data/p2/segmentations --points ../shared/data/p2/design_input/suture_points.mrk.json \\\n      \
-    --bsa 0.37 --z-scores=-2,-1,0,1,2 --cfd --bp 107/78 --hr 133 --out out/p2-sweep-cfd")]
-pub struct SweepArgs {
-    #[command(flatten)]
-    design: DesignArgs,
+pub struct SweepSettings {
+    pub design: DesignSettings,
     /// Annulus z-scores to design at (comma-separated; with --bsa or --height-cm/--weight-kg).
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, required_unless_present = "areas_mm2", conflicts_with = "areas_mm2")]
-    z_scores: Vec<f64>,
+    pub z_scores: Vec<f64>,
     /// Target areas to design at (mm2, comma-separated), instead of --z-scores.
-    #[arg(long, value_delimiter = ',')]
-    areas_mm2: Vec<f64>,
+    pub areas_mm2: Vec<f64>,
     /// Instead of --surface: prepare the capped ventricle from these blood pools once (as
     /// `baffle plan`, into --out/prepare); --cfd then runs on each design's extended domain.
-    #[command(flatten)]
-    prepare: PrepareSource,
-    #[command(flatten)]
-    cfd: CfdArgs,
+    pub prepare: PrepareSource,
+    pub cfd: SweepCfd,
 }
 
 /// The quick dp estimate per designed target (opt-in: it is minutes, the design seconds).
-#[derive(Args)]
-struct CfdArgs {
+pub struct SweepCfd {
     /// Also mesh each designed domain and run the quick estimate (`baffle plan --quick`:
     /// from rest to the first flow peak; inflow on the VSD cap, or with --segmentations on
     /// the mid-LV cap of the extended domain): dp, v_max and the verdict per row.
-    #[arg(long, requires = "bp")]
-    cfd: bool,
+    pub cfd: bool,
     /// Blood pressure SBP/DBP (mmHg) for --cfd: the outlet resistance R = MAP / Q_mean.
-    #[arg(long, value_parser = plan_stages::parse_bp, requires = "cfd")]
-    bp: Option<(f64, f64)>,
+    pub bp: Option<(f64, f64)>,
     /// Heart rate (beats/min) for --cfd; default: the built-in period of 0.682 s.
-    #[arg(long, requires = "cfd")]
-    hr: Option<f64>,
+    pub hr: Option<f64>,
     /// Largest tetrahedron edge of --cfd's meshes (mm); the paper's coarse level, for speed.
-    #[arg(long, default_value_t = 1.25, requires = "cfd")]
-    edge_length_mm: f64,
+    pub edge_length_mm: f64,
     /// Cardiac index of --cfd's runs (L/min/m2): the mean flow is BSA x cardiac index.
-    #[arg(long, default_value_t = CARDIAC_INDEX_DEFAULT_L_MIN_M2, requires = "cfd")]
-    cardiac_index: f64,
+    pub cardiac_index: f64,
+}
+
+/// The plan's quick settings by default, at the paper's coarse mesh size (for speed).
+impl Default for SweepCfd {
+    fn default() -> Self {
+        let plan = PlanSettings::default();
+        SweepCfd { cfd: false, bp: None, hr: None, edge_length_mm: plan_stages::PAPER_COARSE_MM, cardiac_index: plan.cardiac_index }
+    }
 }
 
 /// A designed target's quick estimate: dp at the first flow peak and its verdict.
@@ -178,16 +166,21 @@ fn folder_name(z_score: Option<f64>, target_area_mm2: f64) -> String {
     }
 }
 
-pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
+pub fn run_sweep(args: &SweepSettings, progress: &Progress) -> Result<(), PlanError> {
+    sweep(args, progress).map_err(PlanError::Sweep)
+}
+
+/// The designs (and with --cfd the quick estimates) of every target, and the tables and plot.
+fn sweep(args: &SweepSettings, progress: &Progress) -> Result<(), String> {
     // Design options that make no sense per target are refused, not silently dropped.
     if args.design.reference_baffle.is_some() || args.design.progress_tags {
         return Err("baffle sweep takes neither --reference-baffle nor --progress-tags (run baffle design on one target)".into());
     }
     let options = design_options(&args.design)?;
-    let prepared = prepare_once(args)?;
-    let (surface, points, default_bsa) = design_inputs(&DesignArgs { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
+    let prepared = prepare_once(args, progress)?;
+    let (surface, points, default_bsa) = design_inputs(&DesignSettings { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
-    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&plan_stages::prepared_surface_path(&args.design.out)));
+    let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&PlanLayout::new(&args.design.out, false).prepared_surface()));
     if args.cfd.cfd {
         // Every stage's arguments are checked before the first design, as the plan does.
         plan_stages::plan_stages(&plan_args(args, &args.design.out, f64::NAN))?;
@@ -213,11 +206,11 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
         };
         let design_ms = clock.elapsed().as_secs_f64() * 1e3;
         let quick = match &outcome {
-            Outcome::Designed(report) if args.cfd.cfd => Some(quick_estimate(&plan_args(args, &row_dir, target_area_mm2), report)),
+            Outcome::Designed(report) if args.cfd.cfd => Some(quick_estimate(&plan_args(args, &row_dir, target_area_mm2), report, progress)),
             _ => None,
         };
         let row = Row { z_score, target_area_mm2, outcome, design_ms, quick };
-        println!("{}", summary_line(&row));
+        progress.say(&summary_line(&row));
         rows.push(row);
     }
     let total_s = started.elapsed().as_secs_f64();
@@ -226,20 +219,20 @@ pub fn run_sweep(args: &SweepArgs) -> Result<(), String> {
     write_atomic(&out.join("sweep.md"), markdown(&rows).as_bytes())?;
     write_atomic(&out.join("sweep.svg"), plot(&rows).as_bytes())?;
     write_atomic(&out.join("sweep.json"), json_doc(&rows, total_s).to_string().as_bytes())?;
-    println!("{} targets in {total_s:.1} s; wrote {}", rows.len(), out.display());
+    progress.say(&format!("{} targets in {total_s:.1} s; wrote {}", rows.len(), out.display()));
     Ok(())
 }
 
 /// The plan of one target's quick estimate: its design in `row_dir/design`, the
 /// target as the area the design was made for (the flow needs the BSA, kept).
-fn plan_args(args: &SweepArgs, row_dir: &Path, target_area_mm2: f64) -> PlanArgs {
+fn plan_args(args: &SweepSettings, row_dir: &Path, target_area_mm2: f64) -> PlanSettings {
     let mut design = args.design.clone();
     design.out = row_dir.to_path_buf();
     if target_area_mm2.is_finite() {
         design.target.target_area_mm2 = Some(target_area_mm2);
     }
     let c = &args.cfd;
-    PlanArgs {
+    PlanSettings {
         design,
         prepare: args.prepare.clone(),
         bp: c.bp.unwrap_or((f64::NAN, f64::NAN)),
@@ -247,7 +240,7 @@ fn plan_args(args: &SweepArgs, row_dir: &Path, target_area_mm2: f64) -> PlanArgs
         steady: false,
         quick: true,
         pulsatile: false,
-        cycles: 4,
+        cycles: plan_stages::CYCLES,
         edge_length_mm: c.edge_length_mm,
         mesh_study: false,
         single_mesh: true,
@@ -260,29 +253,29 @@ fn plan_args(args: &SweepArgs, row_dir: &Path, target_area_mm2: f64) -> PlanArgs
 
 /// With --segmentations or --labelmap: the plan's prepare stage into --out/prepare, once
 /// for every target; the capped ventricle it wrote.
-fn prepare_once(args: &SweepArgs) -> Result<Option<PathBuf>, String> {
+fn prepare_once(args: &SweepSettings, progress: &Progress) -> Result<Option<PathBuf>, String> {
     if !args.prepare.is_given() {
         return Ok(None);
     }
     if args.design.surface.is_some() || args.design.phantom {
         return Err("baffle sweep takes one source of the ventricle: --surface, --phantom, --segmentations or --labelmap".into());
     }
-    let out = &args.design.out;
+    let (out, layout) = (&args.design.out, PlanLayout::new(&args.design.out, false));
     let stage = Stage { name: "prepare".into(), step: Step::Prepare, weight: 1.0 };
-    let dir = out.join(&stage.name);
+    let dir = layout.stage_dir(&stage.name);
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+    let progress = progress.restart();
     plan_cmd::run_stage(&plan_args(args, out, f64::NAN), &stage, &dir, &progress).map_err(|e| format!("stage prepare failed: {e}"))?;
     progress.finish(None);
-    Ok(Some(plan_stages::prepared_surface_path(out)))
+    Ok(Some(layout.prepared_surface()))
 }
 
 /// Mesh the designed domain and run the quick estimate with the plan's own stages
 /// (everything after its design), then judge dp as the plan does. A stage that fails
 /// makes the row inconclusive with the stage and its reason, not the sweep's end.
-fn quick_estimate(plan: &PlanArgs, report: &DesignReport) -> Quick {
+fn quick_estimate(plan: &PlanSettings, report: &DesignReport, progress: &Progress) -> Quick {
     let clock = Instant::now();
-    let result = run_after_design(plan);
+    let result = run_after_design(plan, &progress.restart());
     let cfd_s = clock.elapsed().as_secs_f64();
     let design_doubt = verdict::design_doubt(report.min_constrained_final_area_mm2, report.target_area_mm2);
     match result {
@@ -301,14 +294,13 @@ fn quick_estimate(plan: &PlanArgs, report: &DesignReport) -> Quick {
 const AFTER_DESIGN: [&str; 3] = ["extend", "mesh-", "simulate-"];
 
 /// The plan's extend (when prepared), mesh and simulate stages into the row's folder; the run's summary.json.
-fn run_after_design(plan: &PlanArgs) -> Result<RunSummary, String> {
-    let out = &plan.design.out;
-    let progress = Progress::new(Style::detect(false), Instant::now(), (0.0, 1.0));
+fn run_after_design(plan: &PlanSettings, progress: &Progress) -> Result<RunSummary, String> {
+    let layout = PlanLayout::of(plan);
     let mut summary = None;
     for stage in plan_stages::plan_stages(plan)?.iter().filter(|s| AFTER_DESIGN.iter().any(|p| s.name.starts_with(p))) {
-        let dir: PathBuf = out.join(&stage.name);
+        let dir = layout.stage_dir(&stage.name);
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        plan_cmd::run_stage(plan, stage, &dir, &progress).map_err(|e| format!("stage {} failed: {e}", stage.name))?;
+        plan_cmd::run_stage(plan, stage, &dir, progress).map_err(|e| format!("stage {} failed: {e}", stage.name))?;
         summary = Some(dir.join("summary.json"));
     }
     progress.finish(None);
@@ -318,7 +310,7 @@ fn run_after_design(plan: &PlanArgs) -> Result<RunSummary, String> {
 /// The sweep's targets, each with its z-score when the list was of z-scores.
 /// The targets, each checked before the first design: a NaN or negative one is a typo,
 /// not a row of the table.
-fn sweep_targets(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(Option<f64>, TargetArea)>, String> {
+fn sweep_targets(args: &SweepSettings, default_bsa: Option<f64>) -> Result<Vec<(Option<f64>, TargetArea)>, String> {
     let targets = sweep_target_list(args, default_bsa)?;
     for (z, target) in &targets {
         let which = z.map_or_else(|| "--areas-mm2".to_string(), |z| format!("--z-scores (z = {z})"));
@@ -327,7 +319,7 @@ fn sweep_targets(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(Opti
     Ok(targets)
 }
 
-fn sweep_target_list(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(Option<f64>, TargetArea)>, String> {
+fn sweep_target_list(args: &SweepSettings, default_bsa: Option<f64>) -> Result<Vec<(Option<f64>, TargetArea)>, String> {
     if !args.areas_mm2.is_empty() {
         return Ok(args.areas_mm2.iter().map(|&a| (None, TargetArea::AreaMm2(a))).collect());
     }
@@ -338,7 +330,7 @@ fn sweep_target_list(args: &SweepArgs, default_bsa: Option<f64>) -> Result<Vec<(
     args.z_scores
         .iter()
         .map(|&z| {
-            let target = target_from(&TargetArgs { z_score: z, ..base.clone() }, default_bsa)?;
+            let target = target_from(&TargetSettings { z_score: z, ..base.clone() }, default_bsa)?;
             Ok((Some(z), target))
         })
         .collect()

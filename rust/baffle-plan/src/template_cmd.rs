@@ -4,6 +4,8 @@
 //! the area distortion as a colour map; an A4 PDF or SVG that prints 1:1 at 100 %, or a
 //! PNG with its resolution in the file (pHYs).
 
+use crate::error::PlanError;
+use crate::progress::Progress;
 use crate::files::write_atomic;
 use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
@@ -11,53 +13,66 @@ use baffle_core::template::drawing::{today_utc, TemplateText};
 use baffle_core::template::raster::DEFAULT_DPI;
 use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat};
 use baffle_core::FaceLabels;
-use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 
-#[derive(Args)]
-pub struct TemplateArgs {
+pub struct TemplateSettings {
     /// Designed domain (domain.vtp from `baffle design`): ModelFaceID baffle, VSD and aortic caps.
-    #[arg(long)]
     pub domain: PathBuf,
     /// The surgeon's suture points (.mrk.json, .fcsv, CSV or JSON), numbered on the template.
-    #[arg(long)]
     pub points: PathBuf,
     /// Output: .pdf (A4, vector), .svg (A4, viewBox in mm) or .png (A4 at --dpi, the DPI
     /// stored in the file). A JSON report with the perimeter and distortion figures is
     /// written beside it (<stem>-report.json).
-    #[arg(long)]
     pub out: PathBuf,
     /// Resolution of a .png template (dots per inch).
-    #[arg(long, default_value_t = DEFAULT_DPI)]
     pub dpi: f64,
     /// Patient label printed on the template.
-    #[arg(long, default_value = "")]
     pub label: String,
     /// Date printed on the template (default: today, UTC).
-    #[arg(long)]
     pub date: Option<String>,
     /// Frame of the domain (the points are converted into it), as for `baffle design`.
-    #[arg(long, value_enum, default_value_t = Frame::Lps)]
     pub surface_frame: Frame,
     /// Flattening: lscm (conformal; keeps the seam's angles and edge lengths best) or
     /// arap (LSCM then as-rigid-as-possible; smaller largest area change).
-    #[arg(long, value_enum, default_value_t = TemplateMethod::Lscm)]
     pub method: TemplateMethod,
-    #[arg(long, default_value_t = FaceLabels::default().baffle)]
     pub baffle_label: i32,
-    #[arg(long, default_value_t = FaceLabels::default().vsd_cap)]
     pub vsd_label: i32,
-    #[arg(long, default_value_t = FaceLabels::default().aortic_cap)]
     pub aortic_label: i32,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Default)]
 pub enum TemplateMethod {
+    #[default]
     Lscm,
     Arap,
 }
 
-pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
+impl Default for TemplateSettings {
+    fn default() -> Self {
+        let labels = FaceLabels::default();
+        TemplateSettings {
+            domain: PathBuf::new(),
+            points: PathBuf::new(),
+            out: PathBuf::new(),
+            dpi: DEFAULT_DPI,
+            label: String::new(),
+            date: None,
+            surface_frame: Frame::default(),
+            method: TemplateMethod::default(),
+            baffle_label: labels.baffle,
+            vsd_label: labels.vsd_cap,
+            aortic_label: labels.aortic_cap,
+        }
+    }
+}
+
+/// `baffle template`, its figures said on `progress`.
+pub fn run_template(args: &TemplateSettings, progress: &Progress) -> Result<(), PlanError> {
+    template(args, progress).map_err(PlanError::Template)
+}
+
+/// The template of `args` and its report written.
+fn template(args: &TemplateSettings, progress: &Progress) -> Result<(), String> {
     let format = PageFormat::from_path(&args.out, args.dpi)?;
     let domain = read_surface(&args.domain).map_err(|e| e.to_string())?;
     let points = read_points(&args.points).map_err(|e| e.to_string())?;
@@ -89,7 +104,7 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
     let report_path = args.out.with_file_name(format!("{stem}-report.json"));
     write_atomic(&report_path, serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?.as_bytes())?;
     let r = &template.flat.report;
-    println!(
+    progress.say(&format!(
         "{}: seam {:.2} mm, perimeter {:.2} mm (error {:.1e}, map scaled by {:.4}); area change median {:.2} % max {:.2} %; angle change median {:.2} max {:.2} deg",
         args.out.display(),
         r.seam_length_3d_mm,
@@ -100,6 +115,6 @@ pub fn run_template(args: &TemplateArgs) -> Result<(), String> {
         100.0 * r.area_distortion_max,
         r.angle_distortion_median_deg,
         r.angle_distortion_max_deg
-    );
+    ));
     Ok(())
 }

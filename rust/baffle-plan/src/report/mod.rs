@@ -6,7 +6,7 @@ mod paper;
 mod pictures;
 pub(crate) mod svg_plot;
 
-use crate::plan_stages::{flow_bsa_m2, flow_centerline_path, mesh_path, FlowCase, PlanArgs, Stage, StageRecord, Step};
+use crate::plan_stages::{flow_bsa_m2, FlowCase, PlanLayout, PlanSettings, Stage, StageRecord, Step};
 use crate::sampling::{PeakFields, Profile};
 use crate::files::{read_json, write_atomic};
 use crate::centerline_cmd::CenterlineFigures;
@@ -42,9 +42,9 @@ fn write_json(path: &Path, doc: &Value) -> Result<(), String> {
     write_atomic(path, serde_json::to_string_pretty(doc).map_err(|e| e.to_string())?.as_bytes())
 }
 
-pub fn write_failure_json(out: &Path, stage: &str, error: &str, records: &[StageRecord]) -> Result<(), String> {
+pub fn write_failure_json(layout: &PlanLayout, stage: &str, error: &str, records: &[StageRecord]) -> Result<(), String> {
     let doc = json!({ "status": "failed", "failed_stage": stage, "error": error, "stages": records });
-    write_json(&out.join("report.json"), &doc)
+    write_json(&layout.report_json(), &doc)
 }
 
 /// One simulation run with the mesh it ran on.
@@ -87,7 +87,7 @@ impl Run {
     }
 }
 
-fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage], records: &[StageRecord]) -> Result<Vec<Run>, String> {
+fn load_runs(args: &PlanSettings, layout: &PlanLayout, stages: &[Stage], records: &[StageRecord]) -> Result<Vec<Run>, String> {
     let edge = |level: &str| {
         stages.iter().find_map(|s| match s.step {
             Step::Mesh { level: l, edge_length_mm } if l == level => Some(edge_length_mm),
@@ -100,8 +100,8 @@ fn load_runs(args: &PlanArgs, out: &Path, stages: &[Stage], records: &[StageReco
             continue;
         }
         if let Step::Simulate { level, flow } = stage.step {
-            let summary_path = out.join(&stage.name).join("summary.json");
-            let quality_path = mesh_path(out, level).with_file_name("mesh-quality.json");
+            let summary_path = layout.stage_dir(&stage.name).join("summary.json");
+            let quality_path = layout.mesh(level).with_file_name("mesh-quality.json");
             runs.push(Run {
                 stage: stage.name.clone(),
                 level,
@@ -244,8 +244,8 @@ struct CenterlineProfile {
 /// Name of the centerline's pressure relative to the aortic plane (report.json, centerline.vtp).
 const GAUGE_PRESSURE: &str = "pressure_rel_aortic_plane_mmhg";
 
-fn centerline_profile(out: &Path, peak_path: &Path) -> Result<CenterlineProfile, String> {
-    let (vtp, json_path) = crate::centerline_cmd::output_paths(&flow_centerline_path(out));
+fn centerline_profile(layout: &PlanLayout, peak_path: &Path) -> Result<CenterlineProfile, String> {
+    let (vtp, json_path) = crate::centerline_cmd::output_paths(&layout.flow_centerline());
     let line = baffle_core::io::read_polydata(&vtp).map_err(|e| e.to_string())?;
     let s_mm = match line.point_array("s_mm").and_then(|a| a.as_f64()) {
         Some((1, values)) => values.to_vec(),
@@ -400,7 +400,7 @@ fn plan_verdict(nominal: &Run, study: Option<&Result<MeshStudy, String>>, design
 
 /// The mesh study of the nominal-flow runs (None with --single-mesh); a level whose stage
 /// failed makes it an error that says which and why.
-fn mesh_study(args: &PlanArgs, runs: &[Run], records: &[StageRecord]) -> Option<Result<MeshStudy, String>> {
+fn mesh_study(args: &PlanSettings, runs: &[Run], records: &[StageRecord]) -> Option<Result<MeshStudy, String>> {
     if !args.runs_mesh_study() {
         return None;
     }
@@ -549,9 +549,9 @@ struct PrepareSummary {
 }
 
 /// The prepare stage's report (cap areas and centroids) and wall time, if it ran.
-fn prepare_summary(out: &Path, records: &[StageRecord]) -> Result<Option<PrepareSummary>, String> {
+fn prepare_summary(layout: &PlanLayout, records: &[StageRecord]) -> Result<Option<PrepareSummary>, String> {
     let Some(record) = records.iter().find(|r| r.name == "prepare") else { return Ok(None) };
-    let path = crate::prepare_cmd::report_path(&crate::plan_stages::prepared_surface_path(out));
+    let path = crate::prepare_cmd::report_path(&layout.prepared_surface());
     let doc: PrepareReport = read_json(&path)?;
     Ok(Some(PrepareSummary {
         report: path,
@@ -616,7 +616,7 @@ struct Extension {
 }
 
 /// The CFD domain: the extend stage's figures, or why the designed domain was kept.
-fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Result<CfdDomain, String> {
+fn domain_summary(args: &PlanSettings, layout: &PlanLayout, records: &[StageRecord]) -> Result<CfdDomain, String> {
     let Some(record) = records.iter().find(|r| r.name == "extend").filter(|_| crate::plan_stages::is_extended(args)) else {
         return Ok(CfdDomain {
             extended: false,
@@ -624,7 +624,7 @@ fn domain_summary(args: &PlanArgs, out: &Path, records: &[StageRecord]) -> Resul
             extension: None,
         });
     };
-    let path = crate::prepare_cmd::report_path(&crate::plan_stages::extended_surface_path(out));
+    let path = crate::prepare_cmd::report_path(&layout.extended_surface());
     let doc: ExtendReport = read_json(&path)?;
     let extension = Extension {
         report: path,
@@ -697,7 +697,7 @@ fn convergence_chart(nominal: &Run, timeseries: &Timeseries) -> Option<(String, 
 }
 
 /// What the ventricle came from, for the report's first line.
-fn surface_source(args: &PlanArgs) -> String {
+fn surface_source(args: &PlanSettings) -> String {
     let p = &args.prepare;
     match (&p.segmentations, &p.labelmap, &args.design.surface) {
         (Some(dir), _, _) => format!("Segmentations {} (prepare stage)", short_path(dir)),
@@ -708,7 +708,7 @@ fn surface_source(args: &PlanArgs) -> String {
 }
 
 /// The patient's name in the report: --patient-label, else the paper's patient id.
-fn patient_label(args: &PlanArgs, paper: Option<&paper::PaperPatient>) -> String {
+fn patient_label(args: &PlanSettings, paper: Option<&paper::PaperPatient>) -> String {
     match (&args.patient_label, paper, args.design.phantom) {
         (Some(label), _, _) => label.clone(),
         (None, Some(p), _) => p.id.clone(),
@@ -718,7 +718,7 @@ fn patient_label(args: &PlanArgs, paper: Option<&paper::PaperPatient>) -> String
 }
 
 /// The plan's input file or folder (for the paper's patient it belongs to).
-fn input_path(args: &PlanArgs) -> Option<&Path> {
+fn input_path(args: &PlanSettings) -> Option<&Path> {
     let p = &args.prepare;
     p.segmentations.as_deref().or(p.labelmap.as_deref()).or(args.design.surface.as_deref())
 }
@@ -732,16 +732,17 @@ pub struct Outcome {
 }
 
 /// Write report.json and report.html from the stages' files.
-pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
-    let out = &args.design.out;
+pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
+    let layout = PlanLayout::of(args);
+    let out = layout.root();
     let labels = (args.design.vsd_label, args.design.aortic_label);
-    let design_dir = out.join("design");
+    let design_dir = layout.design_dir();
     let design_path = design_dir.join("report.json");
     let design: DesignReport = read_json(&design_path)?;
-    let runs = load_runs(args, out, stages, records)?;
+    let runs = load_runs(args, &layout, stages, records)?;
     let nominal = runs.iter().find(|r| r.level == "nominal" && r.flow == FlowCase::Nominal).ok_or("no nominal simulation stage")?;
-    let nominal_dir = out.join(&nominal.stage);
-    let flow_line = centerline_profile(out, &nominal_dir.join("peak.vtu"))?;
+    let nominal_dir = layout.stage_dir(&nominal.stage);
+    let flow_line = centerline_profile(&layout, &nominal_dir.join("peak.vtu"))?;
     let profile = &flow_line.profile;
     let table = quantities(&design, nominal, &flow_line)?;
     let dp = nominal.dp_mmhg()?;
@@ -757,7 +758,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     // The requested target: with --flow-sections the design ran at a raised one.
     let goal_mm2 = design.flow_sections.as_ref().map_or(design.target_area_mm2, |f| f.goal_area_mm2);
     warnings.extend(flow_section_warning(&flow_line, goal_mm2));
-    let cfd_domain = domain_summary(args, out, records)?;
+    let cfd_domain = domain_summary(args, &layout, records)?;
     let dp_faces = if cfd_domain.extended {
         (format!("plane1_{}", labels.0), format!("plane2_{}", labels.1))
     } else {
@@ -771,7 +772,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let gauge = flow_line.gauge_mmhg(reference_mmhg);
     let comparison = PressureComparison::of(&flow_line.s_mm, &gauge);
     flow_line.write_with_fields(reference_mmhg)?;
-    let prepare = prepare_summary(out, records)?;
+    let prepare = prepare_summary(&layout, records)?;
     let paper = input_path(args).and_then(paper::PaperPatient::of_input);
     let estimate = EstimateBeside3d::of(design.hemodynamics_estimate.as_ref(), &design_path, dp, profile.v_max_m_s());
 
@@ -821,7 +822,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
             "quantities": p.values.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         })),
         "centerline": {
-            "kind": "flow-domain", "file": flow_centerline_path(out), "length_mm": flow_line.length_mm,
+            "kind": "flow-domain", "file": layout.flow_centerline(), "length_mm": flow_line.length_mm,
             "pressure_reference": "mean pressure over the aortic-annulus plane at peak flow",
             "reference_pressure_solver_mmhg": reference_mmhg,
             "s_mm": flow_line.s_mm, GAUGE_PRESSURE: gauge, "speed_m_s": profile.speed_m_s,
@@ -831,7 +832,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         },
         "dp_over_cycle": { "time_in_cycle_s": dp_cycle.iter().map(|p| p.0).collect::<Vec<_>>(), "dp_mmhg": dp_cycle.iter().map(|p| p.1).collect::<Vec<_>>() },
     });
-    write_json(&out.join("report.json"), &report)?;
+    write_json(&layout.report_json(), &report)?;
     // The renderer reads report.json and the stages' files (centerline.vtp with its fields).
     let d = &args.design;
     let ras = matches!(d.surface_frame, crate::design_cmd::Frame::Ras);
@@ -851,7 +852,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
         }),
         pictures::Pictures::NotRendered(reason) => json!({ "rendered": false, "reason": reason }),
     };
-    write_json(&out.join("report.json"), &report)?;
+    write_json(&layout.report_json(), &report)?;
 
     let mut html = Html(String::new());
     let _ = write!(html.0, "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\"><head><meta charset=\"utf-8\"/><title>Baffle plan</title><style>{STYLE}</style></head><body>\n<h1>Baffle plan</h1>\n");
@@ -997,7 +998,7 @@ pub fn write_reports(args: &PlanArgs, stages: &[Stage], records: &[StageRecord])
     let rows: Vec<Vec<String>> = records.iter().map(|r| vec![r.name.clone(), r.status.to_string(), format_value(r.wall_time_s.unwrap_or(f64::NAN), 1)]).collect();
     html.table(&["Stage (subfolder)", "Status", "Wall time (s)"], &rows);
     html.0.push_str("</body></html>\n");
-    write_atomic(&out.join("report.html"), html.0.as_bytes())?;
+    write_atomic(&layout.report_html(), html.0.as_bytes())?;
     let pictures_missing = match rendered {
         pictures::Pictures::NotRendered(reason) => Some(reason),
         pictures::Pictures::Rendered { .. } => None,
