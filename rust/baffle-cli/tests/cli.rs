@@ -287,8 +287,16 @@ fn a_sweep_lists_every_target_and_the_infeasible_end() {
     assert!(dp > 0.0 && rows[0]["vmax_m_s"].as_f64().unwrap() > 0.1, "{}", rows[0]);
     let expected = if dp < 10.0 { "passes" } else { "fails" };
     assert_eq!(rows[0]["verdict"]["verdict"], expected, "{}", rows[0]);
+    // Every designed row carries the reduced-order estimate its design/report.json holds
+    // (issue 31: the curve before any 3D run), at the CFD case's peak flow for BSA 0.37.
+    let estimate = &designed["hemodynamics_estimate"];
+    assert_eq!(rows[0]["dp_estimate_mmhg"], estimate["dp_estimate_mmhg"], "{estimate}");
+    assert_eq!(rows[0]["v_max_estimate_m_s"], estimate["v_max_estimate_m_s"], "{estimate}");
+    assert!(rows[0]["dp_estimate_mmhg"].as_f64().unwrap().is_finite() && rows[0]["estimate_absent_because"].is_null(), "{}", rows[0]);
+    let q = estimate["peak_flow_ml_s"].as_f64().unwrap();
+    assert!((q - 3.26 * 0.37 * 3.48 / 0.06).abs() < 0.05, "peak flow {q} ml/s");
     assert_eq!(rows[1]["status"], "infeasible");
-    assert!(rows[1]["dp_mmhg"].is_null() && rows[1]["verdict"].is_null(), "{}", rows[1]);
+    assert!(rows[1]["dp_mmhg"].is_null() && rows[1]["verdict"].is_null() && rows[1]["dp_estimate_mmhg"].is_null(), "{}", rows[1]);
     let largest = rows[1]["max_feasible_area_mm2"].as_f64().unwrap();
     assert!(60.0 < largest && largest < 300.0, "{}", rows[1]);
     assert!(!rows[1]["reason"].as_str().unwrap().is_empty() && rows[1]["baffle_area_mm2"].is_null());
@@ -298,7 +306,9 @@ fn a_sweep_lists_every_target_and_the_infeasible_end() {
     assert!(md.contains("| infeasible |") && md.contains(&format!("| {dp:.2} |")) && md.contains(&format!("| {expected} |")), "{md}");
     assert!(csv.lines().nth(1).unwrap().contains(&format!(",{dp:.3},")), "{csv}");
     let svg = std::fs::read_to_string(out_dir.join("sweep.svg")).unwrap();
-    assert!(svg.contains("largest feasible") && svg.contains("Quick dp estimate"));
+    assert!(svg.contains("largest feasible") && svg.contains("Quick dp estimate") && svg.contains("reduced-order estimate (not CFD)"));
+    assert!(csv.starts_with("z_score,") && csv.lines().next().unwrap().contains(",dp_estimate_mmhg,v_max_estimate_m_s,dp_mmhg,"), "{csv}");
+    assert!(md.contains("dp estimate: reduced-order, not CFD"), "{md}");
     // --cfd needs the blood pressure (the outlet resistance).
     let out = baffle(&["sweep", "--phantom", "--areas-mm2", "60", "--cfd", "--out", out_dir.to_str().unwrap()]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--bp"), "{}", String::from_utf8_lossy(&out.stderr));
@@ -307,6 +317,13 @@ fn a_sweep_lists_every_target_and_the_infeasible_end() {
     let out = baffle(&[&["sweep"], &wrapped[..], &["--areas-mm2", &format!("{largest}"), "--out", again.to_str().unwrap()]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stdout).contains("baffle "), "{}", String::from_utf8_lossy(&out.stdout));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("(reduced-order, not CFD)"), "{}", String::from_utf8_lossy(&out.stdout));
+    // Without a body size (or --peak-flow-ml-s) there is no flow: the row says why.
+    let out = baffle(&["sweep", "--surface", surface.to_str().unwrap(), "--points", points.to_str().unwrap(), "--areas-mm2", "60", "--out", again.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(again.join("sweep.json")).unwrap()).unwrap();
+    let row = &doc["rows"][0];
+    assert!(row["dp_estimate_mmhg"].is_null() && row["estimate_absent_because"].as_str().unwrap().contains("--bsa"), "{row}");
     // z-scores need the body size.
     let out = baffle(&["sweep", "--phantom", "--target-area-mm2", "60", "--z-scores=-1,0", "--out", again.to_str().unwrap()]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--z-scores needs the body size"));

@@ -8,7 +8,10 @@
 //! `design/`. With --cfd each designed target also gets the quick dp estimate of
 //! `baffle plan --quick` (the plan's own [extend,] mesh and simulate stages, in `extend/`,
 //! `mesh-nominal/` and `simulate-nominal/` beside `design/`), so the table shows what the tunnel's size does to
-//! the pressure difference and to the right ventricle side by side.
+//! the pressure difference and to the right ventricle side by side. Every designed target
+//! also carries the reduced-order dp and v_max estimate (issue 31, at --peak-flow-ml-s or
+//! the CFD case's peak flow for the body size), so the curve of dp against the target is
+//! drawn in seconds, before any 3D run; --cfd's quick runs then confirm chosen points.
 
 use crate::error::PlanError;
 use crate::files::{read_json, write_atomic};
@@ -20,6 +23,7 @@ use crate::run_summary::RunSummary;
 use crate::report::svg_plot::{line_chart, with_note, Series};
 use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignSettings, TargetSettings};
 use crate::verdict::{self, Verdict};
+use baffle_core::hemodynamics_estimate::{dp_uncertainty, peak_flow_ml_s, Blood, EstimateOutcome, HemodynamicsEstimate};
 use baffle_core::outputs::write_design_outputs;
 use baffle_core::rv_outflow::NarrowedSection;
 use baffle_core::{DesignError, DesignReport, TargetArea};
@@ -142,6 +146,22 @@ impl Row {
         folder_name(self.z_score, self.target_area_mm2)
     }
 
+    /// A figure of the reduced-order estimate, NaN without one.
+    fn estimate(&self, f: impl Fn(&HemodynamicsEstimate) -> f64) -> f64 {
+        match self.report().and_then(|d| d.hemodynamics_estimate.as_ref()) {
+            Some(EstimateOutcome::Estimated(e)) => f(e),
+            _ => f64::NAN,
+        }
+    }
+
+    /// Why a designed row has no reduced-order estimate.
+    fn estimate_absent(&self) -> Option<&str> {
+        match self.report()?.hemodynamics_estimate.as_ref()? {
+            EstimateOutcome::Absent { absent_because } => Some(absent_because),
+            EstimateOutcome::Estimated(_) => None,
+        }
+    }
+
     /// A figure of the quick estimate, NaN without one.
     fn quick(&self, f: impl Fn(&Quick) -> f64) -> f64 {
         self.quick.as_ref().map_or(f64::NAN, f)
@@ -180,6 +200,7 @@ fn sweep(args: &SweepSettings, progress: &Progress) -> Result<(), String> {
     let prepared = prepare_once(args, progress)?;
     let (surface, points, default_bsa) = design_inputs(&DesignSettings { surface: prepared.or(args.design.surface.clone()), ..args.design.clone() })?;
     let targets = sweep_targets(args, default_bsa)?;
+    let estimate_flow = estimate_peak_flow_ml_s(args, default_bsa);
     let pulmonary = args.design.pulmonary.clone().or_else(|| args.prepare.pulmonary_surface(&PlanLayout::new(&args.design.out, false).prepared_surface()));
     if args.cfd.cfd {
         // Every stage's arguments are checked before the first design, as the plan does.
@@ -196,6 +217,10 @@ fn sweep(args: &SweepSettings, progress: &Progress) -> Result<(), String> {
         let outcome = match design_by_rule(args.design.flow_sections, &surface, &points, &target, &options, &mut |_, _| true) {
             Ok(mut result) => {
                 measure_rv_outflow(&surface, &mut result, pulmonary.as_deref())?;
+                result.report.hemodynamics_estimate = Some(match &estimate_flow {
+                    Ok(q) => EstimateOutcome::for_domain(&result.domain, options.labels, Some(*q), Blood::default()),
+                    Err(why) => EstimateOutcome::Absent { absent_because: why.clone() },
+                });
                 write_design_outputs(&row_dir.join("design"), &result).map_err(|e| e.to_string())?;
                 Outcome::Designed(Box::new(result.report))
             }
@@ -249,6 +274,19 @@ fn plan_args(args: &SweepSettings, row_dir: &Path, target_area_mm2: f64) -> Plan
         prepare_remesh_edge_mm: None,
         patient_label: None,
     }
+}
+
+/// The peak flow (ml/s) every target's reduced-order estimate is made at: --peak-flow-ml-s,
+/// else the CFD case's (BSA x cardiac index through the built-in waveform, as the plan's
+/// design stage); or why there is none (no body size).
+fn estimate_peak_flow_ml_s(args: &SweepSettings, default_bsa: Option<f64>) -> Result<f64, String> {
+    if let Some(q) = args.design.peak_flow_ml_s {
+        return Ok(q);
+    }
+    let t = &args.design.target;
+    let from_size = t.height_cm.zip(t.weight_kg).map(|(h, w)| baffle_core::target::haycock_bsa_m2(h, w));
+    let bsa = t.bsa.or(from_size).or(default_bsa).ok_or("no peak flow for the estimate: give --bsa (or --height-cm/--weight-kg) or --peak-flow-ml-s")?;
+    peak_flow_ml_s(bsa, args.cfd.cardiac_index)
 }
 
 /// With --segmentations or --labelmap: the plan's prepare stage into --out/prepare, once
@@ -336,9 +374,19 @@ fn sweep_target_list(args: &SweepSettings, default_bsa: Option<f64>) -> Result<V
         .collect()
 }
 
+/// "; dp estimate 3.21 mmHg (reduced-order, not CFD)", or nothing without one.
+fn estimate_words(row: &Row) -> String {
+    let dp = row.estimate(|e| e.dp_estimate_mmhg);
+    if dp.is_finite() {
+        format!("; dp estimate {dp:.2} mmHg, v_max {:.2} m/s (reduced-order, not CFD)", row.estimate(|e| e.v_max_estimate_m_s))
+    } else {
+        String::new()
+    }
+}
+
 fn summary_line(row: &Row) -> String {
     let what = match &row.outcome {
-        Outcome::Designed(r) => format!("baffle {:.1} mm2; {}", r.baffle_area_mm2, rv_cost_line(&r.rv_cost)),
+        Outcome::Designed(r) => format!("baffle {:.1} mm2; {}{}", r.baffle_area_mm2, rv_cost_line(&r.rv_cost), estimate_words(row)),
         Outcome::Infeasible { max_feasible_area_mm2, .. } => format!("infeasible: the seam admits at most {max_feasible_area_mm2:.1} mm2"),
         Outcome::Failed(reason) => format!("failed: {reason}"),
     };
@@ -358,7 +406,7 @@ fn optional(v: Option<f64>, decimals: usize) -> String {
     cell(v.unwrap_or(f64::NAN), decimals)
 }
 
-const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,rv_outflow_min_section_mm2,rv_outflow_most_narrowed_before_mm2,rv_outflow_most_narrowed_after_mm2,rv_outflow_most_narrowed_after_over_before,rv_outflow_most_narrowed_from_pulmonary_end_mm,max_feasible_area_mm2,max_feasible_z_score,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
+const CSV_HEADER: &str = "z_score,target_area_mm2,status,baffle_area_mm2,min_section_area_mm2,rv_volume_before_ml,rv_volume_after_ml,rv_volume_taken_ml,baffle_area_outside_ventricle_mm2,rv_outflow_min_section_mm2,rv_outflow_most_narrowed_before_mm2,rv_outflow_most_narrowed_after_mm2,rv_outflow_most_narrowed_after_over_before,rv_outflow_most_narrowed_from_pulmonary_end_mm,max_feasible_area_mm2,max_feasible_z_score,dp_estimate_mmhg,v_max_estimate_m_s,dp_mmhg,vmax_m_s,verdict,design_ms,cfd_s,reason";
 
 fn csv(rows: &[Row]) -> String {
     let mut s = format!("{CSV_HEADER}\n");
@@ -381,6 +429,8 @@ fn csv(rows: &[Row]) -> String {
             cell(r.most_narrowed(|n| n.distance_from_pulmonary_end_mm), 1),
             cell(max_area, 3),
             optional(max_z, 3),
+            cell(r.estimate(|e| e.dp_estimate_mmhg), 3),
+            cell(r.estimate(|e| e.v_max_estimate_m_s), 3),
             cell(r.quick(|q| q.dp_mmhg), 3),
             cell(r.quick(|q| q.vmax_m_s), 3),
             r.verdict_key().to_string(),
@@ -396,8 +446,8 @@ fn csv(rows: &[Row]) -> String {
 
 fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
-        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | RV outflow smallest section (mm2) | RV outflow most narrowed: before / after (mm2) | left (%) | from the pulmonary end (mm) | largest feasible target (mm2) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| z | target (mm2) | status | baffle (mm2) | smallest section (mm2) | RV before (mL) | RV after (mL) | taken (mL) | RV outflow smallest section (mm2) | RV outflow most narrowed: before / after (mm2) | left (%) | from the pulmonary end (mm) | largest feasible target (mm2) | dp estimate (mmHg) | dp (mmHg) | v_max (m/s) | 10 mmHg verdict | time (s) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let (max_area, max_z) = r.max_feasible();
@@ -407,7 +457,7 @@ fn markdown(rows: &[Row]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             optional(r.z_score, 2),
             cell(r.target_area_mm2, 1),
             r.status(),
@@ -421,6 +471,7 @@ fn markdown(rows: &[Row]) -> String {
             cell(r.most_narrowed(|n| 100.0 * n.after_over_before), 0),
             cell(r.most_narrowed(|n| n.distance_from_pulmonary_end_mm), 1),
             largest,
+            cell(r.estimate(|e| e.dp_estimate_mmhg), 2),
             cell(r.quick(|q| q.dp_mmhg), 2),
             cell(r.quick(|q| q.vmax_m_s), 2),
             r.verdict_key(),
@@ -430,6 +481,12 @@ fn markdown(rows: &[Row]) -> String {
     let mut notes: Vec<String> = rows.iter().filter(|r| !r.note().is_empty()).map(|r| format!("- {}: {}", r.folder(), r.note())).collect();
     // Why the RV outflow is not measured, once per distinct reason.
     notes.extend(outflow_reasons(rows).iter().map(|reason| format!("- RV outflow sections not measured: {reason}")));
+    if rows.iter().any(|r| r.estimate(|e| e.dp_estimate_mmhg).is_finite()) {
+        notes.push(format!("- dp estimate: reduced-order, not CFD; its measured error {}", dp_uncertainty()));
+    }
+    if let Some(why) = rows.iter().find_map(Row::estimate_absent) {
+        notes.push(format!("- dp estimate absent: {why}"));
+    }
     if !notes.is_empty() {
         let _ = write!(s, "\n{}\n", notes.join("\n"));
     }
@@ -496,12 +553,28 @@ fn plot(rows: &[Row]) -> String {
         ),
         outflow_chart(rows, x_label, &series),
     ];
-    if rows.iter().any(|r| r.quick.is_some()) {
-        let threshold = Series { label: "10 mmHg".into(), dashed: true, markers: false, ..series("", "#d62728", &|_| verdict::DP_THRESHOLD_MMHG) };
-        let dp = series("dp, first peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg));
-        charts.push(line_chart("Quick dp estimate", x_label, "dp (mmHg)", &[dp, threshold], true));
-    }
+    charts.extend(dp_chart(rows, x_label, &series));
     stack(&charts)
+}
+
+/// dp at peak flow against the 10 mmHg threshold: the reduced-order estimate of every
+/// designed target (drawn before any 3D run) and, with --cfd, the quick 3D runs' first
+/// peak; None when the sweep has neither.
+fn dp_chart(rows: &[Row], x_label: &str, series: &dyn Fn(&str, &'static str, &dyn Fn(&Row) -> f64) -> Series) -> Option<String> {
+    let has_estimate = rows.iter().any(|r| r.estimate(|e| e.dp_estimate_mmhg).is_finite());
+    let has_quick = rows.iter().any(|r| r.quick.is_some());
+    if !(has_estimate || has_quick) {
+        return None;
+    }
+    let mut lines = vec![Series { label: "10 mmHg".into(), dashed: true, markers: false, ..series("", "#d62728", &|_| verdict::DP_THRESHOLD_MMHG) }];
+    if has_estimate {
+        lines.push(Series { dashed: true, ..series("reduced-order estimate (not CFD)", "#7f7f7f", &|r| r.estimate(|e| e.dp_estimate_mmhg)) });
+    }
+    if has_quick {
+        lines.push(series("Quick dp estimate: 3D, first peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg)));
+    }
+    let chart = line_chart("dp at peak flow", x_label, "dp (mmHg)", &lines, true);
+    Some(if has_estimate { with_note(&chart, "the reduced-order estimate is a lower bound where the jet is not mixed out (docs/hemodynamics_estimate.md)") } else { chart })
 }
 
 /// The RV outflow's smallest section after the baffle and the section the baffle narrows
@@ -564,6 +637,9 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
                 "rv_outflow_unavailable": r.report().and_then(|d| d.rv_cost.rv_outflow.rv_outflow_unavailable.clone()),
                 "max_feasible_area_mm2": number(max_area),
                 "max_feasible_z_score": max_z,
+                "dp_estimate_mmhg": number(r.estimate(|e| e.dp_estimate_mmhg)),
+                "v_max_estimate_m_s": number(r.estimate(|e| e.v_max_estimate_m_s)),
+                "estimate_absent_because": r.estimate_absent(),
                 "dp_mmhg": number(r.quick(|q| q.dp_mmhg)),
                 "vmax_m_s": number(r.quick(|q| q.vmax_m_s)),
                 "verdict": r.quick.as_ref().map(|q| json!({"verdict": q.verdict.key(), "reason": q.verdict.reason(), "passes": q.verdict == Verdict::Passes})),
