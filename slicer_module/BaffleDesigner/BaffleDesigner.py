@@ -1098,8 +1098,8 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         dp = figures["Pressure difference at peak flow"]
         self.assertTrue(0 < dp < float("inf"))
         with open(os.path.join(job.out_dir, "summary.json"), encoding="utf-8") as handle:
-            doubts = json.load(handle)["doubts"]
-        self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationVerdict"), bdsimulation.verdict(dp, doubts))
+            verdict = json.load(handle)["verdict"]
+        self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationVerdict"), bdsimulation.VERDICT_WORDS[verdict])
         fields = curve.GetNodeReference(bdcandidate.REF_SIM_FIELDS)
         reader = vtk.vtkXMLUnstructuredGridReader()
         reader.SetFileName(os.path.join(job.work_dir, "volume.vtu"))

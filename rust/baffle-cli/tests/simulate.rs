@@ -107,6 +107,9 @@ fn steady_phantom_gives_a_positive_pressure_drop() {
     assert!(s["converged"].as_bool().unwrap());
     // A converged run has no doubts; its residual history starts at 1 (relative to itself).
     assert_eq!(s["doubts"], serde_json::json!([]));
+    // The run's own verdict, for front ends that must not judge again (the Slicer module).
+    let expected = if s["dp_peak_mmhg"].as_f64().unwrap() < 10.0 { "passes" } else { "fails" };
+    assert_eq!((s["verdict"].as_str(), s["dp_threshold_mmhg"].as_f64()), (Some(expected), Some(10.0)), "{s}");
     let history: Vec<f64> = s["steady_relative_residuals"].as_array().unwrap().iter().map(|r| r.as_f64().unwrap()).collect();
     assert!(history.len() >= 2 && history[0] == 1.0, "{history:?}");
     let dp = s["dp_peak_mmhg"].as_f64().unwrap();
@@ -505,5 +508,6 @@ fn steps_at_the_picard_cap_are_counted_and_make_the_result_doubtful() {
     let unconverged = s["unconverged_nonlinear_steps"].as_u64().unwrap();
     assert!(unconverged > 0 && unconverged <= steps, "{s}");
     assert!(s["doubts"].as_array().unwrap().iter().any(|d| d.as_str().unwrap().contains("Picard iteration cap")), "{s}");
+    assert_eq!(s["verdict"], "inconclusive", "a run with doubts is inconclusive whatever its dp: {s}");
     std::fs::remove_dir_all(case.parent().unwrap()).ok();
 }

@@ -162,7 +162,9 @@ fn dp_faces(case: &case::Case) -> (i32, i32) {
     }
 }
 
-/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can), and
+/// summary.json, with why its dp cannot be trusted (`doubts`, empty when it can), the
+/// run's own verdict on it and the threshold it is judged against (so a front end reads
+/// them instead of judging again: the plan adds its mesh study's and design's doubts), and
 /// its figures as the verdict and the report read them back (so a field they need and
 /// this writer lacks fails every run, not only a later reader's).
 fn summary_json(report: &Report, rows: &[Row], ending: &Ending, steady_residuals: &[f64], wall_time_s: f64) -> Result<(serde_json::Value, RunSummary), String> {
@@ -171,7 +173,10 @@ fn summary_json(report: &Report, rows: &[Row], ending: &Ending, steady_residuals
         json["steady_relative_residuals"] = serde_json::json!(steady_residuals);
     }
     let summary = RunSummary::deserialize(&json).map_err(|e| format!("{}: summary.json as written: {e}", report.dir.display()))?;
-    json["doubts"] = serde_json::json!(crate::verdict::run_doubts(&summary));
+    let doubts = crate::verdict::run_doubts(&summary);
+    json["verdict"] = serde_json::json!(crate::verdict::Verdict::of(summary.dp_peak_mmhg.unwrap_or(f64::NAN), doubts.clone()).key());
+    json["dp_threshold_mmhg"] = serde_json::json!(crate::verdict::DP_THRESHOLD_MMHG);
+    json["doubts"] = serde_json::json!(doubts);
     Ok((json, summary))
 }
 
