@@ -906,8 +906,7 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
     }) {
         let t = if (a as usize) >= domain.first_baffle_triangle { b } else { a };
         let label = mesh.face_ids[t as usize];
-        let [p, q, r] = mesh.triangle_points(t as usize);
-        let c = (p + q + r) / 3.0;
+        let c = mesh.triangle_centroid(t as usize);
         let what = if label == labels.baffle { "itself" } else { "the ventricle wall" };
         // A baffle blown far out of the ventricle meets itself out there too: naming
         // that place would send the user looking where no anatomy is.
@@ -925,8 +924,7 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
         )));
     }
     if let Some(&(a, _)) = pairs.first() {
-        let [p, q, r] = mesh.triangle_points(a as usize);
-        let c = (p + q + r) / 3.0;
+        let c = mesh.triangle_centroid(a as usize);
         return Err(DesignError::Baffle(format!(
             "the ventricle wall kept in the domain crosses itself near ({:.1}, {:.1}, {:.1}) mm ({} crossing pairs); \
              the ventricle surface folds there: smooth or re-segment it",

@@ -90,6 +90,12 @@ impl TriMesh {
         [self.points[a as usize], self.points[b as usize], self.points[c as usize]]
     }
 
+    /// Centroid of triangle `t`: where an error names a triangle's place.
+    pub fn triangle_centroid(&self, t: usize) -> Vec3 {
+        let [p, q, r] = self.triangle_points(t);
+        (p + q + r) / 3.0
+    }
+
     /// Area-weighted normal (length = 2 x area) of triangle `t`.
     pub fn triangle_normal2(&self, t: usize) -> Vec3 {
         let [a, b, c] = self.triangle_points(t);

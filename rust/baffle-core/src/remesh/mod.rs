@@ -66,8 +66,7 @@ pub fn where_it_crosses_itself(mesh: &TriMesh) -> Option<String> {
     let bvh = crate::spatial::TriangleBvh::new(mesh).ok()?;
     let crossings = bvh.self_intersections_par(mesh, |_, _| true);
     let &(a, b) = crossings.first()?;
-    let [p, q, r] = mesh.triangle_points(a as usize);
-    let c = (p + q + r) / 3.0;
+    let c = mesh.triangle_centroid(a as usize);
     Some(format!(
         "the surface crosses itself near ({:.2}, {:.2}, {:.2}) mm (triangles {a} and {b}, {} crossing pairs in all)",
         c.x, c.y, c.z, crossings.len()
