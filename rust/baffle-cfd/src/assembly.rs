@@ -168,17 +168,22 @@ pub struct ElementState {
 
 /// The [`ElementState`] for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
 pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], p: &[f64; 4], phys: &Physics) -> ElementState {
+    element_state_in(geo, &metric(geo, phys), a, u_old, p, phys)
+}
+
+/// [`element_state`] in an element of metric `g` (the assembly makes it once for this
+/// and the [`GaussState`]).
+fn element_state_in(geo: &ElementGeometry, g: &[[f64; 3]; 3], a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], p: &[f64; 4], phys: &Physics) -> ElementState {
     let a_bar = mean3(a);
     let u_old_bar = mean3(u_old);
-    let g = metric(geo, phys);
-    let (tau, nu_c) = stabilization(&g, a_bar, phys);
+    let (tau, nu_c) = stabilization(g, a_bar, phys);
     let fine = (phys.vms_advection || phys.vms_reynolds_stress).then(|| fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys));
     let advecting = match fine {
         Some(u_fine) if phys.vms_advection => add3(a_bar, u_fine),
         _ => a_bar,
     };
     let (tau_b, fine_s) = match fine {
-        Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, &g, u_fine, phys),
+        Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, g, u_fine, phys),
         _ => (0.0, [0.0; 4]),
     };
     ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::flow_mesh::dot(advecting, ga)), tau_b, fine_s }
@@ -233,12 +238,16 @@ pub struct GaussState {
 }
 
 pub fn gauss_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> GaussState {
+    gauss_state_in(geo, &metric(geo, phys), a, u_old, phys)
+}
+
+/// [`gauss_state`] in an element of metric `g`.
+fn gauss_state_in(geo: &ElementGeometry, g: &[[f64; 3]; 3], a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> GaussState {
     let mut st = GaussState::default();
     let w = 0.25 * geo.volume_cm3;
-    let g = metric(geo, phys);
     for q in 0..4 {
         let a_q = at_gauss_point(a, q);
-        let (tau, nu_c) = stabilization(&g, a_q, phys);
+        let (tau, nu_c) = stabilization(g, a_q, phys);
         let s = geo.grads_per_cm.map(|gb| crate::flow_mesh::dot(a_q, gb));
         let u_old_q = at_gauss_point(u_old, q);
         let tw = tau * w;
@@ -346,6 +355,26 @@ fn fine_scale_velocity(geo: &ElementGeometry, a: &[[f64; 3]; 4], a_bar: [f64; 3]
 /// `gauss`: the stabilization at Gauss points ([`Physics::gauss_stabilization`]), else
 /// at the centroid from `st`.
 pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&GaussState>, u_old_ai: &[f64; 3], a_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
+    let mut k = [[0.0; BB]; 4];
+    let f = element_row_into(geo, st, gauss, u_old_ai, a_ai, phys, ai, |bi, blk| k[bi] = *blk);
+    (k, f)
+}
+
+/// [`element_row`] handing each block (ai, bi) to `sink` as it is made: returned as a
+/// whole, the row's 512 bytes were zeroed and copied out per element and node, which
+/// took a quarter of the assembly (memset and memmove in the profile of p3's run).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn element_row_into(
+    geo: &ElementGeometry,
+    st: &ElementState,
+    gauss: Option<&GaussState>,
+    u_old_ai: &[f64; 3],
+    a_ai: &[f64; 3],
+    phys: &Physics,
+    ai: usize,
+    mut sink: impl FnMut(usize, &[f64; BB]),
+) -> [f64; B] {
     let rho = phys.density_g_cm3;
     let mu = phys.viscosity_g_cm_s;
     let idt = phys.inv_dt_per_s;
@@ -356,7 +385,6 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
         Some(gs) => gauss_terms(geo, gs, phys, ai, bi),
         None => centroid_terms(geo, st, phys, ai, bi),
     };
-    let mut k = [[0.0; BB]; 4];
     let mut f = [0.0; B];
     for bi in 0..4 {
         let t = terms(bi);
@@ -364,7 +392,7 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
         let convection = if phys.exact_convection { 0.2 * s[bi] + 0.05 * crate::flow_mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
         let reynolds = st.tau_b * v * st.fine_s[ai] * st.fine_s[bi];
         let diag = rho * idt * mass + rho * v * convection + mu * v * crate::flow_mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
-        let blk = &mut k[bi];
+        let mut blk = [0.0; BB];
         let transposed = if phys.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
             blk[i * B + i] += diag;
@@ -377,13 +405,14 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
             blk[3 * B + i] = 0.25 * v * g[bi][i] + t.pspg_u[i];
         }
         blk[3 * B + 3] = t.pspg_p;
+        sink(bi, &blk);
     }
     let (rhs_u, rhs_p) = stabilization_rhs(geo, st, gauss, phys, ai);
     for i in 0..3 {
         f[i] = rho * idt * (0.2 * v * st.u_old_bar[i] + 0.05 * v * u_old_ai[i]) + rhs_u[i];
     }
     f[3] = rhs_p;
-    (k, f)
+    f
 }
 
 /// Element system for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
@@ -531,20 +560,32 @@ impl Assembler {
         });
     }
 
+    /// Each element's [`ElementState`] (and [`GaussState`]) for this assembly, in one pass
+    /// that gathers the element's nodal values and makes its metric once for both.
+    fn update_states(&mut self, phys: &Physics, a: &[f64], u_old: &[f64]) {
+        let nodal = |t: &[u32; 4], field: &[f64]| t.map(|n| [0, 1, 2].map(|c| field[n as usize * B + c]));
+        let (tets, geometry) = (&self.tets, &self.geometry);
+        let fill = |st: &mut ElementState, gs: Option<&mut GaussState>, t: &[u32; 4], geo: &ElementGeometry| {
+            let (g, a_e, u_old_e) = (metric(geo, phys), nodal(t, a), nodal(t, u_old));
+            *st = element_state_in(geo, &g, &a_e, &u_old_e, &t.map(|n| a[n as usize * B + 3]), phys);
+            if let Some(gs) = gs {
+                *gs = gauss_state_in(geo, &g, &a_e, &u_old_e, phys);
+            }
+        };
+        let elements = tets.par_iter().zip(geometry);
+        if phys.gauss_stabilization {
+            self.gauss_states.resize(tets.len(), GaussState::default());
+            let states = self.states.par_iter_mut().zip(self.gauss_states.par_iter_mut());
+            states.zip(elements).with_min_len(1024).for_each(|((st, gs), (t, geo))| fill(st, Some(gs), t, geo));
+        } else {
+            self.states.par_iter_mut().zip(elements).with_min_len(1024).for_each(|(st, (t, geo))| fill(st, None, t, geo));
+        }
+    }
+
     /// Assemble K and F into `vals` / `rhs` (overwritten). `a` and `u_old` are nodal
     /// velocities, 4 values per node (u, v, w, p).
     pub fn assemble(&mut self, pattern: &BlockPattern, phys: &Physics, a: &[f64], u_old: &[f64], vals: &mut [f64], rhs: &mut [f64]) {
-        let nodal = |t: &[u32; 4], field: &[f64]| t.map(|n| [0, 1, 2].map(|c| field[n as usize * B + c]));
-        let (tets, geometry) = (&self.tets, &self.geometry);
-        self.states.par_iter_mut().zip(tets.par_iter().zip(geometry)).with_min_len(1024).for_each(|(st, (t, geo))| {
-            *st = element_state(geo, &nodal(t, a), &nodal(t, u_old), &t.map(|n| a[n as usize * B + 3]), phys);
-        });
-        if phys.gauss_stabilization {
-            self.gauss_states.resize(tets.len(), GaussState::default());
-            self.gauss_states.par_iter_mut().zip(tets.par_iter().zip(geometry)).with_min_len(1024).for_each(|(gs, (t, geo))| {
-                *gs = gauss_state(geo, &nodal(t, a), &nodal(t, u_old), phys);
-            });
-        }
+        self.update_states(phys, a, u_old);
         let this = &*self;
         this.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
             row_vals.fill(0.0);
@@ -554,8 +595,7 @@ impl Assembler {
             for &(e, ai) in this.elements_of(i) {
                 let (e, ai) = (e as usize, ai as usize);
                 let gauss = phys.gauss_stabilization.then(|| &this.gauss_states[e]);
-                let (k, f) = element_row(&this.geometry[e], &this.states[e], gauss, &u_old_i, &a_i, phys, ai);
-                (0..4).for_each(|bi| this.add_block(row_vals, first, e, ai, bi, &k[bi]));
+                let f = element_row_into(&this.geometry[e], &this.states[e], gauss, &u_old_i, &a_i, phys, ai, |bi, blk| this.add_block(row_vals, first, e, ai, bi, blk));
                 rhs_i.iter_mut().zip(f).for_each(|(d, s)| *d += s);
             }
         });
