@@ -576,7 +576,7 @@ fn coarse_correction(aggregates: &mut Option<Aggregates>, problem: &Problem, val
 /// GMRES is A z_ilu + (A Z) e: one fine product an iteration instead of two.
 struct TwoLevel<'a, S: Scalar, T> {
     ilu: &'a BlockIlu<S>,
-    coarse: Option<(&'a CoarseCorrection, &'a ProlongedOperator)>,
+    coarse: Option<(&'a CoarseCorrection, &'a ProlongedOperator<'a>)>,
     apply_a: &'a dyn Fn(&[T], &mut [T]),
 }
 
