@@ -2,7 +2,7 @@
 
 use std::collections::HashMap;
 
-use crate::flow_mesh::{cross, dot, element_faces, opposite_triangle, sub, tri_key, Face, FlowMesh};
+use crate::flow_mesh::{cross, dot, opposite_triangle, sub, tri_key, Face, FlowMesh, TriangleMap};
 use crate::CfdError;
 
 /// Whether a face lies on the domain boundary or inside it.
@@ -72,10 +72,10 @@ pub fn face_area_cm2(mesh: &FlowMesh, face: &Face) -> f64 {
     face.triangles.iter().map(|&t| dot(area_normal(&mesh.points_cm, t), area_normal(&mesh.points_cm, t)).sqrt()).sum()
 }
 
-/// Boundary triangles of the mesh (each a face of exactly one tet), wound outward.
-pub fn boundary_triangles(mesh: &FlowMesh) -> Vec<[u32; 3]> {
-    let faces = element_faces(&mesh.tets);
-    let mut out: Vec<[u32; 3]> = faces
+/// Boundary triangles of the mesh (each a face of exactly one tet), wound outward;
+/// `element` is the mesh's element-face map (`element_faces`, made once for both users).
+pub fn boundary_triangles(mesh: &FlowMesh, element: &TriangleMap<(u32, u8, u8)>) -> Vec<[u32; 3]> {
+    let mut out: Vec<[u32; 3]> = element
         .values()
         .filter(|v| v.2 == 1)
         .map(|&(e, opp, _)| outward(&mesh.points_cm, &mesh.tets[e as usize], opp as usize))
@@ -98,8 +98,8 @@ fn outward(p: &[[f64; 3]], t: &[u32; 4], opp: usize) -> [u32; 3] {
 
 /// Prepare every face of the mesh: boundary faces get outward winding, interior
 /// planes keep theirs. A face mixing boundary and interior triangles is an error.
-pub fn face_geometries(mesh: &FlowMesh) -> Result<Vec<FaceGeometry>, CfdError> {
-    let element = element_faces(&mesh.tets);
+/// `element` is the mesh's element-face map (`element_faces`).
+pub fn face_geometries(mesh: &FlowMesh, element: &TriangleMap<(u32, u8, u8)>) -> Result<Vec<FaceGeometry>, CfdError> {
     let mut out = Vec::with_capacity(mesh.faces.len());
     for face in &mesh.faces {
         let mut boundary = 0;

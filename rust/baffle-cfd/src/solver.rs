@@ -142,7 +142,7 @@ use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
 use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection, ProlongedOperator};
 use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome, Preconditioner};
-use crate::flow_mesh::{tri_key, Face, FlowMesh};
+use crate::flow_mesh::{element_faces, tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
 use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
@@ -277,7 +277,8 @@ impl Problem {
             new_of_old[old as usize] = new as u32;
         }
         let mesh = renumber(&checked, &new_of_old);
-        let faces = face_geometries(&mesh)?;
+        let element = element_faces(&mesh.tets);
+        let faces = face_geometries(&mesh, &element)?;
         let inlet_face = boundary_face_index(&faces, settings.inlet_face_id, "inlet")?;
         let outlet_faces: Vec<usize> =
             settings.outlets.iter().map(|o| boundary_face_index(&faces, o.face_id, "outlet")).collect::<Result<_, _>>()?;
@@ -286,7 +287,7 @@ impl Problem {
             .flat_map(|k| faces[k].triangles.iter().map(|t| tri_key(*t)))
             .collect();
         let mut dirichlet = vec![false; n];
-        for tri in boundary_triangles(&mesh) {
+        for tri in boundary_triangles(&mesh, &element) {
             if !open.contains(&tri_key(tri)) {
                 tri.iter().for_each(|&i| dirichlet[i as usize] = true);
             }

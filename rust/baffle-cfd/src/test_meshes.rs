@@ -102,7 +102,7 @@ mod tests {
         // Boundary = 2 caps of 6 N^2 triangles + side of 2 x 6N x layers triangles;
         // a non-conforming split would leave unmatched interior triangles on the boundary.
         assert_eq!(report.boundary_triangles, 2 * 6 * rings * rings + 2 * 6 * rings * layers);
-        let faces = crate::boundary::face_geometries(&mesh).unwrap();
+        let faces = crate::boundary::face_geometries(&mesh, &crate::flow_mesh::element_faces(&mesh.tets)).unwrap();
         assert_eq!(faces[0].kind, crate::boundary::FaceKind::Boundary);
         assert_eq!(faces[2].kind, crate::boundary::FaceKind::Interior);
         assert!(faces[0].mean_unit_normal()[2] < -0.999 && faces[1].mean_unit_normal()[2] > 0.999);
