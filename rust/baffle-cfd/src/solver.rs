@@ -443,6 +443,8 @@ struct Solver<'a> {
     factors: FactorsUse,
     /// Whether this is a transient run (steady iterations change the matrix too much to reuse factors).
     transient: bool,
+    /// The last transient step's first update (empty: none yet), the next one's initial guess.
+    previous_update: Vec<f64>,
     timings: Timings,
 }
 
@@ -816,12 +818,14 @@ impl<'a> Solver<'a> {
                 convert_into(&self.vals, &mut self.vals_low);
             }
             let t2 = Instant::now();
+            let guess = self.initial_guess(it, effort, &mut dx);
             let mut out = self.solve_linear(effort, &r, &mut dx, reused);
             // A reused factorization that no longer preconditions well is dropped at once.
             if reused && !out.converged {
                 let t3 = Instant::now();
                 self.refresh_preconditioner(effort).map_err(singular)?;
                 self.timings.preconditioner_s += t3.elapsed().as_secs_f64();
+                self.initial_guess(it, effort, &mut dx);
                 let retry = self.solve_linear(effort, &r, &mut dx, false);
                 self.factors.record(false, effort, retry.iterations);
                 out = GmresOutcome { iterations: out.iterations + retry.iterations, ..retry };
@@ -837,6 +841,9 @@ impl<'a> Solver<'a> {
             if !(out.relative_residual <= 100.0 * self.settings.linear_tolerance) {
                 return Err(CfdError::LinearSolver { step, time_s, iterations: out.iterations, residual: out.relative_residual });
             }
+            if guess {
+                self.previous_update.clone_from(&dx);
+            }
             crate::sparse::axpy(1.0, &dx, x);
             if !control.check_last && it + 1 == max_iterations {
                 stats.residual = out.relative_residual;
@@ -850,6 +857,23 @@ impl<'a> Solver<'a> {
             }
         }
         Ok(stats)
+    }
+
+    /// Sets `dx` to the initial guess of a step's solve and says whether the update is
+    /// kept as the next step's: a transient step's first update is the correction of the
+    /// extrapolated state, ~dt^2 u'', which changes little from one step to the next,
+    /// so the last one starts the solve (its later Picard updates are far smaller: zero).
+    /// Only the mixed-precision solve takes a guess ([`solve_refined`]). A resumed run
+    /// has no last update, so with `preconditioner_max_age` 1 (new factors every step,
+    /// for a resume that continues bit for bit) every solve starts from zero.
+    fn initial_guess(&self, it: usize, effort: Effort, dx: &mut [f64]) -> bool {
+        let s = self.settings;
+        let keep = self.transient && it == 0 && effort == Effort::Normal && s.mixed_precision && s.preconditioner_max_age > 1;
+        match keep && self.previous_update.len() == dx.len() {
+            true => dx.copy_from_slice(&self.previous_update),
+            false => dx.iter_mut().for_each(|v| *v = 0.0),
+        }
+        keep
     }
 
     /// New factors (and coarse correction) of the current matrix for `effort`.
@@ -873,7 +897,8 @@ impl<'a> Solver<'a> {
     }
 
     /// Solve A dx = r with the current factors ([`Self::refresh_preconditioner`]); with
-    /// `reused` factors within [`FactorsUse::reused_budget`] iterations.
+    /// `reused` factors within [`FactorsUse::reused_budget`] iterations. `dx` holds the
+    /// initial guess ([`Self::initial_guess`]).
     fn solve_linear(&self, effort: Effort, r: &[f64], dx: &mut [f64], reused: bool) -> GmresOutcome {
         let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
         let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
@@ -1335,6 +1360,7 @@ pub fn simulate_from(mesh: &FlowMesh, settings: &CaseSettings, start: Option<&So
         coarse: None,
         factors: FactorsUse::default(),
         transient: settings.mode == RunMode::Transient,
+        previous_update: Vec::new(),
         timings: Timings::default(),
     };
     solver.timings.setup_s = start_time.elapsed().as_secs_f64();
