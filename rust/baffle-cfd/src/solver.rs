@@ -129,6 +129,21 @@
 //! solves a step, 7.338 instead of 8.173 at 2 ms with 2.6 (7.283 at 0.5 ms, 7.367 at
 //! 0.25 ms: near the peak the jet's dp itself fluctuates by ~0.1 mmHg within a few ms).
 //!
+//! Seventh session (issue 28 item 4, 2026-12-05, p3's published 1.25 mm mesh, 66,677
+//! tets, 60 steps from rest, load 6-9 from other jobs on the 2 cores, A/B interleaved):
+//! element rows no longer returned by value (memset + memmove of 512 bytes per element
+//! and node were ~7 % of the run's CPU), one pass for both element states, A Z's
+//! structure kept with the coarse correction, one element-face map in the set-up: median
+//! wall time 13.9 -> 12.3 s (10 runs each), dp bit for bit but for the coarse matrix's
+//! summation order (6e-11). Then the previous step's update as the initial guess of a
+//! step's solve (`Solver::initial_guess`, to half the tolerance,
+//! [`crate::linear::GUESS_TOLERANCE_FACTOR`]): ~15 -> ~12 GMRES iterations a step,
+//! dp at step 60 3.6e-6 from before, closer to a converged (1e-7) run than before.
+//! Tried and dropped: the guess at the full tolerance (9 iterations, but dp's error
+//! against the converged run 8e-6 rms instead of 1.7e-6) and extrapolating the guess
+//! from two updates (10 iterations at half the tolerance, error 7.6e-6 rms): the better
+//! the guess, the more error the residual test leaves where the residual hardly sees it.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
