@@ -159,6 +159,7 @@ fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm:
         source: args.prepare.clone(),
         out: level.map_or_else(|| layout.extended_surface(), |l| layout.level_extended_surface(l)),
         remesh_domain_edge_mm,
+        extension_coarsening: args.extension_coarsening,
         wall_label: d.wall_label,
         baffle_label: d.baffle_label,
         vsd_label: d.vsd_label,
@@ -173,7 +174,13 @@ fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSett
     let (d, layout) = (&args.design, PlanLayout::of(args));
     let mesh = MeshSettings { edge_length_mm, out: layout.mesh(level), ..MeshSettings::default() };
     match is_extended(args) {
-        true => MeshSettings { surface: layout.level_extended_surface(level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
+        true => MeshSettings {
+            surface: layout.level_extended_surface(level),
+            interior_labels: vec![d.vsd_label, d.aortic_label],
+            // gmsh then sizes the graded extension from its boundary.
+            largest_edge_mm: (args.extension_coarsening > 1.0).then_some(args.extension_coarsening * edge_length_mm),
+            ..mesh
+        },
         false => MeshSettings { surface: layout.designed_domain(), remesh_surface: true, ..mesh },
     }
 }

@@ -31,6 +31,10 @@ pub struct PlanSettings {
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
     pub edge_length_mm: f64,
+    /// On an extended domain, the LV and aortic parts coarsen away from the designed caps
+    /// up to this many times each level's edge (`baffle extend --extension-coarsening`);
+    /// 1: one edge everywhere.
+    pub extension_coarsening: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
     /// (on an extended domain every level is extended again from the designed domain
@@ -70,6 +74,7 @@ impl Default for PlanSettings {
             pulsatile: false,
             cycles: CYCLES,
             edge_length_mm: PAPER_NOMINAL_MM,
+            extension_coarsening: 1.0,
             mesh_study: false,
             single_mesh: false,
             elevated_flow: false,
@@ -288,6 +293,9 @@ fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     }
     if !(args.edge_length_mm.is_finite() && args.edge_length_mm > 0.0) {
         return Err(format!("--edge-length-mm must be a positive length, got {}", args.edge_length_mm));
+    }
+    if !(args.extension_coarsening.is_finite() && args.extension_coarsening >= 1.0) {
+        return Err(format!("--extension-coarsening must be at least 1 (times the edge), got {}", args.extension_coarsening));
     }
     if args.prepare_remesh_edge_mm.is_some() && !args.prepare.is_given() {
         return Err("--prepare-remesh-edge-mm applies to a prepare stage: give --segmentations or --labelmap".into());

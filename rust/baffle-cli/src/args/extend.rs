@@ -50,6 +50,12 @@ pub struct ExtendArgs {
     /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
     #[arg(long)]
     pub remesh_domain_edge_mm: Option<f64>,
+    /// Coarsen the LV and aortic parts away from the designed caps, up to this many times
+    /// the edge (within one cap diameter of each cap the edge stays, then grows 0.2 mm
+    /// per mm); 1: the edge everywhere. Mesh the result with `baffle mesh
+    /// --largest-edge-mm` at this many times the edge length.
+    #[arg(long, default_value_t = ExtendSettings::default().extension_coarsening)]
+    pub extension_coarsening: f64,
     /// Move the inflow cap (mid-LV plane) this far (mm) from the LV volume centroid along
     /// the VSD normal (positive: away from the VSD, toward the apex), for a sensitivity
     /// study; an offset that leaves no clean cut of the LV is an error (no fallback).
@@ -83,6 +89,7 @@ impl From<ExtendArgs> for ExtendSettings {
             voxel_mm: a.voxel_mm,
             remesh_edge_mm: a.remesh_edge_mm,
             remesh_domain_edge_mm: a.remesh_domain_edge_mm,
+            extension_coarsening: a.extension_coarsening,
             inflow_offset_mm: a.inflow_offset_mm,
             outflow_diameters: a.outflow_diameters,
             no_baffle: a.no_baffle,
