@@ -249,6 +249,10 @@ pub struct ExtendReport {
     /// How the LV and aortic parts coarsened away from the designed caps (`None`: not).
     #[serde(default)]
     pub grading: Option<ExtensionGrading>,
+    /// Why the asked grading was not used (the graded extension failed; `grading` is then
+    /// `None`).
+    #[serde(default)]
+    pub grading_dropped: Option<String>,
     /// The checks of the extended domain by a second method (each passed).
     pub checks: Vec<SelfCheck>,
     pub timings: ExtendTimings,
@@ -272,8 +276,23 @@ struct DesignedCap {
 }
 
 /// The extended domain of `domain` (a closed, outward designed domain in mm with the
-/// VSD and aortic caps of `options.labels`) with the LV and aorta of `pools`.
+/// VSD and aortic caps of `options.labels`) with the LV and aorta of `pools`. A graded
+/// extension that fails (coarse triangles can cut across a wall that comes close, as
+/// p1's LV does beside its designed domain at 2.5x) is made again at one edge, and the
+/// report says why (`grading_dropped`).
 pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
+    match (extend_as_asked(domain, pools, options), options.grading) {
+        (Err(graded), Some(_)) => {
+            let mut extended = extend_as_asked(domain, pools, &ExtendOptions { grading: None, ..options.clone() })?;
+            extended.report.grading_dropped = Some(format!("the graded extension failed ({graded}); extended at one edge instead"));
+            Ok(extended)
+        }
+        (result, _) => result,
+    }
+}
+
+/// [`extend`] with `options` as given.
+fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
     validate_options(options)?;
     let mut lap = lap_timer();
     let l = &options.labels;
@@ -366,6 +385,7 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
         stj: stj_report,
         remesh_edge_mm: edge_mm,
         grading: options.grading,
+        grading_dropped: None,
         checks,
         timings: ExtendTimings { planes_ms, union_ms, extensions_ms, checks_ms: lap() },
     };
