@@ -10,7 +10,7 @@ use crate::case;
 use baffle_cfd::{simulate_from, CaseSettings, RunMode, SolverState, SteadyProgress};
 use serde::{Deserialize, Serialize};
 use crate::files::write_atomic;
-use crate::progress::{steady_fraction, Progress};
+use crate::progress::{steady_fraction, Cancel, Progress};
 use crate::simulate_report::{cycle_end_step, stop_on_signals, Engine, Ending, Output, Report, Row};
 use crate::simulate_svmp::{self, SvmpRun};
 use std::path::{Path, PathBuf};
@@ -68,6 +68,9 @@ pub struct SimulateSettings {
     /// Print Slicer CLI progress tags (<filter-progress>) on stdout (also with
     /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).
     pub progress_tags: bool,
+    /// Asked after every step of the embedded engine: true stops the run as SIGTERM does
+    /// (its results so far written; a library caller's cancel, e.g. `baffle plan`'s).
+    pub cancel: Option<Cancel>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -324,7 +327,7 @@ fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> 
                 return false;
             }
         }
-        signalled = stop.load(Ordering::SeqCst);
+        signalled = stop.load(Ordering::SeqCst) || args.cancel.as_ref().is_some_and(|cancel| cancel());
         limit_reached = step_limit.is_some_and(|n| view.step >= n);
         let stopping = signalled || limit_reached;
         // Steady iterations have no rows yet (the solve reports its final iterate only).
