@@ -50,7 +50,8 @@ fn quick_phantom(out: &CString) -> BafflePlanOptions {
 #[derive(Default)]
 struct Watch {
     seen: Vec<(f64, String)>,
-    /// Stop once this file exists (and the cancel has been asked `after_asks` more times).
+    /// Stop once this file exists (and the cancel has been asked `after_asks` more times);
+    /// run_quick takes it relative to the plan's folder.
     stop_when: Option<PathBuf>,
     after_asks: usize,
     asked_since: usize,
@@ -70,6 +71,15 @@ unsafe extern "C" fn cancel_when(user: *mut c_void) -> i32 {
     }
     watch.asked_since += 1;
     i32::from(watch.asked_since > watch.after_asks)
+}
+
+/// The quick phantom plan into a fresh folder `name`, watched by `watch`: (folder, status, result).
+fn run_quick(name: &str, watch: &mut Watch) -> (PathBuf, BaffleStatus, *mut BafflePlanResult) {
+    let out = temp_dir(name);
+    let out_c = c_path(&out);
+    watch.stop_when = watch.stop_when.as_ref().map(|file| out.join(file));
+    let (status, result) = run(&quick_phantom(&out_c), watch);
+    (out, status, result)
 }
 
 fn run(options: &BafflePlanOptions, watch: &mut Watch) -> (BaffleStatus, *mut BafflePlanResult) {
@@ -98,10 +108,8 @@ fn a_quick_phantom_plan_gives_the_reports_verdict_through_the_handle() {
     if skip_gmsh() {
         return;
     }
-    let out = temp_dir("quick");
-    let out_c = c_path(&out);
     let mut watch = Watch::default();
-    let (status, result) = run(&quick_phantom(&out_c), &mut watch);
+    let (out, status, result) = run_quick("quick", &mut watch);
     assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
     let report = read_json(&out.join("report.json"));
     let v = &report["verdict"];
@@ -134,10 +142,8 @@ fn a_plan_cancelled_between_stages_keeps_the_finished_ones() {
     if skip_gmsh() {
         return;
     }
-    let out = temp_dir("cancel-between");
-    let out_c = c_path(&out);
-    let mut watch = Watch { stop_when: Some(out.join("design").join("report.json")), ..Watch::default() };
-    let (status, result) = run(&quick_phantom(&out_c), &mut watch);
+    let mut watch = Watch { stop_when: Some(Path::new("design").join("report.json")), ..Watch::default() };
+    let (out, status, result) = run_quick("cancel-between", &mut watch);
     assert_eq!(status, BaffleStatus::Cancelled, "{}", last_error());
     assert!(result.is_null());
     assert!(last_error().starts_with("plan cancelled at stage centerline"), "{}", last_error());
@@ -151,12 +157,10 @@ fn a_cancel_stops_the_running_simulation_with_its_results_so_far() {
     if skip_gmsh() {
         return;
     }
-    let out = temp_dir("cancel-simulate");
-    let out_c = c_path(&out);
     // The case is written as the stage starts; a few time steps later the cancel says stop.
-    let stop_when = Some(out.join("simulate-nominal").join("case.json"));
+    let stop_when = Some(Path::new("simulate-nominal").join("case.json"));
     let mut watch = Watch { stop_when, after_asks: 5, ..Watch::default() };
-    let (status, _) = run(&quick_phantom(&out_c), &mut watch);
+    let (out, status, _) = run_quick("cancel-simulate", &mut watch);
     assert_eq!(status, BaffleStatus::Cancelled, "{}", last_error());
     assert!(last_error().starts_with("plan cancelled at stage simulate-nominal"), "{}", last_error());
     let summary = read_json(&out.join("simulate-nominal").join("summary.json"));
@@ -194,7 +198,8 @@ fn bad_plan_options_are_named_before_any_stage_runs() {
 
 #[test]
 fn the_case_a_front_end_writes_is_the_plans() {
-    let dir = temp_dir("case");
+    // A folder that does not exist yet (a front end's work folder before its mesh) is made.
+    let dir = temp_dir("case").join("work");
     let dir_c = c_path(&dir);
     let mut options = quick_phantom(&dir_c);
     options.phantom = 0;

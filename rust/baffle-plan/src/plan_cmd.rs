@@ -22,7 +22,7 @@ use crate::centerline_cmd::{self, CenterlineSettings};
 use crate::extend_cmd::{self, ExtendSettings};
 use crate::mesh_cmd::{self, MeshSettings};
 use crate::prepare_cmd::{self, PrepareSettings};
-use crate::progress::{never_cancel, Progress};
+use crate::progress::Progress;
 use crate::report;
 use crate::simulate_cmd::{self, SimulateSettings};
 use baffle_prepare::extend::{INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
@@ -80,10 +80,12 @@ fn face_roles(args: &PlanSettings) -> FaceRoles {
     }
 }
 
-/// Write `case` as `dir`/case.json (atomically), after checking it as `baffle simulate`
-/// will (physiological inputs, time stepping), so a bad case is refused here.
+/// Write `case` as `dir`/case.json (atomically; `dir` made if missing), after checking it
+/// as `baffle simulate` will (physiological inputs, time stepping), so a bad case is
+/// refused here and nothing is written.
 pub fn write_case(dir: &Path, case: &Case) -> Result<PathBuf, String> {
     crate::case::settings(case)?;
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let path = dir.join("case.json");
     let text = serde_json::to_string_pretty(case).map_err(|e| e.to_string())?;
     crate::files::write_atomic(&path, text.as_bytes())?;
@@ -104,18 +106,19 @@ fn design_peak_flow_ml_s(args: &PlanSettings) -> Result<f64, String> {
 
 /// Run one stage into `dir`, its progress shown on `progress` (the stage's part of the plan's).
 pub(crate) fn run_stage(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress) -> Result<(), PlanError> {
-    run_stage_cancellable(args, stage, dir, progress, &never_cancel())
+    run_stage_cancellable(args, stage, dir, progress, None)
 }
 
-/// [`run_stage`], the design and the embedded simulation asking `cancel` as they run.
-fn run_stage_cancellable(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress, cancel: &Cancel) -> Result<(), PlanError> {
+/// [`run_stage`], the design and the embedded simulation asking `cancel` as they run when
+/// it is given (without it the simulation stops on SIGTERM / SIGINT, as `baffle simulate`).
+fn run_stage_cancellable(args: &PlanSettings, stage: &Stage, dir: &Path, progress: &Progress, cancel: Option<&Cancel>) -> Result<(), PlanError> {
     match &stage.step {
         Step::Prepare => progress.while_running("prepare", || prepare_cmd::prepare_to_file(&prepare_stage(args), progress)).map(|_| ()),
         Step::Design => {
             let design = design_stage(args, dir).map_err(PlanError::Design)?;
             design_reporting(&design, progress, &mut |f, s| {
                 progress.report(f, "design", s);
-                !cancel()
+                !cancel.is_some_and(|c| c())
             })
         }
         Step::Centerline => centerline_cmd::run_centerline(&centerline_stage(args), progress),
@@ -126,7 +129,7 @@ fn run_stage_cancellable(args: &PlanSettings, stage: &Stage, dir: &Path, progres
         Step::Mesh { level, edge_length_mm } => mesh_cmd::run_mesh(&mesh_stage(args, level, *edge_length_mm), progress),
         Step::Simulate { level, flow } => {
             let case = simulate_case(args, level, *flow).and_then(|case| write_case(dir, &case)).map_err(PlanError::Simulate)?;
-            let settings = SimulateSettings { case, out: dir.to_path_buf(), cancel: Some(cancel.clone()), ..SimulateSettings::default() };
+            let settings = SimulateSettings { case, out: dir.to_path_buf(), cancel: cancel.cloned(), ..SimulateSettings::default() };
             simulate_cmd::run_simulate(&settings, progress)
         }
     }
@@ -218,13 +221,18 @@ pub struct PlanOutcome {
 /// `baffle plan`: each stage's progress shown on `progress` (the caller applies
 /// --progress-tags), the stages' lines, the report's warnings and the verdict said on it.
 pub fn run_plan(args: &PlanSettings, progress: &Progress) -> Result<PlanOutcome, PlanError> {
-    run_plan_cancellable(args, progress, &never_cancel())
+    plan(args, progress, None)
 }
 
 /// [`run_plan`] that stops when `cancel` says so: PlanError::Cancelled, the stages
 /// finished before it kept in their folders (and the stopped simulation's results so far
 /// in its own).
 pub fn run_plan_cancellable(args: &PlanSettings, progress: &Progress, cancel: &Cancel) -> Result<PlanOutcome, PlanError> {
+    plan(args, progress, Some(cancel))
+}
+
+/// The plan, stopped by `cancel` when given (else, in the simulation, by SIGTERM / SIGINT).
+fn plan(args: &PlanSettings, progress: &Progress, cancel: Option<&Cancel>) -> Result<PlanOutcome, PlanError> {
     let stages = plan_stages(args)?;
     let layout = PlanLayout::of(args);
     let out = layout.root();
@@ -259,7 +267,8 @@ fn cancelled(layout: &PlanLayout, stages: &[Stage], k: usize) -> PlanError {
 }
 
 /// The stages of `args` in order, each into its folder; their records for the report.
-fn run_stages(args: &PlanSettings, stages: &[Stage], progress: &Progress, cancel: &Cancel) -> Result<Vec<StageRecord>, PlanError> {
+fn run_stages(args: &PlanSettings, stages: &[Stage], progress: &Progress, cancel: Option<&Cancel>) -> Result<Vec<StageRecord>, PlanError> {
+    let cancelled_now = || cancel.is_some_and(|c| c());
     let layout = PlanLayout::of(args);
     let total: f64 = stages.iter().map(|s| s.weight).sum();
     let mut records: Vec<StageRecord> =
@@ -275,7 +284,7 @@ fn run_stages(args: &PlanSettings, stages: &[Stage], progress: &Progress, cancel
             done += stage.weight;
             continue;
         }
-        if cancel() {
+        if cancelled_now() {
             return Err(cancelled(&layout, stages, k));
         }
         progress.say(&format!("plan: stage {}/{} {} ...", k + 1, stages.len(), stage.name));
@@ -290,7 +299,7 @@ fn run_stages(args: &PlanSettings, stages: &[Stage], progress: &Progress, cancel
         let record = &mut records[k];
         record.wall_time_s = Some(start.elapsed().as_secs_f64());
         if let Err(e) = result {
-            if cancel() {
+            if cancelled_now() {
                 // A stopped simulation keeps its results so far in its folder.
                 return Err(cancelled(&layout, stages, k));
             }

@@ -28,11 +28,6 @@ pub trait Console: Send + Sync {
 /// Asked by a long job while it runs: true stops it (a front end's cancel button).
 pub type Cancel = Arc<dyn Fn() -> bool + Send + Sync>;
 
-/// A [`Cancel`] that never stops the job (the command line stops on signals instead).
-pub fn never_cancel() -> Cancel {
-    Arc::new(|| false)
-}
-
 /// A console that drops all text: for callers that want none, and tests.
 pub struct Quiet;
 

@@ -14,7 +14,8 @@ use crate::progress::{steady_fraction, Cancel, Progress};
 use crate::simulate_report::{cycle_end_step, stop_on_signals, Engine, Ending, Output, Report, Row};
 use crate::simulate_svmp::{self, SvmpRun};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Default)]
@@ -69,7 +70,8 @@ pub struct SimulateSettings {
     /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).
     pub progress_tags: bool,
     /// Asked after every step of the embedded engine: true stops the run as SIGTERM does
-    /// (its results so far written; a library caller's cancel, e.g. `baffle plan`'s).
+    /// (its results so far written; a library caller's cancel, e.g. `baffle plan`'s). With
+    /// a cancel the run installs no signal handlers (the caller's process keeps its own).
     pub cancel: Option<Cancel>,
 }
 
@@ -280,7 +282,11 @@ fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> 
         (Vec::new(), None, Vec::new(), 0.0)
     };
 
-    let stop = stop_on_signals()?;
+    // A library caller stops the run with its cancel: its process's signal handlers stay its own.
+    let stop = match args.cancel {
+        Some(_) => Arc::new(AtomicBool::new(false)),
+        None => stop_on_signals()?,
+    };
     // A quick run stops at the first flow peak unless told otherwise.
     let step_limit = case.time.steps.or(quick.then(|| case::first_peak_step(&settings))).filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
