@@ -132,8 +132,8 @@ class DesignParameters:
         return self.bsa_m2
 
     def validate_cfd(self) -> None:
-        """What the case file needs; physiological consistency (DBP below SBP, ...) is
-        checked by `baffle simulate`, which derives flow and resistance."""
+        """What the GUI's CFD inputs need to be at all; their physiological consistency
+        (DBP below SBP, ...) is the library's check when it writes the case (write_case)."""
         if self.flow_mode not in FLOW_MODES:
             raise BaffleDesignerError(f"flow mode must be one of {', '.join(FLOW_MODES)}, not {self.flow_mode!r}")
         for name in ("systolic_mmhg", "diastolic_mmhg", "heart_rate_bpm", "cardiac_index_l_min_m2", "mesh_edge_length_mm"):

@@ -1,5 +1,6 @@
 """Simulate one candidate: `baffle mesh` (gmsh) then `baffle simulate` (the CFD worker),
-both as separate processes, driven without blocking: SimulationJob.poll() advances the
+both as separate processes, on the case the library writes (the plan's own, through
+baffle.write_case), driven without blocking: SimulationJob.poll() advances the
 chain and is called from a QTimer in the widget (or a loop in tests). Results are read
 and checked in full before any scene node changes, so a failed or cancelled run leaves
 the candidate's earlier results (and its design outputs) as they were.
