@@ -5,7 +5,7 @@
 use crate::design_cmd::{target_from, DesignSettings};
 use crate::error::PlanError;
 use crate::prepare_cmd::PrepareSource;
-use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
+use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use std::path::{Path, PathBuf};
 
 pub struct PlanSettings {
@@ -291,6 +291,11 @@ fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     if !(args.cardiac_index.is_finite() && args.cardiac_index > 0.0) {
         return Err(format!("--cardiac-index must be a positive number of L/min/m2, got {}", args.cardiac_index));
     }
+    // The outlet's resistance comes from the blood pressure: a bad one is named now, not
+    // after the design and the mesh.
+    let (sbp_mmhg, dbp_mmhg) = args.bp;
+    let clinical = ClinicalInputs { bsa_m2: flow_bsa_m2(args)?, sbp_mmhg, dbp_mmhg, cardiac_index_l_min_m2: args.cardiac_index };
+    hemodynamics(&clinical).map_err(|e| format!("--bp {sbp_mmhg}/{dbp_mmhg} (SBP/DBP, mmHg): {e}"))?;
     if !(args.edge_length_mm.is_finite() && args.edge_length_mm > 0.0) {
         return Err(format!("--edge-length-mm must be a positive length, got {}", args.edge_length_mm));
     }
@@ -360,6 +365,13 @@ mod tests {
 
     fn segmentations(a: &mut PlanSettings) {
         a.prepare.segmentations = Some("seg".into());
+    }
+
+    #[test]
+    fn a_blood_pressure_the_outlet_cannot_use_is_named_before_any_stage() {
+        let error = |bp| plan_stages(&plan(|a| (a.design.surface = Some("capped.vtp".into()), a.bp = bp).1)).unwrap_err().to_string();
+        assert!(error((78.0, 107.0)).contains("DBP 107 mmHg exceeds SBP 78 mmHg"), "{}", error((78.0, 107.0)));
+        assert!(error((f64::NAN, 78.0)).starts_with("--bp NaN/78"), "{}", error((f64::NAN, 78.0)));
     }
 
     #[test]
