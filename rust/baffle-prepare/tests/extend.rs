@@ -213,3 +213,30 @@ fn a_graded_extension_keeps_the_edge_at_the_caps_and_coarsens_beyond() {
     assert!((mean(&near) / edge - 1.0).abs() < 0.25, "near the VSD: mean edge {:.3} against {edge:.3} mm", mean(&near));
     assert!(mean(&far) > 1.5 * edge, "at the mid-LV plane: mean edge {:.3} against {edge:.3} mm", mean(&far));
 }
+
+/// p1's published domain remeshed at 0.95 mm, its extension graded to 2.5x: the coarse LV
+/// triangles cut across the designed domain where the LV wall comes close, and the
+/// extension is made again at one edge, saying why (skipped without the data).
+#[test]
+fn p1s_graded_extension_that_crosses_the_domain_is_made_at_one_edge_and_says_why() {
+    use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+    use baffle_prepare::extend::ExtensionGrading;
+    let Some(data) = reference_data_if_present() else { return };
+    let dir = data.join("p1");
+    let pools = read_segmentations(&dir.join("segmentations")).expect("segmentations");
+    let mut published = baffle_core::io::read_surface(&dir.join("published_M_final.vtp")).expect("published domain");
+    published.points.iter_mut().for_each(|p| *p *= 10.0);
+    if published.signed_volume_mm3() < 0.0 {
+        published.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    }
+    let remesh = |mesh, edge_mm| remesh_isotropic(mesh, &RemeshOptions { target_edge_mm: edge_mm, guard_slivers: true, ..RemeshOptions::default() }).unwrap();
+    let domain = remesh(&remesh(&published, 0.85), 0.95);
+    let grading = ExtensionGrading { margin_diameters: 1.0, growth: 0.2, largest_ratio: 2.5 };
+    let options = ExtendOptions { remesh_edge_mm: Some(0.95), grading: Some(grading), ..ExtendOptions::default() };
+    let extended = extend(&domain, &pools, &options).unwrap_or_else(|e| panic!("p1 graded: extend: {e}"));
+    check_extended("p1 published, grading dropped", &domain, &pools, &extended);
+    let r = &extended.report;
+    assert_eq!(r.grading, None);
+    let why = r.grading_dropped.as_deref().expect("the grading was dropped");
+    assert!(why.starts_with("the graded extension failed (") && why.contains("crosses"), "{why}");
+}
