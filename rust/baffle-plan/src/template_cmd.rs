@@ -9,10 +9,10 @@ use crate::progress::Progress;
 use crate::files::write_atomic;
 use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
-use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::raster::DEFAULT_DPI;
-use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat};
 use baffle_core::FaceLabels;
+use baffle_template::drawing::{today_utc, TemplateText};
+use baffle_template::raster::DEFAULT_DPI;
+use baffle_template::{template_from_domain, FlattenMethod, PageFormat};
 use std::path::PathBuf;
 
 pub struct TemplateSettings {
