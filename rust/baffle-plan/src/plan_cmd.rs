@@ -67,11 +67,11 @@ fn run_mode(args: &PlanSettings) -> &'static str {
 /// otherwise in at the VSD cap, out at the aortic cap.
 fn face_roles(args: &PlanSettings) -> FaceRoles {
     let d = &args.design;
-    let walls = vec![d.wall_label, d.baffle_label];
+    let walls = vec![d.labels.wall, d.labels.baffle];
     if is_extended(args) {
-        FaceRoles { inlet: INFLOW_CAP_LABEL, outlets: vec![OUTFLOW_CAP_LABEL], walls, planes: vec![d.vsd_label, d.aortic_label] }
+        FaceRoles { inlet: INFLOW_CAP_LABEL, outlets: vec![OUTFLOW_CAP_LABEL], walls, planes: vec![d.labels.vsd_cap, d.labels.aortic_cap] }
     } else {
-        FaceRoles { inlet: d.vsd_label, outlets: vec![d.aortic_label], walls, planes: vec![] }
+        FaceRoles { inlet: d.labels.vsd_cap, outlets: vec![d.labels.aortic_cap], walls, planes: vec![] }
     }
 }
 
@@ -148,7 +148,7 @@ fn centerline_stage(args: &PlanSettings) -> CenterlineSettings {
         true => (layout.extended_surface(), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
         false => (layout.designed_domain(), None),
     };
-    CenterlineSettings { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: layout.flow_centerline(), ..CenterlineSettings::default() }
+    CenterlineSettings { surface, planes: vec![d.labels.vsd_cap, d.labels.aortic_cap], ends, out: layout.flow_centerline(), ..CenterlineSettings::default() }
 }
 
 /// An extend stage: the designed domain, with a mesh-study level's own remesh.
@@ -159,10 +159,7 @@ fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm:
         source: args.prepare.clone(),
         out: level.map_or_else(|| layout.extended_surface(), |l| layout.level_extended_surface(l)),
         remesh_domain_edge_mm,
-        wall_label: d.wall_label,
-        baffle_label: d.baffle_label,
-        vsd_label: d.vsd_label,
-        aortic_label: d.aortic_label,
+        labels: d.labels,
         ..ExtendSettings::default()
     }
 }
@@ -173,7 +170,7 @@ fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSett
     let (d, layout) = (&args.design, PlanLayout::of(args));
     let mesh = MeshSettings { edge_length_mm, out: layout.mesh(level), ..MeshSettings::default() };
     match is_extended(args) {
-        true => MeshSettings { surface: layout.level_extended_surface(level), interior_labels: vec![d.vsd_label, d.aortic_label], ..mesh },
+        true => MeshSettings { surface: layout.level_extended_surface(level), interior_labels: vec![d.labels.vsd_cap, d.labels.aortic_cap], ..mesh },
         false => MeshSettings { surface: layout.designed_domain(), remesh_surface: true, ..mesh },
     }
 }
