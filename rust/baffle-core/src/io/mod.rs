@@ -20,6 +20,7 @@ pub use atomic::{write_atomic, write_atomic_with};
 pub use error::{IoError, IoErrorKind};
 pub use points::{read_points, write_markups_closed_curve, CoordinateSystem, SuturePoints};
 pub use polydata::{ArrayValues, DataArray, LabeledSurface, PolyData, PolyDataOut, MODEL_FACE_ID};
+pub use vtp_read::ScalarType;
 pub use vtu_read::{read_vtu, TetGrid};
 
 use crate::mesh::TriMesh;
