@@ -5,10 +5,10 @@
 use crate::alloc::{malloc_copy, malloc_string};
 use crate::mesh_handle::BaffleMesh;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, optional_str, out_ref, xyz_count, BaffleStatus, CallError};
-use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::raster::DEFAULT_DPI;
-use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat, Template};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
+use baffle_template::drawing::{today_utc, TemplateText};
+use baffle_template::raster::DEFAULT_DPI;
+use baffle_template::{template_from_domain, FlattenMethod, PageFormat, Template};
 use std::ffi::c_char;
 
 /// How the baffle is flattened.

@@ -28,14 +28,9 @@ pub struct ExtendSettings {
     pub inflow_label: i32,
     /// ModelFaceID of the new outflow cap (sinotubular junction).
     pub outflow_label: i32,
-    /// ModelFaceID of the domain's walls (the extension's walls get it too).
-    pub wall_label: i32,
-    /// ModelFaceID of the domain's baffle.
-    pub baffle_label: i32,
-    /// ModelFaceID of the domain's VSD cap.
-    pub vsd_label: i32,
-    /// ModelFaceID of the domain's aortic-annulus cap.
-    pub aortic_label: i32,
+    /// ModelFaceIDs of the domain's walls (the extension's walls get it too), baffle, VSD
+    /// and aortic-annulus caps.
+    pub labels: FaceLabels,
     /// Voxel edge of the union grid the LV and aorta are cut from (mm).
     pub voxel_mm: f64,
     /// Target edge of the extension's triangles (mm); default: the designed caps' rim edge.
@@ -66,17 +61,13 @@ pub struct ExtendSettings {
 
 impl Default for ExtendSettings {
     fn default() -> Self {
-        let labels = FaceLabels::default();
         ExtendSettings {
             domain: PathBuf::new(),
             source: PrepareSource::default(),
             out: PathBuf::new(),
             inflow_label: INFLOW_CAP_LABEL,
             outflow_label: OUTFLOW_CAP_LABEL,
-            wall_label: labels.wall,
-            baffle_label: labels.baffle,
-            vsd_label: labels.vsd_cap,
-            aortic_label: labels.aortic_cap,
+            labels: FaceLabels::default(),
             voxel_mm: PrepareOptions::default().voxel_mm,
             remesh_edge_mm: None,
             remesh_domain_edge_mm: None,
@@ -155,7 +146,7 @@ fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), St
     let pools = read_pools(&args.source)?;
     let options = ExtendOptions {
         union: PrepareOptions { voxel_mm: args.voxel_mm, ..PrepareOptions::default() },
-        labels: FaceLabels { wall: args.wall_label, baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label },
+        labels: args.labels,
         inflow_label: args.inflow_label,
         outflow_label: args.outflow_label,
         remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),

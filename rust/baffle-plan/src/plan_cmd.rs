@@ -72,11 +72,11 @@ fn run_mode(args: &PlanSettings) -> &'static str {
 /// otherwise in at the VSD cap, out at the aortic cap.
 fn face_roles(args: &PlanSettings) -> FaceRoles {
     let d = &args.design;
-    let walls = vec![d.wall_label, d.baffle_label];
+    let walls = vec![d.labels.wall, d.labels.baffle];
     if is_extended(args) {
-        FaceRoles { inlet: INFLOW_CAP_LABEL, outlets: vec![OUTFLOW_CAP_LABEL], walls, planes: vec![d.vsd_label, d.aortic_label] }
+        FaceRoles { inlet: INFLOW_CAP_LABEL, outlets: vec![OUTFLOW_CAP_LABEL], walls, planes: vec![d.labels.vsd_cap, d.labels.aortic_cap] }
     } else {
-        FaceRoles { inlet: d.vsd_label, outlets: vec![d.aortic_label], walls, planes: vec![] }
+        FaceRoles { inlet: d.labels.vsd_cap, outlets: vec![d.labels.aortic_cap], walls, planes: vec![] }
     }
 }
 
@@ -165,7 +165,7 @@ fn centerline_stage(args: &PlanSettings) -> CenterlineSettings {
         true => (layout.extended_surface(), Some(vec![INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL])),
         false => (layout.designed_domain(), None),
     };
-    CenterlineSettings { surface, planes: vec![d.vsd_label, d.aortic_label], ends, out: layout.flow_centerline(), ..CenterlineSettings::default() }
+    CenterlineSettings { surface, planes: vec![d.labels.vsd_cap, d.labels.aortic_cap], ends, out: layout.flow_centerline(), ..CenterlineSettings::default() }
 }
 
 /// An extend stage: the designed domain, with a mesh-study level's own remesh.
@@ -177,10 +177,7 @@ fn extend_stage(args: &PlanSettings, level: Option<&str>, remesh_domain_edge_mm:
         out: level.map_or_else(|| layout.extended_surface(), |l| layout.level_extended_surface(l)),
         remesh_domain_edge_mm,
         extension_coarsening: args.extension_coarsening,
-        wall_label: d.wall_label,
-        baffle_label: d.baffle_label,
-        vsd_label: d.vsd_label,
-        aortic_label: d.aortic_label,
+        labels: d.labels,
         ..ExtendSettings::default()
     }
 }
@@ -193,7 +190,7 @@ fn mesh_stage(args: &PlanSettings, level: &str, edge_length_mm: f64) -> MeshSett
     match is_extended(args) {
         true => MeshSettings {
             surface: layout.level_extended_surface(level),
-            interior_labels: vec![d.vsd_label, d.aortic_label],
+            interior_labels: vec![d.labels.vsd_cap, d.labels.aortic_cap],
             // gmsh then sizes the graded extension from its boundary.
             largest_edge_mm: (args.extension_coarsening > 1.0).then_some(args.extension_coarsening * edge_length_mm),
             ..mesh

@@ -741,7 +741,7 @@ pub struct Outcome {
 pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
     let layout = PlanLayout::of(args);
     let out = layout.root();
-    let labels = (args.design.vsd_label, args.design.aortic_label);
+    let labels = (args.design.labels.vsd_cap, args.design.labels.aortic_cap);
     let design_dir = layout.design_dir();
     let design_path = design_dir.join("report.json");
     let design: DesignReport = read_json(&design_path)?;
@@ -843,10 +843,10 @@ pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageReco
     let d = &args.design;
     let ras = matches!(d.surface_frame, crate::design_cmd::Frame::Ras);
     let labels = [
-        ("wall", d.wall_label),
-        ("baffle", d.baffle_label),
-        ("vsd", d.vsd_label),
-        ("aortic", d.aortic_label),
+        ("wall", d.labels.wall),
+        ("baffle", d.labels.baffle),
+        ("vsd", d.labels.vsd_cap),
+        ("aortic", d.labels.aortic_cap),
         ("inflow", baffle_prepare::extend::INFLOW_CAP_LABEL),
         ("outflow", baffle_prepare::extend::OUTFLOW_CAP_LABEL),
     ];
