@@ -152,12 +152,44 @@ static void test_phantom_design(void) {
   baffle_result_free(result);
 }
 
+/* The plan's options and the plan's CFD case for a front end's own mesh (the plan itself
+ * meshes with gmsh and runs for seconds: the Rust, Python and Slicer tests run it). */
+static void test_plan_options_and_case(void) {
+  BafflePlanOptions options;
+  BafflePlanResult *result = NULL;
+  char *path = NULL;
+  char text[4096] = {0};
+  FILE *file;
+  CHECK(baffle_plan_options_init(&options) == BAFFLE_STATUS_OK, "%s", baffle_last_error());
+  CHECK(options.struct_size == sizeof options && options.mode == BAFFLE_PLAN_MODE_PULSATILE, "plan defaults");
+  options.phantom = 1;
+  options.sbp_mmhg = 107;
+  options.dbp_mmhg = 78;
+  options.mode = BAFFLE_PLAN_MODE_QUICK;
+  expect_error(baffle_plan(&options, NULL, NULL, NULL, &result), BAFFLE_STATUS_NULL_POINTER, "options.out_dir");
+  CHECK(result == NULL, "no plan result after a failure");
+  CHECK(baffle_plan_write_case(&options, "volume.vtu", "volume-faces.vtp", ".", &path) == BAFFLE_STATUS_OK, "%s",
+        baffle_last_error());
+  file = path ? fopen(path, "r") : NULL;
+  CHECK(file != NULL, "case written at %s", path ? path : "(null)");
+  if (file) {
+    CHECK(fread(text, 1, sizeof text - 1, file) > 0, "case readable");
+    fclose(file);
+  }
+  CHECK(strstr(text, "\"quick\"") != NULL && strstr(text, "\"volume.vtu\"") != NULL, "case: %s", text);
+  baffle_free(path);
+  options.dbp_mmhg = 200;
+  expect_error(baffle_plan_write_case(&options, "volume.vtu", "volume-faces.vtp", ".", NULL), BAFFLE_STATUS_INVALID_ARGUMENT,
+               "exceeds SBP");
+}
+
 int main(void) {
   CHECK(baffle_abi_version() == BAFFLE_ABI_VERSION, "ABI %u", baffle_abi_version());
   printf("libbaffle %s (ABI %u)\n", baffle_version(), baffle_abi_version());
   test_argument_errors();
   test_open_mesh_and_too_few_points();
   test_phantom_design();
+  test_plan_options_and_case();
   if (failures) fprintf(stderr, "%d check(s) failed\n", failures);
   else printf("all C ABI checks passed\n");
   return failures ? 1 : 0;

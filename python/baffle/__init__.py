@@ -6,6 +6,9 @@
     result = baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=0.37)
     result.domain.points, result.report["sections"]
 
+    plan = baffle.plan("out/plan", phantom=True, sbp_mmhg=107, dbp_mmhg=78, mode="quick")
+    plan.verdict, plan.dp_mmhg, plan.dp_threshold_mmhg, plan.reasons   # the library's verdict
+
     report = baffle.read_report("out/plan")                      # a `baffle plan` folder
     report.verdict, report.reason, report.dp_peak_mmhg           # "passes" / "fails" / "inconclusive"
     fields = baffle.read_fields("out/plan/simulate-nominal/peak.vtu")   # mm, m/s, mmHg; needs vtk
@@ -19,6 +22,7 @@ With the `vtk` module importable, `baffle.vtk_adapters` converts vtkPolyData.
 from ._lib import ABI_VERSION, BaffleError, Cancelled, version
 from .design import DesignResult, Mesh, design, peak_flow_ml_s, phantom
 from .markups import read_markups
+from .plan import PlanResult, plan, write_case
 from .results import PlanReport, read_fields, read_points, read_report, read_surface
 from .template import Template, template
 
@@ -29,9 +33,11 @@ __all__ = [
     "DesignResult",
     "Mesh",
     "PlanReport",
+    "PlanResult",
     "design",
     "peak_flow_ml_s",
     "phantom",
+    "plan",
     "read_fields",
     "read_markups",
     "read_points",
@@ -40,5 +46,6 @@ __all__ = [
     "template",
     "Template",
     "version",
+    "write_case",
 ]
 __version__ = "0.1.0"

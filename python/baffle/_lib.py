@@ -14,6 +14,10 @@ ABI_VERSION = 1
 # BaffleStatus values.
 STATUS_OK = 0
 STATUS_CANCELLED = 7
+STATUS_PLAN_FAILED = 10
+# BafflePlanMode and BaffleVerdict values.
+PLAN_MODES = {"pulsatile": 0, "quick": 1, "steady": 2}
+VERDICTS = ("passes", "fails", "inconclusive")
 FRAMES = {"LPS": 0, "RAS": 1}
 FLATTEN_METHODS = {"lscm": 0, "arap": 1}
 TEMPLATE_FORMATS = {"pdf": 0, "svg": 1, "png": 2}
@@ -89,10 +93,38 @@ class DesignOptions(ctypes.Structure):
         ("tps_regularization", c_double),
         # Appended after the first layout: NaN or 0 = no reduced-order estimate.
         ("peak_flow_ml_s", c_double),
+        # Appended after peak_flow_ml_s: nonzero = hold the flow-normal sections at the target too.
+        ("flow_sections", c_int32),
+    ]
+
+
+class PlanOptions(ctypes.Structure):
+    """BafflePlanOptions, field for field (strings: UTF-8 paths, None = not given)."""
+
+    _fields_ = [
+        ("struct_size", c_uint32),
+        ("surface_path", c_char_p),
+        ("segmentations_dir", c_char_p),
+        ("points_path", c_char_p),
+        ("phantom", c_int32),
+        ("out_dir", c_char_p),
+        ("bsa_m2", c_double),
+        ("sbp_mmhg", c_double),
+        ("dbp_mmhg", c_double),
+        ("heart_rate_bpm", c_double),
+        ("cardiac_index_l_min_m2", c_double),
+        ("mode", c_int32),
+        ("cycles", c_uint32),
+        ("edge_length_mm", c_double),
+        ("single_mesh", c_int32),
+        ("elevated_flow", c_int32),
+        ("flow_sections", c_int32),
+        ("patient_label", c_char_p),
     ]
 
 
 PROGRESS = ctypes.CFUNCTYPE(c_int32, c_double, c_char_p, c_void_p)
+CANCEL = ctypes.CFUNCTYPE(c_int32, c_void_p)
 
 _D, _I64, _I32, _SZ = POINTER(c_double), POINTER(c_int64), POINTER(c_int32), POINTER(c_size_t)
 _SIGNATURES = {
@@ -128,6 +160,19 @@ _SIGNATURES = {
     "baffle_template_report_json": ([c_void_p, POINTER(c_void_p)], c_int),
     "baffle_template_document": ([c_void_p, c_int32, POINTER(c_void_p), _SZ], c_int),
     "baffle_template_png": ([c_void_p, c_double, POINTER(c_void_p), _SZ], c_int),
+    "baffle_plan_options_init": ([c_void_p], c_int),
+    "baffle_plan": ([POINTER(PlanOptions), PROGRESS, CANCEL, c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_plan_result_free": ([c_void_p], None),
+    "baffle_plan_result_verdict": ([c_void_p, _I32], c_int),
+    "baffle_plan_result_dp_mmhg": ([c_void_p, _D], c_int),
+    "baffle_plan_result_v_max_m_s": ([c_void_p, _D], c_int),
+    "baffle_plan_result_dp_threshold_mmhg": ([c_void_p, _D], c_int),
+    "baffle_plan_result_reason_count": ([c_void_p, _SZ], c_int),
+    "baffle_plan_result_reason": ([c_void_p, c_size_t, POINTER(c_void_p)], c_int),
+    "baffle_plan_result_verdict_text": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_plan_result_report_json_path": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_plan_result_report_html_path": ([c_void_p, POINTER(c_void_p)], c_int),
+    "baffle_plan_write_case": ([POINTER(PlanOptions), c_char_p, c_char_p, c_char_p, POINTER(c_void_p)], c_int),
 }
 
 
@@ -160,12 +205,30 @@ def version() -> str:
     return lib.baffle_version().decode()
 
 
-def default_options() -> DesignOptions:
-    """Defaults from the library, after checking it fills a struct of our size
-    (into a generous scratch buffer, so a mismatch cannot overrun memory)."""
+def _initialised(init, structure):
+    """`structure` filled by the library's `init`, after checking it fills a struct of our
+    size (into a generous scratch buffer, so a mismatch cannot overrun memory)."""
     scratch = ctypes.create_string_buffer(4096)
-    check(lib.baffle_design_options_init(ctypes.cast(scratch, c_void_p)))
+    check(init(ctypes.cast(scratch, c_void_p)))
     size = c_uint32.from_buffer(scratch).value
-    if size != ctypes.sizeof(DesignOptions):
-        raise BaffleError(4, f"libbaffle's options struct has {size} bytes, this package knows {ctypes.sizeof(DesignOptions)}")
-    return DesignOptions.from_buffer_copy(scratch.raw[:size])
+    if size != ctypes.sizeof(structure):
+        raise BaffleError(4, f"libbaffle's {structure.__name__} struct has {size} bytes, this package knows {ctypes.sizeof(structure)}")
+    return structure.from_buffer_copy(scratch.raw[:size])
+
+
+def default_options() -> DesignOptions:
+    """The design's defaults from the library."""
+    return _initialised(lib.baffle_design_options_init, DesignOptions)
+
+
+def default_plan_options() -> PlanOptions:
+    """The plan's defaults from the library (no ventricle, blood pressure or output folder)."""
+    return _initialised(lib.baffle_plan_options_init, PlanOptions)
+
+
+def take_string(pointer: c_void_p) -> str:
+    """A string the library handed out, freed."""
+    try:
+        return ctypes.string_at(pointer).decode("utf-8")
+    finally:
+        lib.baffle_free(pointer)

@@ -105,10 +105,7 @@ def _result_mesh(result, getter) -> Mesh:
 def _report(result) -> dict:
     text = c_void_p()
     check(lib.baffle_result_report_json(result, byref(text)))
-    try:
-        return json.loads(ctypes.string_at(text).decode("utf-8"))
-    finally:
-        lib.baffle_free(text)
+    return json.loads(_lib.take_string(text))
 
 
 def _centerline(result):
@@ -188,6 +185,7 @@ def design(
     weight_kg: Optional[float] = None,
     progress: Optional[Progress] = None,
     peak_flow_ml_s: Optional[float] = None,
+    flow_sections: bool = False,
     **tunables,
 ) -> DesignResult:
     """Design the area-constrained baffle.
@@ -201,6 +199,9 @@ def design(
     `peak_flow_ml_s`, the patient's peak flow, adds report["hemodynamics_estimate"]:
     the reduced-order dp at peak flow and v_max with their measured error (not a CFD
     result, docs/hemodynamics_estimate.md); without it that object says why there is none.
+    `flow_sections=True` (the command line's --flow-sections) also holds the tunnel's
+    sections normal to the flow at the target: the design is run again at a raised target
+    until they reach it, and report["flow_sections"] says how.
     """
     target = {
         "target_area_mm2": target_area_mm2,
@@ -212,6 +213,7 @@ def design(
     options = _options(target, tunables)
     options.z_score = float(z_score)
     options.peak_flow_ml_s = float("nan") if peak_flow_ml_s is None else float(peak_flow_ml_s)
+    options.flow_sections = int(bool(flow_sections))
     suture = _array(suture_points, np.float64, "suture_points", 3)
     surface = _new_mesh(surface_points, triangles, labels)
     bridge = _ProgressBridge(progress)

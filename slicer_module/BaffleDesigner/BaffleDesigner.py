@@ -137,6 +137,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         for comboBox in self.segmentComboBoxes():
             comboBox.connect("currentTextChanged(QString)", self.onParametersChanged)
         self.ui.targetModeComboBox.connect("currentIndexChanged(int)", self.onParametersChanged)
+        self.ui.flowSectionsCheckBox.connect("toggled(bool)", self.onParametersChanged)
         for spinBox in self.parameterSpinBoxes():
             spinBox.connect("valueChanged(double)", self.onParametersChanged)
         # CFD inputs are stored on the candidate but do not change the geometry: no redesign.
@@ -356,6 +357,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             lv_segment=self.ui.lvSegmentComboBox.currentText,
             rv_segment=self.ui.rvSegmentComboBox.currentText,
             aorta_segment=self.ui.aortaSegmentComboBox.currentText,
+            flow_sections=bool(self.ui.flowSectionsCheckBox.checked),
         )
 
     def onCurveSelected(self, curve):
@@ -388,6 +390,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             parameters = self.logic.parameters(curve)
             self.ui.targetModeComboBox.currentIndex = TARGET_MODES.index(parameters.target_mode)
             self.ui.flowModeComboBox.currentIndex = FLOW_MODES.index(parameters.flow_mode)
+            self.ui.flowSectionsCheckBox.checked = parameters.flow_sections
             for spinBox, value in zip(self.parameterSpinBoxes() + self.cfdSpinBoxes(), (
                 parameters.bsa_m2, parameters.height_cm, parameters.weight_kg, parameters.z_score,
                 parameters.target_area_mm2, parameters.annulus_diameter_mm, parameters.systolic_mmhg,

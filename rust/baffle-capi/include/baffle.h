@@ -45,6 +45,24 @@ typedef enum BaffleFrame {
 } BaffleFrame;
 
 /*
+ The CFD run of BafflePlanOptions.mode.
+ */
+typedef enum BafflePlanMode {
+  /*
+   Pulsatile over `cycles` cardiac cycles, the last one reported (the paper's run).
+   */
+  BAFFLE_PLAN_MODE_PULSATILE = 0,
+  /*
+   Pulsatile from rest up to the first flow peak (a quick estimate of the peak dp).
+   */
+  BAFFLE_PLAN_MODE_QUICK = 1,
+  /*
+   Steady at the peak flow (may not converge; the verdict is then inconclusive).
+   */
+  BAFFLE_PLAN_MODE_STEADY = 2,
+} BafflePlanMode;
+
+/*
  What a call did. 0 is success; every other value has a message in
  baffle_last_error().
  */
@@ -88,6 +106,11 @@ typedef enum BaffleStatus {
    A bug inside the library (a caught panic); the handles passed in are intact.
    */
   BAFFLE_STATUS_INTERNAL = 9,
+  /*
+   A stage of baffle_plan() failed: the message names it, and the stages finished
+   before it keep their folders.
+   */
+  BAFFLE_STATUS_PLAN_FAILED = 10,
 } BaffleStatus;
 
 /*
@@ -132,9 +155,32 @@ typedef enum BaffleTemplateFormat {
 } BaffleTemplateFormat;
 
 /*
+ The verdict of a finished plan on its peak pressure difference.
+ */
+typedef enum BaffleVerdict {
+  /*
+   A trusted run below the planning threshold.
+   */
+  BAFFLE_VERDICT_PASSES = 0,
+  /*
+   A trusted run at or above the threshold.
+   */
+  BAFFLE_VERDICT_FAILS = 1,
+  /*
+   The run cannot be trusted (reasons: baffle_plan_result_reason).
+   */
+  BAFFLE_VERDICT_INCONCLUSIVE = 2,
+} BaffleVerdict;
+
+/*
  Opaque, immutable triangle surface (mm) with one int32 label per triangle.
  */
 typedef struct BaffleMesh BaffleMesh;
+
+/*
+ Opaque, immutable result of baffle_plan().
+ */
+typedef struct BafflePlanResult BafflePlanResult;
 
 /*
  Opaque, immutable result of baffle_design().
@@ -214,6 +260,13 @@ typedef struct BaffleDesignOptions {
    NaN (the default): no estimate, hemodynamics_estimate says why.
    */
   double peak_flow_ml_s;
+  /*
+   Appended after peak_flow_ml_s. Nonzero: apply the target to the tunnel's sections
+   normal to the flow too (the command line's --flow-sections): the design is run
+   again at a raised target until the smallest flow-normal section reaches it (the
+   report JSON's flow_sections). 0 (the default): the paper's sections only.
+   */
+  int32_t flow_sections;
 } BaffleDesignOptions;
 
 /*
@@ -223,6 +276,95 @@ typedef struct BaffleDesignOptions {
  not unwind (a C++ callback must catch its exceptions).
  */
 typedef int32_t (*BaffleProgressFn)(double fraction, const char *stage, void *user_data);
+
+/*
+ Options of baffle_plan() and baffle_plan_write_case(). Fill with
+ baffle_plan_options_init(), then set the ventricle, the suture points, the patient's
+ numbers and the output folder. Strings are UTF-8 paths (NULL: not given), lengths in mm.
+ */
+typedef struct BafflePlanOptions {
+  /*
+   sizeof(BafflePlanOptions) as the caller compiled it (set by _init).
+   */
+  uint32_t struct_size;
+  /*
+   The capped, labelled ventricle (.vtp, .vtk or .stl; Slicer's LPS frame).
+   */
+  const char *surface_path;
+  /*
+   Instead of surface_path: a folder of segment surfaces (LV, RV, aorta), prepared
+   first; the CFD then runs on the extended domain (mid-LV to the STJ).
+   */
+  const char *segmentations_dir;
+  /*
+   Suture points (.mrk.json, .fcsv, .csv or .json).
+   */
+  const char *points_path;
+  /*
+   Nonzero: the built-in phantom as ventricle and suture points (BSA 0.37 m2 unless given).
+   */
+  int32_t phantom;
+  /*
+   Output folder: one subfolder per stage, report.json and report.html.
+   */
+  const char *out_dir;
+  /*
+   Body surface area (m2): the target annulus and the flow (BSA x cardiac index);
+   NaN: the phantom's.
+   */
+  double bsa_m2;
+  /*
+   Blood pressure (mmHg): the outlet resistance R = MAP / Q_mean. Required.
+   */
+  double sbp_mmhg;
+  double dbp_mmhg;
+  /*
+   Heart rate (beats/min); NaN: the built-in period of 0.682 s.
+   */
+  double heart_rate_bpm;
+  /*
+   Cardiac index of the nominal runs (L/min/m2; default the paper's 3.48).
+   */
+  double cardiac_index_l_min_m2;
+  /*
+   A BafflePlanMode value (default Pulsatile).
+   */
+  int32_t mode;
+  /*
+   Cardiac cycles of a pulsatile run (default 4).
+   */
+  uint32_t cycles;
+  /*
+   Largest tetrahedron edge of the nominal mesh (mm; default the paper's 0.95).
+   */
+  double edge_length_mm;
+  /*
+   Nonzero: the nominal mesh only, no mesh study (about a third of the time; the
+   report then warns that dp's discretization error is not known).
+   */
+  int32_t single_mesh;
+  /*
+   Nonzero: also simulate the nominal mesh at the elevated cardiac index 4.22.
+   */
+  int32_t elevated_flow;
+  /*
+   Nonzero: the design also holds the sections normal to the flow at the target
+   (the command line's --flow-sections).
+   */
+  int32_t flow_sections;
+  /*
+   How the report names the patient; NULL: the paper's id, or "not named".
+   */
+  const char *patient_label;
+} BafflePlanOptions;
+
+/*
+ Cancel callback of baffle_plan(): called with the caller's user_data between the
+ stages and while the design and the simulation run; return nonzero to stop the plan
+ (which then returns BAFFLE_STATUS_CANCELLED). It runs on the calling thread and must
+ not unwind.
+ */
+typedef int32_t (*BaffleCancelFn)(void *user_data);
 
 #ifdef __cplusplus
 extern "C" {
@@ -372,6 +514,146 @@ enum BaffleStatus baffle_mesh_copy_labels(const struct BaffleMesh *mesh,
  `out_options` must be NULL or point to writable memory for the struct.
  */
 enum BaffleStatus baffle_design_options_init(struct BaffleDesignOptions *out_options);
+
+/*
+ Fill `out_options` with the plan's defaults and struct_size (no ventricle, no blood
+ pressure, no output folder: the caller sets them).
+
+ # Safety
+ `out_options` must be NULL or point to writable memory for the struct.
+ */
+enum BaffleStatus baffle_plan_options_init(struct BafflePlanOptions *out_options);
+
+/*
+ Run the plan of `options` into options.out_dir: [prepare ->] design -> centerline ->
+ mesh -> simulate (-> the mesh study's levels) -> report.json and report.html, as
+ `baffle plan` does. `progress` (may be NULL) gets the fraction of the whole plan done
+ and the running stage's name (returning 0 cancels, as `cancel` does); `cancel` (may be
+ NULL) is asked between the stages and while the design and the simulation run (the
+ mesh stage stops only at its end). Both get `user_data`. On success `*out_result` is a
+ new handle (free with baffle_plan_result_free). Bad options: InvalidArgument, naming
+ the option, before any stage runs; a failed stage: PlanFailed, the message naming the
+ stage; a cancelled plan: Cancelled. Either way the stages finished before keep their
+ folders (a stopped simulation its results so far).
+
+ # Safety
+ Pointers must be NULL or valid; the callbacks must be safe to call with `user_data`.
+ */
+enum BaffleStatus baffle_plan(const struct BafflePlanOptions *options,
+                              BaffleProgressFn progress,
+                              BaffleCancelFn cancel,
+                              void *user_data,
+                              struct BafflePlanResult **out_result);
+
+/*
+ Free a plan result (NULL is ignored).
+
+ # Safety
+ `result` must be NULL or a handle from this library not yet freed.
+ */
+void baffle_plan_result_free(struct BafflePlanResult *result);
+
+/*
+ The verdict (a BaffleVerdict value).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_verdict` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_verdict(const struct BafflePlanResult *result,
+                                             int32_t *out_verdict);
+
+/*
+ The nominal run's plane-averaged peak pressure difference (mmHg), as judged.
+
+ # Safety
+ `result` must be NULL or a live handle; `out_dp_mmhg` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_dp_mmhg(const struct BafflePlanResult *result,
+                                             double *out_dp_mmhg);
+
+/*
+ The nominal run's largest speed in the domain at peak flow (m/s).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_v_max_m_s` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_v_max_m_s(const struct BafflePlanResult *result,
+                                               double *out_v_max_m_s);
+
+/*
+ The planning threshold dp was judged against (mmHg): below it passes.
+
+ # Safety
+ `result` must be NULL or a live handle; `out_threshold_mmhg` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_dp_threshold_mmhg(const struct BafflePlanResult *result,
+                                                       double *out_threshold_mmhg);
+
+/*
+ How many reasons an inconclusive verdict has (0 for passes or fails).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_count` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_reason_count(const struct BafflePlanResult *result,
+                                                  size_t *out_count);
+
+/*
+ The `index`th reason of an inconclusive verdict, a new string (free with baffle_free).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_reason` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_reason(const struct BafflePlanResult *result,
+                                            size_t index,
+                                            char **out_reason);
+
+/*
+ The verdict in one sentence, as the report and the command line say it (free with baffle_free).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_text` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_verdict_text(const struct BafflePlanResult *result,
+                                                  char **out_text);
+
+/*
+ The path of the plan's report.json (free with baffle_free).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_path` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_report_json_path(const struct BafflePlanResult *result,
+                                                      char **out_path);
+
+/*
+ The path of the plan's report.html (free with baffle_free).
+
+ # Safety
+ `result` must be NULL or a live handle; `out_path` NULL or writable.
+ */
+enum BaffleStatus baffle_plan_result_report_html_path(const struct BafflePlanResult *result,
+                                                      char **out_path);
+
+/*
+ Write the CFD case the plan simulates (`baffle simulate`'s case.json) into `case_dir`
+ for the volume mesh `mesh_volume_path` and its labelled faces `mesh_faces_path` (as
+ `baffle mesh` writes them; relative paths are relative to case_dir), from the
+ options' bsa_m2 (or the phantom's), blood pressure, heart rate, cardiac index, mode and
+ cycles; the ventricle, points and out_dir are not used. The inflow is the VSD cap and
+ the outflow the aortic cap of the designed domain (the plan's default labels). The
+ case is checked as `baffle simulate` will check it (a bad blood pressure is
+ InvalidArgument, named). `*out_case_path` (may be NULL) gets the written file's path
+ (free with baffle_free).
+
+ # Safety
+ Pointers must be NULL or valid; strings NUL-terminated.
+ */
+enum BaffleStatus baffle_plan_write_case(const struct BafflePlanOptions *options,
+                                         const char *mesh_volume_path,
+                                         const char *mesh_faces_path,
+                                         const char *case_dir,
+                                         char **out_case_path);
 
 /*
  Read suture points (.mrk.json, .json, .fcsv, .csv, .txt), converted into

@@ -152,6 +152,11 @@ class Options {
     raw_.peak_flow_ml_s = q;
     return *this;
   }
+  // Hold the tunnel's sections normal to the flow at the target too (--flow-sections).
+  Options& flow_sections(bool on = true) {
+    raw_.flow_sections = on ? 1 : 0;
+    return *this;
+  }
   BaffleDesignOptions& raw() noexcept { return raw_; }
   const BaffleDesignOptions& raw() const noexcept { return raw_; }
 

@@ -5,7 +5,8 @@ use crate::options::read_options;
 use crate::result::BaffleResult;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
 use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
-use baffle_core::{design, DesignError, Vec3};
+use baffle_core::{DesignError, Vec3};
+use baffle_plan::design_cmd::design_by_rule;
 use std::ffi::{c_char, c_void, CString};
 
 /// Progress callback: called with the fraction done (0..1), the stage's name and
@@ -41,9 +42,10 @@ pub unsafe extern "C" fn baffle_design(
         let core_options = options.design_options()?;
         let peak_flow_ml_s = options.peak_flow_ml_s()?;
         let mut report = |fraction: f64, stage: &str| call_progress(progress, user_data, fraction, stage);
-        let designed = design(&surface.mesh, &points, &target, &core_options, &mut report).map_err(design_error)?;
-        // Checked by a second method before the caller sees it (report.json `checks`).
-        let mut result = baffle_verify::checked_design(designed).map_err(design_error)?;
+        // The command line's design, checked by a second method before the caller sees it
+        // (report.json `checks`); with flow_sections, until the flow's own sections reach the target.
+        let flow_sections = options.flow_sections != 0;
+        let mut result = design_by_rule(flow_sections, &surface.mesh, &points, &target, &core_options, &mut report).map_err(design_error)?;
         result.report.hemodynamics_estimate = Some(match peak_flow_ml_s {
             Some(q) => EstimateOutcome::for_domain(&result.domain, core_options.labels, Some(q), Blood::default()),
             None => EstimateOutcome::Absent { absent_because: "no peak flow given (options.peak_flow_ml_s is 0 or NaN)".into() },
@@ -64,7 +66,7 @@ fn suture_points(values: &[f64]) -> Result<Vec<Vec3>, CallError> {
 
 /// # Safety
 /// `progress`, if set, must be safe to call with `user_data`.
-unsafe fn call_progress(progress: BaffleProgressFn, user_data: *mut c_void, fraction: f64, stage: &str) -> bool {
+pub(crate) unsafe fn call_progress(progress: BaffleProgressFn, user_data: *mut c_void, fraction: f64, stage: &str) -> bool {
     let Some(callback) = progress else { return true };
     let name = CString::new(stage.replace('\0', " ")).unwrap_or_default();
     callback(fraction, name.as_ptr(), user_data) != 0

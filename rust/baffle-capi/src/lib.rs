@@ -13,6 +13,7 @@ mod design;
 mod flow;
 mod mesh_handle;
 mod options;
+mod plan;
 mod points;
 mod result;
 mod status;
@@ -26,6 +27,12 @@ pub use mesh_handle::{
     baffle_mesh_new_vtk, baffle_mesh_point_count, baffle_mesh_triangle_count, BaffleMesh,
 };
 pub use options::{baffle_design_options_init, BaffleDesignOptions, BaffleTargetKind};
+pub use plan::{
+    baffle_plan, baffle_plan_options_init, baffle_plan_result_dp_mmhg, baffle_plan_result_dp_threshold_mmhg, baffle_plan_result_free,
+    baffle_plan_result_reason, baffle_plan_result_reason_count, baffle_plan_result_report_html_path, baffle_plan_result_report_json_path,
+    baffle_plan_result_v_max_m_s, baffle_plan_result_verdict, baffle_plan_result_verdict_text, baffle_plan_write_case, BaffleCancelFn,
+    BafflePlanMode, BafflePlanOptions, BafflePlanResult, BaffleVerdict,
+};
 pub use points::{baffle_phantom, baffle_phantom_with_suture_half_angle, baffle_read_suture_points, BaffleFrame};
 pub use result::{
     baffle_result_baffle, baffle_result_centerline_count, baffle_result_copy_centerline, baffle_result_copy_sections,

@@ -63,6 +63,11 @@ pub struct BaffleDesignOptions {
     /// the reduced-order dp at peak flow and v_max (docs/hemodynamics_estimate.md); 0 or
     /// NaN (the default): no estimate, hemodynamics_estimate says why.
     pub peak_flow_ml_s: f64,
+    /// Appended after peak_flow_ml_s. Nonzero: apply the target to the tunnel's sections
+    /// normal to the flow too (the command line's --flow-sections): the design is run
+    /// again at a raised target until the smallest flow-normal section reaches it (the
+    /// report JSON's flow_sections). 0 (the default): the paper's sections only.
+    pub flow_sections: i32,
 }
 
 /// Size of the first published layout (up to tps_regularization); any caller struct is
@@ -97,6 +102,7 @@ impl Default for BaffleDesignOptions {
             max_wall_fraction: d.max_wall_fraction,
             tps_regularization: d.tps_regularization,
             peak_flow_ml_s: f64::NAN,
+            flow_sections: 0,
         }
     }
 }
@@ -119,21 +125,31 @@ pub unsafe extern "C" fn baffle_design_options_init(out_options: *mut BaffleDesi
 /// # Safety
 /// `ptr` must be NULL or point to at least `struct_size` readable bytes.
 pub(crate) unsafe fn read_options(ptr: *const BaffleDesignOptions) -> Result<BaffleDesignOptions, CallError> {
+    read_sized(ptr, V1_SIZE, "options", "baffle_design_options_init")
+}
+
+/// A caller's options struct whose first field (u32) is the size the caller compiled
+/// against: at least `min_size` bytes (its first published layout) are read over `T`'s
+/// defaults, so a caller of an older, shorter layout keeps the defaults of newer fields.
+///
+/// # Safety
+/// `ptr` must be NULL or point to at least `struct_size` readable bytes.
+pub(crate) unsafe fn read_sized<T: Default>(ptr: *const T, min_size: usize, name: &str, init: &str) -> Result<T, CallError> {
     if ptr.is_null() {
-        return Err(CallError::null("options"));
+        return Err(CallError::null(name));
     }
     let size = std::ptr::read_unaligned(ptr.cast::<u32>()) as usize;
-    if !(V1_SIZE..=std::mem::size_of::<BaffleDesignOptions>()).contains(&size) {
+    if !(min_size..=std::mem::size_of::<T>()).contains(&size) {
         return Err(CallError::new(
             BaffleStatus::UnsupportedVersion,
             format!(
-                "options.struct_size is {size}; this library (ABI {}) takes {V1_SIZE}..{} (call baffle_design_options_init)",
+                "{name}.struct_size is {size}; this library (ABI {}) takes {min_size}..{} (call {init})",
                 crate::BAFFLE_ABI_VERSION,
-                std::mem::size_of::<BaffleDesignOptions>()
+                std::mem::size_of::<T>()
             ),
         ));
     }
-    let mut options = BaffleDesignOptions::default();
+    let mut options = T::default();
     std::ptr::copy_nonoverlapping(ptr.cast::<u8>(), std::ptr::addr_of_mut!(options).cast::<u8>(), size);
     Ok(options)
 }

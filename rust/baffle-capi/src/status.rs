@@ -2,7 +2,7 @@
 //! function runs its body in (argument errors and panics become status codes).
 
 use std::cell::{Cell, RefCell};
-use std::ffi::{c_char, CString};
+use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 /// What a call did. 0 is success; every other value has a message in
@@ -31,6 +31,9 @@ pub enum BaffleStatus {
     Io = 8,
     /// A bug inside the library (a caught panic); the handles passed in are intact.
     Internal = 9,
+    /// A stage of baffle_plan() failed: the message names it, and the stages finished
+    /// before it keep their folders.
+    PlanFailed = 10,
 }
 
 /// A failed call: its status and what to tell the caller.
@@ -184,4 +187,15 @@ pub(crate) fn check_finite(values: &[f64], name: &str) -> Result<(), CallError> 
         Some(i) => Err(CallError::invalid(format!("{name}: point {} has a non-finite coordinate ({})", i / 3, values[i]))),
         None => Ok(()),
     }
+}
+
+/// A caller's optional string argument (NULL: None), or an error naming it.
+///
+/// # Safety
+/// `text` must be NULL or a NUL-terminated string.
+pub(crate) unsafe fn optional_str<'a>(text: *const c_char, name: &str) -> Result<Option<&'a str>, CallError> {
+    if text.is_null() {
+        return Ok(None);
+    }
+    CStr::from_ptr(text).to_str().map(Some).map_err(|_| CallError::invalid(format!("{name} is not UTF-8")))
 }

@@ -4,12 +4,12 @@
 
 use crate::alloc::{malloc_copy, malloc_string};
 use crate::mesh_handle::BaffleMesh;
-use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, xyz_count, BaffleStatus, CallError};
-use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::raster::DEFAULT_DPI;
-use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat, Template};
+use crate::status::{arg_ref, check_finite, guarded, in_slice, optional_str, out_ref, xyz_count, BaffleStatus, CallError};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
-use std::ffi::{c_char, CStr};
+use baffle_template::drawing::{today_utc, TemplateText};
+use baffle_template::raster::DEFAULT_DPI;
+use baffle_template::{template_from_domain, FlattenMethod, PageFormat, Template};
+use std::ffi::c_char;
 
 /// How the baffle is flattened.
 #[repr(C)]
@@ -93,15 +93,6 @@ fn points(values: &[f64]) -> Result<Vec<Vec3>, CallError> {
     xyz_count(values.len(), "suture_points_mm")?;
     check_finite(values, "suture_points_mm")?;
     Ok(values.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
-}
-
-/// # Safety
-/// `text` must be NULL or a NUL-terminated string.
-unsafe fn optional_str<'a>(text: *const c_char, name: &str) -> Result<Option<&'a str>, CallError> {
-    if text.is_null() {
-        return Ok(None);
-    }
-    CStr::from_ptr(text).to_str().map(Some).map_err(|_| CallError::invalid(format!("{name} is not UTF-8")))
 }
 
 /// # Safety

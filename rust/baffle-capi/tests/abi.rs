@@ -297,6 +297,26 @@ fn a_peak_flow_adds_the_estimate_and_first_layout_callers_keep_working() {
     assert!(e["absent_because"].is_string() && e.get("dp_estimate_mmhg").is_none(), "{e}");
 }
 
+/// options.flow_sections (the command line's --flow-sections): the design holds the
+/// flow-normal sections at the target too, and its report says how (flow_sections);
+/// without it the report has none.
+#[test]
+fn flow_sections_reach_the_design_through_its_options() {
+    let p = phantom();
+    let mut options = bsa_options(p.bsa_m2);
+    assert_eq!(options.flow_sections, 0, "the paper's sections only by default");
+    let (status, result) = run_design(&p, &options, None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    assert!(report(result)["flow_sections"].is_null());
+    unsafe { baffle_result_free(result) };
+    options.flow_sections = 1;
+    let (status, result) = run_design(&p, &options, None, null_mut());
+    assert_eq!(status, BaffleStatus::Ok, "{}", last_error());
+    let flow = report(result)["flow_sections"].clone();
+    unsafe { baffle_result_free(result) };
+    assert!(flow["goal_area_mm2"].as_f64().is_some_and(|a| a > 0.0) && !flow["rounds"].as_array().unwrap().is_empty(), "{flow}");
+}
+
 /// The flow a front end without a CFD case gives the estimate: the paper's 3.26 x BSA x
 /// cardiac index, the 3D run's peak; bad values are named, a NULL output is an error.
 #[test]

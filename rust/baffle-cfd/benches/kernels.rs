@@ -94,7 +94,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let x_low: Vec<f32> = convert(&x);
     let (mut y, mut y_low) = (vec![0.0; n], vec![0.0f32; n]);
     let mut assembler = Assembler::new(&points, tets.clone(), &pattern, parts.clone());
-    let physics = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0, tau_metric: baffle_cfd::assembly::TauMetric::Invariant, exact_convection: false, vms_advection: false, stress_viscosity: false, gauss_stabilization: false, vms_reynolds_stress: false };
+    let physics = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0, formulation: baffle_cfd::assembly::Formulation { tau_metric: baffle_cfd::assembly::TauMetric::Invariant, exact_convection: false, vms_advection: false, stress_viscosity: false, gauss_stabilization: false, vms_reynolds_stress: false } };
     let velocity: Vec<f64> = (0..n).map(|i| if i % B == 3 { 0.0 } else { 100.0 * (i as f64 * 0.01).sin() }).collect();
     let (mut asm_vals, mut asm_rhs) = (vec![0.0; pattern.cols.len() * BB], vec![0.0; n]);
     println!("p2 pattern: {} block rows, {} blocks, {} threads, {reps} repetitions", pattern.n_rows(), pattern.cols.len(), rayon::current_num_threads());

@@ -19,7 +19,7 @@
 //! in the p3 ramp and 8 % lower at p1's peak (docs/validation.md, issue 28). The solver's
 //! default adds the rest of svMultiPhysics' VMS: the stabilization at the four Gauss points
 //! ([`GaussState`]), the Galerkin convection integrated exactly, advection by a + u', and
-//! the Reynolds-stress term tau_B (u'.grad w)(u'.grad u) ([`Physics::vms_reynolds_stress`]);
+//! the Reynolds-stress term tau_B (u'.grad w)(u'.grad u) ([`Formulation::vms_reynolds_stress`]);
 //! without that term our dp at p3's first peak was 7.3 % below svMultiPhysics' on the same
 //! mesh, with all four +0.1 %. The mass matrix is consistent.
 //! The viscous term is the Laplacian form, whose natural condition at outlets is
@@ -61,7 +61,16 @@ pub struct Physics {
     /// 1/dt inside tau: 0 for steady or pseudo-time runs, so that the converged
     /// pseudo-transient solution is the steady discrete solution.
     pub inv_dt_tau_per_s: f64,
-    /// The element length inside tau (see [`TauMetric`]).
+    /// How the element terms are formed ([`Formulation`]).
+    pub formulation: Formulation,
+}
+
+/// How the element terms are formed: tau's element length and which of svMultiPhysics'
+/// ingredients the assembly uses. One struct for the solver's settings and each
+/// assembly's [`Physics`], so that a run's choice reaches the elements unchanged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Formulation {
+    /// The element length inside tau and its inverse-estimate constant (see [`TauMetric`]).
     pub tau_metric: TauMetric,
     /// Galerkin convection (rho a.grad u, w) integrated exactly for the P1 advecting
     /// velocity (true), or with a at the centroid (false).
@@ -119,7 +128,7 @@ fn mean3(v: &[[f64; 3]; 4]) -> [f64; 3] {
 /// element of metric `g` ([`metric`], made once per element: the centroid, the four Gauss
 /// points and the Reynolds-stress term share it).
 pub fn stabilization(g: &[[f64; 3]; 3], a: [f64; 3], phys: &Physics) -> (f64, f64) {
-    let c_inverse = phys.tau_metric.constants().1;
+    let c_inverse = phys.formulation.tau_metric.constants().1;
     let gg: f64 = g.iter().flatten().map(|x| x * x).sum();
     let nu = phys.viscosity_g_cm_s / phys.density_g_cm3;
     let transient = 2.0 * phys.inv_dt_tau_per_s;
@@ -141,7 +150,7 @@ fn quadratic_form(g: &[[f64; 3]; 3], v: [f64; 3]) -> f64 {
 
 /// The element metric G = scale sum_a grad N_a (x) grad N_a of phys' [`TauMetric`].
 pub fn metric(geo: &ElementGeometry, phys: &Physics) -> [[f64; 3]; 3] {
-    let scale = phys.tau_metric.constants().0;
+    let scale = phys.formulation.tau_metric.constants().0;
     let mut g = [[0.0; 3]; 3];
     for grad in &geo.grads_per_cm {
         for i in 0..3 {
@@ -177,13 +186,13 @@ fn element_state_in(geo: &ElementGeometry, g: &[[f64; 3]; 3], a: &[[f64; 3]; 4],
     let a_bar = mean3(a);
     let u_old_bar = mean3(u_old);
     let (tau, nu_c) = stabilization(g, a_bar, phys);
-    let fine = (phys.vms_advection || phys.vms_reynolds_stress).then(|| fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys));
+    let fine = (phys.formulation.vms_advection || phys.formulation.vms_reynolds_stress).then(|| fine_scale_velocity(geo, a, a_bar, u_old_bar, p, tau, phys));
     let advecting = match fine {
-        Some(u_fine) if phys.vms_advection => add3(a_bar, u_fine),
+        Some(u_fine) if phys.formulation.vms_advection => add3(a_bar, u_fine),
         _ => a_bar,
     };
     let (tau_b, fine_s) = match fine {
-        Some(u_fine) if phys.vms_reynolds_stress => reynolds_stress(geo, g, u_fine, phys),
+        Some(u_fine) if phys.formulation.vms_reynolds_stress => reynolds_stress(geo, g, u_fine, phys),
         _ => (0.0, [0.0; 4]),
     };
     ElementState { u_old_bar, tau, nu_c, s: geo.grads_per_cm.map(|ga| crate::flow_mesh::dot(advecting, ga)), tau_b, fine_s }
@@ -352,7 +361,7 @@ fn fine_scale_velocity(geo: &ElementGeometry, a: &[[f64; 3]; 4], a_bar: [f64; 3]
 /// is V/20 (4 a_bar + a_ai) . grad N_b (the mass matrix's weights again), the one-point
 /// rule's V/4 a_bar . grad N_b drops the second part, an O(h grad a / |a|) relative
 /// error that is not small in the shear layers of a jet a few elements wide.
-/// `gauss`: the stabilization at Gauss points ([`Physics::gauss_stabilization`]), else
+/// `gauss`: the stabilization at Gauss points ([`Formulation::gauss_stabilization`]), else
 /// at the centroid from `st`.
 pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&GaussState>, u_old_ai: &[f64; 3], a_ai: &[f64; 3], phys: &Physics, ai: usize) -> ([[f64; BB]; 4], [f64; B]) {
     let mut k = [[0.0; BB]; 4];
@@ -389,11 +398,11 @@ fn element_row_into(
     for bi in 0..4 {
         let t = terms(bi);
         let mass = if ai == bi { v / 10.0 } else { v / 20.0 };
-        let convection = if phys.exact_convection { 0.2 * s[bi] + 0.05 * crate::flow_mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
+        let convection = if phys.formulation.exact_convection { 0.2 * s[bi] + 0.05 * crate::flow_mesh::dot(*a_ai, g[bi]) } else { 0.25 * s[bi] };
         let reynolds = st.tau_b * v * st.fine_s[ai] * st.fine_s[bi];
         let diag = rho * idt * mass + rho * v * convection + mu * v * crate::flow_mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
         let mut blk = [0.0; BB];
-        let transposed = if phys.stress_viscosity { mu * v } else { 0.0 };
+        let transposed = if phys.formulation.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
             blk[i * B + i] += diag;
             for j in 0..3 {
@@ -418,7 +427,7 @@ fn element_row_into(
 /// Element system for advecting velocity `a` and previous-step velocity `u_old` at the nodes.
 pub fn element_system(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> ElementSystem {
     let st = element_state(geo, a, u_old, &[0.0; 4], phys);
-    let gs = phys.gauss_stabilization.then(|| gauss_state(geo, a, u_old, phys));
+    let gs = phys.formulation.gauss_stabilization.then(|| gauss_state(geo, a, u_old, phys));
     let rows = [0, 1, 2, 3].map(|ai| element_row(geo, &st, gs.as_ref(), &u_old[ai], &a[ai], phys, ai));
     ElementSystem { k: rows.map(|r| r.0), f: rows.map(|r| r.1) }
 }
@@ -542,7 +551,7 @@ impl Assembler {
                     }
                 }
                 for bi in 0..4 {
-                    let weight = match (phys.exact_convection, ai == bi) {
+                    let weight = match (phys.formulation.exact_convection, ai == bi) {
                         (true, true) => 0.1,
                         (true, false) => 0.05,
                         (false, _) => 1.0 / 16.0,
@@ -573,7 +582,7 @@ impl Assembler {
             }
         };
         let elements = tets.par_iter().zip(geometry);
-        if phys.gauss_stabilization {
+        if phys.formulation.gauss_stabilization {
             self.gauss_states.resize(tets.len(), GaussState::default());
             let states = self.states.par_iter_mut().zip(self.gauss_states.par_iter_mut());
             states.zip(elements).with_min_len(1024).for_each(|((st, gs), (t, geo))| fill(st, Some(gs), t, geo));
@@ -594,7 +603,7 @@ impl Assembler {
             let a_i = [0, 1, 2].map(|c| a[i * B + c]);
             for &(e, ai) in this.elements_of(i) {
                 let (e, ai) = (e as usize, ai as usize);
-                let gauss = phys.gauss_stabilization.then(|| &this.gauss_states[e]);
+                let gauss = phys.formulation.gauss_stabilization.then(|| &this.gauss_states[e]);
                 let f = element_row_into(&this.geometry[e], &this.states[e], gauss, &u_old_i, &a_i, phys, ai, |bi, blk| this.add_block(row_vals, first, e, ai, bi, blk));
                 rhs_i.iter_mut().zip(f).for_each(|(d, s)| *d += s);
             }
@@ -612,12 +621,14 @@ mod tests {
         viscosity_g_cm_s: 1.0,
         inv_dt_per_s: 0.0,
         inv_dt_tau_per_s: 0.0,
-        tau_metric: TauMetric::SvMultiPhysics,
-        exact_convection: false,
-        vms_advection: false,
-        stress_viscosity: false,
-        gauss_stabilization: false,
-        vms_reynolds_stress: false,
+        formulation: Formulation {
+            tau_metric: TauMetric::SvMultiPhysics,
+            exact_convection: false,
+            vms_advection: false,
+            stress_viscosity: false,
+            gauss_stabilization: false,
+            vms_reynolds_stress: false,
+        },
     };
 
     #[test]
@@ -625,7 +636,7 @@ mod tests {
         let p = [[0.0, 0.0, 0.0], [0.12, 0.01, 0.0], [0.02, 0.09, 0.01], [0.01, 0.03, 0.11]];
         let geo = element_geometry(&p, &[0, 1, 2, 3]);
         let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1000.0, inv_dt_tau_per_s: 1000.0, ..TEST_PHYSICS };
-        let systems = |a: &[[f64; 3]; 4], gauss_stabilization: bool| element_system(&geo, a, &a.map(|x| x.map(|c| 0.9 * c)), &Physics { gauss_stabilization, ..phys });
+        let systems = |a: &[[f64; 3]; 4], gauss_stabilization: bool| element_system(&geo, a, &a.map(|x| x.map(|c| 0.9 * c)), &Physics { formulation: Formulation { gauss_stabilization, ..phys.formulation }, ..phys });
         let largest_difference = |a: &[[f64; 3]; 4]| {
             let (c, g) = (systems(a, false), systems(a, true));
             let scale = c.k.iter().flatten().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -650,7 +661,7 @@ mod tests {
         let omega = [0.3, -0.7, 1.1];
         let u: [[f64; 3]; 4] = p.map(|x| crate::flow_mesh::cross(omega, x));
         let force = |stress_viscosity: bool| {
-            let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, stress_viscosity, ..TEST_PHYSICS };
+            let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, formulation: Formulation { stress_viscosity, ..TEST_PHYSICS.formulation }, ..TEST_PHYSICS };
             let es = element_system(&geo, &[[0.0; 3]; 4], &[[0.0; 3]; 4], &phys);
             let mut largest = 0.0f64;
             for a in 0..4 {
@@ -677,7 +688,7 @@ mod tests {
         let pressure = p.map(|x| crate::flow_mesh::dot(grad_p, x));
         let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 0.04, inv_dt_per_s: 1e3, inv_dt_tau_per_s: 1e3, ..TEST_PHYSICS };
         let plain = element_state(&geo, &a, &a, &pressure, &phys);
-        let vms = element_state(&geo, &a, &a, &pressure, &Physics { vms_advection: true, ..phys });
+        let vms = element_state(&geo, &a, &a, &pressure, &Physics { formulation: Formulation { vms_advection: true, ..phys.formulation }, ..phys });
         assert_eq!(plain.tau, vms.tau);
         let fine = grad_p.map(|g| -plain.tau * g / phys.density_g_cm3);
         for b in 0..4 {
@@ -686,7 +697,7 @@ mod tests {
             assert!((plain.s[b] - crate::flow_mesh::dot(a[0], geo.grads_per_cm[b])).abs() < 1e-12);
         }
         // Without a pressure gradient the uniform flow has no residual: nothing is added.
-        let still = element_state(&geo, &a, &a, &[5.0; 4], &Physics { vms_advection: true, ..phys });
+        let still = element_state(&geo, &a, &a, &[5.0; 4], &Physics { formulation: Formulation { vms_advection: true, ..phys.formulation }, ..phys });
         for b in 0..4 {
             assert!((still.s[b] - plain.s[b]).abs() < 1e-9 * plain.s[b].abs().max(1.0), "node {b}: {} vs {}", still.s[b], plain.s[b]);
         }
@@ -798,7 +809,7 @@ mod tests {
         let pattern = BlockPattern::from_tets(5, &tets);
         let mut asm = Assembler::new(&p, tets, &pattern, vec![0..5]);
         for exact_convection in [false, true] {
-            let phys = Physics { density_g_cm3: 1.0, viscosity_g_cm_s: 1e6, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0, exact_convection, ..TEST_PHYSICS };
+            let phys = Physics { density_g_cm3: 1.0, viscosity_g_cm_s: 1e6, inv_dt_per_s: 0.0, inv_dt_tau_per_s: 0.0, formulation: Formulation { exact_convection, ..TEST_PHYSICS.formulation }, ..TEST_PHYSICS };
             jacobian_matches_the_convection_difference(&mut asm, &pattern, &phys);
         }
     }
@@ -811,7 +822,7 @@ mod tests {
         let p = [[0.0, 0.0, 0.0], [1.2, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.3, 1.1]];
         let geo = element_geometry(&p, &[0, 1, 2, 3]);
         let a = [[1.0, -2.0, 0.5], [0.3, 0.7, -1.1], [2.2, 0.0, 0.4], [-0.6, 1.5, 0.9]];
-        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 1e8, exact_convection: true, ..TEST_PHYSICS };
+        let phys = Physics { density_g_cm3: 1.06, viscosity_g_cm_s: 1e8, formulation: Formulation { exact_convection: true, ..TEST_PHYSICS.formulation }, ..TEST_PHYSICS };
         let (with_a, without) = (element_system(&geo, &a, &[[0.0; 3]; 4], &phys), element_system(&geo, &[[0.0; 3]; 4], &[[0.0; 3]; 4], &phys));
         let (alpha, beta) = (0.585_410_196_624_968_5, 0.138_196_601_125_010_5);
         for ai in 0..4 {
@@ -848,7 +859,7 @@ mod tests {
         let scale = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         assert!(scale > 1e-3);
         for k in (0..5 * B).filter(|k| k % B != 3) {
-            assert!((got[k] - expected[k]).abs() < 1e-6 * scale, "exact {}: dof {k}: {} vs {}", phys.exact_convection, got[k], expected[k]);
+            assert!((got[k] - expected[k]).abs() < 1e-6 * scale, "exact {}: dof {k}: {} vs {}", phys.formulation.exact_convection, got[k], expected[k]);
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Case settings with the paper's defaults (Martinez et al., svMultiPhysics setup).
 
-use crate::assembly::TauMetric;
+use crate::assembly::{Formulation, TauMetric};
 use crate::time_integration::TimeIntegration;
 use crate::waveform::Waveform;
 use crate::CfdError;
@@ -85,19 +85,9 @@ pub struct CaseSettings {
     /// mesh (Womersley test: it then dominates generalized-alpha's temporal error);
     /// false keeps only the flow and mesh scales, so the time error is the scheme's own.
     pub tau_includes_dt: bool,
-    /// tau's element metric and inverse-estimate constant ([`TauMetric`]).
-    pub tau_metric: TauMetric,
-    /// Galerkin convection integrated exactly for the P1 advecting velocity (see
-    /// [`crate::assembly::element_row`]) instead of with the centroid velocity.
-    pub exact_convection: bool,
-    /// VMS advection by a + u' ([`crate::assembly::Physics::vms_advection`]).
-    pub vms_advection: bool,
-    /// Viscous term in stress form instead of the Laplacian form.
-    pub stress_viscosity: bool,
-    /// Stabilization at the tetrahedron's Gauss points ([`crate::assembly::Physics::gauss_stabilization`]).
-    pub gauss_stabilization: bool,
-    /// svMultiPhysics' VMS Reynolds-stress term ([`crate::assembly::Physics::vms_reynolds_stress`]).
-    pub vms_reynolds_stress: bool,
+    /// How the element terms are formed: tau's metric and svMultiPhysics' VMS ingredients
+    /// ([`Formulation`]).
+    pub formulation: Formulation,
     /// Picard iterations per transient step (None: the scheme's default, see
     /// [`CaseSettings::nonlinear`]) and their relative target (residual or update).
     pub nonlinear_iterations: Option<NonlinearIterations>,
@@ -144,17 +134,19 @@ impl CaseSettings {
             mode: RunMode::Transient,
             time_integration: TimeIntegration::BackwardEuler,
             tau_includes_dt: true,
-            tau_metric: TauMetric::SvMultiPhysics,
             // svMultiPhysics' VMS in full (issue 28): with tau's metric alone our dp was
             // 7.3 % below svMultiPhysics' at p3's first peak on the same mesh; the
             // Reynolds-stress term closes most of it (-2.2 %), Gauss-point stabilization and
             // exact convection the rest (+0.0 %), VMS advection keeps the jet's kinetic
             // energy at the aortic plane (v_max -0.6 %); docs/validation.md.
-            exact_convection: true,
-            vms_advection: true,
-            stress_viscosity: false,
-            gauss_stabilization: true,
-            vms_reynolds_stress: true,
+            formulation: Formulation {
+                tau_metric: TauMetric::SvMultiPhysics,
+                exact_convection: true,
+                vms_advection: true,
+                stress_viscosity: false,
+                gauss_stabilization: true,
+                vms_reynolds_stress: true,
+            },
             nonlinear_iterations: None,
             nonlinear_tolerance: 1e-3,
             // GMRES(30): on tubes of 9.7k-622k tets 4-10 % fewer iterations and 10-17 % less

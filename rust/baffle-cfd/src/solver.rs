@@ -691,12 +691,7 @@ impl<'a> Solver<'a> {
             viscosity_g_cm_s: self.settings.viscosity_g_cm_s,
             inv_dt_per_s: 1.0 / dt_s,
             inv_dt_tau_per_s: if steady || !self.settings.tau_includes_dt { 0.0 } else { 1.0 / dt_s },
-            tau_metric: self.settings.tau_metric,
-            exact_convection: self.settings.exact_convection,
-            vms_advection: self.settings.vms_advection,
-            stress_viscosity: self.settings.stress_viscosity,
-            gauss_stabilization: self.settings.gauss_stabilization,
-            vms_reynolds_stress: self.settings.vms_reynolds_stress,
+            formulation: self.settings.formulation,
         }
     }
 

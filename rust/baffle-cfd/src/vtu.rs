@@ -2,91 +2,16 @@
 //! labelled surface (`.vtp`, `ModelFaceID` per triangle, `GlobalNodeID` per point =
 //! the volume's `GlobalNodeID`, 1-based).
 //!
-//! The `.vtu` is read with vtkio (the patient `.vtu` files hold no empty zlib arrays,
-//! which is what makes vtkio 0.7.0-rc2 panic on the `.vtp` files); the `.vtp` with
-//! baffle-core's own reader.
+//! Both are read with baffle-core's readers (`read_vtu`, `read_polydata`).
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-use vtkio::model::{Attribute, CellType, DataSet, VertexNumbers};
-
 use crate::flow_mesh::{Face, FlowMesh};
 use crate::CfdError;
 
-/// Tetrahedral volume as stored: points (file units), tets, and the point array
-/// `GlobalNodeID` when present.
-#[derive(Clone, Debug, PartialEq)]
-pub struct VolumeMesh {
-    pub points: Vec<[f64; 3]>,
-    pub tets: Vec<[u32; 4]>,
-    pub global_node_ids: Option<Vec<i64>>,
-}
-
 fn io_err(path: &Path, message: impl Into<String>) -> CfdError {
     CfdError::Io { path: path.display().to_string(), message: message.into() }
-}
-
-/// Read a VTK XML UnstructuredGrid made only of linear tetrahedra (VTK type 10).
-pub fn read_vtu(path: &Path) -> Result<VolumeMesh, CfdError> {
-    if !path.is_file() {
-        return Err(io_err(path, "file not found"));
-    }
-    // vtkio panics on some malformed inputs; a panic is turned into an error here.
-    let imported = std::panic::catch_unwind(|| vtkio::Vtk::import(path))
-        .map_err(|_| io_err(path, "VTK reader panicked (malformed or unsupported file)"))?
-        .map_err(|e| io_err(path, format!("cannot read VTK file: {e}")))?;
-    let pieces = match imported.data {
-        DataSet::UnstructuredGrid { pieces, .. } => pieces,
-        _ => return Err(io_err(path, "not an UnstructuredGrid")),
-    };
-    if pieces.len() != 1 {
-        return Err(io_err(path, format!("expected one piece, found {}", pieces.len())));
-    }
-    let piece = pieces.into_iter().next().expect("one piece checked above");
-    let piece = piece.into_loaded_piece_data(path.parent()).map_err(|e| io_err(path, format!("cannot load piece: {e}")))?;
-    let coords: Vec<f64> = piece.points.cast_into().ok_or_else(|| io_err(path, "points are not numeric"))?;
-    if coords.len() % 3 != 0 {
-        return Err(io_err(path, format!("{} point coordinates is not a multiple of 3", coords.len())));
-    }
-    let points: Vec<[f64; 3]> = coords.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    let tets = tets_of(path, piece.cells.cell_verts, &piece.cells.types, points.len())?;
-    let global_node_ids = piece.data.point.iter().find_map(|a| match a {
-        Attribute::DataArray(d) if d.name == "GlobalNodeID" => d.data.cast_into::<i64>(),
-        _ => None,
-    });
-    if let Some(ids) = &global_node_ids {
-        if ids.len() != points.len() {
-            return Err(io_err(path, format!("GlobalNodeID has {} values for {} points", ids.len(), points.len())));
-        }
-    }
-    Ok(VolumeMesh { points, tets, global_node_ids })
-}
-
-fn tets_of(path: &Path, verts: VertexNumbers, types: &[CellType], n_points: usize) -> Result<Vec<[u32; 4]>, CfdError> {
-    let (connectivity, offsets) = verts.into_xml();
-    let offsets: Vec<u64> = if offsets.first() == Some(&0) { offsets[1..].to_vec() } else { offsets };
-    if offsets.len() != types.len() {
-        return Err(io_err(path, format!("{} cell offsets for {} cell types", offsets.len(), types.len())));
-    }
-    let mut tets = Vec::with_capacity(types.len());
-    let mut start = 0usize;
-    for (c, (&end, ty)) in offsets.iter().zip(types).enumerate() {
-        let end = end as usize;
-        if *ty != CellType::Tetra || end != start + 4 || end > connectivity.len() {
-            return Err(io_err(path, format!("cell {c} is {ty:?} with {} nodes; only linear tetrahedra are supported", end.saturating_sub(start))));
-        }
-        let mut t = [0u32; 4];
-        for (k, &node) in connectivity[start..end].iter().enumerate() {
-            if node as usize >= n_points {
-                return Err(io_err(path, format!("cell {c} references point {node} of {n_points}")));
-            }
-            t[k] = node as u32;
-        }
-        tets.push(t);
-        start = end;
-    }
-    Ok(tets)
 }
 
 /// Conventional names of the published meshes' face ids (README of the data set).
@@ -104,9 +29,9 @@ fn face_name(id: i32) -> String {
 /// triangles become faces grouped by `ModelFaceID`, mapped to volume nodes through
 /// `GlobalNodeID`. The result is validated.
 pub fn read_simvascular_mesh(vtu_path: &Path, vtp_path: &Path) -> Result<FlowMesh, CfdError> {
-    let volume = read_vtu(vtu_path)?;
-    let volume_ids = volume.global_node_ids.as_ref().ok_or_else(|| io_err(vtu_path, "no point array GlobalNodeID"))?;
-    let index_of_global: HashMap<i64, u32> = volume_ids.iter().enumerate().map(|(i, &g)| (g, i as u32)).collect();
+    let volume = baffle_core::io::read_vtu(vtu_path).map_err(|e| io_err(vtu_path, e.kind.to_string()))?;
+    let volume_ids = volume.point_i32("GlobalNodeID").ok_or_else(|| io_err(vtu_path, "no Int32 point array GlobalNodeID"))?;
+    let index_of_global: HashMap<i64, u32> = volume_ids.iter().enumerate().map(|(i, &g)| (g as i64, i as u32)).collect();
     let surface = baffle_core::io::read_polydata(vtp_path).map_err(|e| io_err(vtp_path, e.to_string()))?;
     let surface_ids = surface
         .point_array("GlobalNodeID")
@@ -132,7 +57,8 @@ pub fn read_simvascular_mesh(vtu_path: &Path, vtp_path: &Path) -> Result<FlowMes
         grouped.entry(id).or_default().push(tri);
     }
     let faces = grouped.into_iter().map(|(id, triangles)| Face { id, name: face_name(id), triangles }).collect();
-    let mut mesh = FlowMesh { points_cm: volume.points, tets: volume.tets, faces };
+    let points_cm = volume.points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let mut mesh = FlowMesh { points_cm, tets: volume.tets, faces };
     mesh.validate()?;
     Ok(mesh)
 }
@@ -212,6 +138,7 @@ pub fn write_solution_vtu(path: &Path, points_cm: &[[f64; 3]], tets: &[[u32; 4]]
 mod tests {
     use super::*;
     use crate::test_data::data_dir;
+    use vtkio::model::{Attribute, DataSet};
 
     #[test]
     fn solution_vtu_round_trips_through_vtkio() {
@@ -226,7 +153,7 @@ mod tests {
         // Only the final file is left behind.
         let names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
         assert_eq!(names, vec!["solution.vtu".to_string()]);
-        let back = read_vtu(&path).unwrap();
+        let back = baffle_core::io::read_vtu(&path).unwrap();
         assert_eq!(back.tets, mesh.tets);
         // Written in mm, as every surface of the project.
         for (mm, cm) in back.points.iter().zip(&mesh.points_cm) {
@@ -277,13 +204,13 @@ mod tests {
 
     #[test]
     fn missing_files_are_named() {
-        let msg = read_vtu(Path::new("/nonexistent/mesh.vtu")).unwrap_err().to_string();
+        let msg = read_simvascular_mesh(Path::new("/nonexistent/mesh.vtu"), Path::new("/nonexistent/mesh.vtp")).unwrap_err().to_string();
         assert!(msg.contains("/nonexistent/mesh.vtu") && msg.contains("not found"), "{msg}");
         let dir = std::env::temp_dir().join(format!("baffle-cfd-vtu-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let garbage = dir.join("garbage.vtu");
         std::fs::write(&garbage, "<VTKFile type=\"PolyData\"></VTKFile>").unwrap();
-        let msg = read_vtu(&garbage).unwrap_err().to_string();
+        let msg = read_simvascular_mesh(&garbage, &dir.join("garbage.vtp")).unwrap_err().to_string();
         assert!(msg.contains("garbage.vtu"), "{msg}");
     }
 }

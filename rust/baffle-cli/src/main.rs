@@ -107,7 +107,7 @@ fn run(command: Command) -> Result<(), PlanError> {
         Command::Simulate(args) => simulate_cmd::run_simulate(&args.into(), p),
         Command::Centerline(args) => centerline_cmd::run_centerline(&args.into(), p),
         Command::ExportSvmp(args) => export_cmd::run_export(&args.into(), p),
-        Command::Plan(args) => plan_cmd::run_plan(&args.into(), p),
+        Command::Plan(args) => plan_cmd::run_plan(&args.into(), p).map(|_| ()),
         Command::Template(args) => template_cmd::run_template(&args.into(), p),
         Command::Sweep(args) => sweep_cmd::run_sweep(&args.into(), p),
         Command::Phantom { out, heart: false, suture_half_angle_deg } => design_cmd::write_phantom(&out, suture_half_angle_deg, p),

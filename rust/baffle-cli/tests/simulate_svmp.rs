@@ -182,7 +182,7 @@ fn recorded_outputs_become_the_embedded_engines_summary_and_time_series() {
         assert!(s.get(key).is_some(), "{key} missing: {s}");
     }
     assert_eq!(s["inputs"]["dt_s"], 0.01);
-    let peak_vtu = baffle_cfd::vtu::read_vtu(&out_dir.join("peak.vtu")).unwrap();
+    let peak_vtu = baffle_core::io::read_vtu(&out_dir.join("peak.vtu")).unwrap();
     assert_eq!(peak_vtu.tets.len(), box_mesh().tets.len());
 }
 

@@ -171,7 +171,7 @@ fn measure_pdf(pdf: &Path, name: &str) {
 /// The scale bar and the check square measured on a page image at `dpi`: both 10 mm
 /// within `tol_px`.
 fn measure_page(img: &(usize, usize, Vec<u8>), dpi: f64, name: &str, tol_px: f64) {
-    use baffle_core::template::drawing::{CHECK_SQUARE_MM, CHECK_SQUARE_SIDE_MM, PAGE_HEIGHT_MM, PAGE_WIDTH_MM, SCALE_BAR_LENGTH_MM, SCALE_BAR_MM};
+    use baffle_template::drawing::{CHECK_SQUARE_MM, CHECK_SQUARE_SIDE_MM, PAGE_HEIGHT_MM, PAGE_WIDTH_MM, SCALE_BAR_LENGTH_MM, SCALE_BAR_MM};
     let k = dpi / 25.4;
     let px = |mm: f64| (mm * k).round() as usize;
     assert!(img.0.abs_diff(px(PAGE_WIDTH_MM)) <= 1 && img.1.abs_diff(px(PAGE_HEIGHT_MM)) <= 1, "{name}: page {} x {} px at {dpi} dpi", img.0, img.1);

@@ -39,7 +39,6 @@ pub mod flow_centerline;
 pub mod flow_target;
 pub mod hemodynamics_estimate;
 pub mod reference_data;
-pub mod template;
 pub mod rv_cost;
 pub mod rv_outflow;
 

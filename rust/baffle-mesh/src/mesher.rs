@@ -37,6 +37,9 @@ pub const VOLUME_MISMATCH_TOLERANCE: f64 = 1e-8;
 pub struct MeshOptions {
     /// Largest tet edge length gmsh aims for (mm): the paper's 1.25 / 0.95 / 0.75.
     pub edge_length_mm: f64,
+    /// Largest tet edge where the boundary's own triangles are longer (a graded
+    /// extension: gmsh sizes the inside from the boundary's edges); `None`: `edge_length_mm`.
+    pub largest_edge_mm: Option<f64>,
     /// gmsh to run; `None`: `$BAFFLE_GMSH`, then `gmsh` on PATH, then the Python wheel.
     pub gmsh_executable: Option<PathBuf>,
     /// Labelled triangle surfaces inside the domain (measurement planes) that must stay
@@ -61,6 +64,7 @@ impl Default for MeshOptions {
     fn default() -> Self {
         MeshOptions {
             edge_length_mm: 0.95,
+            largest_edge_mm: None,
             gmsh_executable: None,
             interior_surfaces: Vec::new(),
             keep_temp: false,
@@ -188,6 +192,12 @@ fn check_options(opts: &MeshOptions) -> Result<(), MeshError> {
     if !(opts.edge_length_mm.is_finite() && opts.edge_length_mm > 0.0) {
         return Err(MeshError::InvalidInput(format!(
             "edge length must be a positive number of mm, got {}",
+            opts.edge_length_mm
+        )));
+    }
+    if let Some(largest) = opts.largest_edge_mm.filter(|l| !(l.is_finite() && *l >= opts.edge_length_mm)) {
+        return Err(MeshError::InvalidInput(format!(
+            "the largest edge must be a length of at least the edge length {} mm, got {largest}",
             opts.edge_length_mm
         )));
     }
@@ -453,7 +463,7 @@ impl MeshInput {
         }
         lines.push("Physical Volume(1) = {1};".into());
         lines.extend([
-            format!("Mesh.MeshSizeMax = {:e};", opts.edge_length_mm),
+            format!("Mesh.MeshSizeMax = {:e};", opts.largest_edge_mm.unwrap_or(opts.edge_length_mm)),
             "Mesh.Algorithm3D = 1;".into(),
             "Mesh.Optimize = 1;".into(),
             format!("Mesh.OptimizeNetgen = {};", u8::from(opts.optimize_netgen)),
@@ -736,6 +746,12 @@ mod tests {
         let opts = MeshOptions { remesh_surface: true, interior_surfaces: vec![plane], ..Default::default() };
         let err = mesh_surface(&closed, &opts).unwrap_err().to_string();
         assert!(err.contains("baffle extend --remesh-domain-edge-mm"), "{err}");
+        // A largest edge below the edge length (or not a length) is refused.
+        for largest in [0.5, f64::NAN] {
+            let opts = MeshOptions { largest_edge_mm: Some(largest), ..Default::default() };
+            let err = mesh_surface(&closed, &opts).unwrap_err().to_string();
+            assert!(err.contains("largest edge must be a length of at least the edge length 0.95 mm"), "{err}");
+        }
     }
 
     #[test]
@@ -816,12 +832,14 @@ mod tests {
             vec![[0, 1, 2]],
             vec![20],
         );
-        let geo = MeshInput::new(&closed, &[plane])
-            .unwrap()
-            .geo_script(&MeshOptions::default());
+        let input = MeshInput::new(&closed, &[plane]).unwrap();
+        let geo = input.geo_script(&MeshOptions::default());
         assert!(geo.contains("Surface Loop(1) = {2, 11, 16};"), "{geo}");
         assert!(geo.contains("Surface{20} In Volume{1};"), "{geo}");
         assert!(geo.contains("Mesh.MeshSizeMax = 9.5e-1;"), "{geo}");
+        // A graded boundary: gmsh may grow the inside to the largest edge.
+        let graded = input.geo_script(&MeshOptions { largest_edge_mm: Some(2.375), ..MeshOptions::default() });
+        assert!(graded.contains("Mesh.MeshSizeMax = 2.375e0;"), "{graded}");
     }
 
     /// A stand-in for gmsh: answers `--version`, then runs `body` (sh).

@@ -8,7 +8,7 @@ use baffle_core::Vec3;
 use std::collections::BTreeMap;
 use std::path::Path;
 use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, Piece,
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer,
     UnstructuredGridPiece, Version, VertexNumbers, Vtk,
 };
 
@@ -142,152 +142,19 @@ pub fn write_faces_vtp(path: &Path, mesh: &TetMesh) -> Result<(), MeshError> {
     Ok(write_vtp(path, &data)?)
 }
 
-/// Read a `.vtu` of linear tets with vtkio (coordinates as stored). Any other cell type is
-/// an error naming the cell; a vtkio panic is turned into an error.
+/// Read a `.vtu` of linear tets (`baffle_core::io::read_vtu`, coordinates as stored). Any
+/// other cell type is an error naming the cell; a vtkio panic is turned into an error.
 pub fn read_vtu(path: &Path) -> Result<VtuData, MeshError> {
-    let vtk = import_vtk(path)?;
-    let piece = unstructured_piece(path, vtk)?;
-    let points_mm = points_of(path, &piece.points)?;
-    let tets = tets_of(path, piece.cells, points_mm.len())?;
-    let point_data = piece.data.point.iter().filter_map(from_attribute).collect();
-    let cell_data = piece.data.cell.iter().filter_map(from_attribute).collect();
+    let grid = baffle_core::io::read_vtu(path)?;
     Ok(VtuData {
         mesh: TetMesh {
-            points_mm,
-            tets,
+            points_mm: grid.points,
+            tets: grid.tets,
             faces: Vec::new(),
         },
-        point_data,
-        cell_data,
+        point_data: grid.point_data,
+        cell_data: grid.cell_data,
     })
-}
-
-fn import_vtk(path: &Path) -> Result<Vtk, MeshError> {
-    if !path.is_file() {
-        return Err(MeshError::file(path, "file not found"));
-    }
-    let owned = path.to_path_buf();
-    match std::panic::catch_unwind(move || Vtk::import(&owned)) {
-        Ok(Ok(vtk)) => Ok(vtk),
-        Ok(Err(e)) => Err(MeshError::file(
-            path,
-            format!("vtkio could not read it: {e}"),
-        )),
-        Err(panic) => {
-            let msg = panic
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()));
-            Err(MeshError::file(
-                path,
-                format!("vtkio panicked reading it: {}", msg.unwrap_or_default()),
-            ))
-        }
-    }
-}
-
-fn unstructured_piece(path: &Path, mut vtk: Vtk) -> Result<UnstructuredGridPiece, MeshError> {
-    vtk.load_all_pieces()
-        .map_err(|e| MeshError::file(path, format!("vtkio could not load its pieces: {e}")))?;
-    let DataSet::UnstructuredGrid { mut pieces, .. } = vtk.data else {
-        return Err(MeshError::file(path, "not an UnstructuredGrid"));
-    };
-    if pieces.len() != 1 {
-        return Err(MeshError::file(
-            path,
-            format!("has {} pieces; one is supported", pieces.len()),
-        ));
-    }
-    match pieces.remove(0) {
-        Piece::Inline(p) => Ok(*p),
-        _ => Err(MeshError::file(path, "piece data is not inline")),
-    }
-}
-
-fn points_of(path: &Path, buffer: &IOBuffer) -> Result<Vec<Vec3>, MeshError> {
-    let coords: Vec<f64> = buffer
-        .cast_into()
-        .ok_or_else(|| MeshError::file(path, "points are not numeric"))?;
-    if !coords.len().is_multiple_of(3) {
-        return Err(MeshError::file(
-            path,
-            format!("{} point coordinates is not a multiple of 3", coords.len()),
-        ));
-    }
-    if let Some(k) = coords.iter().position(|c| !c.is_finite()) {
-        return Err(MeshError::file(
-            path,
-            format!("point {} has a non-finite coordinate", k / 3),
-        ));
-    }
-    Ok(coords
-        .chunks_exact(3)
-        .map(|c| Vec3::new(c[0], c[1], c[2]))
-        .collect())
-}
-
-fn tets_of(path: &Path, cells: Cells, num_points: usize) -> Result<Vec<[u32; 4]>, MeshError> {
-    if let Some(c) = cells.types.iter().position(|t| *t != CellType::Tetra) {
-        return Err(MeshError::file(
-            path,
-            format!(
-                "cell {c} is a {:?}; only linear tets are supported",
-                cells.types[c]
-            ),
-        ));
-    }
-    let (connectivity, offsets) = cells.cell_verts.into_xml();
-    if offsets.len() != cells.types.len() || connectivity.len() != 4 * offsets.len() {
-        return Err(MeshError::file(
-            path,
-            "cell connectivity does not hold 4 points per cell",
-        ));
-    }
-    let mut tets = Vec::with_capacity(offsets.len());
-    for (c, chunk) in connectivity.chunks_exact(4).enumerate() {
-        if offsets[c] != 4 * (c as u64 + 1) {
-            return Err(MeshError::file(
-                path,
-                format!(
-                    "cell {c} has offset {}, expected {}",
-                    offsets[c],
-                    4 * (c + 1)
-                ),
-            ));
-        }
-        if let Some(&i) = chunk.iter().find(|&&i| i as usize >= num_points) {
-            return Err(MeshError::file(
-                path,
-                format!("cell {c} refers to point {i}, but there are {num_points}"),
-            ));
-        }
-        tets.push([
-            chunk[0] as u32,
-            chunk[1] as u32,
-            chunk[2] as u32,
-            chunk[3] as u32,
-        ]);
-    }
-    Ok(tets)
-}
-
-fn from_attribute(a: &Attribute) -> Option<DataArray> {
-    let Attribute::DataArray(d) = a else {
-        return None;
-    };
-    let components = d.num_comp();
-    match &d.data {
-        IOBuffer::F32(_) | IOBuffer::F64(_) => {
-            Some(DataArray::f64(&d.name, components, d.data.cast_into()?))
-        }
-        _ if components == 1 => {
-            let values: Vec<i64> = d.data.cast_into()?;
-            let values: Option<Vec<i32>> =
-                values.into_iter().map(|v| i32::try_from(v).ok()).collect();
-            Some(DataArray::i32(&d.name, values?))
-        }
-        _ => Some(DataArray::f64(&d.name, components, d.data.cast_into()?)),
-    }
 }
 
 /// Read a SimVascular-style mesh: `vtu_path` (tets) and `surface_vtp_path` (its boundary

@@ -404,22 +404,22 @@ fn formulation(t: &TimeSpec, s: &mut CaseSettings) -> Result<(), String> {
         }
     };
     if let Some(k) = pick("tau_metric", &t.tau_metric, &["invariant", "svmultiphysics"])? {
-        s.tau_metric = [baffle_cfd::assembly::TauMetric::Invariant, baffle_cfd::assembly::TauMetric::SvMultiPhysics][k];
+        s.formulation.tau_metric = [baffle_cfd::assembly::TauMetric::Invariant, baffle_cfd::assembly::TauMetric::SvMultiPhysics][k];
     }
     if let Some(k) = pick("convection", &t.convection, &["exact", "centroid"])? {
-        s.exact_convection = k == 0;
+        s.formulation.exact_convection = k == 0;
     }
     if let Some(v) = t.vms_advection {
-        s.vms_advection = v;
+        s.formulation.vms_advection = v;
     }
     if let Some(v) = t.vms_reynolds_stress {
-        s.vms_reynolds_stress = v;
+        s.formulation.vms_reynolds_stress = v;
     }
     if let Some(k) = pick("viscous_form", &t.viscous_form, &["laplacian", "stress"])? {
-        s.stress_viscosity = k == 1;
+        s.formulation.stress_viscosity = k == 1;
     }
     if let Some(k) = pick("stabilization_quadrature", &t.stabilization_quadrature, &["centroid", "gauss"])? {
-        s.gauss_stabilization = k == 1;
+        s.formulation.gauss_stabilization = k == 1;
     }
     Ok(())
 }
@@ -575,7 +575,10 @@ mod tests {
         let dt = "\"dt_s\": 0.001";
         let with = |extra: &str| example_with(dt, &format!("{dt}, {extra}"));
         let (d, _) = example_with(dt, dt).unwrap();
-        let ingredients = |s: &CaseSettings| (s.tau_metric, s.exact_convection, s.vms_advection, s.stress_viscosity, s.gauss_stabilization, s.vms_reynolds_stress);
+        let ingredients = |s: &CaseSettings| {
+            let f = s.formulation;
+            (f.tau_metric, f.exact_convection, f.vms_advection, f.stress_viscosity, f.gauss_stabilization, f.vms_reynolds_stress)
+        };
         assert_eq!(ingredients(&d), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, true, true, false, true, true));
         let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"centroid\", \"vms_advection\": false, \"viscous_form\": \"stress\", \"stabilization_quadrature\": \"centroid\", \"vms_reynolds_stress\": false").unwrap();
         assert_eq!(ingredients(&s), (baffle_cfd::assembly::TauMetric::Invariant, false, false, true, false, false));

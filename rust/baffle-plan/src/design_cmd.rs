@@ -9,9 +9,9 @@ use baffle_core::outputs::write_design_outputs;
 use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::phantom::phantom_default;
 use baffle_core::rv_outflow::{rv_outflow, RvOutflow};
-use baffle_core::{design, DesignError, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh};
-/// The point type of `DesignSettings`' cap points.
-pub use baffle_core::Vec3;
+use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, TriMesh};
+/// The point type of `DesignSettings`' cap points, and the face labels it and the other commands' settings hold.
+pub use baffle_core::{FaceLabels, Vec3};
 use crate::{feasibility, files};
 use std::path::{Path, PathBuf};
 
@@ -45,14 +45,8 @@ pub struct DesignSettings {
     pub control_points: usize,
     /// Largest distance of a suture point from the surface (mm).
     pub max_point_distance_mm: f64,
-    /// ModelFaceID of the RV wall.
-    pub wall_label: i32,
-    /// ModelFaceID given to the baffle.
-    pub baffle_label: i32,
-    /// ModelFaceID of the VSD cap.
-    pub vsd_label: i32,
-    /// ModelFaceID of the aortic-annulus cap.
-    pub aortic_label: i32,
+    /// ModelFaceIDs of the RV wall, the VSD and aortic-annulus caps, and the one given to the baffle.
+    pub labels: FaceLabels,
     /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
     /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
     pub vsd_cap_point: Option<Vec3>,
@@ -117,10 +111,7 @@ impl Default for DesignSettings {
             centerline_spacing_mm: o.centerline_spacing_mm,
             control_points: o.interior_control_points,
             max_point_distance_mm: o.max_point_distance_mm,
-            wall_label: o.labels.wall,
-            baffle_label: o.labels.baffle,
-            vsd_label: o.labels.vsd_cap,
-            aortic_label: o.labels.aortic_cap,
+            labels: o.labels,
             vsd_cap_point: None,
             aortic_cap_point: None,
             reference_baffle: None,
@@ -343,12 +334,7 @@ pub fn most_narrowed_text(n: Option<&baffle_core::rv_outflow::NarrowedSection>) 
 /// The design options of the command line, range-checked in the one place the C ABI also uses.
 pub fn design_options(args: &DesignSettings) -> Result<DesignOptions, String> {
     let options = DesignOptions {
-        labels: FaceLabels {
-            wall: args.wall_label,
-            baffle: args.baffle_label,
-            vsd_cap: args.vsd_label,
-            aortic_cap: args.aortic_label,
-        },
+        labels: args.labels,
         seam_samples: args.seam_samples,
         max_point_distance_mm: args.max_point_distance_mm,
         remesh_edge_mm: (!args.no_remesh).then_some(args.remesh_edge_mm),
@@ -388,8 +374,8 @@ fn read_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>), String> {
     let labeled = read_surface_labeled(surface_path).map_err(|e| e.to_string())?;
     let mut mesh = labeled.mesh;
     if let (Some(vsd), Some(aortic)) = (args.vsd_cap_point, args.aortic_cap_point) {
-        let seeds = [CapSeed { point_mm: vsd, label: args.vsd_label }, CapSeed { point_mm: aortic, label: args.aortic_label }];
-        mesh.face_ids = label_planar_caps(&mesh, &seeds, args.wall_label, &CapTolerances::default())
+        let seeds = [CapSeed { point_mm: vsd, label: args.labels.vsd_cap }, CapSeed { point_mm: aortic, label: args.labels.aortic_cap }];
+        mesh.face_ids = label_planar_caps(&mesh, &seeds, args.labels.wall, &CapTolerances::default())
             .map_err(|e| format!("{}: {e}", surface_path.display()))?;
     } else if !labeled.has_model_face_id {
         return Err(format!(

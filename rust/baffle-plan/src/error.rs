@@ -30,6 +30,10 @@ pub enum PlanError {
     /// message then names the stage and the folders kept).
     #[error("{0}")]
     Plan(String),
+    /// `baffle plan` stopped because its caller asked (a front end's cancel): the message
+    /// names the stage it stopped at and the folders of the stages finished before it.
+    #[error("{0}")]
+    Cancelled(String),
 }
 
 impl PlanError {
@@ -46,7 +50,7 @@ impl PlanError {
             PlanError::Template(_) => "template",
             PlanError::Sweep(_) => "sweep",
             PlanError::Phantom(_) => "phantom",
-            PlanError::Plan(_) => "plan",
+            PlanError::Plan(_) | PlanError::Cancelled(_) => "plan",
         }
     }
 }

@@ -9,7 +9,7 @@ use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
 use baffle_core::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
 use baffle_core::{FaceLabels, TriMesh};
-use baffle_prepare::extend::{extend, ExtendOptions, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
+use baffle_prepare::extend::{extend, ExtendOptions, ExtensionGrading, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
 use crate::progress::Progress;
 use std::path::PathBuf;
@@ -28,14 +28,9 @@ pub struct ExtendSettings {
     pub inflow_label: i32,
     /// ModelFaceID of the new outflow cap (sinotubular junction).
     pub outflow_label: i32,
-    /// ModelFaceID of the domain's walls (the extension's walls get it too).
-    pub wall_label: i32,
-    /// ModelFaceID of the domain's baffle.
-    pub baffle_label: i32,
-    /// ModelFaceID of the domain's VSD cap.
-    pub vsd_label: i32,
-    /// ModelFaceID of the domain's aortic-annulus cap.
-    pub aortic_label: i32,
+    /// ModelFaceIDs of the domain's walls (the extension's walls get it too), baffle, VSD
+    /// and aortic-annulus caps.
+    pub labels: FaceLabels,
     /// Voxel edge of the union grid the LV and aorta are cut from (mm).
     pub voxel_mm: f64,
     /// Target edge of the extension's triangles (mm); default: the designed caps' rim edge.
@@ -46,6 +41,9 @@ pub struct ExtendSettings {
     /// planes conforming, for a mesh study that refines the boundary too (the interior caps
     /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
     pub remesh_domain_edge_mm: Option<f64>,
+    /// Coarsen the LV and aortic parts away from the designed caps up to this many times
+    /// the edge ([`EXTENSION_MARGIN_DIAMETERS`], [`EXTENSION_GROWTH`]); 1: uniform.
+    pub extension_coarsening: f64,
     /// Move the inflow cap (mid-LV plane) this far (mm) from the LV volume centroid along
     /// the VSD normal (positive: away from the VSD, toward the apex), for a sensitivity
     /// study; an offset that leaves no clean cut of the LV is an error (no fallback).
@@ -63,20 +61,17 @@ pub struct ExtendSettings {
 
 impl Default for ExtendSettings {
     fn default() -> Self {
-        let labels = FaceLabels::default();
         ExtendSettings {
             domain: PathBuf::new(),
             source: PrepareSource::default(),
             out: PathBuf::new(),
             inflow_label: INFLOW_CAP_LABEL,
             outflow_label: OUTFLOW_CAP_LABEL,
-            wall_label: labels.wall,
-            baffle_label: labels.baffle,
-            vsd_label: labels.vsd_cap,
-            aortic_label: labels.aortic_cap,
+            labels: FaceLabels::default(),
             voxel_mm: PrepareOptions::default().voxel_mm,
             remesh_edge_mm: None,
             remesh_domain_edge_mm: None,
+            extension_coarsening: 1.0,
             inflow_offset_mm: None,
             outflow_diameters: None,
             no_baffle: false,
@@ -117,6 +112,22 @@ fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
     }
 }
 
+/// Where the extension keeps the designed rims' edge: one cap diameter from each cap
+/// covers the LV flow converging into the VSD and the jet leaving the annulus, whose
+/// pressure the measurement planes average.
+pub const EXTENSION_MARGIN_DIAMETERS: f64 = 1.0;
+/// How fast the extension's edge grows beyond (mm per mm): neighbouring triangles then
+/// differ by at most a fifth, and gmsh's tetrahedra grade as smoothly.
+pub const EXTENSION_GROWTH: f64 = 0.2;
+
+/// The grading of `--extension-coarsening` (`None` at 1: one edge everywhere).
+fn extension_grading(coarsening: f64) -> Result<Option<ExtensionGrading>, String> {
+    if !(coarsening.is_finite() && coarsening >= 1.0) {
+        return Err(format!("--extension-coarsening must be at least 1 (times the edge), got {coarsening}"));
+    }
+    Ok((coarsening > 1.0).then_some(ExtensionGrading { margin_diameters: EXTENSION_MARGIN_DIAMETERS, growth: EXTENSION_GROWTH, largest_ratio: coarsening }))
+}
+
 /// Build the extended domain and write it and its report (each whole or not at all).
 pub fn extend_to_file(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), PlanError> {
     extend_and_write(args).map_err(PlanError::Extend)
@@ -135,13 +146,14 @@ fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), St
     let pools = read_pools(&args.source)?;
     let options = ExtendOptions {
         union: PrepareOptions { voxel_mm: args.voxel_mm, ..PrepareOptions::default() },
-        labels: FaceLabels { wall: args.wall_label, baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label },
+        labels: args.labels,
         inflow_label: args.inflow_label,
         outflow_label: args.outflow_label,
         remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),
         stj: StjOptions { fixed_diameters: args.outflow_diameters, ..StjOptions::default() },
         inflow_offset_mm: args.inflow_offset_mm,
         without_baffle: args.no_baffle,
+        grading: extension_grading(args.extension_coarsening)?,
         ..ExtendOptions::default()
     };
     let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;

@@ -12,6 +12,9 @@ pub struct MeshSettings {
     pub surface: PathBuf,
     /// Largest tetrahedron edge length (mm); the paper used 1.25 / 0.95 / 0.75.
     pub edge_length_mm: f64,
+    /// Largest edge where the boundary's triangles are longer (a graded extension, `baffle
+    /// extend --extension-coarsening`); `None`: the edge length everywhere.
+    pub largest_edge_mm: Option<f64>,
     /// Output volume mesh (.vtu). Beside it: <stem>-faces.vtp (ModelFaceID,
     /// GlobalNodeID) and <stem>-quality.json.
     pub out: PathBuf,
@@ -27,7 +30,7 @@ pub struct MeshSettings {
 impl Default for MeshSettings {
     fn default() -> Self {
         let o = MeshOptions::default();
-        MeshSettings { surface: PathBuf::new(), edge_length_mm: o.edge_length_mm, out: PathBuf::new(), remesh_surface: o.remesh_surface, interior_labels: Vec::new(), gmsh: None }
+        MeshSettings { surface: PathBuf::new(), edge_length_mm: o.edge_length_mm, largest_edge_mm: o.largest_edge_mm, out: PathBuf::new(), remesh_surface: o.remesh_surface, interior_labels: Vec::new(), gmsh: None }
     }
 }
 
@@ -46,6 +49,7 @@ fn mesh_and_write(args: &MeshSettings, progress: &Progress) -> Result<(), String
     let (boundary, interior_surfaces) = split_interior_labels(&labeled.mesh, &args.interior_labels).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let options = MeshOptions {
         edge_length_mm: args.edge_length_mm,
+        largest_edge_mm: args.largest_edge_mm,
         interior_surfaces,
         gmsh_executable: args.gmsh.clone(),
         remesh_surface: args.remesh_surface,

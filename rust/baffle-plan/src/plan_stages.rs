@@ -5,7 +5,7 @@
 use crate::design_cmd::{target_from, DesignSettings};
 use crate::error::PlanError;
 use crate::prepare_cmd::PrepareSource;
-use baffle_cfd::hemodynamics::{CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
+use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use std::path::{Path, PathBuf};
 
 pub struct PlanSettings {
@@ -31,6 +31,10 @@ pub struct PlanSettings {
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
     pub edge_length_mm: f64,
+    /// On an extended domain, the LV and aortic parts coarsen away from the designed caps
+    /// up to this many times each level's edge (`baffle extend --extension-coarsening`);
+    /// 1: one edge everywhere.
+    pub extension_coarsening: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
     /// (on an extended domain every level is extended again from the designed domain
@@ -70,6 +74,7 @@ impl Default for PlanSettings {
             pulsatile: false,
             cycles: CYCLES,
             edge_length_mm: PAPER_NOMINAL_MM,
+            extension_coarsening: 1.0,
             mesh_study: false,
             single_mesh: false,
             elevated_flow: false,
@@ -286,8 +291,16 @@ fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     if !(args.cardiac_index.is_finite() && args.cardiac_index > 0.0) {
         return Err(format!("--cardiac-index must be a positive number of L/min/m2, got {}", args.cardiac_index));
     }
+    // The outlet's resistance comes from the blood pressure: a bad one is named now, not
+    // after the design and the mesh.
+    let (sbp_mmhg, dbp_mmhg) = args.bp;
+    let clinical = ClinicalInputs { bsa_m2: flow_bsa_m2(args)?, sbp_mmhg, dbp_mmhg, cardiac_index_l_min_m2: args.cardiac_index };
+    hemodynamics(&clinical).map_err(|e| format!("--bp {sbp_mmhg}/{dbp_mmhg} (SBP/DBP, mmHg): {e}"))?;
     if !(args.edge_length_mm.is_finite() && args.edge_length_mm > 0.0) {
         return Err(format!("--edge-length-mm must be a positive length, got {}", args.edge_length_mm));
+    }
+    if !(args.extension_coarsening.is_finite() && args.extension_coarsening >= 1.0) {
+        return Err(format!("--extension-coarsening must be at least 1 (times the edge), got {}", args.extension_coarsening));
     }
     if args.prepare_remesh_edge_mm.is_some() && !args.prepare.is_given() {
         return Err("--prepare-remesh-edge-mm applies to a prepare stage: give --segmentations or --labelmap".into());
@@ -352,6 +365,13 @@ mod tests {
 
     fn segmentations(a: &mut PlanSettings) {
         a.prepare.segmentations = Some("seg".into());
+    }
+
+    #[test]
+    fn a_blood_pressure_the_outlet_cannot_use_is_named_before_any_stage() {
+        let error = |bp| plan_stages(&plan(|a| (a.design.surface = Some("capped.vtp".into()), a.bp = bp).1)).unwrap_err().to_string();
+        assert!(error((78.0, 107.0)).contains("DBP 107 mmHg exceeds SBP 78 mmHg"), "{}", error((78.0, 107.0)));
+        assert!(error((f64::NAN, 78.0)).starts_with("--bp NaN/78"), "{}", error((f64::NAN, 78.0)));
     }
 
     #[test]

@@ -20,7 +20,13 @@ pub trait Console: Send + Sync {
     fn status(&self, text: &str);
     /// Whether the status text reaches a terminal (a bar redrawn in place) or a log.
     fn status_is_terminal(&self) -> bool;
+    /// The fraction of the whole job done (0-1), the stage running and what it does, for
+    /// a front end that draws progress itself ([`Style::Fractions`]; the C ABI's callback).
+    fn fraction(&self, _overall: f64, _stage: &str, _message: &str) {}
 }
+
+/// Asked by a long job while it runs: true stops it (a front end's cancel button).
+pub type Cancel = Arc<dyn Fn() -> bool + Send + Sync>;
 
 /// A console that drops all text: for callers that want none, and tests.
 pub struct Quiet;
@@ -44,6 +50,8 @@ pub enum Style {
     Bar,
     /// A line on stderr every few percent or every half minute.
     Lines,
+    /// Every report handed to [`Console::fraction`] as numbers (a library caller's callback).
+    Fractions,
 }
 
 impl Style {
@@ -146,6 +154,7 @@ impl Progress {
                 self.console.status(&bar);
                 self.drawn.set(fraction < 1.0);
             }
+            Style::Fractions => self.console.fraction(overall, stage, message),
             Style::Lines => {
                 let (last, at) = self.last_line.get();
                 let stage_changed = *self.last_stage.borrow() != stage;

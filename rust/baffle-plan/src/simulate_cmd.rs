@@ -10,11 +10,12 @@ use crate::case;
 use baffle_cfd::{simulate_from, CaseSettings, RunMode, SolverState, SteadyProgress};
 use serde::{Deserialize, Serialize};
 use crate::files::write_atomic;
-use crate::progress::{steady_fraction, Progress};
+use crate::progress::{steady_fraction, Cancel, Progress};
 use crate::simulate_report::{cycle_end_step, stop_on_signals, Engine, Ending, Output, Report, Row};
 use crate::simulate_svmp::{self, SvmpRun};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Default)]
@@ -68,6 +69,10 @@ pub struct SimulateSettings {
     /// Print Slicer CLI progress tags (<filter-progress>) on stdout (also with
     /// BAFFLE_PROGRESS_TAGS=1). Otherwise: a bar on a terminal, plain lines in a log (stderr).
     pub progress_tags: bool,
+    /// Asked after every step of the embedded engine: true stops the run as SIGTERM does
+    /// (its results so far written; a library caller's cancel, e.g. `baffle plan`'s). With
+    /// a cancel the run installs no signal handlers (the caller's process keeps its own).
+    pub cancel: Option<Cancel>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -277,7 +282,11 @@ fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> 
         (Vec::new(), None, Vec::new(), 0.0)
     };
 
-    let stop = stop_on_signals()?;
+    // A library caller stops the run with its cancel: its process's signal handlers stay its own.
+    let stop = match args.cancel {
+        Some(_) => Arc::new(AtomicBool::new(false)),
+        None => stop_on_signals()?,
+    };
     // A quick run stops at the first flow peak unless told otherwise.
     let step_limit = case.time.steps.or(quick.then(|| case::first_peak_step(&settings))).filter(|_| !steady);
     let period_steps = (flow.period_s / settings.dt_s).round();
@@ -324,7 +333,7 @@ fn simulate(args: &SimulateSettings, progress: &Progress) -> Result<(), String> 
                 return false;
             }
         }
-        signalled = stop.load(Ordering::SeqCst);
+        signalled = stop.load(Ordering::SeqCst) || args.cancel.as_ref().is_some_and(|cancel| cancel());
         limit_reached = step_limit.is_some_and(|n| view.step >= n);
         let stopping = signalled || limit_reached;
         // Steady iterations have no rows yet (the solve reports its final iterate only).

@@ -267,6 +267,7 @@ fn plan_args(args: &SweepSettings, row_dir: &Path, target_area_mm2: f64) -> Plan
         pulsatile: false,
         cycles: plan_stages::CYCLES,
         edge_length_mm: c.edge_length_mm,
+        extension_coarsening: PlanSettings::default().extension_coarsening,
         mesh_study: false,
         single_mesh: true,
         elevated_flow: false,

@@ -9,10 +9,10 @@ use crate::progress::Progress;
 use crate::files::write_atomic;
 use crate::design_cmd::Frame;
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
-use baffle_core::template::drawing::{today_utc, TemplateText};
-use baffle_core::template::raster::DEFAULT_DPI;
-use baffle_core::template::{template_from_domain, FlattenMethod, PageFormat};
 use baffle_core::FaceLabels;
+use baffle_template::drawing::{today_utc, TemplateText};
+use baffle_template::raster::DEFAULT_DPI;
+use baffle_template::{template_from_domain, FlattenMethod, PageFormat};
 use std::path::PathBuf;
 
 pub struct TemplateSettings {
@@ -35,9 +35,8 @@ pub struct TemplateSettings {
     /// Flattening: lscm (conformal; keeps the seam's angles and edge lengths best) or
     /// arap (LSCM then as-rigid-as-possible; smaller largest area change).
     pub method: TemplateMethod,
-    pub baffle_label: i32,
-    pub vsd_label: i32,
-    pub aortic_label: i32,
+    /// ModelFaceIDs of the domain's baffle, VSD and aortic-annulus caps.
+    pub labels: FaceLabels,
 }
 
 #[derive(Clone, Copy, Default)]
@@ -49,7 +48,6 @@ pub enum TemplateMethod {
 
 impl Default for TemplateSettings {
     fn default() -> Self {
-        let labels = FaceLabels::default();
         TemplateSettings {
             domain: PathBuf::new(),
             points: PathBuf::new(),
@@ -59,9 +57,7 @@ impl Default for TemplateSettings {
             date: None,
             surface_frame: Frame::default(),
             method: TemplateMethod::default(),
-            baffle_label: labels.baffle,
-            vsd_label: labels.vsd_cap,
-            aortic_label: labels.aortic_cap,
+            labels: FaceLabels::default(),
         }
     }
 }
@@ -77,7 +73,7 @@ fn template(args: &TemplateSettings, progress: &Progress) -> Result<(), String> 
     let domain = read_surface(&args.domain).map_err(|e| e.to_string())?;
     let points = read_points(&args.points).map_err(|e| e.to_string())?;
     let frame = CoordinateSystem::from(args.surface_frame);
-    let labels = FaceLabels { baffle: args.baffle_label, vsd_cap: args.vsd_label, aortic_cap: args.aortic_label, ..FaceLabels::default() };
+    let labels = args.labels;
     let text = TemplateText { patient_label: args.label.clone(), date: args.date.clone().unwrap_or_else(today_utc) };
     let method = match args.method {
         TemplateMethod::Lscm => FlattenMethod::Lscm,

@@ -7,7 +7,7 @@ use crate::clip::Clipped;
 use crate::planar_cap::refine_planar_cap;
 use crate::polygon2d::orient;
 use baffle_core::numerics::pca::Plane;
-use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::remesh::{remesh_isotropic, RemeshOptions, SizeGrading};
 use baffle_core::{TriMesh, Vec3};
 
 /// Ear-clipping triangulation of a simple planar polygon (indices into `uv`),
@@ -46,10 +46,10 @@ pub fn ear_clip(polygon: &[u32], uv: &[(f64, f64)]) -> Result<Vec<[u32; 3]>, Str
     Ok(triangles)
 }
 
-/// Remesh the clipped wall isotropically at `edge_mm`: its rims are resampled
-/// along their original (planar) polylines, so they stay in their planes.
-pub fn remesh_wall(clipped: &Clipped, planes: &[Plane], edge_mm: f64) -> Result<Clipped, String> {
-    let options = RemeshOptions { target_edge_mm: edge_mm, split_boundary: true, ..RemeshOptions::default() };
+/// Remesh the clipped wall isotropically at `edge_mm` (or graded from there): its rims
+/// are resampled along their original (planar) polylines, so they stay in their planes.
+pub fn remesh_wall(clipped: &Clipped, planes: &[Plane], edge_mm: f64, grading: Option<SizeGrading>) -> Result<Clipped, String> {
+    let options = RemeshOptions { target_edge_mm: edge_mm, split_boundary: true, grading, ..RemeshOptions::default() };
     let mesh = remesh_isotropic(&clipped.mesh, &options)?;
     let loops = mesh.boundary_loops()?;
     if loops.len() != planes.len() {

@@ -49,6 +49,7 @@ use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
 use baffle_core::self_check::{first_failure, SelfCheck};
+use baffle_core::remesh::SizeGrading;
 use baffle_core::spatial::{winding_number, Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use rayon::prelude::*;
@@ -126,6 +127,35 @@ pub struct ExtendOptions {
     /// capped ventricle extended as it is. Without it such a domain is refused, since
     /// the designed domain `extend` expects is `design`'s, with its baffle.
     pub without_baffle: bool,
+    /// Coarsen each part away from its designed cap (`None`: the edge everywhere).
+    pub grading: Option<ExtensionGrading>,
+}
+
+/// How each part of the extension coarsens away from the designed cap it joins (a
+/// [`SizeGrading`] from the cap's disc): the edge stays the designed rims' within
+/// `margin_diameters` of the cap's equivalent diameters, where the flow converges into
+/// the VSD or the jet leaves the annulus and sets the plane's pressure, then grows by
+/// `growth` mm per mm, up to `largest_ratio` times the edge.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExtensionGrading {
+    pub margin_diameters: f64,
+    pub growth: f64,
+    pub largest_ratio: f64,
+}
+
+impl ExtensionGrading {
+    /// The grading of a part at `edge_mm` from `cap`.
+    fn from_cap(&self, cap: &DesignedCap, edge_mm: f64) -> SizeGrading {
+        let radius_mm = (cap.area_mm2 / std::f64::consts::PI).sqrt();
+        SizeGrading {
+            center: cap.plane.centroid,
+            normal: cap.plane.normal,
+            radius_mm,
+            margin_mm: self.margin_diameters * 2.0 * radius_mm,
+            growth: self.growth,
+            largest_edge_mm: self.largest_ratio * edge_mm,
+        }
+    }
 }
 
 impl Default for ExtendOptions {
@@ -139,6 +169,7 @@ impl Default for ExtendOptions {
             stj: StjOptions::default(),
             inflow_offset_mm: None,
             without_baffle: false,
+            grading: None,
         }
     }
 }
@@ -215,6 +246,13 @@ pub struct ExtendReport {
     pub cap_projections: Vec<CapProjection>,
     pub stj: StjReport,
     pub remesh_edge_mm: f64,
+    /// How the LV and aortic parts coarsened away from the designed caps (`None`: not).
+    #[serde(default)]
+    pub grading: Option<ExtensionGrading>,
+    /// Why the asked grading was not used (the graded extension failed; `grading` is then
+    /// `None`).
+    #[serde(default)]
+    pub grading_dropped: Option<String>,
     /// The checks of the extended domain by a second method (each passed).
     pub checks: Vec<SelfCheck>,
     pub timings: ExtendTimings,
@@ -238,8 +276,23 @@ struct DesignedCap {
 }
 
 /// The extended domain of `domain` (a closed, outward designed domain in mm with the
-/// VSD and aortic caps of `options.labels`) with the LV and aorta of `pools`.
+/// VSD and aortic caps of `options.labels`) with the LV and aorta of `pools`. A graded
+/// extension that fails (coarse triangles can cut across a wall that comes close, as
+/// p1's LV does beside its designed domain at 2.5x) is made again at one edge, and the
+/// report says why (`grading_dropped`).
 pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
+    match (extend_as_asked(domain, pools, options), options.grading) {
+        (Err(graded), Some(_)) => {
+            let mut extended = extend_as_asked(domain, pools, &ExtendOptions { grading: None, ..options.clone() })?;
+            extended.report.grading_dropped = Some(format!("the graded extension failed ({graded}); extended at one edge instead"));
+            Ok(extended)
+        }
+        (result, _) => result,
+    }
+}
+
+/// [`extend`] with `options` as given.
+fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
     validate_options(options)?;
     let mut lap = lap_timer();
     let l = &options.labels;
@@ -288,9 +341,9 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
         inflow_label: options.inflow_label,
         closing_radius_mm: options.union.closing_radius_mm,
     };
-    let (lv_triangles, mid_lv, moved_mm) = lv_part.attach(&mut surface, (edge_mm, snap_mm, l.wall))?;
+    let (lv_triangles, mid_lv, moved_mm) = lv_part.attach(&mut surface, (edge_mm, snap_mm, l.wall), options.grading)?;
     let ao_part = Extension { name: "aortic", near: &annulus, near_name: "aortic annulus", far: stj, far_name: "STJ", far_loop: &stj_loop, far_label: options.outflow_label, far_pool: ("aorta", &pools.aorta) };
-    let ao_triangles = ao_part.attach(&mut surface, &ao_union, edge_mm, snap_mm, l.wall)?;
+    let ao_triangles = ao_part.attach(&mut surface, &ao_union, (edge_mm, snap_mm, l.wall), options.grading)?;
     let extensions_ms = lap();
 
     let mut checks = vec![check_extended(&surface, domain.triangles.len(), &[l.vsd_cap, l.aortic_cap])?];
@@ -331,6 +384,8 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
         cap_projections,
         stj: stj_report,
         remesh_edge_mm: edge_mm,
+        grading: options.grading,
+        grading_dropped: None,
         checks,
         timings: ExtendTimings { planes_ms, union_ms, extensions_ms, checks_ms: lap() },
     };
@@ -461,13 +516,13 @@ impl LvPart<'_> {
     /// the plane through the LV's centroid (or at the asked offset), or failing a clean
     /// cut there, the first of `MID_LV_MOVES_MM` that gives one. Returns the part's triangles, the plane used
     /// and how far it was moved (mm); the error lists each move and why it failed.
-    fn attach(&self, surface: &mut TriMesh, (edge_mm, snap_mm, wall): (f64, f64, i32)) -> Result<(usize, Plane, f64), PrepareError> {
+    fn attach(&self, surface: &mut TriMesh, sizes: (f64, f64, i32), grading: Option<ExtensionGrading>) -> Result<(usize, Plane, f64), PrepareError> {
         let mut tried = Vec::new();
         for &moved_mm in &self.moves_mm {
             let plane = parallel_plane(&self.centroid_plane, self.centroid_plane.centroid + moved_mm * self.centroid_plane.normal);
             let attached = self.section(&plane).and_then(|lv_loop| {
                 let part = Extension { name: "LV", near: self.vsd, near_name: "VSD", far: plane, far_name: "mid-LV", far_loop: &lv_loop, far_label: self.inflow_label, far_pool: ("LV", &self.pools.lv) };
-                part.attach(surface, self.union, edge_mm, snap_mm, wall).map_err(|e| e.to_string())
+                part.attach(surface, self.union, sizes, grading).map_err(|e| e.to_string())
             });
             match attached {
                 Ok(triangles) => return Ok((triangles, plane, moved_mm)),
@@ -718,7 +773,7 @@ struct Extension<'a> {
 impl Extension<'_> {
     /// Cut the part from `union`, cap its far end and zip it to the near cap's rim in
     /// `surface`; returns the triangles added.
-    fn attach(&self, surface: &mut TriMesh, union: &TriMesh, edge_mm: f64, snap_mm: f64, wall: i32) -> Result<usize, PrepareError> {
+    fn attach(&self, surface: &mut TriMesh, union: &TriMesh, (edge_mm, snap_mm, wall): (f64, f64, i32), grading: Option<ExtensionGrading>) -> Result<usize, PrepareError> {
         let step = |m: String| PrepareError::geometry("extension", format!("the {} part: {m}", self.name));
         let near_loop: Vec<Vec3> = self.near.rim.iter().map(|&v| surface.points[v as usize]).collect();
         let cuts = [
@@ -728,7 +783,8 @@ impl Extension<'_> {
         let clipped = clip_between(union, &cuts, snap_mm).map_err(step)?;
         self.far_rim_on_pool(&clipped.mesh, &clipped.rims[1]).map_err(step)?;
         let planes = [self.near.plane, self.far];
-        let remeshed = remesh_wall(&clipped, &planes, edge_mm).map_err(step)?;
+        let grading = grading.map(|g| g.from_cap(self.near, edge_mm));
+        let remeshed = remesh_wall(&clipped, &planes, edge_mm, grading).map_err(step)?;
         let (retracted, near_boundary, far_rim) = retract_rim(&remeshed.mesh, &remeshed.rims[0], &self.far).map_err(step)?;
         let capped = close_with_caps(&Clipped { mesh: retracted, rims: vec![far_rim] }, &[self.far], wall, &[self.far_label]).map_err(step)?;
         let before = surface.triangles.len();

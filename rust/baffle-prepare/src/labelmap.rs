@@ -8,6 +8,7 @@ use crate::error::PrepareError;
 use crate::input::BloodPools;
 use crate::union_surface::{union_surface, SmoothingOptions};
 use crate::voxelize::{close_mask, Grid};
+use baffle_core::io::ScalarType;
 use baffle_core::{TriMesh, Vec3};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -85,32 +86,8 @@ fn gunzip(bytes: &[u8]) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
-/// Sample types both formats use, by size and signedness.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Sample {
-    I8,
-    U8,
-    I16,
-    U16,
-    I32,
-    U32,
-    F32,
-    F64,
-}
-
-impl Sample {
-    fn size(self) -> usize {
-        match self {
-            Sample::I8 | Sample::U8 => 1,
-            Sample::I16 | Sample::U16 => 2,
-            Sample::I32 | Sample::U32 | Sample::F32 => 4,
-            Sample::F64 => 8,
-        }
-    }
-}
-
 /// Decode `count` samples; float labels are rounded.
-fn decode(data: &[u8], sample: Sample, count: usize, little_endian: bool) -> Result<Vec<i32>, String> {
+fn decode(data: &[u8], sample: ScalarType, count: usize, little_endian: bool) -> Result<Vec<i32>, String> {
     let size = sample.size();
     let needed = count.checked_mul(size).ok_or_else(|| format!("{count} voxels of {size} bytes is more than memory holds"))?;
     if data.len() < needed {
@@ -129,29 +106,32 @@ fn decode(data: &[u8], sample: Sample, count: usize, little_endian: bool) -> Res
         .map(|c| {
             let w = word(c);
             match sample {
-                Sample::I8 => w[0] as i8 as i32,
-                Sample::U8 => w[0] as i32,
-                Sample::I16 => i16::from_le_bytes([w[0], w[1]]) as i32,
-                Sample::U16 => u16::from_le_bytes([w[0], w[1]]) as i32,
-                Sample::I32 => i32::from_le_bytes([w[0], w[1], w[2], w[3]]),
-                Sample::U32 => u32::from_le_bytes([w[0], w[1], w[2], w[3]]).min(i32::MAX as u32) as i32,
-                Sample::F32 => f32::from_le_bytes([w[0], w[1], w[2], w[3]]).round() as i32,
-                Sample::F64 => f64::from_le_bytes(w).round() as i32,
+                ScalarType::I8 => w[0] as i8 as i32,
+                ScalarType::U8 => w[0] as i32,
+                ScalarType::I16 => i16::from_le_bytes([w[0], w[1]]) as i32,
+                ScalarType::U16 => u16::from_le_bytes([w[0], w[1]]) as i32,
+                ScalarType::I32 => i32::from_le_bytes([w[0], w[1], w[2], w[3]]),
+                ScalarType::U32 => u32::from_le_bytes([w[0], w[1], w[2], w[3]]).min(i32::MAX as u32) as i32,
+                ScalarType::F32 => f32::from_le_bytes([w[0], w[1], w[2], w[3]]).round() as i32,
+                ScalarType::F64 => f64::from_le_bytes(w).round() as i32,
+                // Neither format's header names these; clamped as U32 is.
+                ScalarType::I64 => i64::from_le_bytes(w).clamp(i32::MIN as i64, i32::MAX as i64) as i32,
+                ScalarType::U64 => u64::from_le_bytes(w).min(i32::MAX as u64) as i32,
             }
         })
         .collect())
 }
 
-fn nrrd_sample(name: &str) -> Result<Sample, String> {
+fn nrrd_sample(name: &str) -> Result<ScalarType, String> {
     Ok(match name {
-        "signed char" | "int8" | "int8_t" => Sample::I8,
-        "uchar" | "unsigned char" | "uint8" | "uint8_t" => Sample::U8,
-        "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => Sample::I16,
-        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => Sample::U16,
-        "int" | "signed int" | "int32" | "int32_t" => Sample::I32,
-        "uint" | "unsigned int" | "uint32" | "uint32_t" => Sample::U32,
-        "float" => Sample::F32,
-        "double" => Sample::F64,
+        "signed char" | "int8" | "int8_t" => ScalarType::I8,
+        "uchar" | "unsigned char" | "uint8" | "uint8_t" => ScalarType::U8,
+        "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => ScalarType::I16,
+        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => ScalarType::U16,
+        "int" | "signed int" | "int32" | "int32_t" => ScalarType::I32,
+        "uint" | "unsigned int" | "uint32" | "uint32_t" => ScalarType::U32,
+        "float" => ScalarType::F32,
+        "double" => ScalarType::F64,
         other => return Err(format!("unsupported NRRD type '{other}'")),
     })
 }
@@ -226,16 +206,16 @@ fn to_lps(mut map: LabelMap, ras: bool) -> LabelMap {
     map
 }
 
-fn nifti_sample(code: i16) -> Result<Sample, String> {
+fn nifti_sample(code: i16) -> Result<ScalarType, String> {
     Ok(match code {
-        2 => Sample::U8,
-        4 => Sample::I16,
-        8 => Sample::I32,
-        16 => Sample::F32,
-        64 => Sample::F64,
-        256 => Sample::I8,
-        512 => Sample::U16,
-        768 => Sample::U32,
+        2 => ScalarType::U8,
+        4 => ScalarType::I16,
+        8 => ScalarType::I32,
+        16 => ScalarType::F32,
+        64 => ScalarType::F64,
+        256 => ScalarType::I8,
+        512 => ScalarType::U16,
+        768 => ScalarType::U32,
         other => return Err(format!("unsupported NIfTI datatype {other}")),
     })
 }

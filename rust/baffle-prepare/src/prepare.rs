@@ -139,7 +139,7 @@ pub fn prepare(pools: &BloodPools, options: &PrepareOptions) -> Result<(TriMesh,
 
     let l = &options.labels;
     let wall = match options.remesh_edge_mm {
-        Some(edge) => remesh_wall(&clipped, &planes, edge).map_err(|m| PrepareError::geometry("remesh", m))?,
+        Some(edge) => remesh_wall(&clipped, &planes, edge, None).map_err(|m| PrepareError::geometry("remesh", m))?,
         None => clipped,
     };
     let capped = close_with_caps(&wall, &planes, l.wall, &[l.vsd_cap, l.aortic_cap]).map_err(|m| PrepareError::geometry("caps", m))?;

@@ -179,3 +179,64 @@ fn p2_published_domain_extends() {
 fn p3_published_domain_extends() {
     check_published("p3");
 }
+
+/// Graded away from the designed caps (`ExtendOptions::grading`), the extension keeps the
+/// rims' edge within a cap diameter of each cap, where it is zipped to the rim, and
+/// coarsens beyond; the domain passes the same independent checks with fewer triangles.
+#[test]
+fn a_graded_extension_keeps_the_edge_at_the_caps_and_coarsens_beyond() {
+    use baffle_prepare::extend::ExtensionGrading;
+    let pools = synthetic_pools();
+    let (capped, _) = prepare(&pools, &PrepareOptions { closing_radius_mm: 0.0, ..PrepareOptions::default() }).unwrap();
+    let uniform = extend(&capped, &pools, &capped_ventricle_options()).unwrap();
+    // This heart's LV part lies within one VSD diameter of the VSD: a quarter here.
+    let grading = ExtensionGrading { margin_diameters: 0.25, growth: 0.2, largest_ratio: 2.5 };
+    let graded = extend(&capped, &pools, &ExtendOptions { grading: Some(grading), ..capped_ventricle_options() }).unwrap();
+    check_extended("synthetic graded", &capped, &pools, &graded);
+    assert_eq!(graded.report.grading, Some(grading));
+    let added = |e: &baffle_prepare::extend::Extended| e.surface.triangles.len() - capped.triangles.len();
+    assert!(3 * added(&graded) < 2 * added(&uniform), "extension triangles: {} graded, {} uniform", added(&graded), added(&uniform));
+    // Edge lengths of the extension's walls on the LV side: within 2.5 mm of the VSD cap
+    // (x = 8.6, radius 5.1 mm) and beyond 8 mm (x < 0.5: 5.5 mm past the margin, 2.1 x
+    // the edge of 0.5 mm and more).
+    let edge = graded.report.remesh_edge_mm;
+    let s = &graded.surface;
+    let (mut near, mut far) = (Vec::new(), Vec::new());
+    for t in capped.triangles.len()..s.triangles.len() {
+        let p = s.triangle_points(t);
+        let length = (0..3).map(|k| (p[k] - p[(k + 1) % 3]).norm()).sum::<f64>() / 3.0;
+        let x = (p[0].x + p[1].x + p[2].x) / 3.0;
+        if x > 6.0 && x < 8.5 { near.push(length) } else if x < 0.5 { far.push(length) }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    assert!(!near.is_empty() && !far.is_empty());
+    assert!((mean(&near) / edge - 1.0).abs() < 0.25, "near the VSD: mean edge {:.3} against {edge:.3} mm", mean(&near));
+    assert!(mean(&far) > 1.5 * edge, "at the mid-LV plane: mean edge {:.3} against {edge:.3} mm", mean(&far));
+}
+
+/// p1's published domain remeshed at 0.95 mm, its extension graded to 2.5x: the coarse LV
+/// triangles cut across the designed domain where the LV wall comes close, and the
+/// extension is made again at one edge, saying why (skipped without the data).
+#[test]
+fn p1s_graded_extension_that_crosses_the_domain_is_made_at_one_edge_and_says_why() {
+    use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+    use baffle_prepare::extend::ExtensionGrading;
+    let Some(data) = reference_data_if_present() else { return };
+    let dir = data.join("p1");
+    let pools = read_segmentations(&dir.join("segmentations")).expect("segmentations");
+    let mut published = baffle_core::io::read_surface(&dir.join("published_M_final.vtp")).expect("published domain");
+    published.points.iter_mut().for_each(|p| *p *= 10.0);
+    if published.signed_volume_mm3() < 0.0 {
+        published.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    }
+    let remesh = |mesh, edge_mm| remesh_isotropic(mesh, &RemeshOptions { target_edge_mm: edge_mm, guard_slivers: true, ..RemeshOptions::default() }).unwrap();
+    let domain = remesh(&remesh(&published, 0.85), 0.95);
+    let grading = ExtensionGrading { margin_diameters: 1.0, growth: 0.2, largest_ratio: 2.5 };
+    let options = ExtendOptions { remesh_edge_mm: Some(0.95), grading: Some(grading), ..ExtendOptions::default() };
+    let extended = extend(&domain, &pools, &options).unwrap_or_else(|e| panic!("p1 graded: extend: {e}"));
+    check_extended("p1 published, grading dropped", &domain, &pools, &extended);
+    let r = &extended.report;
+    assert_eq!(r.grading, None);
+    let why = r.grading_dropped.as_deref().expect("the grading was dropped");
+    assert!(why.starts_with("the graded extension failed (") && why.contains("crosses"), "{why}");
+}

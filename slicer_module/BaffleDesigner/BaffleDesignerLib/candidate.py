@@ -14,7 +14,7 @@ import numpy as np
 import vtk
 from vtkmodules.util import numpy_support
 
-from BaffleDesignerLib import process
+from BaffleDesignerLib import environment, process
 
 ATTRIBUTE_PREFIX = "BaffleDesigner."
 CANDIDATE_ATTRIBUTE = ATTRIBUTE_PREFIX + "Candidate"
@@ -83,7 +83,9 @@ class DesignParameters:
     flow mode (FLOW_MODES) and the volume mesh edge length; its BSA is bsa_m2, or the
     Haycock BSA in the height_weight mode. When the ventricle is a segmentation node,
     lv_segment / rv_segment / aorta_segment name its segments (case-insensitive) that
-    `baffle prepare` joins into the capped ventricle."""
+    `baffle prepare` joins into the capped ventricle. flow_sections: the design also holds
+    the tunnel's sections normal to the flow at the target (the library's flow-section
+    rule, the command line's --flow-sections)."""
 
     target_mode: str = "bsa"
     bsa_m2: float = 0.37
@@ -101,6 +103,7 @@ class DesignParameters:
     lv_segment: str = "LV"
     rv_segment: str = "RV"
     aorta_segment: str = "aorta"
+    flow_sections: bool = False
 
     def validate(self) -> None:
         if self.target_mode not in TARGET_MODES:
@@ -129,8 +132,8 @@ class DesignParameters:
         return self.bsa_m2
 
     def validate_cfd(self) -> None:
-        """What the case file needs; physiological consistency (DBP below SBP, ...) is
-        checked by `baffle simulate`, which derives flow and resistance."""
+        """What the GUI's CFD inputs need to be at all; their physiological consistency
+        (DBP below SBP, ...) is the library's check when it writes the case (write_case)."""
         if self.flow_mode not in FLOW_MODES:
             raise BaffleDesignerError(f"flow mode must be one of {', '.join(FLOW_MODES)}, not {self.flow_mode!r}")
         for name in ("systolic_mmhg", "diastolic_mmhg", "heart_rate_bpm", "cardiac_index_l_min_m2", "mesh_edge_length_mm"):
@@ -142,7 +145,11 @@ class DesignParameters:
             raise BaffleDesignerError(f"the BSA for the flow must be a positive number, not {bsa}")
 
     def design_kwargs(self) -> dict:
-        """The target arguments of baffle.design()."""
+        """The arguments of baffle.design(): the target, and whether the flow-normal
+        sections are held at it too."""
+        return {**self._target_kwargs(), "flow_sections": bool(self.flow_sections)}
+
+    def _target_kwargs(self) -> dict:
         self.validate()
         if self.target_mode == "bsa":
             return {"bsa_m2": self.bsa_m2, "z_score": self.z_score}
@@ -151,6 +158,18 @@ class DesignParameters:
         if self.target_mode == "area":
             return {"target_area_mm2": self.target_area_mm2}
         return {"annulus_diameter_mm": self.annulus_diameter_mm}
+
+    def case_kwargs(self) -> dict:
+        """The arguments of baffle.write_case() (the library writes the CFD case)."""
+        self.validate_cfd()
+        return {
+            "bsa_m2": self.cfd_bsa_m2(),
+            "sbp_mmhg": self.systolic_mmhg,
+            "dbp_mmhg": self.diastolic_mmhg,
+            "heart_rate_bpm": self.heart_rate_bpm,
+            "cardiac_index_l_min_m2": self.cardiac_index_l_min_m2,
+            "mode": self.flow_mode,
+        }
 
     def write(self, node) -> None:
         with batched_modify(node):
@@ -166,10 +185,32 @@ class DesignParameters:
             if text is None:
                 continue
             try:
-                setattr(parameters, f.name, text if f.type in (str, "str") else float(text))
+                setattr(parameters, f.name, _attribute_value(f.type, text))
             except ValueError as error:
                 raise BaffleDesignerError(f"{node.GetName()}: attribute {ATTRIBUTE_PREFIX + f.name} = {text!r}: {error}")
         return parameters
+
+
+def library():
+    """(baffle, baffle.vtk_adapters), imported on first use: the module must load, and its
+    first-run check say what is missing, in a Slicer whose Python lacks the package."""
+    try:
+        import baffle
+        from baffle import vtk_adapters
+    except ImportError as error:
+        raise BaffleDesignerError(f"the baffle Python package cannot be imported ({error}). {environment.install_hint()}") from error
+    return baffle, vtk_adapters
+
+
+def _attribute_value(kind, text: str):
+    """A parameter from its node attribute text (as write() stores it)."""
+    if kind in (str, "str"):
+        return text
+    if kind in (bool, "bool"):
+        if text not in ("True", "False"):
+            raise ValueError("not True or False")
+        return text == "True"
+    return float(text)
 
 
 def require_executable(executable: Optional[str]) -> None:

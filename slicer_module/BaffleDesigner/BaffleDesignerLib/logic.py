@@ -32,7 +32,7 @@ from BaffleDesignerLib.candidate import (  # the candidate's scene names, parame
     FOLDER_ATTRIBUTE, FOLDER_SUFFIX, OUTPUT_ROLES, REF_AORTIC_RIM, REF_BAFFLE, REF_CENTERLINE, REF_CHART,
     REF_DOMAIN, REF_FLAT_TEMPLATE, REF_RIM_CAPPED, REF_SECTIONS, REF_SERIES_FINAL, REF_SERIES_RAW,
     REF_SERIES_TARGET, REF_SURFACE, REF_TABLE, REF_VOLUME_MESH, REF_VOLUME_MESH_QUALITY, REF_VSD_RIM,
-    ROLE_ATTRIBUTE, batched_modify, check_curve, read_written_file, vtk_double_array,
+    ROLE_ATTRIBUTE, batched_modify, check_curve, library, read_written_file, vtk_double_array,
 )
 
 MODULE_NAME = "BaffleDesigner"
@@ -67,17 +67,6 @@ SECTION_COLUMNS = (
     (COL_MEASURED, "mm2", "area of the section loop cut from the domain model here (VTK)"),
     (COL_ALPHA, "mm", "regularized parabolic arc amplitude"),
 )
-
-
-def library():
-    """(baffle, baffle.vtk_adapters), imported on first use: the module must load, and its
-    first-run check say what is missing, in a Slicer whose Python lacks the package."""
-    try:
-        import baffle
-        from baffle import vtk_adapters
-    except ImportError as error:
-        raise BaffleDesignerError(f"the baffle Python package cannot be imported ({error}). {environment.install_hint()}") from error
-    return baffle, vtk_adapters
 
 
 def singleton_parameter_node(scene, module_name: str):

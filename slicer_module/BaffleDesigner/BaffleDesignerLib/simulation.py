@@ -1,5 +1,6 @@
 """Simulate one candidate: `baffle mesh` (gmsh) then `baffle simulate` (the CFD worker),
-both as separate processes, driven without blocking: SimulationJob.poll() advances the
+both as separate processes, on the case the library writes (the plan's own, through
+baffle.write_case), driven without blocking: SimulationJob.poll() advances the
 chain and is called from a QTimer in the widget (or a loop in tests). Results are read
 and checked in full before any scene node changes, so a failed or cancelled run leaves
 the candidate's earlier results (and its design outputs) as they were.
@@ -19,7 +20,6 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 import vtk
-from vtkmodules.util import numpy_support
 
 from BaffleDesignerLib import candidate
 from BaffleDesignerLib import process
@@ -29,10 +29,6 @@ from BaffleDesignerLib import process
 VERDICT_WORDS = {"passes": "pass", "fails": "fail", "inconclusive": "inconclusive"}
 # The point arrays of baffle simulate's peak.vtu (baffle_cfd::vtu).
 FIELD_ARRAYS = {"velocity_m_s": 3, "speed_m_s": 1, "pressure_mmhg": 1}
-
-# Face roles of the designed domain (the library's default ModelFaceIDs).
-INLET_FACE_ID = 11  # VSD cap: flow from the LV
-OUTLET_FACE_ID = 16  # aortic-annulus cap
 
 MESH_STAGE, SIMULATE_STAGE = "volume mesh", "simulation"
 # Grace period between SIGTERM and SIGKILL: gmsh has nothing to save; the CFD worker
@@ -58,58 +54,30 @@ SUMMARY_INPUT_ROWS = (
 COL_DP = "dp_mmhg"
 
 
-# ---- the case file --------------------------------------------------------------------
+# ---- the case file ------------------------------------------------------------------
 
 
-def domain_face_ids(domain_polydata) -> List[int]:
-    labels = domain_polydata.GetCellData().GetArray("ModelFaceID")
-    if labels is None:
-        raise candidate.BaffleDesignerError("the domain model has no ModelFaceID cell array; design the baffle again")
-    return sorted({int(v) for v in numpy_support.vtk_to_numpy(labels).ravel()})
+# The volume mesh `baffle mesh` writes into the work folder (logic.volumeMeshCommand).
+MESH_VOLUME, MESH_FACES = "volume.vtu", "volume-faces.vtp"
 
 
-def case_document(parameters: "candidate.DesignParameters", face_ids: List[int]) -> dict:
-    """The `baffle simulate` case for the volume mesh `baffle mesh` writes beside it
-    (volume.vtu, volume-faces.vtp, mm). Flow and outlet resistance are left for the CLI
-    to derive from BSA x cardiac index and SBP/DBP, as the paper does; it also checks
-    their physiological consistency (e.g. DBP below SBP) and says what is wrong."""
-    parameters.validate_cfd()
-    missing = [f for f in (INLET_FACE_ID, OUTLET_FACE_ID) if f not in face_ids]
-    if missing:
-        raise candidate.BaffleDesignerError(
-            f"the domain has no face {missing} (faces {face_ids}); the inflow is the VSD cap ({INLET_FACE_ID}) "
-            f"and the outflow the aortic-annulus cap ({OUTLET_FACE_ID})"
-        )
-    return {
-        "mesh": {"volume": "volume.vtu", "faces": "volume-faces.vtp", "format": "baffle", "units": "mm"},
-        "faces": {
-            "inlet": INLET_FACE_ID,
-            "outlets": [OUTLET_FACE_ID],
-            "walls": [f for f in face_ids if f not in (INLET_FACE_ID, OUTLET_FACE_ID)],
-        },
-        "inflow": {
-            "bsa_m2": parameters.cfd_bsa_m2(),
-            "cardiac_index_l_min_m2": parameters.cardiac_index_l_min_m2,
-            "heart_rate_bpm": parameters.heart_rate_bpm,
-            "profile": "plug",
-        },
-        "outlet": {"sbp_mmhg": parameters.systolic_mmhg, "dbp_mmhg": parameters.diastolic_mmhg},
-        "time": {"mode": CASE_MODES[parameters.flow_mode]},
-        "output": {"vtu_every_steps": 0, "checkpoint_every_steps": 50},
-    }
-
-
-def write_case(path: str, document: dict) -> None:
-    with open(path, "w", encoding="utf-8") as handle:
-        json.dump(document, handle, indent=2)
+def write_case(work_dir: str, parameters: "candidate.DesignParameters") -> str:
+    """The library writes the plan's `baffle simulate` case into work_dir (the one case
+    definition, baffle-plan's: the designed domain's VSD cap in, aortic cap out, flow BSA x
+    cardiac index, outlet resistance from SBP/DBP, the flow mode) for the volume mesh beside
+    it, after checking it as `baffle simulate` will (e.g. DBP below SBP). Returns its path."""
+    baffle, _ = candidate.library()
+    try:
+        return str(baffle.write_case(work_dir, mesh_volume=MESH_VOLUME, mesh_faces=MESH_FACES, **parameters.case_kwargs()))
+    except baffle.BaffleError as error:
+        raise candidate.BaffleDesignerError(f"the CFD case: {error}") from error
 
 
 # ---- reading the results (no scene access) ---------------------------------------------
 
 
-# The case's time.mode of each flow mode of the GUI (logic.FLOW_MODES), and back.
-CASE_MODES = {"quick": "quick", "steady": "steady", "pulsatile": "transient"}
-GUI_MODES = {case: gui for gui, case in CASE_MODES.items()}
+# summary.json's mode of each run, in the GUI's words (logic.FLOW_MODES).
+GUI_MODES = {"quick": "quick", "steady": "steady", "transient": "pulsatile"}
 
 
 @dataclass
@@ -219,10 +187,18 @@ def read_series(path: str, dp_faces) -> Tuple[Dict[str, np.ndarray], List[str]]:
     return series, header + [COL_DP]
 
 
+def _dp_faces(summary: dict, path: str) -> Tuple[int, int]:
+    """The faces dp is measured between (summary.json's dp_faces: the case's)."""
+    faces = summary.get("dp_faces")
+    if not (isinstance(faces, list) and len(faces) == 2):
+        raise candidate.BaffleDesignerError(f"{path}: dp_faces is {faces!r}, not two face ids")
+    return int(faces[0]), int(faces[1])
+
+
 def read_results(out_dir: str) -> SimulationResults:
     summary_path = os.path.join(out_dir, "summary.json")
     summary = read_summary(summary_path)
-    series, order = read_series(os.path.join(out_dir, "timeseries.csv"), summary.get("dp_faces") or (INLET_FACE_ID, OUTLET_FACE_ID))
+    series, order = read_series(os.path.join(out_dir, "timeseries.csv"), _dp_faces(summary, summary_path))
     return SimulationResults(
         summary=summary,
         dp_mmhg=_finite(summary, "dp_peak_mmhg", summary_path),
@@ -375,7 +351,7 @@ class SimulationJob(candidate.CandidateJob):
         super().__init__(logic, curve, executable, work_dir, env)
         self.out_dir = os.path.join(work_dir, "results")
         self.results: Optional[SimulationResults] = None
-        self._case: Optional[dict] = None
+        self._case_path: Optional[str] = None
         self._domain = None  # the domain polydata that was meshed
         self._cancel_requested = False
         self.simulate_started_at = 0.0
@@ -389,7 +365,7 @@ class SimulationJob(candidate.CandidateJob):
         if domain is None or domain.GetPolyData() is None:
             raise candidate.BaffleDesignerError(f"{self.curve.GetName()}: design the baffle first (no domain model)")
         parameters = self.logic.parameters(self.curve)
-        self._case = case_document(parameters, domain_face_ids(domain.GetPolyData()))
+        self._case_path = write_case(self.work_dir, parameters)
         self._domain = (domain.GetPolyData(), domain.GetPolyData().GetMTime())
         command = self.logic.volumeMeshCommand(self.curve, self.executable, self.work_dir, parameters.mesh_edge_length_mm)
         self._start_stage(MESH_STAGE, command)
@@ -454,13 +430,8 @@ class SimulationJob(candidate.CandidateJob):
         return polydata is not self._domain[0] or polydata.GetMTime() != self._domain[1]
 
     def _start_simulation(self) -> None:
-        case_path = os.path.join(self.work_dir, "case.json")
-        try:
-            write_case(case_path, self._case)
-        except OSError as error:
-            raise candidate.BaffleDesignerError(f"could not write {case_path}: {error}") from error
         self.simulate_started_at = time.monotonic()
-        self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", case_path, "--out", self.out_dir, "--progress-tags"])
+        self._start_stage(SIMULATE_STAGE, [self.executable, "simulate", self._case_path, "--out", self.out_dir, "--progress-tags"])
 
     def _finish(self, state: str, message: str) -> str:
         # The outcome of the latest run; the stored results change only on completion.

@@ -1,6 +1,6 @@
 //! `baffle design`'s arguments: the design options and the target.
 
-use baffle_plan::design_cmd::{DesignSettings, Frame as PlanFrame, TargetSettings, Vec3};
+use baffle_plan::design_cmd::{DesignSettings, FaceLabels, Frame as PlanFrame, TargetSettings, Vec3};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -48,16 +48,16 @@ pub struct DesignArgs {
     #[arg(long, default_value_t = DesignSettings::default().max_point_distance_mm)]
     pub max_point_distance_mm: f64,
     /// ModelFaceID of the RV wall.
-    #[arg(long, default_value_t = DesignSettings::default().wall_label)]
+    #[arg(long, default_value_t = DesignSettings::default().labels.wall)]
     pub wall_label: i32,
     /// ModelFaceID given to the baffle.
-    #[arg(long, default_value_t = DesignSettings::default().baffle_label)]
+    #[arg(long, default_value_t = DesignSettings::default().labels.baffle)]
     pub baffle_label: i32,
     /// ModelFaceID of the VSD cap.
-    #[arg(long, default_value_t = DesignSettings::default().vsd_label)]
+    #[arg(long, default_value_t = DesignSettings::default().labels.vsd_cap)]
     pub vsd_label: i32,
     /// ModelFaceID of the aortic-annulus cap.
-    #[arg(long, default_value_t = DesignSettings::default().aortic_label)]
+    #[arg(long, default_value_t = DesignSettings::default().labels.aortic_cap)]
     pub aortic_label: i32,
     /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
     /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
@@ -140,10 +140,7 @@ impl From<DesignArgs> for DesignSettings {
             centerline_spacing_mm: a.centerline_spacing_mm,
             control_points: a.control_points,
             max_point_distance_mm: a.max_point_distance_mm,
-            wall_label: a.wall_label,
-            baffle_label: a.baffle_label,
-            vsd_label: a.vsd_label,
-            aortic_label: a.aortic_label,
+            labels: FaceLabels { wall: a.wall_label, baffle: a.baffle_label, vsd_cap: a.vsd_label, aortic_cap: a.aortic_label },
             vsd_cap_point: a.vsd_cap_point,
             aortic_cap_point: a.aortic_cap_point,
             reference_baffle: a.reference_baffle,

@@ -2,6 +2,7 @@
 
 use super::prepare::PrepareSourceArgs;
 use baffle_plan::extend_cmd::ExtendSettings;
+use baffle_plan::design_cmd::FaceLabels;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -26,16 +27,16 @@ pub struct ExtendArgs {
     #[arg(long, default_value_t = ExtendSettings::default().outflow_label)]
     pub outflow_label: i32,
     /// ModelFaceID of the domain's walls (the extension's walls get it too).
-    #[arg(long, default_value_t = ExtendSettings::default().wall_label)]
+    #[arg(long, default_value_t = ExtendSettings::default().labels.wall)]
     pub wall_label: i32,
     /// ModelFaceID of the domain's baffle.
-    #[arg(long, default_value_t = ExtendSettings::default().baffle_label)]
+    #[arg(long, default_value_t = ExtendSettings::default().labels.baffle)]
     pub baffle_label: i32,
     /// ModelFaceID of the domain's VSD cap.
-    #[arg(long, default_value_t = ExtendSettings::default().vsd_label)]
+    #[arg(long, default_value_t = ExtendSettings::default().labels.vsd_cap)]
     pub vsd_label: i32,
     /// ModelFaceID of the domain's aortic-annulus cap.
-    #[arg(long, default_value_t = ExtendSettings::default().aortic_label)]
+    #[arg(long, default_value_t = ExtendSettings::default().labels.aortic_cap)]
     pub aortic_label: i32,
     /// Voxel edge of the union grid the LV and aorta are cut from (mm).
     #[arg(long, default_value_t = ExtendSettings::default().voxel_mm)]
@@ -50,6 +51,12 @@ pub struct ExtendArgs {
     /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
     #[arg(long)]
     pub remesh_domain_edge_mm: Option<f64>,
+    /// Coarsen the LV and aortic parts away from the designed caps, up to this many times
+    /// the edge (within one cap diameter of each cap the edge stays, then grows 0.2 mm
+    /// per mm); 1: the edge everywhere. Mesh the result with `baffle mesh
+    /// --largest-edge-mm` at this many times the edge length.
+    #[arg(long, default_value_t = ExtendSettings::default().extension_coarsening)]
+    pub extension_coarsening: f64,
     /// Move the inflow cap (mid-LV plane) this far (mm) from the LV volume centroid along
     /// the VSD normal (positive: away from the VSD, toward the apex), for a sensitivity
     /// study; an offset that leaves no clean cut of the LV is an error (no fallback).
@@ -76,13 +83,11 @@ impl From<ExtendArgs> for ExtendSettings {
             out: a.out,
             inflow_label: a.inflow_label,
             outflow_label: a.outflow_label,
-            wall_label: a.wall_label,
-            baffle_label: a.baffle_label,
-            vsd_label: a.vsd_label,
-            aortic_label: a.aortic_label,
+            labels: FaceLabels { wall: a.wall_label, baffle: a.baffle_label, vsd_cap: a.vsd_label, aortic_cap: a.aortic_label },
             voxel_mm: a.voxel_mm,
             remesh_edge_mm: a.remesh_edge_mm,
             remesh_domain_edge_mm: a.remesh_domain_edge_mm,
+            extension_coarsening: a.extension_coarsening,
             inflow_offset_mm: a.inflow_offset_mm,
             outflow_diameters: a.outflow_diameters,
             no_baffle: a.no_baffle,

@@ -16,6 +16,11 @@ pub struct MeshArgs {
     /// Largest tetrahedron edge length (mm); the paper used 1.25 / 0.95 / 0.75.
     #[arg(long, default_value_t = MeshSettings::default().edge_length_mm)]
     pub edge_length_mm: f64,
+    /// Largest tetrahedron edge where the boundary's triangles are longer (an extended
+    /// domain made with `baffle extend --extension-coarsening R`: give R x the edge
+    /// length); default: the edge length everywhere.
+    #[arg(long)]
+    pub largest_edge_mm: Option<f64>,
     /// Output volume mesh (.vtu). Beside it: <stem>-faces.vtp (ModelFaceID,
     /// GlobalNodeID) and <stem>-quality.json.
     #[arg(long)]
@@ -37,6 +42,7 @@ impl From<MeshArgs> for MeshSettings {
         MeshSettings {
             surface: a.surface,
             edge_length_mm: a.edge_length_mm,
+            largest_edge_mm: a.largest_edge_mm,
             out: a.out,
             remesh_surface: a.remesh_surface,
             interior_labels: a.interior_labels,

@@ -52,6 +52,11 @@ pub struct PlanArgs {
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
     #[arg(long, default_value_t = PlanSettings::default().edge_length_mm)]
     pub edge_length_mm: f64,
+    /// On an extended domain, coarsen the LV and aortic parts away from the VSD and
+    /// aortic caps up to this many times each level's edge (within one cap diameter of
+    /// the caps the edge stays); 1: the whole domain at the edge.
+    #[arg(long, default_value_t = PlanSettings::default().extension_coarsening)]
+    pub extension_coarsening: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
     /// (on an extended domain every level is extended again from the designed domain
@@ -92,6 +97,7 @@ impl From<PlanArgs> for PlanSettings {
             pulsatile: a.pulsatile,
             cycles: a.cycles,
             edge_length_mm: a.edge_length_mm,
+            extension_coarsening: a.extension_coarsening,
             mesh_study: a.mesh_study,
             single_mesh: a.single_mesh,
             elevated_flow: a.elevated_flow,

@@ -100,6 +100,8 @@ impl From<SimulateArgs> for SimulateSettings {
             read_back: a.read_back,
             mpi_processes: a.mpi_processes,
             progress_tags: a.progress_tags,
+            // The command line stops on SIGTERM / SIGINT.
+            cancel: None,
         }
     }
 }

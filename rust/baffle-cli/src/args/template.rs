@@ -2,6 +2,7 @@
 
 use super::design::Frame;
 use baffle_plan::template_cmd::{TemplateMethod as PlanMethod, TemplateSettings};
+use baffle_plan::design_cmd::FaceLabels;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -34,11 +35,11 @@ pub struct TemplateArgs {
     /// arap (LSCM then as-rigid-as-possible; smaller largest area change).
     #[arg(long, value_enum, default_value_t = TemplateMethod::from(TemplateSettings::default().method))]
     pub method: TemplateMethod,
-    #[arg(long, default_value_t = TemplateSettings::default().baffle_label)]
+    #[arg(long, default_value_t = TemplateSettings::default().labels.baffle)]
     pub baffle_label: i32,
-    #[arg(long, default_value_t = TemplateSettings::default().vsd_label)]
+    #[arg(long, default_value_t = TemplateSettings::default().labels.vsd_cap)]
     pub vsd_label: i32,
-    #[arg(long, default_value_t = TemplateSettings::default().aortic_label)]
+    #[arg(long, default_value_t = TemplateSettings::default().labels.aortic_cap)]
     pub aortic_label: i32,
 }
 
@@ -58,9 +59,7 @@ impl From<TemplateArgs> for TemplateSettings {
             date: a.date,
             surface_frame: a.surface_frame.into(),
             method: a.method.into(),
-            baffle_label: a.baffle_label,
-            vsd_label: a.vsd_label,
-            aortic_label: a.aortic_label,
+            labels: FaceLabels { baffle: a.baffle_label, vsd_cap: a.vsd_label, aortic_cap: a.aortic_label, ..TemplateSettings::default().labels },
         }
     }
 }

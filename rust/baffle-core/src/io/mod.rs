@@ -1,5 +1,5 @@
-//! File I/O: surfaces and polylines (VTK XML `.vtp`, legacy `.vtk`, `.stl`) and
-//! suture point lists (Slicer markups, CSV, JSON).
+//! File I/O: surfaces and polylines (VTK XML `.vtp`, legacy `.vtk`, `.stl`), tetrahedral
+//! volumes (`.vtu`, read) and suture point lists (Slicer markups, CSV, JSON).
 //!
 //! Geometry is returned as stored (millimetres expected, frame as in the file).
 //! Every error is an [`IoError`] whose message starts with the file's path.
@@ -12,6 +12,7 @@ mod polydata;
 mod stl;
 mod vtp_read;
 mod vtp_write;
+mod vtu_read;
 
 use std::path::Path;
 
@@ -19,6 +20,8 @@ pub use atomic::{write_atomic, write_atomic_with};
 pub use error::{IoError, IoErrorKind};
 pub use points::{read_points, write_markups_closed_curve, CoordinateSystem, SuturePoints};
 pub use polydata::{ArrayValues, DataArray, LabeledSurface, PolyData, PolyDataOut, MODEL_FACE_ID};
+pub use vtp_read::ScalarType;
+pub use vtu_read::{read_vtu, TetGrid};
 
 use crate::mesh::TriMesh;
 use error::read_bytes;

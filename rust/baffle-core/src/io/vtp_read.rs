@@ -419,8 +419,10 @@ fn decode_array(a: &ArrayElement, enc: Encoding, appended: Option<&Appended>) ->
     Ok(Some(numbers))
 }
 
+/// The binary sample types of VTK arrays and of image voxels (NRRD, NIfTI), by size and
+/// signedness.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum ScalarType {
+pub enum ScalarType {
     I8,
     U8,
     I16,
@@ -451,7 +453,8 @@ impl ScalarType {
         })
     }
 
-    fn size(self) -> usize {
+    /// Bytes a sample.
+    pub fn size(self) -> usize {
         use ScalarType::*;
         match self {
             I8 | U8 => 1,

@@ -9,7 +9,6 @@
 pub mod concave;
 pub mod pca;
 pub mod pchip;
-pub mod sparse_cg;
 pub mod spline;
 pub mod tps;
 

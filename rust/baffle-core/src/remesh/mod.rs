@@ -10,6 +10,7 @@
 //! collapses only run along a feature line or pull a free vertex onto one, so
 //! the seam keeps bit-identical input coordinates and no triangle spans a rim.
 
+mod grading;
 mod halfedge;
 mod projection;
 #[cfg(test)]
@@ -18,6 +19,7 @@ mod tests;
 use crate::mesh::{TriMesh, Vec3};
 use halfedge::{face_of, next, prev, HalfEdgeMesh, NONE};
 use projection::{feature_key, FeatureKey, FeaturePolylines, SurfaceProjector};
+pub use grading::SizeGrading;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct RemeshOptions {
@@ -34,16 +36,19 @@ pub struct RemeshOptions {
     /// of the seam-imprinted wall runs as it was validated (the p1-p3 drag family: with the
     /// guards, three p3 drags no longer designed).
     pub guard_slivers: bool,
+    /// A target edge growing away from a disc (`None`: `target_edge_mm` everywhere, the
+    /// isotropic remesh); `target_edge_mm` is then the smallest edge.
+    pub grading: Option<SizeGrading>,
 }
 
 impl Default for RemeshOptions {
     fn default() -> Self {
-        RemeshOptions { target_edge_mm: 0.85, iterations: 5, split_boundary: false, guard_slivers: false }
+        RemeshOptions { target_edge_mm: 0.85, iterations: 5, split_boundary: false, guard_slivers: false, grading: None }
     }
 }
 
-/// Remesh `mesh` isotropically at `opts.target_edge_mm`, keeping boundary and
-/// label-boundary edges as features. Errors name the offending point, triangle or edge.
+/// Remesh `mesh` isotropically at `opts.target_edge_mm` (or at the edge of its
+/// `grading`, growing from there), keeping boundary and label-boundary edges as features. Errors name the offending point, triangle or edge.
 pub fn remesh_isotropic(mesh: &TriMesh, opts: &RemeshOptions) -> Result<TriMesh, String> {
     validate_input(mesh, opts)?;
     let budget = TriangleBudget::new(mesh, opts.target_edge_mm)?;
@@ -76,6 +81,9 @@ pub fn where_it_crosses_itself(mesh: &TriMesh) -> Option<String> {
 fn validate_input(mesh: &TriMesh, opts: &RemeshOptions) -> Result<(), String> {
     if !(opts.target_edge_mm.is_finite() && opts.target_edge_mm > 0.0) {
         return Err(format!("target edge length must be a positive number of mm, got {}", opts.target_edge_mm));
+    }
+    if let Some(grading) = &opts.grading {
+        grading.validate(opts.target_edge_mm)?;
     }
     if mesh.triangles.is_empty() {
         return Err("mesh has no triangles".into());
@@ -164,6 +172,7 @@ pub const SLIVER_HEIGHT_REL: f64 = 1e-3;
 struct Remesher {
     mesh: HalfEdgeMesh,
     target_mm: f64,
+    grading: Option<SizeGrading>,
     split_boundary: bool,
     guard_slivers: bool,
     projector: SurfaceProjector,
@@ -185,6 +194,7 @@ impl Remesher {
             polylines,
             mesh: he,
             target_mm: opts.target_edge_mm,
+            grading: opts.grading,
             split_boundary: opts.split_boundary,
             guard_slivers: opts.guard_slivers,
             feature_edges: Vec::new(),
@@ -221,12 +231,34 @@ impl Remesher {
         }
     }
 
+    /// The target edge (mm) between `a` and `b`: at their midpoint.
+    fn target_between(&self, a: &Vec3, b: &Vec3) -> f64 {
+        match &self.grading {
+            None => self.target_mm,
+            Some(g) => g.edge_mm(self.target_mm, &(0.5 * (a + b))),
+        }
+    }
+
+    /// Split above 4/3 of the target (squared), at the smallest target.
     fn high_sq(&self) -> f64 {
         (4.0 / 3.0 * self.target_mm).powi(2)
     }
 
-    fn low_sq(&self) -> f64 {
-        (0.8 * self.target_mm).powi(2)
+    /// Whether the edge of `h` is longer than 4/3 of its target.
+    fn is_long(&self, h: u32) -> bool {
+        let m = &self.mesh;
+        let length_sq = m.edge_length_sq(h);
+        length_sq > self.high_sq() && {
+            let target = self.target_between(&m.pos[m.origin(h) as usize], &m.pos[m.target(h) as usize]);
+            length_sq > (4.0 / 3.0 * target).powi(2)
+        }
+    }
+
+    /// Whether the edge of `h` is shorter than 4/5 of its target.
+    fn is_short(&self, h: u32) -> bool {
+        let m = &self.mesh;
+        let target = self.target_between(&m.pos[m.origin(h) as usize], &m.pos[m.target(h) as usize]);
+        m.edge_length_sq(h) < (0.8 * target).powi(2)
     }
 
     fn min_normal_len(&self) -> f64 {
@@ -255,7 +287,6 @@ impl Remesher {
     // ---- split -------------------------------------------------------------
 
     fn split_long_edges(&mut self, budget: &TriangleBudget) -> Result<(), String> {
-        let high_sq = self.high_sq();
         loop {
             // Splitting only appends faces; collapses of earlier rounds left dead ones in
             // the arrays, which the budget must not count (at 0.33 mm on the synthetic
@@ -267,7 +298,7 @@ impl Remesher {
             while f < self.mesh.corners.len() {
                 for k in 0..3 {
                     let h = (3 * f + k) as u32;
-                    if self.mesh.face_alive[f] && self.mesh.edge_length_sq(h) > high_sq && self.may_split(h) {
+                    if self.mesh.face_alive[f] && self.is_long(h) && self.may_split(h) {
                         self.split(h);
                         splits += 1;
                     }
@@ -319,14 +350,13 @@ impl Remesher {
 
     fn collapse_short_edges(&mut self) {
         self.count_feature_edges();
-        let low_sq = self.low_sq();
         for f in 0..self.mesh.corners.len() {
             for k in 0..3 {
                 if !self.mesh.face_alive[f] {
                     break;
                 }
                 let h = (3 * f + k) as u32;
-                if self.mesh.edge_length_sq(h) >= low_sq {
+                if !self.is_short(h) {
                     continue;
                 }
                 let (a, b) = (self.mesh.origin(h), self.mesh.target(h));
@@ -388,8 +418,8 @@ impl Remesher {
     fn keeps_geometry_sound(&self, h: u32, keep: u32) -> bool {
         let m = &self.mesh;
         let p_keep = m.pos[keep as usize];
-        let high_sq = self.high_sq();
-        if self.nbrs_a.iter().any(|&x| x != keep && (m.pos[x as usize] - p_keep).norm_squared() > high_sq) {
+        let too_long = |x: &Vec3| (x - p_keep).norm_squared() > (4.0 / 3.0 * self.target_between(x, &p_keep)).powi(2);
+        if self.nbrs_a.iter().any(|&x| x != keep && too_long(&m.pos[x as usize])) {
             return false;
         }
         let t = m.twin[h as usize];

@@ -459,3 +459,44 @@ fn a_closed_surface_that_crosses_itself_is_refused_where_it_crosses() {
     // The phantom as it is does not cross itself and remeshes.
     assert!(remesh_isotropic(&surface, &RemeshOptions { target_edge_mm: 1.0, ..RemeshOptions::default() }).is_ok());
 }
+
+/// Graded from the cap: the cylinder's edges near the cap (label 11, at z = CYL_H) stay at
+/// the target, those far down its side grow as the grading says, and the surface stays
+/// a clean open manifold on the same cylinder.
+#[test]
+fn a_graded_remesh_keeps_the_target_near_the_disc_and_coarsens_away_from_it() {
+    let mesh = capped_cylinder(7);
+    let target = 0.5;
+    let grading = SizeGrading {
+        center: Vec3::new(0.0, 0.0, CYL_H),
+        normal: Vec3::z(),
+        radius_mm: CYL_R,
+        margin_mm: 2.0,
+        growth: 0.25,
+        largest_edge_mm: 1.5,
+    };
+    let graded = remesh_isotropic(&mesh, &RemeshOptions { grading: Some(grading), ..opts(target) }).unwrap();
+    assert_clean_open_manifold(&graded);
+    let uniform = remesh_isotropic(&mesh, &opts(target)).unwrap();
+    let side = |m: &TriMesh| m.face_ids.iter().filter(|&&l| l == 2).count();
+    assert!(side(&graded) * 2 < side(&uniform), "side: {} graded against {} uniform triangles", side(&graded), side(&uniform));
+    // Each edge's length against the grading's target at its midpoint.
+    let mut ratios_near = Vec::new();
+    let mut ratios_far = Vec::new();
+    for &(a, b) in graded.edge_triangles().keys() {
+        let (pa, pb) = (graded.points[a as usize], graded.points[b as usize]);
+        let mid = 0.5 * (pa + pb);
+        let wanted = grading.edge_mm(target, &mid);
+        let ratio = (pa - pb).norm() / wanted;
+        if grading.distance_mm(&mid) < grading.margin_mm { ratios_near.push(ratio) } else if wanted >= 1.4 { ratios_far.push(ratio) }
+    }
+    for (what, ratios) in [("near the cap", &mut ratios_near), ("far from it", &mut ratios_far)] {
+        ratios.sort_by(|a, b| a.total_cmp(b));
+        assert!(ratios.len() > 50, "{what}: {} edges", ratios.len());
+        let median = percentile(ratios, 0.5);
+        assert!((0.75..=1.3).contains(&median), "{what}: median edge / target {median}");
+        assert!(percentile(ratios, 0.99) < 4.0 / 3.0 + 0.05, "{what}: an edge longer than 4/3 of its target");
+    }
+    // The cap's area stays (the graded side is projected back onto the cylinder).
+    assert!((label_area(&graded, 11) - PI * CYL_R * CYL_R).abs() < 0.02 * PI * CYL_R * CYL_R);
+}

@@ -723,19 +723,25 @@ fn input_path(args: &PlanSettings) -> Option<&Path> {
     p.segmentations.as_deref().or(p.labelmap.as_deref()).or(args.design.surface.as_deref())
 }
 
-/// What the command line says at the end: the warnings, then the verdict line.
+/// What the command line says at the end (the warnings, then the verdict line), and the
+/// verdict with the nominal run's numbers it judged, for a library caller.
 pub struct Outcome {
     pub warnings: Vec<String>,
     /// Why the report has no 3D pictures, when it has none.
     pub pictures_missing: Option<String>,
     pub verdict_line: String,
+    pub verdict: Verdict,
+    /// The nominal run's plane-averaged peak pressure difference (mmHg), as judged.
+    pub dp_mmhg: f64,
+    /// The nominal run's largest speed in the domain at peak flow (m/s).
+    pub v_max_m_s: f64,
 }
 
 /// Write report.json and report.html from the stages' files.
 pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageRecord]) -> Result<Outcome, String> {
     let layout = PlanLayout::of(args);
     let out = layout.root();
-    let labels = (args.design.vsd_label, args.design.aortic_label);
+    let labels = (args.design.labels.vsd_cap, args.design.labels.aortic_cap);
     let design_dir = layout.design_dir();
     let design_path = design_dir.join("report.json");
     let design: DesignReport = read_json(&design_path)?;
@@ -837,10 +843,10 @@ pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageReco
     let d = &args.design;
     let ras = matches!(d.surface_frame, crate::design_cmd::Frame::Ras);
     let labels = [
-        ("wall", d.wall_label),
-        ("baffle", d.baffle_label),
-        ("vsd", d.vsd_label),
-        ("aortic", d.aortic_label),
+        ("wall", d.labels.wall),
+        ("baffle", d.labels.baffle),
+        ("vsd", d.labels.vsd_cap),
+        ("aortic", d.labels.aortic_cap),
         ("inflow", baffle_prepare::extend::INFLOW_CAP_LABEL),
         ("outflow", baffle_prepare::extend::OUTFLOW_CAP_LABEL),
     ];
@@ -1003,7 +1009,8 @@ pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageReco
         pictures::Pictures::NotRendered(reason) => Some(reason),
         pictures::Pictures::Rendered { .. } => None,
     };
-    Ok(Outcome { warnings, pictures_missing, verdict_line })
+    let v_max_m_s = nominal.v_max_m_s()?;
+    Ok(Outcome { warnings, pictures_missing, verdict_line, verdict, dp_mmhg: dp, v_max_m_s })
 }
 
 #[cfg(test)]

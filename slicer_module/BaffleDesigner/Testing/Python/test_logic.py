@@ -398,3 +398,18 @@ def test_flatten_and_save_template(p2_scene, tmp_path):
     assert logic.saveTemplate(curve, tmp_path / "t.png") and (tmp_path / "t.png").read_bytes().startswith(b"\x89PNG")
     with pytest.raises(bdlogic.BaffleDesignerError, match=r"\.pdf, \.svg or \.png"):
         logic.saveTemplate(curve, tmp_path / "template.jpg")
+
+
+def test_flow_sections_reach_the_librarys_design(phantom_scene):
+    """The flow-section rule is a parameter of the candidate (stored on the curve) that the
+    module hands to baffle.design: the library raises the target until the sections normal
+    to the flow reach it, and its report says how."""
+    scene, logic, model, curve = phantom_scene
+    bsa_m2 = logic.parameters(curve).bsa_m2
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa_m2, flow_sections=True))
+    assert logic.parameters(curve).flow_sections is True
+    flow = logic.design(curve).report["flow_sections"]
+    assert flow["goal_area_mm2"] > 0 and len(flow["rounds"]) >= 1
+    logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa_m2))
+    assert logic.parameters(curve).flow_sections is False
+    assert "flow_sections" not in logic.design(curve).report

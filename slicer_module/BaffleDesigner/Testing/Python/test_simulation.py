@@ -61,31 +61,34 @@ def simulated(executable, tmp_path_factory):
     scene.Clear(1)
 
 
-def test_case_document_of_a_candidate(phantom_scene):
-    scene, logic, model, curve = phantom_scene
-    logic.design(curve)
-    domain = curve.GetNodeReference(bdlogic.REF_DOMAIN).GetPolyData()
-    faces = simulation.domain_face_ids(domain)
-    assert faces == [2, 10, 11, 16]
+def test_the_case_is_the_librarys(tmp_path):
+    """The module writes no case of its own: the library writes the plan's case (baffle.write_case)
+    for the candidate's CFD parameters, checked as `baffle simulate` will check it."""
     parameters = bdlogic.DesignParameters(
         target_mode="height_weight", height_cm=60.0, weight_kg=6.0, systolic_mmhg=90.0, diastolic_mmhg=50.0,
         heart_rate_bpm=110.0, cardiac_index_l_min_m2=4.22, flow_mode="pulsatile",
     )
-    case = simulation.case_document(parameters, faces)
-    assert case["faces"] == {"inlet": 11, "outlets": [16], "walls": [2, 10]}
+    path = simulation.write_case(str(tmp_path), parameters)
+    assert path == str(tmp_path / "case.json")
+    with open(path, encoding="utf-8") as handle:
+        case = json.load(handle)
+    assert (case["faces"]["inlet"], case["faces"]["outlets"], case["faces"]["walls"]) == (11, [16], [2, 10])
     assert case["inflow"]["bsa_m2"] == pytest.approx(0.024265 * 6.0**0.5378 * 60.0**0.3964)  # Haycock
     assert case["inflow"]["cardiac_index_l_min_m2"] == 4.22 and case["inflow"]["heart_rate_bpm"] == 110.0
-    assert case["outlet"] == {"sbp_mmhg": 90.0, "dbp_mmhg": 50.0}
+    assert (case["outlet"]["sbp_mmhg"], case["outlet"]["dbp_mmhg"]) == (90.0, 50.0)
     assert case["time"]["mode"] == "transient"
-    assert case["mesh"]["volume"] == "volume.vtu" and case["mesh"]["units"] == "mm"
-    json.dumps(case)  # a valid JSON document
-    assert simulation.case_document(bdlogic.DesignParameters(), faces)["time"]["mode"] == "quick"  # the default
+    assert (case["mesh"]["volume"], case["mesh"]["faces"]) == (simulation.MESH_VOLUME, simulation.MESH_FACES)
+    assert case["mesh"]["units"] == "mm"
+    simulation.write_case(str(tmp_path), bdlogic.DesignParameters())
+    with open(path, encoding="utf-8") as handle:
+        assert json.load(handle)["time"]["mode"] == "quick"  # the default
     with pytest.raises(bdlogic.BaffleDesignerError, match="flow mode must be one of quick, steady, pulsatile"):
-        simulation.case_document(bdlogic.DesignParameters(flow_mode="fast"), faces)
+        simulation.write_case(str(tmp_path), bdlogic.DesignParameters(flow_mode="fast"))
     with pytest.raises(bdlogic.BaffleDesignerError, match="heart_rate_bpm must be a positive number"):
-        simulation.case_document(bdlogic.DesignParameters(heart_rate_bpm=0.0), faces)
-    with pytest.raises(bdlogic.BaffleDesignerError, match="no face \\[16\\]"):
-        simulation.case_document(bdlogic.DesignParameters(), [2, 10, 11])
+        simulation.write_case(str(tmp_path), bdlogic.DesignParameters(heart_rate_bpm=0.0))
+    # Physiological consistency is the library's check.
+    with pytest.raises(bdlogic.BaffleDesignerError, match="the CFD case: .*DBP 95 mmHg exceeds SBP 80 mmHg"):
+        simulation.write_case(str(tmp_path / "bad"), bdlogic.DesignParameters(diastolic_mmhg=95.0))
 
 
 def test_quick_simulation_runs_from_rest_to_the_first_flow_peak(executable, tmp_path):
@@ -260,22 +263,22 @@ def test_cancelling_a_running_simulation_keeps_the_earlier_results(simulated, tm
     assert "last run cancelled" in logic.simulationSummary(curve)
 
 
-def test_a_case_the_cli_rejects_fails_with_its_message(phantom_scene, executable, tmp_path):
+def test_a_case_the_library_rejects_is_refused_before_any_process(phantom_scene, executable, tmp_path):
+    """The library checks the case it writes as `baffle simulate` would, so a blood
+    pressure the outlet cannot use is named at once, before the mesh runs."""
     require_cfd(executable)
     scene, logic, model, curve = phantom_scene
     logic.design(curve)
     parameters = logic.parameters(curve)
     parameters.systolic_mmhg, parameters.diastolic_mmhg = 50.0, 70.0
-    parameters.mesh_edge_length_mm = 2.0  # the CLI rejects the case before the CFD; mesh fast
     logic.setParameters(curve, parameters)
     node_count = scene.GetNumberOfNodes()
-    job = logic.startSimulation(curve, executable, str(tmp_path))
-    assert finish(job, timeout=60) == process.FAILED
-    assert job.message.startswith("simulation failed: baffle: error:"), job.message
-    assert "DBP 70 mmHg exceeds SBP 50 mmHg" in job.message
+    with pytest.raises(bdlogic.BaffleDesignerError, match="the CFD case: .*DBP 70 mmHg exceeds SBP 50 mmHg"):
+        logic.startSimulation(curve, executable, str(tmp_path / "run"))
+    assert not (tmp_path / "run").exists()
     assert scene.GetNumberOfNodes() == node_count
     assert all(curve.GetNodeReference(role) is None for role in SIMULATION_REFS)
-    assert curve.GetAttribute("BaffleDesigner.SimulationLastRun").startswith("failed: simulation failed")
+    assert curve.GetAttribute("BaffleDesigner.SimulationLastRun") is None
 
 
 def test_the_child_processes_get_the_given_environment(phantom_scene, executable, tmp_path):

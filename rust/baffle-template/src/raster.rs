@@ -154,7 +154,7 @@ fn encode(pixmap: &Pixmap, dpi: f64) -> Result<Vec<u8>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::template::drawing::{CHECK_SQUARE_MM, CHECK_SQUARE_SIDE_MM, SCALE_BAR_LENGTH_MM, SCALE_BAR_MM};
+    use crate::drawing::{CHECK_SQUARE_MM, CHECK_SQUARE_SIDE_MM, SCALE_BAR_LENGTH_MM, SCALE_BAR_MM};
 
     /// The page's scale bar, check square and a label, as the layout draws them.
     fn furniture() -> Vec<Shape> {

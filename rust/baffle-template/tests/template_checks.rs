@@ -1,16 +1,14 @@
 //! The patch template on the designed baffles of p1, p2 and p3 (and the phantom): the
 //! flattened perimeter against the 3D seam, the distortion, the suture points and rims.
 
-mod common;
-
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::phantom::phantom_default;
-use baffle_core::template::drawing::TemplateText;
-use baffle_core::template::{template_from_domain, FlattenMethod};
 use baffle_core::{design, DesignOptions, FaceLabels, TargetArea, TriMesh, Vec3};
+use baffle_template::drawing::TemplateText;
+use baffle_template::{template_from_domain, FlattenMethod};
 
 fn patient(patient: &str) -> Option<(TriMesh, Vec<Vec3>, Vec<String>, TargetArea)> {
-    let dir = common::data_dir()?.join(patient);
+    let dir = baffle_core::reference_data::reference_data_if_present()?.join(patient);
     let table: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("../patients.json")).ok()?).ok()?;
     let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64()?;
     let surface = read_surface(&dir.join("design_input/capped_ventricle.vtp")).expect("surface");

@@ -17,10 +17,11 @@
 pub mod drawing;
 pub mod pdf;
 pub mod raster;
+pub mod sparse_cg;
 pub mod svg;
 
-use crate::mesh::{FaceLabels, TriMesh, Vec3};
-use crate::numerics::sparse_cg::{conjugate_gradient, SparseSym};
+use crate::sparse_cg::{conjugate_gradient, SparseSym};
+use baffle_core::mesh::{FaceLabels, TriMesh, Vec3};
 use nalgebra::Vector2;
 
 pub type Vec2 = Vector2<f64>;
