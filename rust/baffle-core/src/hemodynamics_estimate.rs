@@ -119,16 +119,17 @@ pub struct HemodynamicsEstimate {
 }
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg):
-/// the lowest and highest "error (mmHg)" of the 20 rows of docs/hemodynamics_estimate.md's
+/// the lowest and highest "error (mmHg)" of the 21 rows of docs/hemodynamics_estimate.md's
 /// table (p1 z = -1 and p2 z = 2), made by `scripts/validation/hemodynamics_estimate.py`
-/// against the 3D first-peak static dp of docs/validation.md (0.85 / 1.25 mm meshes). No
-/// coefficient of the model was fitted to those rows; this is their measured spread, not
-/// a model property, and a design unlike those 20 can fall outside it.
-pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-7.38, 0.29);
+/// against the 3D first-peak static dp of docs/validation.md (0.85 / 1.25 mm meshes, the
+/// solver with svMultiPhysics' tau and Reynolds-stress term). No coefficient of the model
+/// was fitted to those rows; this is their measured spread, not a model property, and a
+/// design unlike those 21 can fall outside it.
+pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-11.16, 0.27);
 /// The measured range of the v_max estimate's relative error, (estimate - 3D) / 3D with
 /// the 3D value the first-peak maximum speed on the flow centerline: the same table's
-/// "error" column, -17 % (p2 z = 4) to +10 % (p1 published), as it rounds them.
-pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.17, 0.10);
+/// "error" column, -15 % (p2 z = 3) to +5 % (p1 published), as it rounds them.
+pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.05);
 
 /// The measured error of dp against the 3D first peak, in words (from `DP_ERROR_RANGE_MMHG`).
 pub fn dp_uncertainty() -> String {
@@ -458,7 +459,7 @@ mod tests {
             assert_eq!(c.text.contains("disagree on v_max beyond"), !within, "{}", c.text);
         }
         // Both beyond: one sentence names both.
-        let c = compare_with_3d(&estimate_of(1.0, 1.0), 10.0, 2.0).unwrap();
+        let c = compare_with_3d(&estimate_of(1.0, 1.0), 20.0, 2.0).unwrap();
         assert!(c.text.contains("disagree on dp and v_max beyond") && !c.dp_within_measured_error && !c.v_max_within_measured_error, "{}", c.text);
     }
 
@@ -477,8 +478,8 @@ mod tests {
     #[test]
     fn the_uncertainty_texts_state_the_measured_ranges() {
         let e = estimate_of(1.0, 1.0);
-        assert!(e.dp_uncertainty.contains("from 7.38 mmHg below to 0.29 mmHg above"), "{}", e.dp_uncertainty);
-        assert!(e.v_max_uncertainty.starts_with("-17 % to +10 %"), "{}", e.v_max_uncertainty);
+        assert!(e.dp_uncertainty.contains("from 11.16 mmHg below to 0.27 mmHg above"), "{}", e.dp_uncertainty);
+        assert!(e.v_max_uncertainty.starts_with("-15 % to +5 %"), "{}", e.v_max_uncertainty);
         // What a design writes reads back as the same outcome (baffle plan's report reads it).
         for outcome in [EstimateOutcome::Estimated(e), EstimateOutcome::Absent { absent_because: "no flow".into() }] {
             let back: EstimateOutcome = serde_json::from_value(serde_json::to_value(&outcome).unwrap()).unwrap();
