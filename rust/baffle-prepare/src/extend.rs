@@ -49,7 +49,7 @@ use baffle_core::mesh::{edge_key, manifold_report};
 use baffle_core::numerics::pca::Plane;
 use baffle_core::sections::{cut_mesh, Contour};
 use baffle_core::self_check::{first_failure, SelfCheck};
-use baffle_core::remesh::SizeGrading;
+use baffle_core::remesh::{SizeGrading, MAX_GROWTH};
 use baffle_core::spatial::{winding_number, Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use rayon::prelude::*;
@@ -144,6 +144,19 @@ pub struct ExtensionGrading {
 }
 
 impl ExtensionGrading {
+    /// A named error for a grading no remesh can follow (refused up front: an extension
+    /// that fails with it would otherwise be made again at one edge).
+    fn validate(&self) -> Result<(), PrepareError> {
+        let margin_ok = self.margin_diameters.is_finite() && self.margin_diameters >= 0.0;
+        let growth_ok = self.growth.is_finite() && (0.0..=MAX_GROWTH).contains(&self.growth);
+        if margin_ok && growth_ok && self.largest_ratio.is_finite() && self.largest_ratio >= 1.0 {
+            return Ok(());
+        }
+        Err(PrepareError::Option(format!(
+            "the extension's grading needs a margin >= 0 diameters, a growth in [0, {MAX_GROWTH}] mm per mm and a largest ratio >= 1, got {self:?}"
+        )))
+    }
+
     /// The grading of a part at `edge_mm` from `cap`.
     fn from_cap(&self, cap: &DesignedCap, edge_mm: f64) -> SizeGrading {
         let radius_mm = (cap.area_mm2 / std::f64::consts::PI).sqrt();
@@ -281,6 +294,8 @@ struct DesignedCap {
 /// p1's LV does beside its designed domain at 2.5x) is made again at one edge, and the
 /// report says why (`grading_dropped`).
 pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
+    // Bad options are the caller's to mend, not a reason to drop the grading.
+    validate_options(options)?;
     match (extend_as_asked(domain, pools, options), options.grading) {
         (Err(graded), Some(_)) => {
             let mut extended = extend_as_asked(domain, pools, &ExtendOptions { grading: None, ..options.clone() })?;
@@ -291,9 +306,8 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     }
 }
 
-/// [`extend`] with `options` as given.
+/// [`extend`] with `options` (validated) as given.
 fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
-    validate_options(options)?;
     let mut lap = lap_timer();
     let l = &options.labels;
     check_domain(domain)?;
@@ -426,6 +440,9 @@ fn validate_options(options: &ExtendOptions) -> Result<(), PrepareError> {
     }
     if options.inflow_label == options.outflow_label {
         return Err(PrepareError::Option(format!("the inflow and outflow cap labels must differ, both are {}", options.inflow_label)));
+    }
+    if let Some(g) = &options.grading {
+        g.validate()?;
     }
     let s = &options.stj;
     let positive = [s.step_mm, s.search_diameters, s.window_mm, s.fallback_diameters, s.max_step_change, s.fixed_diameters.unwrap_or(1.0), options.remesh_edge_mm.unwrap_or(1.0)];

@@ -212,6 +212,11 @@ fn a_graded_extension_keeps_the_edge_at_the_caps_and_coarsens_beyond() {
     assert!(!near.is_empty() && !far.is_empty());
     assert!((mean(&near) / edge - 1.0).abs() < 0.25, "near the VSD: mean edge {:.3} against {edge:.3} mm", mean(&near));
     assert!(mean(&far) > 1.5 * edge, "at the mid-LV plane: mean edge {:.3} against {edge:.3} mm", mean(&far));
+    // A grading no remesh can follow is refused by name, not dropped.
+    for bad in [ExtensionGrading { growth: 0.9, ..grading }, ExtensionGrading { largest_ratio: 0.5, ..grading }, ExtensionGrading { margin_diameters: f64::NAN, ..grading }] {
+        let e = extend(&capped, &pools, &ExtendOptions { grading: Some(bad), ..capped_ventricle_options() }).unwrap_err().to_string();
+        assert!(e.contains("the extension's grading needs"), "{e}");
+    }
 }
 
 /// p1's published domain remeshed at 0.95 mm, its extension graded to 2.5x: the coarse LV

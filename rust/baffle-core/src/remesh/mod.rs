@@ -19,7 +19,7 @@ mod tests;
 use crate::mesh::{TriMesh, Vec3};
 use halfedge::{face_of, next, prev, HalfEdgeMesh, NONE};
 use projection::{feature_key, FeatureKey, FeaturePolylines, SurfaceProjector};
-pub use grading::SizeGrading;
+pub use grading::{SizeGrading, MAX_GROWTH};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct RemeshOptions {
