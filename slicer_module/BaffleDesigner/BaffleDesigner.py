@@ -967,6 +967,8 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.test_patient_segmentation_prepare_and_design()
         self.setUp()
         self.test_phantom_simulate_cancel_and_errors()
+        self.setUp()
+        self.test_phantom_whole_plan()
 
     def _check_outputs(self, curve, result):
         table = curve.GetNodeReference(bdlogic.REF_TABLE)
@@ -1188,3 +1190,28 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationMode"), "steady")
         logic.cleanup()
         self.delayDisplay("Simulate test passed")
+
+    def test_phantom_whole_plan(self):
+        """A quick whole plan of the phantom through the library (one 1.5 mm mesh, rest to
+        the first flow peak): the library's verdict and dp on the parameter node, as its
+        report.json has them, and its geometry loaded as Load plan folder loads it."""
+        available, reason = bdenvironment.gmsh_availability(childEnvironment())
+        if not available:
+            self.delayDisplay(f"Whole plan test SKIPPED: {reason}")
+            return
+        self.delayDisplay("Phantom: the whole plan through the library")
+        logic, curve, bsa = self._phantomCandidate()
+        logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa, systolic_mmhg=107.0, diastolic_mmhg=78.0,
+                                                            flow_mode="quick", mesh_edge_length_mm=1.5))
+        out = os.path.join(tempfile.mkdtemp(dir=slicer.app.temporaryPath), "phantom")
+        job = logic.startPlan(curve, out, single_mesh=True, env=childEnvironment())
+        self.assertEqual(self._waitFor(job, 600), bdprocess.COMPLETED, job.message)
+        with open(os.path.join(out, "report.json"), encoding="utf-8") as handle:
+            verdict = json.load(handle)["verdict"]
+        parameterNode = logic.parameterNode()
+        self.assertEqual(parameterNode.GetAttribute("BaffleDesigner.PlanVerdict"), verdict["verdict"])
+        self.assertEqual(float(parameterNode.GetAttribute("BaffleDesigner.PlanDpMmhg")), verdict["dp_peak_mmhg"])
+        self.assertIn("the library's verdict: " + verdict["text"], job.message)
+        self.assertGreater(len(logic.loadPlanGeometry(out)), 0)
+        logic.cleanup()
+        self.delayDisplay("Whole plan test passed")

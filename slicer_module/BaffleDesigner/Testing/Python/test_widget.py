@@ -524,9 +524,14 @@ def test_cleanup_on_unload_and_reload_of_the_library(module):
 
 def test_the_modules_own_self_test(module):
     """BaffleDesignerTest.runTest as Slicer's Reload and Test runs it (p2 design, p2
-    segmentation -> prepare, phantom simulate and cancel)."""
+    segmentation -> prepare, phantom simulate and cancel, the phantom's whole plan)."""
     slicer.mrmlScene.Clear(0)
     module.instance.runTest(msec=0)
+    # Its last part, the whole plan, ran (not skipped) where gmsh is found.
+    environment = sys.modules["BaffleDesignerLib.environment"]
+    if environment.gmsh_availability(sys.modules["BaffleDesigner"].childEnvironment())[0]:
+        parameter_node = slicer.mrmlScene.GetSingletonNode("BaffleDesigner", "vtkMRMLScriptedModuleNode")
+        assert parameter_node.GetAttribute("BaffleDesigner.PlanStatus") == "completed"
     slicer.mrmlScene.Clear(0)
 
 
