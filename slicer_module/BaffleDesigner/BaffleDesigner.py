@@ -754,12 +754,12 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.logic.setParameters(self.curve, parameters)
             outDir = os.path.join(self.workDirectory(PLAN), bdplan.folder_name(self.curve.GetName()))
         except (bdlogic.BaffleDesignerError, OSError) as error:
-            self.showError("The whole plan could not start", str(error))
+            self.showError("Run whole plan", f"the plan could not start: {error}")
             return
         job = self.logic.startPlan(self.curve, outDir, parameters=parameters,
                                    single_mesh=bool(self.ui.planSingleMeshCheckBox.checked), env=self.logic.child_env)
         if job.state == bdprocess.FAILED:
-            self.showError("The whole plan could not start", job.message)
+            self.showError("Run whole plan", job.message)
             return
         self.runDir = ""  # the plan's folder is its result: never cleaned
         self.startRun(PLAN, job)
@@ -770,7 +770,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         library's words."""
         curve = self.runCurve
         if state == bdprocess.FAILED:
-            self.showError("The whole plan failed", job.message)
+            self.showError("Run whole plan", job.message)
         elif state == bdprocess.CANCELLED:
             self.setStatus(f"{curve.GetName()}: {job.message}")
         else:

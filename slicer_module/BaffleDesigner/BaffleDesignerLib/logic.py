@@ -1178,8 +1178,9 @@ class BaffleDesignerLogic:
         mesh, simulate, report) into out_dir on a worker thread; returns the running
         plan.PlanJob (poll() it from a timer). Its inputs are the candidate's ventricle
         (model, plain RV model with rims, or segmentation), suture points and parameters
-        (`parameters`: the panel's, else the stored ones); `env`: where BAFFLE_GMSH and
-        BAFFLE_PYTHON are taken from (default: this process's environment)."""
+        (`parameters`: the panel's, else the stored ones), written as files into
+        `out_dir`-inputs beside it; `env`: where BAFFLE_GMSH and BAFFLE_PYTHON are taken
+        from (default: the logic's child_env, else this process's environment)."""
         return planrun.PlanJob(self, curve, out_dir, parameters, single_mesh, self.child_env if env is None else env).start()
 
     def runPlan(self, curve, out_dir: str, timeout: Optional[float] = None, **kwargs) -> "planrun.PlanJob":

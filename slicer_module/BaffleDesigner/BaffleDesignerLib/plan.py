@@ -182,7 +182,8 @@ class PlanJob:
         if isinstance(outcome, baffle.Cancelled):
             return self._end(process.CANCELLED, f"{outcome}; the finished stages are kept in {self.out_dir}")
         if isinstance(outcome, baffle.BaffleError):
-            return self._end(process.FAILED, f"the plan failed: {outcome} (its folder: {self.out_dir})")
+            kept = f" (its folder: {self.out_dir})" if os.path.isdir(self.out_dir) else ""
+            return self._end(process.FAILED, f"the plan failed: {outcome}{kept}")
         if isinstance(outcome, BaseException):
             return self._end(process.FAILED, f"the plan failed: {type(outcome).__name__}: {outcome}")
         self.result = outcome

@@ -434,12 +434,18 @@ def test_run_whole_plan_shows_the_librarys_verdict_and_loads_the_plan(widget):
     assert folder.is_dir() and w.ui.runPlanButton.enabled and not w.processTimer.active
 
 
-def test_run_whole_plan_shows_the_librarys_error(widget):
+def test_run_whole_plan_shows_the_librarys_error(widget, tmp_path):
+    """DBP above SBP: the module does not check it, the library does; its message, verbatim."""
+    import baffle
+
     w = widget
     plan_in_widget(w, systolic=78.0, diastolic=107.0)
     wait_run(w, 60)
+    with pytest.raises(baffle.BaffleError) as library:
+        baffle.plan(tmp_path / "plan", phantom=True, sbp_mmhg=78.0, dbp_mmhg=107.0)
     status = w.ui.statusLabel.text
-    assert status.startswith("The whole plan failed: ") and "DBP 107 mmHg exceeds SBP 78 mmHg" in status, status
+    assert "DBP 107 mmHg exceeds SBP 78 mmHg" in str(library.value)
+    assert status == f"Run whole plan: the plan failed: {library.value}", status
     assert w.logic.parameterNode().GetAttribute("BaffleDesigner.PlanStatus") == "failed"
 
 
