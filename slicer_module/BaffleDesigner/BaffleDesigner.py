@@ -758,7 +758,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             return
         job = self.logic.startPlan(self.curve, outDir, parameters=parameters,
                                    single_mesh=bool(self.ui.planSingleMeshCheckBox.checked), env=self.logic.child_env)
-        if job.state == bdprocess.FAILED:
+        if job.state == bdprocess.FAILED:  # refused before it ran: its new folder holds nothing to keep
+            shutil.rmtree(os.path.dirname(outDir), ignore_errors=True)
             self.showError("Run whole plan", job.message)
             return
         self.runDir = ""  # the plan's folder is its result: never cleaned

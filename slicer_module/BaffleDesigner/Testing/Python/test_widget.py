@@ -449,6 +449,19 @@ def test_run_whole_plan_shows_the_librarys_error(widget, tmp_path):
     assert w.logic.parameterNode().GetAttribute("BaffleDesigner.PlanStatus") == "failed"
 
 
+def test_run_whole_plan_refuses_a_target_it_cannot_design_for(widget):
+    w = widget
+    model, curve, _ = phantom_candidate()
+    w.ui.surfaceSelector.setCurrentNode(model)
+    w.ui.curveSelector.setCurrentNode(curve)
+    w.ui.targetModeComboBox.currentIndex = 2  # an explicit area
+    before = set(os.listdir(slicer.app.temporaryPath))
+    w.ui.runPlanButton.click()
+    assert w.run is None and w.ui.runPlanButton.enabled
+    assert w.ui.statusLabel.text.startswith("Run whole plan: the plan could not start: the whole plan designs for the BSA")
+    assert set(os.listdir(slicer.app.temporaryPath)) == before  # no folder left behind
+
+
 def test_cancel_a_whole_plan_in_the_panel(widget):
     w = widget
     require_cfd(w)
