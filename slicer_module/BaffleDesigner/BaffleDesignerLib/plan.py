@@ -42,15 +42,17 @@ def folder_name(curve_name: str) -> str:
 
 
 def plan_kwargs(parameters: "candidate.DesignParameters", single_mesh: bool, patient_label: str) -> dict:
-    """baffle.plan()'s options from the candidate's parameters. The plan designs for a BSA
-    at z-score 0 (its target has no other input): an explicit area or diameter, or another
+    """baffle.plan()'s options from the candidate's parameters. The library's plan call
+    (the C ABI's BafflePlanOptions, baffle.plan) takes the target as a BSA only, at z-score
+    0 (the command line's `baffle plan` has --z-score, --target-area-mm2 and
+    --annulus-diameter-mm; the C ABI does not yet): an explicit area or diameter, or another
     z-score, is refused rather than planned for a target the candidate does not have."""
     parameters.validate()
     if parameters.target_mode not in ("bsa", "height_weight") or parameters.z_score != 0.0:
         target = (parameters.target_mode if parameters.target_mode in ("area", "diameter")
                   else f"z-score {parameters.z_score:g}")
         raise candidate.BaffleDesignerError(
-            f"the whole plan designs for the BSA at z-score 0 (baffle plan has no other target), not for {target}: "
+            f"the whole plan designs for the BSA at z-score 0 (the library's plan call takes no other target yet), not for {target}: "
             "choose BSA or height and weight with z-score 0, or use Design and Simulate")
     case = parameters.case_kwargs()  # checks the CFD inputs as Simulate does
     return {

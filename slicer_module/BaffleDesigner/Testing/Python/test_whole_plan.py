@@ -132,7 +132,7 @@ def test_a_target_the_plan_cannot_design_for_is_refused_before_it_starts(scene, 
     for name, value in change.items():
         setattr(parameters, name, value)
     job = logic.startPlan(curve, str(tmp_path / "plan"), parameters=parameters)
-    assert job.state == process.FAILED and named in job.message and "baffle plan has no other target" in job.message
+    assert job.state == process.FAILED and named in job.message and "the library's plan call takes no other target yet" in job.message
     assert not (tmp_path / "plan").exists()
 
 
