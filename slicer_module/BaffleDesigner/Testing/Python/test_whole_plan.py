@@ -3,8 +3,9 @@ a quick plan on the phantom (one coarse mesh, rest to the first flow peak) from 
 under a transform, whose verdict, dp and threshold arrive on the parameter node and the
 curve as the library gave them and whose geometry loads back onto the design; a cancel
 after the design (the design's folder kept, reported cancelled, not failed); the library's
-error in its own words; and the targets the plan cannot design for, refused before it
-starts. The plan meshes with gmsh: without it the runs skip."""
+error in its own words; the targets the plan cannot design for, refused before it
+starts; and p2's segmentation planned from its segments (patient data: skipped without it,
+failed under CI=true). The plan meshes with gmsh: without it the runs skip."""
 
 import json
 import os
@@ -138,3 +139,40 @@ def test_a_target_the_plan_cannot_design_for_is_refused_before_it_starts(scene, 
 
 def test_the_plans_folder_is_named_after_the_curve():
     assert bdplan.folder_name("phantom BC") == "phantom-BC" and bdplan.folder_name("///") == "candidate"
+
+
+def test_a_segmentation_candidate_plans_from_its_segments(executable, tmp_path):
+    """p2's LV, RV and aorta as a segmentation: the plan gets the segments (exported as the
+    prepare step exports them), prepares and extends them itself, and its capped ventricle
+    lands on the published one in the scene (the caps within 1.5 mm: the export's frame)."""
+    from conftest import load_closed_curve, load_model, p2_inputs
+    from test_prepare import label_centroids, p2_segmentation
+
+    if not has_subcommand(executable, "prepare"):
+        pytest.skip("this baffle build has no prepare subcommand")
+    surface_path, points_path = p2_inputs()
+    scene = slicer.vtkMRMLScene()
+    try:
+        segmentation = p2_segmentation(scene)
+        curve = load_closed_curve(scene, points_path)
+        logic = bdlogic.BaffleDesignerLogic(scene)
+        logic.setSurfaceNode(curve, segmentation)
+        logic.setParameters(curve, bdlogic.DesignParameters(
+            target_mode="bsa", bsa_m2=0.37, systolic_mmhg=107.0, diastolic_mmhg=78.0, flow_mode="quick", mesh_edge_length_mm=1.5))
+        out = tmp_path / "p2"
+        job = logic.runPlan(curve, str(out), single_mesh=True, timeout=1800)
+        require_gmsh(job)
+        assert job.state == process.COMPLETED, job.message
+        report = json.loads((out / "report.json").read_text())
+        inputs = report["inputs"]
+        assert inputs["surface"] is None and sorted(os.listdir(inputs["segmentations"])) == ["LV.stl", "RV.stl", "aorta.stl"]
+        assert (out / "extend" / "extended.vtp").is_file()
+        assert attribute(logic.parameterNode(), "PlanVerdict") == report["verdict"]["verdict"]
+        assert float(attribute(curve, "PlanDpMmhg")) == report["verdict"]["dp_peak_mmhg"]
+        prepared = {node.GetName(): node for node in logic.loadPlanGeometry(str(out))}["plan p2 capped ventricle"]
+        published = load_model(scene, surface_path, name="published")
+        ours, theirs = label_centroids(prepared.GetPolyData()), label_centroids(published.GetPolyData())
+        for label in (11, 16):
+            assert np.linalg.norm(ours[label] - theirs[label]) < 1.5, (label, ours[label], theirs[label])
+    finally:
+        scene.Clear(1)
