@@ -24,6 +24,7 @@ from slicer.util import VTKObservationMixin
 from BaffleDesignerLib import candidate as bdcandidate
 from BaffleDesignerLib import environment as bdenvironment
 from BaffleDesignerLib import logic as bdlogic
+from BaffleDesignerLib import plan as bdplan
 from BaffleDesignerLib import prepare as bdprepare
 from BaffleDesignerLib import process as bdprocess
 from BaffleDesignerLib import report as bdreport
@@ -62,8 +63,9 @@ FLOW_MODES = bdcandidate.FLOW_MODES
 SIMULATION = "simulation"
 VOLUME_MESH = "volume mesh"
 PREPARE = "prepare"
+PLAN = "whole plan"
 # The BaffleDesignerLib modules in import order (each imports only those before it), for reload.
-LIB_MODULES = ("environment", "process", "logic", "rims", "prepare", "simulation", "report")
+LIB_MODULES = ("environment", "process", "logic", "rims", "prepare", "plan", "simulation", "report")
 CHECKING = "checking the baffle program ..."
 
 
@@ -92,7 +94,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         VTKObservationMixin.__init__(self)
         self.logic = None
         self.curve = None
-        self.run = None  # the running bdprocess.CliProcess (volume mesh) or bdsimulation.SimulationJob
+        # The running bdprocess.CliProcess (volume mesh), bdsimulation.SimulationJob,
+        # bdprepare.PrepareJob or bdplan.PlanJob (the whole plan, the library on a worker thread).
+        self.run = None
         self.runKind = ""
         self.runDir = ""
         self.runCurve = None  # the candidate of the running process
@@ -151,6 +155,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.cancelButton.connect("clicked(bool)", self.onCancel)
         self.ui.compareButton.connect("clicked(bool)", self.onCompare)
         self.ui.loadPlanButton.connect("clicked(bool)", self.onLoadPlan)
+        self.ui.runPlanButton.connect("clicked(bool)", self.onRunPlan)
         self.ui.openReportButton.connect("clicked(bool)", self.onOpenReport)
         self.planReport = None
         self.ui.flattenButton.connect("clicked(bool)", self.onFlatten)
@@ -383,6 +388,11 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.ui.simulateButton.enabled = idle and not (self.simulateReason or self.volumeMeshReason)
             self.ui.simulateButton.toolTip = self.simulateReason or self.volumeMeshReason or (
                 "Mesh the domain (baffle mesh) and run the CFD assessment (baffle simulate) as separate processes."
+            )
+            self.ui.runPlanButton.enabled = idle and self.designJob is None and not self.packageProblem
+            self.ui.runPlanButton.toolTip = self.packageProblem or (
+                "Run the candidate's whole plan through the library (design, centerline, volume mesh, CFD, report; "
+                "a segmentation is prepared first) and load its report and geometry as Load plan folder does."
             )
             if curve is None:
                 self.setStatus("Select the suture points (BafflePlanner's closed curve).")
@@ -690,7 +700,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             report = bdreport.read_plan(folder)
         except bdreport.PlanReportError as error:
             self.showError("Loading the plan report failed", str(error))
-            return
+            return None
         self.planReport = report
         layout = self.ui.planPicturesWidget.layout()
         while layout.count():
@@ -715,7 +725,9 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         except bdlogic.BaffleDesignerError as error:
             geometry = []
             logging.info("BaffleDesigner: %s", error)
-        self.setStatus(f"Plan {folder}: {len(report.pictures)} pictures and {len(geometry)} surfaces loaded.")
+        loaded = f"Plan {folder}: {len(report.pictures)} pictures and {len(geometry)} surfaces loaded."
+        self.setStatus(loaded)
+        return loaded
 
     def _wrappedLabel(self, text):
         label = qt.QLabel(text)
@@ -725,6 +737,46 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def onOpenReport(self):
         if self.planReport is not None:
             qt.QDesktopServices.openUrl(qt.QUrl.fromLocalFile(self.planReport.html))
+
+    def onRunPlan(self):
+        """The candidate's whole plan through the library (bdplan.PlanJob: baffle.plan on a
+        worker thread, polled by the process timer, with progress and Cancel) into a new
+        folder under Slicer's temporary folder, kept: the report, and on a cancel the
+        finished stages. Its end loads the plan as Load plan folder does."""
+        if self.curve is None or self.run is not None or self.designJob is not None:
+            return
+        ventricle = self.ui.surfaceSelector.currentNode()
+        try:
+            parameters = self.parametersFromGUI()
+            self.logic.setSurfaceNode(self.curve, ventricle)
+            if ventricle is not None and ventricle.IsA("vtkMRMLModelNode") and self.logic.needsRims(ventricle):
+                self.logic.setRims(self.curve, self.ui.vsdRimSelector.currentNode(), self.ui.aorticRimSelector.currentNode())
+            self.logic.setParameters(self.curve, parameters)
+            outDir = os.path.join(self.workDirectory(PLAN), bdplan.folder_name(self.curve.GetName()))
+        except (bdlogic.BaffleDesignerError, OSError) as error:
+            self.showError("Run whole plan", f"the plan could not start: {error}")
+            return
+        job = self.logic.startPlan(self.curve, outDir, parameters=parameters,
+                                   single_mesh=bool(self.ui.planSingleMeshCheckBox.checked), env=self.logic.child_env)
+        if job.state == bdprocess.FAILED:  # refused before it ran: its new folder holds nothing to keep
+            shutil.rmtree(os.path.dirname(outDir), ignore_errors=True)
+            self.showError("Run whole plan", job.message)
+            return
+        self.runDir = ""  # the plan's folder is its result: never cleaned
+        self.startRun(PLAN, job)
+
+    def reportPlanEnd(self, job, state):
+        """The library's verdict (its words, dp, v_max and threshold) in the status line, and
+        the plan loaded as Load plan folder loads it; a cancel or failure says why, in the
+        library's words."""
+        curve = self.runCurve
+        if state == bdprocess.FAILED:
+            self.showError("Run whole plan", job.message)
+        elif state == bdprocess.CANCELLED:
+            self.setStatus(f"{curve.GetName()}: {job.message}")
+        else:
+            loaded = self.showPlanReport(job.out_dir)
+            self.setStatus("\n".join(filter(None, (f"{curve.GetName()}: {job.message}", loaded))))
 
     def workDirectory(self, kind):
         return tempfile.mkdtemp(prefix=f"BaffleDesigner-{kind.replace(' ', '-')}-", dir=slicer.app.temporaryPath)
@@ -759,6 +811,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.ui.cancelButton.enabled = True
         self.ui.volumeMeshButton.enabled = False
         self.ui.simulateButton.enabled = False
+        self.ui.runPlanButton.enabled = False
         self.ui.progressBar.setRange(0, 0)  # busy until the first progress fraction
         self.setStatus(f"{self.curve.GetName()}: {kind} running ...")
         self.processTimer.start()
@@ -773,7 +826,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
 
     def runProgress(self, run):
         """Fraction done, or None when the running step reports none (gmsh)."""
-        if isinstance(run, bdsimulation.SimulationJob):
+        if isinstance(run, (bdsimulation.SimulationJob, bdplan.PlanJob)):
             return run.progress
         if isinstance(run, bdprepare.PrepareJob):
             return None  # `baffle prepare` reports no fractions
@@ -785,7 +838,7 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.processTimer.stop()
             return
         try:
-            polled = isinstance(run, (bdsimulation.SimulationJob, bdprepare.PrepareJob))
+            polled = isinstance(run, (bdsimulation.SimulationJob, bdprepare.PrepareJob, bdplan.PlanJob))
             state = run.poll() if polled else run.state
         except Exception as error:  # a bug while loading must not leave the timer firing
             logging.exception("BaffleDesigner: %s", self.runKind)
@@ -806,6 +859,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.reportSimulationEnd(run, state)
         elif self.runKind == PREPARE:
             self.reportPrepareEnd(run, state)
+        elif self.runKind == PLAN:
+            self.reportPlanEnd(run, state)
         else:
             self.reportVolumeMeshEnd(run, state)
         self.cleanWorkDirectory(self.runDir, state)
@@ -913,6 +968,8 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.test_patient_segmentation_prepare_and_design()
         self.setUp()
         self.test_phantom_simulate_cancel_and_errors()
+        self.setUp()
+        self.test_phantom_whole_plan()
 
     def _check_outputs(self, curve, result):
         table = curve.GetNodeReference(bdlogic.REF_TABLE)
@@ -1134,3 +1191,28 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         self.assertEqual(curve.GetAttribute("BaffleDesigner.SimulationMode"), "steady")
         logic.cleanup()
         self.delayDisplay("Simulate test passed")
+
+    def test_phantom_whole_plan(self):
+        """A quick whole plan of the phantom through the library (one 1.5 mm mesh, rest to
+        the first flow peak): the library's verdict and dp on the parameter node, as its
+        report.json has them, and its geometry loaded as Load plan folder loads it."""
+        available, reason = bdenvironment.gmsh_availability(childEnvironment())
+        if not available:
+            self.delayDisplay(f"Whole plan test SKIPPED: {reason}")
+            return
+        self.delayDisplay("Phantom: the whole plan through the library")
+        logic, curve, bsa = self._phantomCandidate()
+        logic.setParameters(curve, bdlogic.DesignParameters(target_mode="bsa", bsa_m2=bsa, systolic_mmhg=107.0, diastolic_mmhg=78.0,
+                                                            flow_mode="quick", mesh_edge_length_mm=1.5))
+        out = os.path.join(tempfile.mkdtemp(dir=slicer.app.temporaryPath), "phantom")
+        job = logic.startPlan(curve, out, single_mesh=True, env=childEnvironment())
+        self.assertEqual(self._waitFor(job, 600), bdprocess.COMPLETED, job.message)
+        with open(os.path.join(out, "report.json"), encoding="utf-8") as handle:
+            verdict = json.load(handle)["verdict"]
+        parameterNode = logic.parameterNode()
+        self.assertEqual(parameterNode.GetAttribute("BaffleDesigner.PlanVerdict"), verdict["verdict"])
+        self.assertEqual(float(parameterNode.GetAttribute("BaffleDesigner.PlanDpMmhg")), verdict["dp_peak_mmhg"])
+        self.assertIn("the library's verdict: " + verdict["text"], job.message)
+        self.assertGreater(len(logic.loadPlanGeometry(out)), 0)
+        logic.cleanup()
+        self.delayDisplay("Whole plan test passed")

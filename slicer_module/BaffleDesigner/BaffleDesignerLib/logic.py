@@ -27,6 +27,7 @@ import vtk
 from vtkmodules.util import numpy_support
 
 from BaffleDesignerLib import environment, prepare, process, rims, simulation
+from BaffleDesignerLib import plan as planrun
 from BaffleDesignerLib.candidate import (  # the candidate's scene names, parameters and errors (logic.X still works)
     ATTRIBUTE_PREFIX, BaffleDesignerError, CANDIDATE_ATTRIBUTE, DesignCancelled, DesignParameters,
     FOLDER_ATTRIBUTE, FOLDER_SUFFIX, OUTPUT_ROLES, REF_AORTIC_RIM, REF_BAFFLE, REF_CENTERLINE, REF_CHART,
@@ -262,7 +263,7 @@ def estimate_attributes(report):
 
 def estimate_line(attribute):
     """The estimate in words from a candidate's attributes (`attribute(name)`), marked as an
-    estimate: the 10 mmHg verdict is the simulation's, never the estimate's."""
+    estimate: the verdict is the simulation's (the library's judgement), never the estimate's."""
     dp = attribute("DpEstimateMmhg")
     if not dp:
         note = attribute("DpEstimateNote") or ""
@@ -1169,6 +1170,48 @@ class BaffleDesignerLogic:
             nodes.append(node)
         return nodes
 
+    # ---- the whole plan through the library (BaffleDesignerLib.plan) ----------------------
+
+    def startPlan(self, curve, out_dir: str, parameters: Optional[DesignParameters] = None,
+                  single_mesh: bool = False, env: Optional[dict] = None) -> "planrun.PlanJob":
+        """Start the candidate's whole plan (baffle.plan: [prepare ->] design, centerline,
+        mesh, simulate, report) into out_dir on a worker thread; returns the running
+        plan.PlanJob (poll() it from a timer). Its inputs are the candidate's ventricle
+        (model, plain RV model with rims, or segmentation), suture points and parameters
+        (`parameters`: the panel's, else the stored ones), written as files into
+        `out_dir`-inputs beside it; `env`: where BAFFLE_GMSH and BAFFLE_PYTHON are taken
+        from (default: the logic's child_env, else this process's environment)."""
+        return planrun.PlanJob(self, curve, out_dir, parameters, single_mesh, self.child_env if env is None else env).start()
+
+    def runPlan(self, curve, out_dir: str, timeout: Optional[float] = None, **kwargs) -> "planrun.PlanJob":
+        """startPlan and wait for it (scripts, tests); the ended job says how it went."""
+        job = self.startPlan(curve, out_dir, **kwargs)
+        job.wait(timeout)
+        return job
+
+    def storePlan(self, curve, state: str, message: str, result, out_dir: str) -> None:
+        """The latest whole plan's outcome onto the parameter node and the candidate's curve
+        (when it is still in the scene), one ModifiedEvent each: the library's verdict, its
+        text and reasons, dp, v_max and the threshold it judged against (PLAN_ATTRIBUTES); a
+        cancelled or failed run leaves the previous plan's figures and says why in
+        PlanStatus / PlanMessage."""
+        values = {"PlanStatus": state, "PlanMessage": message, "PlanFolder": out_dir}
+        if result is not None:
+            values.update({
+                "PlanVerdict": result.verdict,
+                "PlanVerdictText": result.verdict_text,
+                "PlanDpMmhg": repr(float(result.dp_mmhg)),
+                "PlanVMaxMS": repr(float(result.v_max_m_s)),
+                "PlanDpThresholdMmhg": repr(float(result.dp_threshold_mmhg)),
+                "PlanReasons": "; ".join(result.reasons),
+            })
+        for node in (self.parameterNode(), curve):
+            if node is None:
+                continue
+            with batched_modify(node):
+                for name, value in values.items():
+                    node.SetAttribute(ATTRIBUTE_PREFIX + name, str(value))
+
     # ---- candidates ---------------------------------------------------------------------
 
     def candidates(self) -> list:
@@ -1183,8 +1226,8 @@ class BaffleDesignerLogic:
 
     def updateCompareTable(self, simulation_note: str = "not simulated"):
         """One table of all candidates: target area, baffle area, smallest constrained
-        section, RV volume left after the baffle, status, and the simulation's peak pressure difference, v_max and 10 mmHg
-        verdict; dp and v_max stay empty (NaN) with `simulation_note` for candidates
+        section, RV volume left after the baffle, status, and the simulation's peak pressure difference, v_max and the
+        library's verdict; dp and v_max stay empty (NaN) with `simulation_note` for candidates
         without a simulation result."""
         node = None
         collection = self.scene.GetNodesByClass("vtkMRMLTableNode")

@@ -6,6 +6,7 @@ set(BAFFLE_DESIGNER_PYTHON_SCRIPTS
   BaffleDesignerLib/candidate.py
   BaffleDesignerLib/environment.py
   BaffleDesignerLib/logic.py
+  BaffleDesignerLib/plan.py
   BaffleDesignerLib/prepare.py
   BaffleDesignerLib/process.py
   BaffleDesignerLib/report.py

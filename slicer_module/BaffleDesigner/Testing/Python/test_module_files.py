@@ -51,3 +51,16 @@ def test_icon_is_a_128_pixel_drawing():
     assert len(raw) == 128 * (1 + 128 * 4)
     # Filtered bytes, but a drawing (not a flat placeholder) still has many distinct values.
     assert len(set(raw)) > 50
+
+
+def test_no_case_writer_or_verdict_of_its_own():
+    """The CFD case and the verdict are the library's (baffle.write_case, baffle.plan, the
+    summary's and report's verdict): the module writes no JSON, holds no threshold and
+    compares no dp with a number."""
+    sources = {path.name: path.read_text() for path in [MODULE_DIR / "BaffleDesigner.py", *sorted((MODULE_DIR / "BaffleDesignerLib").glob("*.py"))]}
+    for name, text in sources.items():
+        code = "\n".join(line.split("#")[0] for line in text.splitlines())
+        assert "json.dump" not in code, f"{name} writes JSON"
+        assert not re.search(r"dp\w*\s*[<>]=?\s*[\d(]", code), f"{name} judges a dp"
+        assert not re.search(r"threshold\w*\s*=\s*\d", code, re.IGNORECASE), f"{name} holds a threshold"
+        assert "10 mmHg" not in text, f"{name} names a threshold the library owns"

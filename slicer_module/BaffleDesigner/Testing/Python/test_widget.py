@@ -391,6 +391,91 @@ def test_simulate_on_the_phantom_then_cancel_a_pulsatile_run(widget):
     assert not w.processTimer.active and w.ui.simulateButton.enabled
 
 
+def plan_in_widget(w, systolic=107.0, diastolic=78.0):
+    """The phantom candidate in the panel with quick plan settings; Run whole plan clicked."""
+    model, curve, bsa = phantom_candidate()
+    w.ui.surfaceSelector.setCurrentNode(model)
+    w.ui.curveSelector.setCurrentNode(curve)
+    w.ui.targetModeComboBox.currentIndex = 0
+    w.ui.bsaSpinBox.value = bsa
+    w.ui.systolicSpinBox.value, w.ui.diastolicSpinBox.value = systolic, diastolic
+    w.ui.flowModeComboBox.currentIndex = bdcandidate().FLOW_MODES.index("quick")
+    w.ui.meshEdgeLengthSpinBox.value = 1.5
+    w.ui.planSingleMeshCheckBox.checked = True
+    assert w.ui.runPlanButton.enabled
+    w.ui.runPlanButton.click()
+    return curve
+
+
+def test_run_whole_plan_shows_the_librarys_verdict_and_loads_the_plan(widget):
+    """The button runs the candidate's plan through the library off the GUI thread (the
+    panel polls it: progress by stage, Cancel on), the status line shows the library's
+    verdict marked as the library's, and the plan is loaded as Load plan folder loads it."""
+    import json
+
+    w = widget
+    require_cfd(w)
+    curve = plan_in_widget(w)
+    assert w.run is not None and w.runKind == "whole plan", w.ui.statusLabel.text
+    assert w.ui.cancelButton.enabled and not w.ui.runPlanButton.enabled and not w.ui.simulateButton.enabled
+    shown = set()
+    wait_run(w, 900, until=lambda: shown.add(w.ui.progressBar.format) or w.run is None)
+    skip_without_gmsh(w)
+    status = w.ui.statusLabel.text
+    folder = Path(w.logic.parameterNode().GetAttribute("BaffleDesigner.PlanFolder"))
+    verdict = json.loads((folder / "report.json").read_text())["verdict"]
+    assert f"{curve.GetName()}: the library's verdict: {verdict['text']}" in status, status
+    assert f"dp {verdict['dp_peak_mmhg']:.2f} mmHg against its threshold {verdict['threshold_mmhg']:g} mmHg" in status
+    assert w.logic.parameterNode().GetAttribute("BaffleDesigner.PlanVerdict") == verdict["verdict"]
+    assert {"design %p%", "mesh (gmsh) %p%", "time steps %p%", "report %p%"} <= shown, shown  # the stages in the progress bar
+    # Loaded as Load plan folder loads it: its verdict line, report button and geometry.
+    assert w.ui.planVerdictLabel.text.startswith(verdict["text"]) and w.ui.openReportButton.enabled
+    assert f"plan {folder.name} domain" in model_names() and "surfaces loaded" in status
+    assert folder.is_dir() and w.ui.runPlanButton.enabled and not w.processTimer.active
+
+
+def test_run_whole_plan_shows_the_librarys_error(widget, tmp_path):
+    """DBP above SBP: the module does not check it, the library does; its message, verbatim."""
+    import baffle
+
+    w = widget
+    plan_in_widget(w, systolic=78.0, diastolic=107.0)
+    wait_run(w, 60)
+    with pytest.raises(baffle.BaffleError) as library:
+        baffle.plan(tmp_path / "plan", phantom=True, sbp_mmhg=78.0, dbp_mmhg=107.0)
+    status = w.ui.statusLabel.text
+    assert "DBP 107 mmHg exceeds SBP 78 mmHg" in str(library.value)
+    assert status == f"Run whole plan: the plan failed: {library.value}", status
+    assert w.logic.parameterNode().GetAttribute("BaffleDesigner.PlanStatus") == "failed"
+
+
+def test_run_whole_plan_refuses_a_target_it_cannot_design_for(widget):
+    w = widget
+    model, curve, _ = phantom_candidate()
+    w.ui.surfaceSelector.setCurrentNode(model)
+    w.ui.curveSelector.setCurrentNode(curve)
+    w.ui.targetModeComboBox.currentIndex = 2  # an explicit area
+    before = set(os.listdir(slicer.app.temporaryPath))
+    w.ui.runPlanButton.click()
+    assert w.run is None and w.ui.runPlanButton.enabled
+    assert w.ui.statusLabel.text.startswith("Run whole plan: the plan could not start: the whole plan designs for the BSA")
+    assert set(os.listdir(slicer.app.temporaryPath)) == before  # no folder left behind
+
+
+def test_cancel_a_whole_plan_in_the_panel(widget):
+    w = widget
+    require_cfd(w)
+    plan_in_widget(w)
+    folder = Path(w.run.out_dir)
+    wait_run(w, 300, until=lambda: (folder / "design" / "report.json").exists())  # the design stage has finished
+    assert w.run is not None, w.ui.statusLabel.text
+    w.ui.cancelButton.click()
+    wait_run(w, 300)
+    status = w.ui.statusLabel.text
+    assert "plan cancelled at stage" in status and "failed" not in status, status
+    assert (folder / "design" / "domain.vtp").is_file() and not (folder / "report.json").exists()
+
+
 def model_names():
     return {n.GetName() for n in slicer.util.getNodesByClass("vtkMRMLModelNode")}
 
@@ -458,9 +543,14 @@ def test_cleanup_on_unload_and_reload_of_the_library(module):
 
 def test_the_modules_own_self_test(module):
     """BaffleDesignerTest.runTest as Slicer's Reload and Test runs it (p2 design, p2
-    segmentation -> prepare, phantom simulate and cancel)."""
+    segmentation -> prepare, phantom simulate and cancel, the phantom's whole plan)."""
     slicer.mrmlScene.Clear(0)
     module.instance.runTest(msec=0)
+    # Its last part, the whole plan, ran (not skipped) where gmsh is found.
+    environment = sys.modules["BaffleDesignerLib.environment"]
+    if environment.gmsh_availability(sys.modules["BaffleDesigner"].childEnvironment())[0]:
+        parameter_node = slicer.mrmlScene.GetSingletonNode("BaffleDesigner", "vtkMRMLScriptedModuleNode")
+        assert parameter_node.GetAttribute("BaffleDesigner.PlanStatus") == "completed"
     slicer.mrmlScene.Clear(0)
 
 

@@ -1,0 +1,220 @@
+"""Run the whole plan of one candidate through the library (baffle.plan: [prepare ->]
+design -> centerline -> mesh -> simulate -> report), as `baffle plan` runs it, without
+blocking the GUI: PlanJob.start() writes the scene's inputs to files (the ventricle and
+the suture points in LPS, as Slicer writes model and markups files, or the segmentation's
+LV, RV and aorta surfaces as the prepare step exports them), baffle.plan runs on a worker
+thread (the ctypes call releases the GIL) and poll(), called from the widget's timer (or a
+loop in tests), takes the result once it is done. progress / stage follow the library's
+progress callback; cancel() makes the library's cancel callback say stop, which it asks
+between the stages and while the design and the simulation run: the stages finished
+before keep their folders.
+
+The verdict, dp, v_max and threshold are the library's PlanResult: this module shows and
+stores them and has no threshold or rule of its own. `state` is process.RUNNING /
+COMPLETED / FAILED / CANCELLED, `message` says what happened (the library's message on
+failure)."""
+
+import os
+import re
+import threading
+import time
+from typing import Optional
+
+import numpy as np
+import slicer
+import vtk
+
+from BaffleDesignerLib import candidate, prepare, process
+
+# What the parameter node and the candidate's curve keep of the latest whole plan
+# (attribute name after candidate.ATTRIBUTE_PREFIX).
+PLAN_ATTRIBUTES = ("PlanStatus", "PlanVerdict", "PlanVerdictText", "PlanDpMmhg", "PlanVMaxMS",
+                   "PlanDpThresholdMmhg", "PlanReasons", "PlanFolder", "PlanMessage")
+SURFACE_NAME, POINTS_NAME, SEGMENTATIONS_NAME = "capped_ventricle.vtp", "suture_points.mrk.json", "segmentations"
+# The gmsh and Python the library's mesh stage and pictures run (baffle-mesh's gmsh.rs
+# reads them from the process environment): the child processes' ones, as for Simulate.
+LIBRARY_ENV = ("BAFFLE_GMSH", "BAFFLE_PYTHON")
+
+
+def folder_name(curve_name: str) -> str:
+    """A file name from the curve's name (the plan's folder, shown as "plan <name>")."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", curve_name).strip("-") or "candidate"
+
+
+def plan_kwargs(parameters: "candidate.DesignParameters", single_mesh: bool, patient_label: str) -> dict:
+    """baffle.plan()'s options from the candidate's parameters. The library's plan call
+    (the C ABI's BafflePlanOptions, baffle.plan) takes the target as a BSA only, at z-score
+    0 (the command line's `baffle plan` has --z-score, --target-area-mm2 and
+    --annulus-diameter-mm; the C ABI does not yet): an explicit area or diameter, or another
+    z-score, is refused rather than planned for a target the candidate does not have."""
+    parameters.validate()
+    if parameters.target_mode not in ("bsa", "height_weight") or parameters.z_score != 0.0:
+        target = (parameters.target_mode if parameters.target_mode in ("area", "diameter")
+                  else f"z-score {parameters.z_score:g}")
+        raise candidate.BaffleDesignerError(
+            f"the whole plan designs for the BSA at z-score 0 (the library's plan call takes no other target yet), not for {target}: "
+            "choose BSA or height and weight with z-score 0, or use Design and Simulate")
+    case = parameters.case_kwargs()  # checks the CFD inputs as Simulate does
+    return {
+        **case,
+        "edge_length_mm": parameters.mesh_edge_length_mm,
+        "single_mesh": bool(single_mesh),
+        "flow_sections": bool(parameters.flow_sections),
+        "patient_label": patient_label,
+    }
+
+
+def write_surface_lps(polydata: vtk.vtkPolyData, path: str) -> str:
+    """The capped ventricle (world RAS) as an LPS .vtp, as Slicer writes model files and the
+    plan reads them (its surface frame is LPS), labels included."""
+    writer = vtk.vtkXMLPolyDataWriter()
+    writer.SetFileName(path)
+    writer.SetInputData(prepare.flip_lps_ras(polydata))
+    if not writer.Write():
+        raise candidate.BaffleDesignerError(f"could not write {path}")
+    return path
+
+
+def write_points(points_world: np.ndarray, path: str, name: str) -> str:
+    """The suture points (world RAS) as a closed-curve .mrk.json, by Slicer's own markups
+    writer (which stores LPS and says so; the plan converts to its surface frame)."""
+    curve = slicer.vtkMRMLMarkupsClosedCurveNode()
+    curve.SetName(name)
+    for p in points_world:
+        curve.AddControlPoint(float(p[0]), float(p[1]), float(p[2]))
+    storage = slicer.vtkMRMLMarkupsJsonStorageNode()
+    storage.SetFileName(path)
+    if not storage.WriteData(curve):
+        raise candidate.BaffleDesignerError(f"could not write {path}")
+    return path
+
+
+class PlanJob:
+    """One candidate's whole plan through the library into `out_dir`, without blocking."""
+
+    def __init__(self, logic, curve, out_dir: str, parameters=None, single_mesh: bool = False, env: Optional[dict] = None):
+        self.logic = logic
+        self.curve = curve
+        self.curve_id = curve.GetID() if curve is not None else None
+        self.out_dir = out_dir
+        self.inputs_dir = out_dir + "-inputs"
+        self.given_parameters = parameters
+        self.single_mesh = single_mesh
+        self.env = env  # the child processes' environment: BAFFLE_GMSH / BAFFLE_PYTHON from it
+        self.progress = 0.0
+        self.stage = "inputs"
+        self.state = ""
+        self.message = ""
+        self.result = None  # baffle.PlanResult once completed
+        self._cancel = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._outcome = None
+
+    # ---- the inputs, on the caller's (GUI) thread -----------------------------------------
+
+    def _inputs(self) -> dict:
+        candidate.check_curve(self.curve)
+        logic = self.logic
+        parameters = self.given_parameters if self.given_parameters is not None else logic.parameters(self.curve)
+        kwargs = plan_kwargs(parameters, self.single_mesh, self.curve.GetName())
+        os.makedirs(self.inputs_dir, exist_ok=True)
+        kwargs["points"] = write_points(logic.suturePointsWorld(self.curve), os.path.join(self.inputs_dir, POINTS_NAME), self.curve.GetName())
+        surface = logic.surfaceNode(self.curve)
+        if surface is not None and surface.IsA("vtkMRMLSegmentationNode"):
+            # The plan prepares it itself and runs the CFD on the extended domain.
+            folder = os.path.join(self.inputs_dir, SEGMENTATIONS_NAME)
+            prepare.export_segments(surface, prepare.segment_ids(surface, parameters), folder)
+            kwargs["segmentations"] = folder
+        else:
+            model = logic.ventricleModel(self.curve, allow_prepare=False)  # a plain RV model: capped at its rims
+            kwargs["surface"] = write_surface_lps(logic.surfacePolyDataWorld(model), os.path.join(self.inputs_dir, SURFACE_NAME))
+        return kwargs
+
+    def start(self) -> "PlanJob":
+        """Read the inputs and start the library; a bad input ends the job FAILED at once
+        (nothing in the scene changes)."""
+        self.state = process.RUNNING
+        try:
+            kwargs = self._inputs()
+        except (candidate.BaffleDesignerError, OSError) as error:
+            self._end(process.FAILED, f"the plan could not start: {error}")
+            return self
+        self._thread = threading.Thread(target=self._work, args=(kwargs,), daemon=True)
+        self._thread.start()
+        return self
+
+    # ---- the library, on the worker thread ------------------------------------------------
+
+    def _report(self, fraction, stage) -> bool:
+        self.progress, self.stage = float(fraction), stage
+        return True
+
+    def _work(self, kwargs) -> None:
+        baffle, _ = candidate.library()
+        saved = {name: os.environ.get(name) for name in LIBRARY_ENV}
+        try:
+            for name in LIBRARY_ENV:
+                if self.env and self.env.get(name):
+                    os.environ[name] = self.env[name]
+            self._outcome = baffle.plan(self.out_dir, progress=self._report, cancel=self._cancel.is_set, **kwargs)
+        except Exception as error:  # Cancelled, BaffleError (the library's message), or a bug: ends the job
+            self._outcome = error
+        finally:
+            for name, value in saved.items():
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
+
+    # ---- the end, on the caller's thread --------------------------------------------------
+
+    @property
+    def running(self) -> bool:
+        return self.state == process.RUNNING
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def poll(self) -> str:
+        """RUNNING while the library works; then the result is stored here (once)."""
+        if self.state != process.RUNNING or self._thread is None or self._thread.is_alive():
+            return self.state
+        baffle, _ = candidate.library()
+        outcome, self._outcome = self._outcome, None
+        if isinstance(outcome, baffle.Cancelled):
+            return self._end(process.CANCELLED, f"{outcome}; the finished stages are kept in {self.out_dir}")
+        if isinstance(outcome, baffle.BaffleError):
+            kept = f" (its folder: {self.out_dir})" if os.path.isdir(self.out_dir) else ""
+            return self._end(process.FAILED, f"the plan failed: {outcome}{kept}")
+        if isinstance(outcome, BaseException):
+            return self._end(process.FAILED, f"the plan failed: {type(outcome).__name__}: {outcome}")
+        self.result = outcome
+        return self._end(process.COMPLETED, result_line(outcome))
+
+    def _end(self, state: str, message: str) -> str:
+        self.state, self.message = state, message
+        self.logic.storePlan(self.curve if self._curve_in_scene() else None, state, message, self.result, self.out_dir)
+        return state
+
+    def _curve_in_scene(self) -> bool:
+        return self.curve is not None and self.logic.scene.GetNodeByID(self.curve_id or "") is self.curve
+
+    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.05, until=None) -> str:
+        """Poll until the plan has ended (or until() is true)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() == process.RUNNING and not (until and until()):
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"plan still running at stage {self.stage} after {timeout} s")
+            self._thread.join(poll_interval)
+        return self.state
+
+
+def result_line(result) -> str:
+    """The library's verdict in one line, marked as the library's: its text (PASSES / FAILS /
+    INCONCLUSIVE and why), the dp and v_max it judged and the threshold it judged against."""
+    line = (
+        f"the library's verdict: {result.verdict_text} "
+        f"(dp {result.dp_mmhg:.2f} mmHg against its threshold {result.dp_threshold_mmhg:g} mmHg, "
+        f"v_max {result.v_max_m_s:.2f} m/s)"
+    )
+    return line
