@@ -50,7 +50,7 @@ super::settings_args! {
         pub max_point_distance_mm: f64,
         // --wall-label, --baffle-label, --vsd-label, --aortic-label.
         #[command(flatten)]
-        pub labels: DesignLabelArgs,
+        pub labels: FaceLabelArgs,
         /// A point (x,y,z in the surface's frame, mm) on the VSD cap: labels the planar
         /// cap around it. Needed for surfaces without ModelFaceID (.stl, plain .vtk).
         #[arg(long, value_parser = parse_point, requires = "aortic_cap_point", allow_hyphen_values = true)]
@@ -89,9 +89,10 @@ super::settings_args! {
     }
 }
 
-/// The ModelFaceIDs `baffle design` reads and gives.
+/// The ModelFaceIDs `baffle design` reads and gives (also `baffle extend`'s, which
+/// words their help for the designed domain it reads).
 #[derive(Args, Clone)]
-pub struct DesignLabelArgs {
+pub struct FaceLabelArgs {
     /// ModelFaceID of the RV wall.
     #[arg(long, default_value_t = DesignSettings::default().labels.wall)]
     pub wall_label: i32,
@@ -106,8 +107,8 @@ pub struct DesignLabelArgs {
     pub aortic_label: i32,
 }
 
-impl From<DesignLabelArgs> for FaceLabels {
-    fn from(a: DesignLabelArgs) -> Self {
+impl From<FaceLabelArgs> for FaceLabels {
+    fn from(a: FaceLabelArgs) -> Self {
         FaceLabels { wall: a.wall_label, baffle: a.baffle_label, vsd_cap: a.vsd_label, aortic_cap: a.aortic_label }
     }
 }

@@ -1,13 +1,20 @@
 //! `baffle extend`'s arguments.
 
+use super::design::FaceLabelArgs;
 use super::prepare::PrepareSourceArgs;
 use baffle_plan::extend_cmd::ExtendSettings;
-use baffle_plan::design_cmd::FaceLabels;
 use clap::Args;
 use std::path::PathBuf;
 
 super::settings_args! {
     #[derive(Args)]
+    // The labels are `baffle design`'s (the same defaults), named as the domain's here.
+    #[command(
+        mut_arg("wall_label", |a| a.help("ModelFaceID of the domain's walls (the extension's walls get it too)")),
+        mut_arg("baffle_label", |a| a.help("ModelFaceID of the domain's baffle")),
+        mut_arg("vsd_label", |a| a.help("ModelFaceID of the domain's VSD cap")),
+        mut_arg("aortic_label", |a| a.help("ModelFaceID of the domain's aortic-annulus cap")),
+    )]
     pub struct ExtendArgs into ExtendSettings {
         /// Designed domain (domain.vtp from `baffle design`): closed, mm, ModelFaceID.
         #[arg(long)]
@@ -29,7 +36,7 @@ super::settings_args! {
         pub outflow_label: i32,
         // --wall-label, --baffle-label, --vsd-label, --aortic-label.
         #[command(flatten)]
-        pub labels: ExtendLabelArgs,
+        pub labels: FaceLabelArgs,
         /// Voxel edge of the union grid the LV and aorta are cut from (mm).
         #[arg(long, default_value_t = ExtendSettings::default().voxel_mm)]
         pub voxel_mm: f64,
@@ -65,28 +72,5 @@ super::settings_args! {
         /// domain is refused: `baffle extend` expects `baffle design`'s domain.
         #[arg(long)]
         pub no_baffle: bool,
-    }
-}
-
-/// The designed domain's ModelFaceIDs.
-#[derive(Args)]
-pub struct ExtendLabelArgs {
-    /// ModelFaceID of the domain's walls (the extension's walls get it too).
-    #[arg(long, default_value_t = ExtendSettings::default().labels.wall)]
-    pub wall_label: i32,
-    /// ModelFaceID of the domain's baffle.
-    #[arg(long, default_value_t = ExtendSettings::default().labels.baffle)]
-    pub baffle_label: i32,
-    /// ModelFaceID of the domain's VSD cap.
-    #[arg(long, default_value_t = ExtendSettings::default().labels.vsd_cap)]
-    pub vsd_label: i32,
-    /// ModelFaceID of the domain's aortic-annulus cap.
-    #[arg(long, default_value_t = ExtendSettings::default().labels.aortic_cap)]
-    pub aortic_label: i32,
-}
-
-impl From<ExtendLabelArgs> for FaceLabels {
-    fn from(a: ExtendLabelArgs) -> Self {
-        FaceLabels { wall: a.wall_label, baffle: a.baffle_label, vsd_cap: a.vsd_label, aortic_cap: a.aortic_label }
     }
 }
