@@ -3,7 +3,7 @@
 use crate::mesh_handle::BaffleMesh;
 use crate::options::read_options;
 use crate::result::BaffleResult;
-use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, check_finite, guarded, in_slice, out_handle, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
 use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::{DesignError, Vec3};
 use baffle_plan::design_cmd::design_by_rule;
@@ -33,8 +33,7 @@ pub unsafe extern "C" fn baffle_design(
     out_result: *mut *mut BaffleResult,
 ) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_result, "out_result")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_result, "out_result")?;
         let surface = arg_ref(surface, "surface")?;
         let points = suture_points(in_slice(suture_points_mm, suture_points_len, "suture_points_mm")?)?;
         let options = read_options(options)?;

@@ -1,7 +1,7 @@
 //! The mesh handle: a labelled triangle surface built from plain arrays (or VTK's
 //! offsets/connectivity pair), validated on the way in, copied out on request.
 
-use crate::status::{arg_ref, check_finite, guarded, in_slice, out_ref, out_slice, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, check_finite, free_handle, guarded, in_slice, out_handle, out_ref, out_slice, xyz_count, BaffleStatus, CallError};
 use baffle_core::{TriMesh, Vec3};
 
 /// Opaque, immutable triangle surface (mm) with one int32 label per triangle.
@@ -78,8 +78,7 @@ unsafe fn new_mesh(
     triangles_of: impl FnOnce(usize) -> Result<Vec<[u32; 3]>, CallError>,
 ) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_mesh, "out_mesh")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_mesh, "out_mesh")?;
         let points = mesh_points(in_slice(points_mm, points_len, "points_mm")?)?;
         let tris = triangles_of(points.len())?;
         let face_ids = mesh_labels(in_slice(labels, labels_len, "labels")?, tris.len())?;
@@ -150,9 +149,7 @@ fn mesh_labels(labels: &[i32], triangle_count: usize) -> Result<Vec<i32>, CallEr
 /// `mesh` must be NULL or a handle from this library not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_mesh_free(mesh: *mut BaffleMesh) {
-    if !mesh.is_null() {
-        drop(Box::from_raw(mesh));
-    }
+    free_handle(mesh);
 }
 
 /// Number of points of the mesh.

@@ -6,7 +6,7 @@
 use crate::alloc::malloc_string;
 use crate::design::{call_progress, BaffleProgressFn};
 use crate::options::read_sized;
-use crate::status::{arg_ref, guarded, optional_str, out_ref, BaffleStatus, CallError};
+use crate::status::{arg_ref, free_handle, guarded, optional_str, out_handle, out_ref, BaffleStatus, CallError};
 use baffle_plan::error::PlanError;
 use baffle_plan::plan_cmd::{plan_case, run_plan_cancellable, write_case, Cancel, PlanOutcome};
 use baffle_plan::plan_stages::{plan_stages, FlowCase, PlanSettings};
@@ -250,8 +250,7 @@ pub unsafe extern "C" fn baffle_plan(
     out_result: *mut *mut BafflePlanResult,
 ) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_result, "out_result")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_result, "out_result")?;
         let options = read_sized(options, PLAN_V1_SIZE, "options", "baffle_plan_options_init")?;
         if options.out_dir.is_null() {
             return Err(CallError::null("options.out_dir (the plan's output folder)"));
@@ -275,9 +274,7 @@ pub unsafe extern "C" fn baffle_plan(
 /// `result` must be NULL or a handle from this library not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_plan_result_free(result: *mut BafflePlanResult) {
-    if !result.is_null() {
-        drop(Box::from_raw(result));
-    }
+    free_handle(result);
 }
 
 /// One value of a result into the caller's `out`.

@@ -3,7 +3,7 @@
 
 use crate::alloc::malloc_copy;
 use crate::mesh_handle::BaffleMesh;
-use crate::status::{guarded, out_ref, BaffleStatus, CallError};
+use crate::status::{guarded, out_handle, out_ref, BaffleStatus, CallError};
 use baffle_core::io::{read_points, CoordinateSystem};
 use baffle_core::phantom::{phantom_default, phantom_with_suture_half_angle, Phantom};
 use baffle_core::Vec3;
@@ -95,8 +95,7 @@ unsafe fn write_phantom(
     out_points_len: *mut usize,
     out_bsa_m2: *mut f64,
 ) -> Result<(), CallError> {
-    let out_surface = out_ref(out_surface, "out_surface")?;
-    *out_surface = std::ptr::null_mut();
+    let out_surface = out_handle(out_surface, "out_surface")?;
     let out_points = out_ref(out_points_mm, "out_points_mm")?;
     let out_len = out_ref(out_points_len, "out_points_len")?;
     (*out_points, *out_len) = (std::ptr::null_mut(), 0);

@@ -3,7 +3,7 @@
 
 use crate::alloc::malloc_string;
 use crate::mesh_handle::{copy_points, BaffleMesh};
-use crate::status::{arg_ref, guarded, out_ref, out_slice, BaffleStatus, CallError};
+use crate::status::{arg_ref, free_handle, guarded, out_handle, out_ref, out_slice, BaffleStatus, CallError};
 use baffle_core::DesignResult;
 use std::ffi::c_char;
 
@@ -27,9 +27,7 @@ impl BaffleResult {
 /// `result` must be NULL or a handle from this library not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_result_free(result: *mut BaffleResult) {
-    if !result.is_null() {
-        drop(Box::from_raw(result));
-    }
+    free_handle(result);
 }
 
 /// The closed, outward-wound VSD-to-aorta domain (labels: wall, baffle, VSD cap,
@@ -40,8 +38,7 @@ pub unsafe extern "C" fn baffle_result_free(result: *mut BaffleResult) {
 #[no_mangle]
 pub unsafe extern "C" fn baffle_result_domain(result: *const BaffleResult, out_mesh: *mut *mut BaffleMesh) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_mesh, "out_mesh")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_mesh, "out_mesh")?;
         *out = BaffleMesh::boxed(arg_ref(result, "result")?.result.domain.clone());
         Ok(())
     })
@@ -54,8 +51,7 @@ pub unsafe extern "C" fn baffle_result_domain(result: *const BaffleResult, out_m
 #[no_mangle]
 pub unsafe extern "C" fn baffle_result_baffle(result: *const BaffleResult, out_mesh: *mut *mut BaffleMesh) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_mesh, "out_mesh")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_mesh, "out_mesh")?;
         *out = BaffleMesh::boxed(arg_ref(result, "result")?.result.baffle.clone());
         Ok(())
     })
@@ -82,8 +78,7 @@ pub unsafe extern "C" fn baffle_result_target_area_mm2(result: *const BaffleResu
 #[no_mangle]
 pub unsafe extern "C" fn baffle_result_report_json(result: *const BaffleResult, out_json: *mut *mut c_char) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_json, "out_json")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_json, "out_json")?;
         *out = malloc_string(&arg_ref(result, "result")?.report_json)?;
         Ok(())
     })

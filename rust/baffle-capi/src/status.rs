@@ -130,6 +130,27 @@ pub(crate) unsafe fn out_ref<'a, T>(ptr: *mut T, name: &str) -> Result<&'a mut T
     Ok(&mut *ptr)
 }
 
+/// An output handle location from a caller's pointer (as [`out_ref`]), set to NULL so that
+/// a call that fails leaves no stale handle there.
+///
+/// # Safety
+/// `ptr` must be NULL or point to writable memory for a handle pointer.
+pub(crate) unsafe fn out_handle<'a, T>(ptr: *mut *mut T, name: &str) -> Result<&'a mut *mut T, CallError> {
+    let out = out_ref(ptr, name)?;
+    *out = std::ptr::null_mut();
+    Ok(out)
+}
+
+/// Free a handle this library boxed (NULL is ignored): the body of every `baffle_*_free`.
+///
+/// # Safety
+/// `handle` must be NULL or a `Box` of this library's turned into a raw pointer, not yet freed.
+pub(crate) unsafe fn free_handle<T>(handle: *mut T) {
+    if !handle.is_null() {
+        drop(Box::from_raw(handle));
+    }
+}
+
 /// A caller's input array of `len` elements (NULL is accepted only when `len` is 0).
 ///
 /// # Safety

@@ -4,7 +4,7 @@
 
 use crate::alloc::{malloc_copy, malloc_string};
 use crate::mesh_handle::BaffleMesh;
-use crate::status::{arg_ref, check_finite, guarded, in_slice, optional_str, out_ref, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, check_finite, free_handle, guarded, in_slice, optional_str, out_handle, out_ref, xyz_count, BaffleStatus, CallError};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use baffle_template::drawing::{today_utc, TemplateText};
 use baffle_template::raster::DEFAULT_DPI;
@@ -66,8 +66,7 @@ pub unsafe extern "C" fn baffle_template(
     out_template: *mut *mut BaffleTemplate,
 ) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_template, "out_template")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_template, "out_template")?;
         let domain = arg_ref(domain, "domain")?;
         let points = points(in_slice(suture_points_mm, suture_points_len, "suture_points_mm")?)?;
         let names: Vec<String> = optional_str(point_labels, "point_labels")?.map_or_else(Vec::new, |s| s.split('\n').map(str::to_string).collect());
@@ -129,9 +128,7 @@ fn report_json(t: &Template) -> Result<String, CallError> {
 /// `template` must be NULL or a handle from this library not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn baffle_template_free(template: *mut BaffleTemplate) {
-    if !template.is_null() {
-        drop(Box::from_raw(template));
-    }
+    free_handle(template);
 }
 
 /// The flattened baffle as a new mesh handle (free with baffle_mesh_free): points
@@ -142,8 +139,7 @@ pub unsafe extern "C" fn baffle_template_free(template: *mut BaffleTemplate) {
 #[no_mangle]
 pub unsafe extern "C" fn baffle_template_flat_mesh(template: *const BaffleTemplate, out_mesh: *mut *mut BaffleMesh) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_mesh, "out_mesh")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_mesh, "out_mesh")?;
         let flat = &arg_ref(template, "template")?.template.flat;
         let points = flat.uv_mm.iter().map(|p| Vec3::new(p.x, p.y, 0.0)).collect();
         let label = FaceLabels::default().baffle;
@@ -162,8 +158,7 @@ pub unsafe extern "C" fn baffle_template_flat_mesh(template: *const BaffleTempla
 #[no_mangle]
 pub unsafe extern "C" fn baffle_template_report_json(template: *const BaffleTemplate, out_json: *mut *mut c_char) -> BaffleStatus {
     guarded(|| {
-        let out = out_ref(out_json, "out_json")?;
-        *out = std::ptr::null_mut();
+        let out = out_handle(out_json, "out_json")?;
         *out = malloc_string(&arg_ref(template, "template")?.report_json)?;
         Ok(())
     })

@@ -713,9 +713,7 @@ mod tests {
 
     #[test]
     fn an_edge_as_long_as_the_domain_is_refused_with_the_longest_that_works() {
-        let mut closed = open_box();
-        closed.triangles.push([1, 2, 3]);
-        closed.face_ids.push(2);
+        let closed = closed_tet();
         // 1/6 mm3: about 100 tetrahedra at an edge of 0.3 mm.
         assert!(check_resolves_flow(&closed, 0.1).is_ok());
         let err = check_resolves_flow(&closed, 1.0).unwrap_err().to_string();
@@ -724,9 +722,7 @@ mod tests {
 
     #[test]
     fn bad_options_and_labels_are_rejected() {
-        let mut closed = open_box();
-        closed.triangles.push([1, 2, 3]);
-        closed.face_ids.push(2);
+        let mut closed = closed_tet();
         let opts = MeshOptions {
             edge_length_mm: -1.0,
             ..Default::default()
@@ -756,9 +752,7 @@ mod tests {
 
     #[test]
     fn interior_points_merge_onto_boundary_points_and_labels_must_differ() {
-        let mut closed = open_box();
-        closed.triangles.push([1, 2, 3]);
-        closed.face_ids.push(2);
+        let closed = closed_tet();
         let plane = TriMesh::new(
             vec![Vec3::x(), Vec3::y(), Vec3::new(0.2, 0.2, 0.2)],
             vec![[0, 1, 2]],
@@ -824,8 +818,7 @@ mod tests {
 
     #[test]
     fn geo_script_embeds_interior_surfaces() {
-        let mut closed = open_box();
-        closed.triangles.push([1, 2, 3]);
+        let mut closed = closed_tet();
         closed.face_ids = vec![2, 11, 16, 2];
         let plane = TriMesh::new(
             vec![Vec3::x(), Vec3::y(), Vec3::new(0.2, 0.2, 0.2)],

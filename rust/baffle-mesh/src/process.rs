@@ -48,29 +48,25 @@ mod tests {
         assert_eq!(result.unwrap(), 3);
     }
 
-    #[test]
-    fn other_errors_are_returned_at_once() {
+    /// A start that always fails with `kind`: the error returned and the attempts made.
+    fn always_failing(kind: io::ErrorKind) -> (io::ErrorKind, u32) {
         let calls = Cell::new(0);
         let result: io::Result<()> = start_retrying_busy(|| {
             calls.set(calls.get() + 1);
-            Err(io::Error::from(io::ErrorKind::NotFound))
+            Err(io::Error::from(kind))
         });
-        assert_eq!(result.unwrap_err().kind(), io::ErrorKind::NotFound);
-        assert_eq!(calls.get(), 1);
+        (result.unwrap_err().kind(), calls.get())
+    }
+
+    #[test]
+    fn other_errors_are_returned_at_once() {
+        assert_eq!(always_failing(io::ErrorKind::NotFound), (io::ErrorKind::NotFound, 1));
     }
 
     #[test]
     fn a_start_that_stays_busy_is_reported_after_the_retries() {
-        let calls = Cell::new(0);
-        let result: io::Result<()> = start_retrying_busy(|| {
-            calls.set(calls.get() + 1);
-            Err(io::Error::from(io::ErrorKind::ExecutableFileBusy))
-        });
-        assert_eq!(
-            result.unwrap_err().kind(),
-            io::ErrorKind::ExecutableFileBusy
-        );
-        assert_eq!(calls.get(), BUSY_RETRIES + 1);
+        let busy = io::ErrorKind::ExecutableFileBusy;
+        assert_eq!(always_failing(busy), (busy, BUSY_RETRIES + 1));
     }
 
     /// The real condition: a script held open for writing cannot be executed, and the

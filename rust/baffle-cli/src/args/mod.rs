@@ -30,6 +30,36 @@ macro_rules! value_enum {
 }
 pub(crate) use value_enum;
 
+/// A clap `Args` struct whose every field sets the same-named field of the baffle-plan
+/// settings `$settings` (through `Into`: a flattened group, a value enum), and that
+/// `From` conversion; the settings' fields the command line does not set follow the
+/// struct (`rest { field: value }`). One list of fields, so that an option cannot be
+/// parsed and then left out of the settings.
+macro_rules! settings_args {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident into $settings:ident {
+            $($(#[$field_meta:meta])* pub $field:ident: $ty:ty),+ $(,)?
+        }
+        $(rest { $($rest:ident: $value:expr),+ $(,)? })?
+    ) => {
+        $(#[$meta])*
+        pub struct $name {
+            $($(#[$field_meta])* pub $field: $ty),+
+        }
+
+        impl From<$name> for $settings {
+            fn from(a: $name) -> Self {
+                $settings {
+                    $($field: a.$field.into(),)+
+                    $($($rest: $value,)+)?
+                }
+            }
+        }
+    };
+}
+pub(crate) use settings_args;
+
 pub mod centerline;
 pub mod design;
 pub mod export;
