@@ -8,7 +8,7 @@
 //! case's BSA (CI 3.48).
 
 use baffle_core::hemodynamics_estimate::{peak_flow_ml_s, Blood, EstimateOutcome};
-use baffle_core::reference_data::{design_cases, DesignCase};
+use baffle_test_support::reference_data::{design_cases, DesignCase};
 use baffle_core::{design, DesignOptions, DesignReport, TargetArea};
 
 fn cases() -> Vec<DesignCase> {

@@ -114,7 +114,7 @@ fn outflow_figures(out: &std::path::Path) -> [f64; 4] {
 #[test]
 fn a_labelmap_gives_the_rv_outflow_of_its_segmentations() {
     use baffle_prepare::voxelize::{voxelize, Grid};
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let segmentations = data.join("p2/segmentations");
     let dir = std::env::temp_dir().join(format!("baffle-cli-prepare-{}-labelmap-outflow", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -401,7 +401,7 @@ mod tests {
     /// 0.85 / 1.25 mm): what docs/hemodynamics_estimate.md states, checked on the data.
     #[test]
     fn the_published_domains_are_estimated_as_the_validation_says() {
-        let Some(dir) = crate::reference_data::reference_data_if_present() else { return };
+        let Some(dir) = baffle_test_support::reference_data::reference_data_if_present() else { return };
         let patients: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("patients.json")).unwrap()).unwrap();
         // (patient, 3D dp static, 3D dp total flow-weighted, 3D v_max on the centerline)
         for (patient, dp_3d, dp_total_3d, v_3d) in [("p1", 4.36, 2.36, 1.52), ("p2", -0.37, 1.58, 1.45), ("p3", 5.87, 2.17, 1.60)] {

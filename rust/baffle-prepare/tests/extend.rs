@@ -4,7 +4,7 @@
 //! the checks `extend` runs itself. p2/p3 are skipped (with a note) without the data.
 
 use baffle_core::io::{read_points, CoordinateSystem};
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{design, DesignOptions, TargetArea, Vec3};
 use baffle_prepare::extend::{extend, ExtendOptions, StjOptions};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};

@@ -133,7 +133,7 @@ fn resampling_keeps_the_ends_and_spacing() {
 
 /// The patients' published surfaces (cm, inward) and design inputs, when present.
 fn published_surface(patient: &str) -> Option<TriMesh> {
-    let dir = crate::reference_data::reference_data_if_present()?;
+    let dir = baffle_test_support::reference_data::reference_data_if_present()?;
     let mut mesh = crate::io::read_surface(&dir.join(patient).join("published_M_final.vtp")).unwrap();
     mesh.points.iter_mut().for_each(|p| *p *= 10.0);
     Some(mesh)

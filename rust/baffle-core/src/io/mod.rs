@@ -117,7 +117,7 @@ mod tests {
     use std::path::PathBuf;
 
     fn data_dir() -> Option<PathBuf> {
-        crate::reference_data::reference_data_if_present()
+        baffle_test_support::reference_data::reference_data_if_present()
     }
 
     fn scratch_dir() -> PathBuf {

@@ -448,18 +448,6 @@ fn a_seam_edge_longer_than_the_remesher_can_resolve_is_named() {
     assert!(err.contains("the boundary (seam) edge from (0.00, 0.00, 0.00) to (10.00, 0.00, 0.00) mm is 10.00 mm long"), "{err}");
 }
 
-#[test]
-fn a_closed_surface_that_crosses_itself_is_refused_where_it_crosses() {
-    // The phantom's wall with a patch pushed 30 mm inward, through the opposite wall.
-    let surface = crate::phantom::phantom_default().surface;
-    let wall_vertex = surface.triangles[surface.face_ids.iter().position(|&f| f == 2).unwrap()][0] as usize;
-    let folded = crate::perturb::bump_wall(&surface, wall_vertex, 60, -30.0, 2);
-    let err = remesh_isotropic(&folded, &RemeshOptions { target_edge_mm: 1.0, ..RemeshOptions::default() }).unwrap_err();
-    assert!(err.contains("crosses itself near (") && err.contains("triangles"), "{err}");
-    // The phantom as it is does not cross itself and remeshes.
-    assert!(remesh_isotropic(&surface, &RemeshOptions { target_edge_mm: 1.0, ..RemeshOptions::default() }).is_ok());
-}
-
 /// Graded from the cap: the cylinder's edges near the cap (label 11, at z = CYL_H) stay at
 /// the target, those far down its side grow as the grading says, and the surface stays
 /// a clean open manifold on the same cylinder.

@@ -390,7 +390,7 @@ fn timed_self_intersections(
 }
 
 fn data_dir() -> Option<std::path::PathBuf> {
-    crate::reference_data::reference_data_if_present()
+    baffle_test_support::reference_data::reference_data_if_present()
 }
 
 #[test]

@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use baffle_core::phantom::phantom;
-use baffle_core::phantom_family::FamilyMember;
+use baffle_test_support::phantom_family::FamilyMember;
 use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea};
 
 /// What the design did with one member.
@@ -75,7 +75,7 @@ pub struct Tally {
 pub fn sweep(seeds: impl Iterator<Item = u64>) -> Tally {
     let mut tally = Tally { seam_range_mm: (f64::INFINITY, 0.0), ..Tally::default() };
     for seed in seeds {
-        match run_member(&baffle_core::phantom_family::family_member(seed)) {
+        match run_member(&baffle_test_support::phantom_family::family_member(seed)) {
             Outcome::Designed { seam_mm, expanded } => {
                 tally.designed += 1;
                 tally.expanded += usize::from(expanded);

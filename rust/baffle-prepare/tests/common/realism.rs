@@ -25,7 +25,7 @@ pub fn published_domain(path: &Path) -> TriMesh {
 
 /// Each triangle split in 4 at its edges' midpoints (labels kept): planar caps stay planar.
 pub fn subdivided(mesh: &TriMesh) -> TriMesh {
-    baffle_core::perturb::subdivide(mesh)
+    baffle_test_support::perturb::subdivide(mesh)
 }
 
 /// The points that no triangle of `caps` uses (they may move without bending a cap).

@@ -37,11 +37,11 @@ pub fn running_in_ci() -> bool {
 
 /// The published seam of a patient (`<patient>/design_input/published_seam.vtp`, a
 /// closed polyline in mm), without the repeated closing point.
-pub fn published_seam_mm(patient_dir: &std::path::Path) -> Result<Vec<crate::Vec3>, String> {
+pub fn published_seam_mm(patient_dir: &std::path::Path) -> Result<Vec<baffle_core::Vec3>, String> {
     let path = patient_dir.join("design_input/published_seam.vtp");
-    let polydata = crate::io::read_polydata(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let polydata = baffle_core::io::read_polydata(&path).map_err(|e| format!("{}: {e}", path.display()))?;
     let line = polydata.lines.first().ok_or_else(|| format!("{}: no polyline", path.display()))?;
-    let mut points: Vec<crate::Vec3> = line.iter().map(|&i| polydata.points[i as usize]).collect();
+    let mut points: Vec<baffle_core::Vec3> = line.iter().map(|&i| polydata.points[i as usize]).collect();
     if points.len() > 1 && (points[0] - points[points.len() - 1]).norm() < 1e-9 {
         points.pop();
     }
@@ -51,7 +51,7 @@ pub fn published_seam_mm(patient_dir: &std::path::Path) -> Result<Vec<crate::Vec
 /// `n` points spaced evenly by arc length along a closed polyline, the first at
 /// `phase` (a fraction of the spacing) from its first vertex: how the suture-point
 /// variants of a published seam are made (N = 12-15, phases 0, 1/3, 2/3).
-pub fn evenly_spaced_on_loop(closed: &[crate::Vec3], n: usize, phase: f64) -> Vec<crate::Vec3> {
+pub fn evenly_spaced_on_loop(closed: &[baffle_core::Vec3], n: usize, phase: f64) -> Vec<baffle_core::Vec3> {
     let m = closed.len();
     let mut cumulative = vec![0.0];
     for k in 0..m {
@@ -72,17 +72,17 @@ pub fn evenly_spaced_on_loop(closed: &[crate::Vec3], n: usize, phase: f64) -> Ve
 /// moved by a random offset of up to `radius_mm` along each axis and put back onto the
 /// nearest wall triangle (label `wall_label`) of `surface`.
 pub fn scattered_clicks(
-    surface: &crate::TriMesh,
-    bvh: &crate::spatial::TriangleBvh,
+    surface: &baffle_core::TriMesh,
+    bvh: &baffle_core::spatial::TriangleBvh,
     wall_label: i32,
-    on_loop: &[crate::Vec3],
+    on_loop: &[baffle_core::Vec3],
     radius_mm: f64,
-    rng: &mut crate::numerics::random::SplitMix64,
-) -> Vec<crate::Vec3> {
+    rng: &mut baffle_core::numerics::random::SplitMix64,
+) -> Vec<baffle_core::Vec3> {
     on_loop
         .iter()
         .filter_map(|p| {
-            let offset = crate::Vec3::new(rng.symmetric_unit(), rng.symmetric_unit(), rng.symmetric_unit()) * radius_mm;
+            let offset = baffle_core::Vec3::new(rng.symmetric_unit(), rng.symmetric_unit(), rng.symmetric_unit()) * radius_mm;
             bvh.closest_point_filtered(surface, p + offset, |t| surface.face_ids[t as usize] == wall_label)
                 .map(|hit| hit.point)
         })
@@ -92,7 +92,7 @@ pub fn scattered_clicks(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Vec3;
+    use baffle_core::Vec3;
 
     #[test]
     fn evenly_spaced_points_on_a_square() {
@@ -112,25 +112,25 @@ mod tests {
 /// paper's BSA (Table 3) and z = 0.
 pub struct DesignCase {
     pub name: String,
-    pub surface: crate::TriMesh,
-    pub points: Vec<crate::Vec3>,
-    pub target: crate::TargetArea,
+    pub surface: baffle_core::TriMesh,
+    pub points: Vec<baffle_core::Vec3>,
+    pub target: baffle_core::TargetArea,
 }
 
 /// The phantom, then p1-p3's design inputs where the data is present (tests and benches).
 pub fn design_cases() -> Vec<DesignCase> {
-    let p = crate::phantom::phantom_default();
-    let target = crate::TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 };
+    let p = baffle_core::phantom::phantom_default();
+    let target = baffle_core::TargetArea::Bsa { bsa_m2: p.bsa_m2, z_score: 0.0 };
     let mut cases = vec![DesignCase { name: "phantom".into(), surface: p.surface, points: p.suture_points_mm, target }];
     let Some(dir) = reference_data_if_present() else { return cases };
     let table = std::fs::read_to_string(dir.join("patients.json")).expect("patients.json");
     let table: serde_json::Value = serde_json::from_str(&table).expect("patients.json");
     for patient in ["p1", "p2", "p3"] {
         let input = dir.join(patient).join("design_input");
-        let surface = crate::io::read_surface(&input.join("capped_ventricle.vtp")).expect("surface");
-        let points = crate::io::read_points(&input.join("suture_points.mrk.json")).expect("points").to_frame(crate::io::CoordinateSystem::Lps);
+        let surface = baffle_core::io::read_surface(&input.join("capped_ventricle.vtp")).expect("surface");
+        let points = baffle_core::io::read_points(&input.join("suture_points.mrk.json")).expect("points").to_frame(baffle_core::io::CoordinateSystem::Lps);
         let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64().expect("bsa_m2");
-        cases.push(DesignCase { name: patient.into(), surface, points, target: crate::TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
+        cases.push(DesignCase { name: patient.into(), surface, points, target: baffle_core::TargetArea::Bsa { bsa_m2, z_score: 0.0 } });
     }
     cases
 }

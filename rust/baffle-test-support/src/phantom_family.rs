@@ -5,9 +5,9 @@
 //! handle each one: a tunnel at the target, or a named infeasibility with the
 //! largest target the seam admits.
 
-use crate::numerics::random::SplitMix64;
-use crate::phantom::PhantomParams;
-use crate::target::TargetArea;
+use baffle_core::numerics::random::SplitMix64;
+use baffle_core::phantom::PhantomParams;
+use baffle_core::target::TargetArea;
 
 /// Longest tunnel centerline of the family (mm); the dataset's run 15-30 mm.
 pub const MAX_TUNNEL_LENGTH_MM: f64 = 46.0;
