@@ -3,9 +3,9 @@
 //! crosses. Here rather than beside the code because the perturbations live in
 //! `baffle-test-support`, a dev-dependency that sees baffle-core only from outside.
 
-use baffle_core::caps::{cap_flatness, project_caps_onto_planes};
+use baffle_core::geometry::caps::{cap_flatness, project_caps_onto_planes};
 use baffle_core::phantom::phantom_default;
-use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+use baffle_core::geometry::remesh::{remesh_isotropic, RemeshOptions};
 use baffle_test_support::perturb::{bend_cap, bump_wall};
 
 #[test]
@@ -24,7 +24,7 @@ fn a_cap_bent_by_up_to_five_percent_of_its_diameter_is_projected_and_more_is_ref
             assert!((r.off_plane_mm - cap_flatness(&bent, *label).unwrap().off_plane_mm).abs() < 1e-12);
             assert!((r.area_after_mm2 / r.area_before_mm2 - 1.0).abs() < 0.01, "{r:?}");
         }
-        assert!(baffle_core::mesh::manifold_report(&flat).is_closed_manifold());
+        assert!(baffle_core::geometry::mesh::manifold_report(&flat).is_closed_manifold());
         assert_eq!(flat.triangles, bent.triangles);
     }
     let err = project_caps_onto_planes(&bend_cap(&p.surface, 11, 0.15), &caps).unwrap_err();

@@ -5,8 +5,8 @@
 //! cut from a surface of 0.3-0.5 mm triangles), the scene in another pose, a smoothed
 //! or a subdivided wall. Each but `subdivide` keeps the triangles' connectivity.
 
-pub use baffle_core::numerics::random::SplitMix64;
-use baffle_core::mesh::{TriMesh, Vec3};
+pub use baffle_core::geometry::numerics::random::SplitMix64;
+use baffle_core::geometry::mesh::{TriMesh, Vec3};
 
 /// Move the `count` wall vertices nearest to point `center` (only vertices whose
 /// triangles are all labelled `wall_label`, so cap rims stay planar) by `height_mm`
@@ -90,9 +90,9 @@ pub fn smooth_wall(mesh: &TriMesh, iterations: usize, wall_label: i32) -> TriMes
     let (_, wall_only) = vertex_normals_and_wall(mesh, wall_label);
     let pinned: Vec<bool> = wall_only.iter().map(|w| !w).collect();
     let mut out = mesh.clone();
-    let options = baffle_core::smoothing::SmoothingOptions { iterations, ..Default::default() };
-    let (start, neighbors) = baffle_core::smoothing::point_neighbors(mesh);
-    baffle_core::smoothing::taubin_smooth_pinned(&mut out, &options, &pinned, (&start, &neighbors));
+    let options = baffle_core::geometry::smoothing::SmoothingOptions { iterations, ..Default::default() };
+    let (start, neighbors) = baffle_core::geometry::smoothing::point_neighbors(mesh);
+    baffle_core::geometry::smoothing::taubin_smooth_pinned(&mut out, &options, &pinned, (&start, &neighbors));
     out
 }
 
@@ -102,7 +102,7 @@ pub fn subdivide(mesh: &TriMesh) -> TriMesh {
     let mut points = mesh.points.clone();
     let mut midpoint: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
     let mut mid = |a: u32, b: u32, points: &mut Vec<Vec3>| {
-        *midpoint.entry(baffle_core::mesh::edge_key(a, b)).or_insert_with(|| {
+        *midpoint.entry(baffle_core::geometry::mesh::edge_key(a, b)).or_insert_with(|| {
             points.push(0.5 * (points[a as usize] + points[b as usize]));
             (points.len() - 1) as u32
         })
@@ -174,7 +174,7 @@ mod tests {
         let fine = subdivide(&surface);
         assert_eq!(fine.triangles.len(), 4 * surface.triangles.len());
         assert!((fine.signed_volume_mm3() / surface.signed_volume_mm3() - 1.0).abs() < 1e-12);
-        assert!(baffle_core::mesh::manifold_report(&fine).is_closed_manifold());
+        assert!(baffle_core::geometry::mesh::manifold_report(&fine).is_closed_manifold());
         let smooth = smooth_wall(&surface, 5, 2);
         assert!((smooth.signed_volume_mm3() / surface.signed_volume_mm3() - 1.0).abs() < 0.05);
     }

@@ -5,7 +5,7 @@
 //! handle each one: a tunnel at the target, or a named infeasibility with the
 //! largest target the seam admits.
 
-use baffle_core::numerics::random::SplitMix64;
+use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::phantom::PhantomParams;
 use baffle_core::target::TargetArea;
 

@@ -73,11 +73,11 @@ pub fn evenly_spaced_on_loop(closed: &[baffle_core::Vec3], n: usize, phase: f64)
 /// nearest wall triangle (label `wall_label`) of `surface`.
 pub fn scattered_clicks(
     surface: &baffle_core::TriMesh,
-    bvh: &baffle_core::spatial::TriangleBvh,
+    bvh: &baffle_core::geometry::spatial::TriangleBvh,
     wall_label: i32,
     on_loop: &[baffle_core::Vec3],
     radius_mm: f64,
-    rng: &mut baffle_core::numerics::random::SplitMix64,
+    rng: &mut baffle_core::geometry::numerics::random::SplitMix64,
 ) -> Vec<baffle_core::Vec3> {
     on_loop
         .iter()

@@ -25,7 +25,7 @@ pub enum Outcome {
 /// section held to the target itself, not to the checks' rounding allowance.
 pub fn verified_smallest_section_mm2(result: &DesignResult) -> Result<f64, String> {
     let checks = baffle_verify::design_checks(result);
-    baffle_core::self_check::first_failure(&checks)?;
+    baffle_core::analyses::self_check::first_failure(&checks)?;
     let section = checks.iter().find(|c| c.name == "smallest checked section, re-cut").ok_or("no section check")?;
     let target_mm2 = result.report.target_area_mm2;
     if section.value < target_mm2 {
