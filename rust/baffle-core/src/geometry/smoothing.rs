@@ -1,7 +1,7 @@
 //! Taubin's lambda|mu smoothing (Taubin 1995) with uniform (umbrella) weights: removes
 //! high-frequency steps (a voxelized union's, an acquisition's noise) without the
 //! shrinkage of plain Laplacian rounds. Shared by `prepare`'s union surface and the
-//! smoothed-wall perturbation of the realism families.
+//! smoothed-wall perturbation of the realism families (`baffle-test-support`).
 
 use crate::geometry::mesh::{TriMesh, Vec3};
 use rayon::prelude::*;

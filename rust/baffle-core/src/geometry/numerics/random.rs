@@ -1,6 +1,7 @@
-//! Seeded pseudo-random numbers for test inputs: the phantom family, suture-point
-//! jitter and the fuzz harness's perturbations. The same seed gives the same stream on
-//! every machine, with no dependency.
+//! Seeded pseudo-random numbers: the built-in phantom's suture-point jitter, and the
+//! test inputs of `baffle-test-support` (the phantom family, the fuzz harness's
+//! perturbations). The same seed gives the same stream on every machine, with no
+//! dependency.
 
 /// SplitMix64 (Steele, Lea and Flood 2014): small, fast, seedable.
 #[derive(Clone, Debug)]
