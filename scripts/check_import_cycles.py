@@ -5,15 +5,18 @@ A cycle between modules (a uses b, b uses a) means neither can be read, tested o
 moved without the other: the newcomer's map of "who depends on whom" stops being a
 tree. This check keeps it one.
 
-Rust (every crate under rust/*/src): the nodes are the crate root's top-level modules
-(`foo.rs` or `foo/mod.rs` is `foo`; `foo/bar.rs` is `foo::bar` and counts as `foo`).
-The module tree is followed from lib.rs / main.rs through `mod` declarations. An edge
-a -> b is any `use crate::b...`, `crate::b::` path anywhere in a's code (function
-bodies too) or `super::...` path that resolves to b. The crate root itself is not a
-node (its `pub use` re-exports are the public API). Test code is skipped: items under
-`#[cfg(test)]` (inline `mod tests { }` and `mod tests;` files), files named tests.rs or
-under a tests/ folder, and rust/*/{tests,benches,examples}. Comments, string and char
-literals are stripped first.
+Rust (every crate under rust/*/src): the module tree is followed from lib.rs / main.rs
+through `mod` declarations. Every module with submodules is checked, the crate root
+first: the nodes are its direct submodules (`foo.rs` or `foo/mod.rs` is `foo`), each
+standing for itself and everything below it, so a crate's grouping folders (baffle-core's
+`steps/`, `geometry/`, `analyses/`) are checked as nodes at the root and their modules
+(`steps::seam`, `steps::patch`, ...) against each other inside the folder. An edge a -> b
+is any `use crate::...`, `crate::...` path anywhere in a's code (function bodies too) or
+`super::...` / `self::...` path that resolves into b. The parent itself is not a node
+(its `pub use` re-exports are its public API; a path to a re-exported item counts for no
+submodule). Test code is skipped: items under `#[cfg(test)]` (inline `mod tests { }` and
+`mod tests;` files), files named tests.rs or under a tests/ folder, and
+rust/*/{tests,benches,examples}. Comments, string and char literals are stripped first.
 
 Python (slicer_module/BaffleDesigner/BaffleDesignerLib and python/baffle): the nodes
 are the package's modules (`__init__` is not a node). An edge is any import of a
@@ -168,7 +171,7 @@ PATH_USE = re.compile(r"(?<![\w$])((?:crate|super|self)(?:::\w+)+)")
 
 
 def resolve(path, module):
-    """The crate's top-level module a `crate::` / `super::` / `self::` path names, or None."""
+    """The module path (a list, from the crate root) a `crate::` / `super::` / `self::` path names, or None."""
     parts = path.split("::")
     if parts[0] == "crate":
         rest = parts[1:]
@@ -185,34 +188,35 @@ def resolve(path, module):
         rest = base + parts[k:]
     else:
         return None
-    return rest[0] if rest else None
+    return rest or None
 
 
 def rust_edges(code, module):
-    """(target top-level module, line) for every crate-relative path in the stripped code."""
+    """(target path from the crate root, line) for every crate-relative path in the stripped code."""
     found = []
     covered = []
     for m in USE_STMT.finditer(code):
         line = code.count("\n", 0, m.start()) + 1
         for path in expand_use_tree(m.group(1)):
-            top = resolve(path, module)
-            if top:
-                found.append((top, line))
+            target = resolve(path, module)
+            if target:
+                found.append((target, line))
         covered.append((m.start(), m.end()))
     code = re.sub(r"\bpub\s*\(\s*in\s+[\w:]+\s*\)", lambda x: " " * len(x.group(0)), code)
     for m in PATH_USE.finditer(code):
         if any(a <= m.start() < b for a, b in covered):
             continue
-        top = resolve(m.group(1), module)
-        if top:
-            found.append((top, code.count("\n", 0, m.start()) + 1))
+        target = resolve(m.group(1), module)
+        if target:
+            found.append((target, code.count("\n", 0, m.start()) + 1))
     return found
 
 
-def rust_crate_graph(src):
-    """Nodes, edges {(a, b): 'file:line'} of one crate's top-level modules."""
+def rust_crate_graphs(src, crate):
+    """One graph per module with submodules: [(name, nodes, edges {(a, b): 'file:line'})],
+    the crate root's first (named `crate`), then e.g. `crate::steps` for baffle-core's steps/."""
     root = src / "lib.rs" if (src / "lib.rs").exists() else src / "main.rs"
-    nodes, edges = set(), {}
+    modules, uses = {()}, []
     # (file, module path as a list, folder of its submodules)
     queue = [(root, [], src)]
     seen = set()
@@ -229,17 +233,28 @@ def rust_crate_graph(src):
             child = module + [name]
             for candidate, child_dir in ((subdir / (name + ".rs"), subdir / name), (subdir / name / "mod.rs", subdir / name)):
                 if candidate.exists():
+                    modules.add(tuple(child))
                     queue.append((candidate, child, child_dir))
                     break
-        if not module:
-            continue  # the crate root is not a node
-        nodes.add(module[0])
-        for top, line in rust_edges(code, module):
-            if top != module[0]:
-                edges.setdefault((module[0], top), "%s:%d" % (path, line))
-    # Keep only edges to real top-level modules (crate::SomeType re-exported by the root is no module).
-    edges = {e: w for e, w in edges.items() if e[1] in nodes}
-    return nodes, edges
+        if module:
+            for target, line in rust_edges(code, module):
+                uses.append((tuple(module), target, "%s:%d" % (path, line)))
+    graphs = {}
+    for parent in sorted(modules, key=lambda m: (len(m), m)):
+        children = {m[-1] for m in modules if len(m) == len(parent) + 1 and m[:-1] == parent}
+        if children:
+            graphs[parent] = (children, {})
+    for module, target, where in uses:
+        # The edge counts in the deepest module holding both ends: there they are siblings.
+        k = 0
+        while k < len(module) and k < len(target) and module[k] == target[k]:
+            k += 1
+        if k == len(module) or k == len(target):
+            continue  # into itself or an ancestor (the parent is no node)
+        parent = module[:k]
+        if tuple(target[:k + 1]) in modules:
+            graphs[parent][1].setdefault((module[k], target[k]), where)
+    return [("::".join((crate,) + parent), nodes, edges) for parent, (nodes, edges) in graphs.items()]
 
 
 # --------------------------------------------------------------------------- Python
@@ -296,8 +311,9 @@ def cycles(nodes, edges):
 
 def check(repo, out=sys.stdout):
     groups = []
+    n_crates = len(sorted((repo / "rust").glob("*/src")))
     for src in sorted((repo / "rust").glob("*/src")):
-        groups.append((src.parent.name, *rust_crate_graph(src)))
+        groups.extend(rust_crate_graphs(src, src.parent.name))
     for folder, package in PYTHON_PACKAGES:
         if (repo / folder).is_dir():
             groups.append((folder, *python_package_graph(repo / folder, package)))
@@ -318,7 +334,8 @@ def check(repo, out=sys.stdout):
     if n_cycles:
         print("%d import cycle(s): move the shared item to the module that owns it (or a small new one)" % n_cycles, file=out)
         return 1
-    print("no import cycles: %d crates/packages, %d modules, %d edges" % (len(groups), n_nodes, n_edges), file=out)
+    n_python = sum((repo / folder).is_dir() for folder, _ in PYTHON_PACKAGES)
+    print("no import cycles: %d crates and %d packages (%d module graphs), %d modules, %d edges" % (n_crates, n_python, len(groups), n_nodes, n_edges), file=out)
     return 0
 
 
@@ -353,11 +370,18 @@ def self_test():
     cyclic_rust = {"rust/demo/src/c.rs": "pub struct C;\nfn g() { let _ = super::a::A; }\n"}
     cyclic_python = {"python/baffle/render.py": "def draw():\n    from baffle.design import design\n"}
     grouped_use = {"rust/demo/src/c.rs": "use crate::{b::B, a::{self}};\npub struct C;\n"}
+    # Two modules of one folder using each other: no cycle between the crate's top-level modules.
+    in_folder = {
+        "rust/demo/src/b/mod.rs": "pub mod inner;\npub mod inner2;\npub use inner::B;\n",
+        "rust/demo/src/b/inner2.rs": "pub fn g() { super::inner::f() }\n",
+        "rust/demo/src/b/inner.rs": "pub struct B;\npub fn f() { let _ = crate::b::inner2::g; }\nfn h() -> super::super::c::C { crate::c::C }\n",
+    }
     cases = (
         ({}, 0, []),
         (cyclic_rust, 1, ["demo: a -> b -> c -> a"]),
         (cyclic_python, 1, ["python/baffle: design -> render -> design"]),
         (grouped_use, 1, ["demo: a -> b -> c -> a"]),
+        (in_folder, 1, ["demo::b: inner -> inner2 -> inner"]),
     )
     for extra, want_rc, want_lines in cases:
         with tempfile.TemporaryDirectory() as tmp:
@@ -370,8 +394,8 @@ def self_test():
             for line in want_lines:
                 assert line in text.splitlines(), "self-test: %r not reported:\n%s" % (line, text)
             if want_rc == 0:
-                assert "6 modules, 5 edges" in text, "self-test: wrong counts: " + text
-    print("self-test passed: a Rust cycle (super:: in a function body, grouped use) and a function-level Python cycle are found; the acyclic tree passes")
+                assert "(3 module graphs), 7 modules, 5 edges" in text, "self-test: wrong counts: " + text
+    print("self-test passed: a Rust cycle (super:: in a function body, grouped use), one between two modules of a folder and a function-level Python cycle are found; the acyclic tree passes")
     return 0
 
 

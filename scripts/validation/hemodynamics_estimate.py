@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The reduced-order dp / v_max estimate (baffle_core::hemodynamics_estimate) against the 3D
+"""The reduced-order dp / v_max estimate (baffle_core::analyses::hemodynamics_estimate) against the 3D
 first-peak rows of docs/validation.md ("dp against the baffle's size on the paper's design
 input", 0.85 mm boundary / 1.25 mm interior): the published domains via `baffle centerline
 --peak-flow-ml-s`, our designs on the paper's design input via `baffle design --z-score z

@@ -4,7 +4,7 @@ use crate::mesh_handle::BaffleMesh;
 use crate::options::read_options;
 use crate::result::BaffleResult;
 use crate::status::{arg_ref, check_finite, guarded, in_slice, out_handle, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
-use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
+use baffle_core::analyses::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::{DesignError, Vec3};
 use baffle_plan::design_cmd::design_by_rule;
 use std::ffi::{c_char, c_void, CString};

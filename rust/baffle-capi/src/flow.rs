@@ -2,7 +2,7 @@
 //! (`BaffleDesignOptions.peak_flow_ml_s`) without a CFD case.
 
 use crate::status::{guarded, out_ref, BaffleStatus, CallError};
-use baffle_core::hemodynamics_estimate::peak_flow_ml_s;
+use baffle_core::analyses::hemodynamics_estimate::peak_flow_ml_s;
 
 /// The paper's peak flow (ml/s) for a child of `bsa_m2` (m2) at `cardiac_index_l_min_m2`
 /// (L/min/m2; the paper's normal 3.48): 3.26 x BSA x CI, the peak of the CFD's default

@@ -43,7 +43,7 @@ fn report(name: &str, (min, median): (f64, f64)) {
 
 /// p2's mesh (points, tets) and block pattern in RCM order, as the solver builds them.
 fn p2_pattern() -> Result<(Vec<[f64; 3]>, Vec<[u32; 4]>, BlockPattern), Box<dyn std::error::Error>> {
-    let p2 = baffle_core::reference_data::reference_data_dir().join("p2");
+    let p2 = baffle_test_support::reference_data::reference_data_dir().join("p2");
     let mesh = read_simvascular_mesh(&p2.join("published_M_final.vtu"), &p2.join("published_M_final.vtp"))?;
     let n = mesh.points_cm.len();
     let order = reverse_cuthill_mckee(&BlockPattern::from_tets(n, &mesh.tets));

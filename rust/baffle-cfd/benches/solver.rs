@@ -138,7 +138,7 @@ fn load_average() -> String {
 
 /// p2's case: Table 4 hemodynamics (BSA 0.37, 107/78 mmHg, CI 3.48), the built-in waveform.
 fn p2_case() -> Result<(FlowMesh, CaseSettings), Box<dyn std::error::Error>> {
-    let dir = baffle_core::reference_data::reference_data_dir();
+    let dir = baffle_test_support::reference_data::reference_data_dir();
     let mesh = read_simvascular_mesh(&dir.join("p2/published_M_final.vtu"), &dir.join("p2/published_M_final.vtp"))?;
     let h = hemodynamics(&ClinicalInputs { bsa_m2: 0.37, sbp_mmhg: 107.0, dbp_mmhg: 78.0, cardiac_index_l_min_m2: CARDIAC_INDEX_DEFAULT_L_MIN_M2 })?;
     let outlets = vec![Outlet { face_id: AORTIC_CAP, resistance_dyn_s_cm5: h.resistance_dyn_s_cm5 }];

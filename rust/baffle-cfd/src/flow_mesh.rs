@@ -70,7 +70,7 @@ pub(crate) fn tri_key(t: [u32; 3]) -> [u32; 3] {
 /// A hash map keyed by a sorted node triple, hashed as core's edge maps are (Fx-style):
 /// node numbers are not adversarial, and SipHash made the element-face map a fifth of a
 /// short run's set-up.
-pub(crate) type TriangleMap<V> = HashMap<[u32; 3], V, std::hash::BuildHasherDefault<baffle_core::mesh::EdgeHasher>>;
+pub(crate) type TriangleMap<V> = HashMap<[u32; 3], V, std::hash::BuildHasherDefault<baffle_core::geometry::mesh::EdgeHasher>>;
 
 /// Element faces: sorted triple -> (tet, local index of the opposite node, count).
 pub(crate) fn element_faces(tets: &[[u32; 4]]) -> TriangleMap<(u32, u8, u8)> {

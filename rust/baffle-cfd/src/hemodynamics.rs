@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 /// 1 mmHg in dyn/cm^2 (one constant for the CFD and the design's estimate).
-pub use baffle_core::hemodynamics_estimate::DYN_CM2_PER_MMHG;
+pub use baffle_core::analyses::hemodynamics_estimate::DYN_CM2_PER_MMHG;
 /// 1 Wood unit (mmHg min/L) in dyn s/cm^5, the clinical rounding the paper uses.
 pub const DYN_S_CM5_PER_WOOD: f64 = 80.0;
 /// Paper's default cardiac index (L/min/m^2) and the elevated-flow scenario.
@@ -12,7 +12,7 @@ pub const CARDIAC_INDEX_DEFAULT_L_MIN_M2: f64 = 3.48;
 pub const CARDIAC_INDEX_ELEVATED_L_MIN_M2: f64 = 4.22;
 /// Peak-to-mean flow ratio of the paper's inflow waveform (Table 4: Q_peak = 3.26 Q_mean),
 /// one constant for the CFD and the design's estimate.
-pub use baffle_core::hemodynamics_estimate::PEAK_TO_MEAN_FLOW;
+pub use baffle_core::analyses::hemodynamics_estimate::PEAK_TO_MEAN_FLOW;
 
 /// Clinical inputs of one patient.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 pub fn data_dir() -> Option<PathBuf> {
-    baffle_core::reference_data::reference_data_if_present()
+    baffle_test_support::reference_data::reference_data_if_present()
 }
 
 pub fn patients_json() -> Option<serde_json::Value> {

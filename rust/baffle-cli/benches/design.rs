@@ -7,8 +7,8 @@
 //! designed domain): its median over the same runs, at the paper's peak flow for the
 //! case's BSA (CI 3.48).
 
-use baffle_core::hemodynamics_estimate::{peak_flow_ml_s, Blood, EstimateOutcome};
-use baffle_core::reference_data::{design_cases, DesignCase};
+use baffle_core::analyses::hemodynamics_estimate::{peak_flow_ml_s, Blood, EstimateOutcome};
+use baffle_test_support::reference_data::{design_cases, DesignCase};
 use baffle_core::{design, DesignOptions, DesignReport, TargetArea};
 
 fn cases() -> Vec<DesignCase> {

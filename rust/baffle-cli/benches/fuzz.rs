@@ -14,9 +14,9 @@
 //! from the phantom; p2's files too when the patient data is present).
 
 use baffle_core::io::{read_points, read_surface_labeled, write_trimesh_vtp, CoordinateSystem};
-use baffle_core::perturb::{bump_wall, flip_triangle, jitter, SplitMix64};
+use baffle_test_support::perturb::{bump_wall, flip_triangle, jitter, SplitMix64};
 use baffle_core::phantom::phantom_default;
-use baffle_core::reference_data::reference_data_dir;
+use baffle_test_support::reference_data::reference_data_dir;
 use baffle_core::{design, DesignOptions, TargetArea, TriMesh, Vec3};
 use baffle_plan::case;
 use std::io::Write;

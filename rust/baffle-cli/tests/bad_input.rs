@@ -3,8 +3,8 @@
 //! abort, a hang or a silent success. Controls that must succeed are marked so.
 
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
-use baffle_core::perturb::bump_wall;
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::perturb::bump_wall;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::TriMesh;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -11,9 +11,9 @@
 mod inputs;
 
 use baffle_core::io::{read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
-use baffle_core::perturb::bump_wall;
+use baffle_test_support::perturb::bump_wall;
 use baffle_core::phantom::phantom_default;
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{TriMesh, Vec3};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

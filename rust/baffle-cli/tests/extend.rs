@@ -30,7 +30,7 @@ fn s(p: &Path) -> &str {
 
 #[test]
 fn p2_extended_domain_meshes_with_conforming_interior_caps() {
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let out = temp_dir("p2");
     let (domain_path, segmentations) = designed_p2(&data, &out);
     let extended = out.join("extended.vtp");
@@ -69,7 +69,7 @@ fn label_area_mm2(mesh: &baffle_core::TriMesh, label: i32) -> f64 {
 
 #[test]
 fn a_remeshed_designed_domain_refines_the_whole_boundary_with_conforming_planes() {
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let out = temp_dir("p2-remesh");
     let (domain_path, segmentations) = designed_p2(&data, &out);
     let domain = read_surface_labeled(&domain_path).unwrap().mesh;
@@ -134,7 +134,7 @@ fn prepared_and_designed(segmentations: &Path, points: &Path, bsa_m2: &str, out:
 
 #[test]
 fn the_inflow_and_outflow_caps_move_as_asked_or_are_refused_by_name() {
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let out = temp_dir("p2-caps-moved");
     let (domain, segmentations) = designed_p2(&data, &out);
     let extend = |name: &str, extra: &[&str]| {

@@ -525,7 +525,7 @@ fn p2_from_its_segmentations_runs_prepare_then_the_plan() {
     if skip_gmsh() {
         return;
     }
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let out = temp_dir("p2-segmentations");
     let segmentations = data.join("p2/segmentations");
     let run = p2_plan(&["--segmentations", segmentations.to_str().unwrap()], &data.join("p2/design_input/suture_points.mrk.json"), &out);
@@ -562,7 +562,7 @@ fn p2_at_a_coarse_mesh_is_below_the_planning_threshold() {
     if skip_gmsh() {
         return;
     }
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let inputs = data.join("p2/design_input");
     let out = temp_dir("p2");
     let run = plan(&inputs.join("capped_ventricle.vtp"), &inputs.join("suture_points.mrk.json"), &out, COARSE_STEADY, &[]);

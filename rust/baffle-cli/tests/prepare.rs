@@ -114,13 +114,13 @@ fn outflow_figures(out: &std::path::Path) -> [f64; 4] {
 #[test]
 fn a_labelmap_gives_the_rv_outflow_of_its_segmentations() {
     use baffle_prepare::voxelize::{voxelize, Grid};
-    let Some(data) = baffle_core::reference_data::reference_data_if_present() else { return };
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
     let segmentations = data.join("p2/segmentations");
     let dir = std::env::temp_dir().join(format!("baffle-cli-prepare-{}-labelmap-outflow", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let read = |name: &str| baffle_core::io::read_surface(&segmentations.join(name)).unwrap();
     let (lv, rv, aorta, pa) = (read("LV.vtp"), read("RV.vtp"), read("aorta.vtp"), read("pulmonary.vtp"));
-    let bounds = baffle_core::spatial::Aabb::from_points(&rv.points);
+    let bounds = baffle_core::geometry::spatial::Aabb::from_points(&rv.points);
     let grid = Grid::covering(bounds.min - Vec3::repeat(8.0), bounds.max + Vec3::repeat(8.0), 0.4, 0);
     let masks = [&rv, &lv, &aorta, &pa].map(|m| voxelize(m, &grid));
     let labels: Vec<u8> = (0..grid.voxel_count()).map(|v| [2, 1, 6, 7].into_iter().zip(&masks).find(|(_, m)| m[v]).map_or(0, |(l, _)| l)).collect();

@@ -35,7 +35,7 @@ fn phantom_design(dir: &Path) -> (PathBuf, PathBuf) {
 
 /// Design patient `name` with its BSA from patients.json, or None without the data.
 fn patient_design(name: &str, dir: &Path) -> Option<(PathBuf, PathBuf)> {
-    let data = baffle_core::reference_data::reference_data_if_present()?;
+    let data = baffle_test_support::reference_data::reference_data_if_present()?;
     let table: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(data.join("patients.json")).unwrap()).unwrap();
     let bsa = table["patients"][name]["bsa_m2"].as_f64().unwrap().to_string();
     let input = data.join(name).join("design_input");

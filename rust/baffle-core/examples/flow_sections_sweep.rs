@@ -6,7 +6,7 @@
 
 use baffle_core::flow_target::{design_to_flow_target, smallest_flow_section, FLOW_TARGET_TOLERANCE};
 use baffle_core::phantom::phantom;
-use baffle_core::phantom_family::family_member;
+use baffle_test_support::phantom_family::family_member;
 use baffle_core::{DesignError, DesignOptions, FaceLabels};
 
 fn main() -> Result<(), String> {

@@ -4,9 +4,9 @@
 //!
 //!     cargo run --release -p baffle-core --example seam_jitter -- p1 [radius_mm] [variants]
 
-use baffle_core::numerics::random::SplitMix64;
-use baffle_core::reference_data::{evenly_spaced_on_loop, published_seam_mm, reference_data_dir, scattered_clicks};
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::geometry::numerics::random::SplitMix64;
+use baffle_test_support::reference_data::{evenly_spaced_on_loop, published_seam_mm, reference_data_dir, scattered_clicks};
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_core::{design, DesignOptions, TargetArea};
 use std::collections::BTreeMap;
 

@@ -6,7 +6,7 @@
 //!
 //!     cargo run --release -p baffle-core --example seam_variants -- p1 [z_score]
 
-use baffle_core::reference_data::{evenly_spaced_on_loop, published_seam_mm, reference_data_dir};
+use baffle_test_support::reference_data::{evenly_spaced_on_loop, published_seam_mm, reference_data_dir};
 use baffle_core::{design, DesignOptions, TargetArea};
 use std::time::Instant;
 

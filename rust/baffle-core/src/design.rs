@@ -1,19 +1,19 @@
 //! The whole area-constrained baffle design [paper 2.3-2.4], step by step, with a
 //! progress/cancel callback and the time each step took.
 
-use crate::amplitudes::{arc_displacement, ArcDisplacement};
-use crate::caps::{project_caps_onto_planes, CapProjection};
-use crate::centerline::{build_centerline, CapFrame, Centerline};
-use crate::envelope::regularize_amplitudes;
+use crate::steps::amplitudes::{arc_displacement, ArcDisplacement};
+use crate::geometry::caps::{project_caps_onto_planes, CapProjection};
+use crate::steps::centerline::{build_centerline, CapFrame, Centerline};
+use crate::steps::envelope::regularize_amplitudes;
 use crate::error::DesignError;
-use crate::mesh::{edge_key, manifold_report, FaceLabels, TriMesh, Vec3};
-use crate::partition::{keep_capped_side, remesh_kept, KeptRegion};
-use crate::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
-use crate::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
-use crate::rv_cost::{rv_cost, RvCost};
-use crate::seam::seam_on_wall;
-use crate::spatial::{Aabb, TriangleBvh};
-use crate::surface::Domain;
+use crate::geometry::mesh::{edge_key, manifold_report, FaceLabels, TriMesh, Vec3};
+use crate::steps::partition::{keep_capped_side, remesh_kept, KeptRegion};
+use crate::steps::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
+use crate::steps::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
+use crate::analyses::rv_cost::{rv_cost, RvCost};
+use crate::steps::seam::seam_on_wall;
+use crate::geometry::spatial::{Aabb, TriangleBvh};
+use crate::steps::surface::Domain;
 use crate::target::TargetArea;
 use serde::Serialize;
 use std::time::Instant;
@@ -121,16 +121,16 @@ pub struct DesignReport {
     pub timings: StepTimes,
     /// The checks of the result by a second method (`baffle_verify::design_checks`),
     /// filled in by the front end that ran them; empty when none ran.
-    pub checks: Vec<crate::self_check::SelfCheck>,
+    pub checks: Vec<crate::analyses::self_check::SelfCheck>,
     /// With the flow-section rule only (`crate::flow_target`): the target applied to the
     /// tunnel's sections normal to the flow, and the design rounds that met it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub flow_sections: Option<FlowSections>,
     /// dp at peak flow and the peak velocity from the reduced-order model
-    /// (`crate::hemodynamics_estimate`), or why there is none; filled in by the front end
+    /// (`crate::analyses::hemodynamics_estimate`), or why there is none; filled in by the front end
     /// that knows the patient's flow (`baffle design --peak-flow-ml-s`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub hemodynamics_estimate: Option<crate::hemodynamics_estimate::EstimateOutcome>,
+    pub hemodynamics_estimate: Option<crate::analyses::hemodynamics_estimate::EstimateOutcome>,
 }
 
 /// One design round: the target it was run at and the flow-normal section it gave.

@@ -14,8 +14,8 @@ use crate::design::{design, DesignOptions, DesignResult, Progress};
 // depend on this module (which runs the design).
 pub use crate::design::{FlowRound, FlowSections};
 use crate::error::DesignError;
-use crate::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, Lumen};
-use crate::mesh::{FaceLabels, TriMesh};
+use crate::analyses::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, Lumen};
+use crate::geometry::mesh::{FaceLabels, TriMesh};
 use crate::target::TargetArea;
 
 /// The requested area is met when the smallest flow-normal section is within this fraction of it.
@@ -60,7 +60,7 @@ fn next_target(rounds: &[FlowRound], goal_mm2: f64, built_mm2: f64) -> f64 {
 /// target); a round the design cannot make (an unreachable raised target) is its error.
 pub fn design_to_flow_target(
     surface: &TriMesh,
-    suture_points_mm: &[crate::mesh::Vec3],
+    suture_points_mm: &[crate::geometry::mesh::Vec3],
     target: &TargetArea,
     options: &DesignOptions,
     progress: Progress,

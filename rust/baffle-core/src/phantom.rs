@@ -10,7 +10,7 @@
 //! The suture loop sits on the outer side of the bend and encloses most of the wall
 //! between the caps, like the old baffle region in the real data.
 
-use crate::mesh::{FaceLabels, TriMesh, Vec3};
+use crate::geometry::mesh::{FaceLabels, TriMesh, Vec3};
 use std::f64::consts::{PI, TAU};
 
 /// Shape, resolution and suture loop of the phantom.
@@ -432,7 +432,7 @@ fn suture_points_mm(params: &PhantomParams) -> Vec<Vec3> {
     let cumulative_mm = suture_loop_cumulative_mm(params);
     let loop_length_mm = cumulative_mm[cumulative_mm.len() - 1];
     let spacing_mm = loop_length_mm / count.max(1) as f64;
-    let mut jitter = crate::numerics::random::SplitMix64::new(params.suture_jitter_seed);
+    let mut jitter = crate::geometry::numerics::random::SplitMix64::new(params.suture_jitter_seed);
     (0..count)
         .map(|i| {
             let target_mm = loop_length_mm * i as f64 / count as f64;
@@ -513,7 +513,7 @@ fn superellipse_coordinate(c: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::manifold_report;
+    use crate::geometry::mesh::manifold_report;
     use std::collections::BTreeSet;
 
     /// Closest distance (mm) from `p` to triangle (a, b, c) (Ericson, RTCD 5.1.5).

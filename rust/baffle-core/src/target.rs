@@ -222,7 +222,7 @@ mod tests {
 
     #[test]
     fn patients_p2_p3_match_published_targets() {
-        let Some(dir) = crate::reference_data::reference_data_if_present() else { return };
+        let Some(dir) = baffle_test_support::reference_data::reference_data_if_present() else { return };
         let text = std::fs::read_to_string(dir.join("patients.json")).expect("patients.json is readable");
         let table: serde_json::Value = serde_json::from_str(&text).expect("patients.json is valid JSON");
         for id in ["p2", "p3"] {

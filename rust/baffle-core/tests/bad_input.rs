@@ -69,7 +69,7 @@ fn points_along_a_line_are_named_as_such() {
     // Twelve points on the wall along the short chord from point 1 to point 3: they
     // enclose nothing (before, "the seam crosses itself near seam point 52").
     let p = phantom_default();
-    let bvh = baffle_core::spatial::TriangleBvh::new(&p.surface).unwrap();
+    let bvh = baffle_core::geometry::spatial::TriangleBvh::new(&p.surface).unwrap();
     let (a, b) = (p.suture_points_mm[0], p.suture_points_mm[2]);
     let points: Vec<Vec3> = (0..12)
         .map(|i| bvh.closest_point(&p.surface, a + (b - a) * (i as f64 / 11.0)).unwrap().point)

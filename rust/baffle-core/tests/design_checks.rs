@@ -5,10 +5,10 @@
 mod common;
 
 use baffle_core::io::{read_points, read_polydata, read_surface};
-use baffle_core::outputs::write_design_outputs;
+use baffle_core::io::outputs::write_design_outputs;
 use baffle_core::phantom::phantom_default;
-use baffle_core::spatial::TriangleBvh;
-use baffle_core::{design, seam, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh, Vec3};
+use baffle_core::geometry::spatial::TriangleBvh;
+use baffle_core::{design, steps::seam, DesignOptions, DesignResult, FaceLabels, TargetArea, TriMesh, Vec3};
 use std::collections::{BTreeSet, HashSet};
 use std::path::PathBuf;
 
@@ -201,7 +201,7 @@ fn interior_control_point_count_barely_changes_the_initial_surface() {
                 .zip(&other.initial_baffle.points)
                 .map(|(a, b)| (a - b).norm())
                 .fold(0.0, f64::max);
-            let change = baffle_core::compare::compare_surfaces(&other.initial_baffle, &reference.initial_baffle).unwrap();
+            let change = baffle_core::analyses::compare::compare_surfaces(&other.initial_baffle, &reference.initial_baffle).unwrap();
             println!(
                 "{}: {n} control points change the initial surface by at most {:.4} mm (vertices move up to {moved:.4} mm)",
                 case.name, change.max_distance_mm
@@ -225,7 +225,7 @@ fn comparison_with_the_published_baffle() {
         let dir = common::data_dir().unwrap().join(patient);
         let mut published = read_surface(&dir.join("published_baffle.vtp")).unwrap();
         published.points.iter_mut().for_each(|p| *p *= 10.0);
-        let c = baffle_core::compare::compare_surfaces(&result.baffle, &published).unwrap();
+        let c = baffle_core::analyses::compare::compare_surfaces(&result.baffle, &published).unwrap();
         println!(
             "{patient}: baffle {:.1} mm2 vs published {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
             c.area_mm2, c.reference_area_mm2, c.area_ratio, c.mean_distance_mm, c.max_distance_mm

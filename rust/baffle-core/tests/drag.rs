@@ -4,7 +4,7 @@ mod common;
 
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
 use baffle_core::phantom::phantom_default;
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_core::{design, DesignError, DesignOptions, TargetArea, TriMesh, Vec3};
 
 fn cases() -> Vec<(String, TriMesh, Vec<Vec3>, f64)> {

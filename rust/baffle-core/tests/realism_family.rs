@@ -10,8 +10,8 @@ mod common;
 #[path = "common/family.rs"]
 mod family;
 
-use baffle_core::perturb::{bend_cap, jitter, rigid_motion, rigid_motion_point, smooth_wall, subdivide};
-use baffle_core::reference_data::{design_cases, DesignCase};
+use baffle_test_support::perturb::{bend_cap, jitter, rigid_motion, rigid_motion_point, smooth_wall, subdivide};
+use baffle_test_support::reference_data::{design_cases, DesignCase};
 use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, TriMesh, Vec3};
 
 /// A pose no scanner frame shares with the data: 37 degrees about an oblique axis, then far off.

@@ -14,9 +14,9 @@ mod common;
 #[path = "common/family.rs"]
 mod family;
 
-use baffle_core::numerics::random::SplitMix64;
-use baffle_core::reference_data::{evenly_spaced_on_loop, published_seam_mm, scattered_clicks};
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::geometry::numerics::random::SplitMix64;
+use baffle_test_support::reference_data::{evenly_spaced_on_loop, published_seam_mm, scattered_clicks};
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_core::{design, DesignOptions, TargetArea};
 
 fn variants_design(patient: &str) {

@@ -9,7 +9,7 @@ use baffle_mesh::{
 use std::path::PathBuf;
 
 fn data_dir() -> Option<PathBuf> {
-    baffle_core::reference_data::reference_data_if_present()
+    baffle_test_support::reference_data::reference_data_if_present()
 }
 
 fn scratch(name: &str) -> PathBuf {

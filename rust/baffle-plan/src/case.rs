@@ -86,7 +86,7 @@ pub struct FaceRoles {
 }
 
 /// The blood of the case (`fluid` in case.json): the design's estimate uses the same.
-pub use baffle_core::hemodynamics_estimate::Blood as Fluid;
+pub use baffle_core::analyses::hemodynamics_estimate::Blood as Fluid;
 
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]

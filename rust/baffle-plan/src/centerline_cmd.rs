@@ -1,5 +1,5 @@
 //! `baffle centerline`: the flow-domain centerline of a closed lumen between two
-//! measurement planes [paper 2.5] (`baffle_core::flow_centerline`), its length and
+//! measurement planes [paper 2.5] (`baffle_core::analyses::flow_centerline`), its length and
 //! inscribed radii, and with `--results` the pressure and speed of a `baffle simulate`
 //! result sampled along it (v_max along the centerline).
 
@@ -7,8 +7,8 @@ use crate::error::PlanError;
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use crate::progress::Progress;
-use baffle_core::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
-use baffle_core::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
+use baffle_core::analyses::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
+use baffle_core::analyses::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::{FaceLabels, TriMesh};
 use serde::Deserialize;
@@ -45,7 +45,7 @@ pub struct CenterlineSettings {
     pub recenter_fraction: f64,
     /// The peak flow (ml/s): <stem>.json then holds hemodynamics_estimate, dp at peak flow
     /// between the planes and the peak velocity from the sections normal to the centerline
-    /// (baffle_core::hemodynamics_estimate; the planes' areas from their triangles).
+    /// (baffle_core::analyses::hemodynamics_estimate; the planes' areas from their triangles).
     pub peak_flow_ml_s: Option<f64>,
     /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,
     /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
@@ -180,7 +180,7 @@ fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_j
     let mut doc = json!({
         "surface": args.surface, "planes": args.planes, "ends": args.ends.as_ref().unwrap_or(&args.planes),
         "plane_faces": args.plane_faces, "scale_to_mm": args.scale,
-        "method": "minimal path (cost 1/R^2) on the exact wall-distance field of a voxelized lumen, smoothed, re-centred in normal planes, trimmed at the planes (baffle_core::flow_centerline)",
+        "method": "minimal path (cost 1/R^2) on the exact wall-distance field of a voxelized lumen, smoothed, re-centred in normal planes, trimmed at the planes (baffle_core::analyses::flow_centerline)",
         "length_mm": line.length_mm, "spacing_mm": args.spacing_mm, "smoothing_mm": args.smoothing_mm, "recenter_fraction": args.recenter_fraction, "voxel_mm": line.voxel_mm, "inside_voxels": line.inside_voxels,
         "points": line.points.len(), "radius_min_mm": r_min, "radius_max_mm": r_max,
         "radius_mean_mm": line.radius_mm.iter().sum::<f64>() / line.radius_mm.len().max(1) as f64,
@@ -190,7 +190,7 @@ fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_j
         "section_area_mm2": m.sections_mm2,
         "min_section_mm2": smallest.map(|x| x.0), "min_section_at_mm": smallest.map(|x| x.1),
         "sections_measured": m.sections_mm2.iter().flatten().count(),
-        "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm; not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::flow_centerline::flow_normal_sections)",
+        "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm; not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::analyses::flow_centerline::flow_normal_sections)",
         "points_mm": line.points.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
     });
     if let Some(q) = args.peak_flow_ml_s {

@@ -4,11 +4,11 @@
 use crate::error::PlanError;
 use crate::progress::Progress;
 use baffle_core::io::{read_points, read_surface_labeled, write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
-use baffle_core::caps::{label_planar_caps, CapSeed, CapTolerances};
-use baffle_core::outputs::write_design_outputs;
-use baffle_core::hemodynamics_estimate::{Blood, EstimateOutcome};
+use baffle_core::geometry::caps::{label_planar_caps, CapSeed, CapTolerances};
+use baffle_core::io::outputs::write_design_outputs;
+use baffle_core::analyses::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::phantom::phantom_default;
-use baffle_core::rv_outflow::{rv_outflow, RvOutflow};
+use baffle_core::analyses::rv_outflow::{rv_outflow, RvOutflow};
 use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea, TriMesh};
 /// The point type of `DesignSettings`' cap points, and the face labels it and the other commands' settings hold.
 pub use baffle_core::{FaceLabels, Vec3};
@@ -70,7 +70,7 @@ pub struct DesignSettings {
     pub flow_sections: bool,
     /// The patient's peak flow (ml/s; the paper's is 3.26 x CI x BSA): report.json then
     /// holds hemodynamics_estimate, dp at peak flow and the peak velocity from the tunnel's
-    /// flow-normal sections (baffle_core::hemodynamics_estimate, docs/hemodynamics_estimate.md).
+    /// flow-normal sections (baffle_core::analyses::hemodynamics_estimate, docs/hemodynamics_estimate.md).
     pub peak_flow_ml_s: Option<f64>,
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     pub progress_tags: bool,
@@ -248,7 +248,7 @@ pub fn design_by_rule(
 }
 
 /// The reduced-order estimate in one line.
-pub fn estimate_line(e: &baffle_core::hemodynamics_estimate::HemodynamicsEstimate) -> String {
+pub fn estimate_line(e: &baffle_core::analyses::hemodynamics_estimate::HemodynamicsEstimate) -> String {
     format!(
         "estimate at peak flow {:.1} ml/s: dp {:.2} mmHg (Bernoulli {:.2}, expansion {:.2}, friction {:.2}), v_max {:.2} m/s, throat {:.1} mm2 at {:.1} mm; {:.0} ms",
         e.peak_flow_ml_s, e.dp_estimate_mmhg, e.bernoulli_mmhg, e.expansion_loss_mmhg, e.friction_mmhg, e.v_max_estimate_m_s, e.throat_area_mm2, e.throat_at_mm, e.wall_time_ms
@@ -279,7 +279,7 @@ pub fn design_inputs(args: &DesignSettings) -> Result<(TriMesh, Vec<Vec3>, Optio
 
 /// The RV cost in one line, saying when the baffle leaves the capped ventricle (then the
 /// volumes are net figures, e.g. on an input that encloses only the pathway).
-pub fn rv_cost_line(c: &baffle_core::rv_cost::RvCost) -> String {
+pub fn rv_cost_line(c: &baffle_core::analyses::rv_cost::RvCost) -> String {
     let line = format!(
         "RV (capped ventricle) {:.2} mL before, {:.2} mL after the baffle (the pathway takes {:.2} mL)",
         c.rv_volume_before_ml, c.rv_volume_after_ml, c.rv_volume_taken_ml
@@ -304,7 +304,7 @@ pub fn measure_rv_outflow(ventricle: &TriMesh, result: &mut DesignResult, pulmon
 /// The RV outflow's smallest section before and after and where the baffle narrows it
 /// most, or why it is not measured.
 pub fn rv_outflow_line(o: &RvOutflow) -> String {
-    let place = |p: &Option<baffle_core::rv_outflow::OutflowPath>| p.as_ref().map(|p| format!(" at {:.1} of {:.1} mm along the path", p.min_section_s_mm, p.path_length_mm)).unwrap_or_default();
+    let place = |p: &Option<baffle_core::analyses::rv_outflow::OutflowPath>| p.as_ref().map(|p| format!(" at {:.1} of {:.1} mm along the path", p.min_section_s_mm, p.path_length_mm)).unwrap_or_default();
     match (o.rv_outflow_min_section_before_mm2, o.rv_outflow_min_section_mm2) {
         (Some(before), Some(after)) => format!(
             "RV outflow (apex region to the pulmonary interface): smallest section {before:.1} mm2{} before, {after:.1} mm2{} after the baffle; {}",
@@ -317,7 +317,7 @@ pub fn rv_outflow_line(o: &RvOutflow) -> String {
 }
 
 /// Where the baffle narrows the outflow path most, in words.
-pub fn most_narrowed_text(n: Option<&baffle_core::rv_outflow::NarrowedSection>) -> String {
+pub fn most_narrowed_text(n: Option<&baffle_core::analyses::rv_outflow::NarrowedSection>) -> String {
     match n {
         Some(n) if n.after_over_before < 1.0 => format!(
             "the baffle narrows the path most {:.1} mm from its pulmonary end: {:.1} mm2 before, {:.1} mm2 after ({:.0} % left)",
@@ -351,7 +351,7 @@ pub fn design_options(args: &DesignSettings) -> Result<DesignOptions, String> {
 fn compare_with_reference(baffle: &TriMesh, path: &Path, scale: f64, out: &Path) -> Result<String, String> {
     let mut reference = baffle_core::io::read_surface(path).map_err(|e| e.to_string())?;
     reference.points.iter_mut().for_each(|p| *p *= scale);
-    let c = baffle_core::compare::compare_surfaces(baffle, &reference).map_err(|e| format!("{}: {e}", path.display()))?;
+    let c = baffle_core::analyses::compare::compare_surfaces(baffle, &reference).map_err(|e| format!("{}: {e}", path.display()))?;
     let line = format!(
         "reference {}: area {:.1} vs {:.1} mm2 (ratio {:.3}); symmetric surface distance mean {:.2} mm, max {:.2} mm",
         path.display(),

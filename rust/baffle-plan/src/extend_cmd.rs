@@ -7,7 +7,7 @@ use crate::error::PlanError;
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
-use baffle_core::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
+use baffle_core::geometry::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
 use baffle_core::{FaceLabels, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, ExtensionGrading, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;

@@ -23,9 +23,9 @@ use crate::run_summary::RunSummary;
 use crate::report::svg_plot::{line_chart, with_note, Series};
 use crate::design_cmd::{design_by_rule, design_inputs, design_options, measure_rv_outflow, rv_cost_line, target_from, DesignSettings, TargetSettings};
 use crate::verdict::{self, Verdict};
-use baffle_core::hemodynamics_estimate::{dp_uncertainty, peak_flow_ml_s, Blood, EstimateOutcome, HemodynamicsEstimate};
-use baffle_core::outputs::write_design_outputs;
-use baffle_core::rv_outflow::NarrowedSection;
+use baffle_core::analyses::hemodynamics_estimate::{dp_uncertainty, peak_flow_ml_s, Blood, EstimateOutcome, HemodynamicsEstimate};
+use baffle_core::io::outputs::write_design_outputs;
+use baffle_core::analyses::rv_outflow::NarrowedSection;
 use baffle_core::{DesignError, DesignReport, TargetArea};
 use serde_json::json;
 use std::fmt::Write;
@@ -656,7 +656,7 @@ fn json_doc(rows: &[Row], total_s: f64) -> serde_json::Value {
 mod tests {
     use super::*;
     use baffle_core::design;
-    use baffle_core::rv_outflow::RvOutflow;
+    use baffle_core::analyses::rv_outflow::RvOutflow;
 
     fn rows() -> Vec<Row> {
         vec![

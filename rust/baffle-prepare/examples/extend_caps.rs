@@ -6,7 +6,7 @@
 //!     cargo run --release -p baffle-prepare --example extend_caps [p1 p2 p3]
 
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{design, DesignOptions, TargetArea, TriMesh};
 use baffle_prepare::extend::{extend, ExtendOptions, Extended};
 use baffle_prepare::{prepare, read_segmentations, PrepareOptions};

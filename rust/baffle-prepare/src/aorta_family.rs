@@ -8,7 +8,7 @@
 
 use crate::input::BloodPools;
 use crate::shapes::{capped_tube, suture_ring, uv_sphere};
-use baffle_core::numerics::random::SplitMix64;
+use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::Vec3;
 
 /// The shape of one member (mm, degrees).

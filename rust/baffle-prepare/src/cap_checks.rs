@@ -16,8 +16,8 @@
 
 use crate::openings::largest_opening;
 use crate::separation::CutSeparation;
-use baffle_core::self_check::SelfCheck;
-use baffle_core::spatial::{closest_point_on_segment, TriangleBvh};
+use baffle_core::analyses::self_check::SelfCheck;
+use baffle_core::geometry::spatial::{closest_point_on_segment, TriangleBvh};
 use baffle_core::{TriMesh, Vec3};
 
 /// The gaps (mm) between the pools at which the union's rim can lie, from the closing

@@ -6,8 +6,8 @@
 use crate::clip::Clipped;
 use crate::planar_cap::refine_planar_cap;
 use crate::polygon2d::orient;
-use baffle_core::numerics::pca::Plane;
-use baffle_core::remesh::{remesh_isotropic, RemeshOptions, SizeGrading};
+use baffle_core::geometry::numerics::pca::Plane;
+use baffle_core::geometry::remesh::{remesh_isotropic, RemeshOptions, SizeGrading};
 use baffle_core::{TriMesh, Vec3};
 
 /// Ear-clipping triangulation of a simple planar polygon (indices into `uv`),

@@ -5,8 +5,8 @@
 //! section curves, the one nearest the regularized loop is the cut; the kept
 //! region is the part of the surface that touches both cuts.
 
-use baffle_core::mesh::{edge_key, EdgeMap};
-use baffle_core::numerics::pca::Plane;
+use baffle_core::geometry::mesh::{edge_key, EdgeMap};
+use baffle_core::geometry::numerics::pca::Plane;
 use baffle_core::{TriMesh, Vec3};
 use std::collections::HashMap;
 
@@ -250,7 +250,7 @@ fn components_across(mesh: &TriMesh, edges: &EdgeMap<Vec<u32>>, blocked: &std::c
 mod tests {
     use super::*;
     use crate::shapes::capped_tube;
-    use baffle_core::numerics::pca::best_fit_plane;
+    use baffle_core::geometry::numerics::pca::best_fit_plane;
 
     /// A loop on the tube in the plane z = z0 + slope * y.
     fn tilted_ring(z0: f64, slope: f64) -> Vec<Vec3> {

@@ -4,7 +4,7 @@
 
 use crate::error::PrepareError;
 use baffle_core::io::read_surface;
-use baffle_core::mesh::manifold_report;
+use baffle_core::geometry::mesh::manifold_report;
 use baffle_core::TriMesh;
 use std::path::{Path, PathBuf};
 

@@ -4,8 +4,8 @@
 //! interface from its provisional centroid, the interface radius along each ray is
 //! smoothed around the loop, and the points are reprojected onto the surface.
 
-use baffle_core::numerics::pca::{best_fit_plane, Plane};
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::geometry::numerics::pca::{best_fit_plane, Plane};
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;

@@ -9,8 +9,8 @@
 
 use crate::input::BloodPools;
 use crate::shapes::{capped_tube, uv_sphere};
-use baffle_core::numerics::random::SplitMix64;
-use baffle_core::spatial::{winding_number, TriangleBvh};
+use baffle_core::geometry::numerics::random::SplitMix64;
+use baffle_core::geometry::spatial::{winding_number, TriangleBvh};
 use baffle_core::{TriMesh, Vec3};
 
 /// The shape of one member (mm, radians per mm).
@@ -201,9 +201,9 @@ mod tests {
         for seed in 0..8 {
             let m = lv_family_member(seed);
             for (name, mesh) in [("LV", &m.pools.lv), ("RV", &m.pools.rv), ("aorta", &m.pools.aorta)] {
-                assert!(baffle_core::mesh::manifold_report(mesh).is_closed_manifold() && mesh.signed_volume_mm3() > 0.0, "seed {seed}: {name}");
+                assert!(baffle_core::geometry::mesh::manifold_report(mesh).is_closed_manifold() && mesh.signed_volume_mm3() > 0.0, "seed {seed}: {name}");
             }
-            let inside_lv = m.pools.rv.points.iter().filter(|p| baffle_core::spatial::winding_number(&m.pools.lv, **p) > 0.5).count();
+            let inside_lv = m.pools.rv.points.iter().filter(|p| baffle_core::geometry::spatial::winding_number(&m.pools.lv, **p) > 0.5).count();
             assert!(inside_lv > 0, "seed {seed}: the RV does not reach into the LV: {:?}", m.params);
         }
     }

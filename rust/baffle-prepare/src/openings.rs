@@ -4,7 +4,7 @@
 //! (the zero level of the signed distance to `b`, traced on `a`'s triangles) is the rim
 //! of the opening between them; the flat disc it spans is the opening a cap must close.
 
-use baffle_core::spatial::{closest_point_on_segment, is_outside, TriangleBvh};
+use baffle_core::geometry::spatial::{closest_point_on_segment, is_outside, TriangleBvh};
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -64,7 +64,7 @@ fn rim_segments(a: &TriMesh, signed: &[f64]) -> Vec<Segment> {
     let crossing = |u: u32, v: u32| {
         let (su, sv) = (signed[u as usize], signed[v as usize]);
         let (pu, pv) = (a.points[u as usize], a.points[v as usize]);
-        (baffle_core::mesh::edge_key(u, v), pu + (su / (su - sv)) * (pv - pu))
+        (baffle_core::geometry::mesh::edge_key(u, v), pu + (su / (su - sv)) * (pv - pu))
     };
     let mut segments = Vec::new();
     for tri in &a.triangles {

@@ -12,7 +12,7 @@
 //! so the cap still closes the wall.
 
 use crate::polygon2d::{distance_to_polygon_mm, inside_polygon, orient};
-use baffle_core::numerics::pca::Plane;
+use baffle_core::geometry::numerics::pca::Plane;
 use baffle_core::Vec3;
 use std::collections::HashMap;
 

@@ -8,9 +8,9 @@ use crate::interfaces::{interface_edges, interface_loop, label_by_nearest, Inter
 use crate::separation::{min_distance_mm, separate_by_moves, separate_openings, CutSeparation, Separated, MAX_MOVE_MM};
 use crate::union_surface::{union_surface, SmoothingOptions};
 use crate::voxelize::{close_mask, voxelize, Grid};
-use baffle_core::mesh::manifold_report;
-use baffle_core::self_check::SelfCheck;
-use baffle_core::spatial::{Aabb, TriangleBvh};
+use baffle_core::geometry::mesh::manifold_report;
+use baffle_core::analyses::self_check::SelfCheck;
+use baffle_core::geometry::spatial::{Aabb, TriangleBvh};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -252,7 +252,7 @@ impl AnatomyFrame {
         let toward_aorta = centroid(&pools.aorta) - origin;
         let across = toward_aorta - toward_lv * toward_lv.dot(&toward_aorta);
         // An aorta in line with the LV leaves the turn about that line free: any will do.
-        let second = across.try_normalize(1e-6 * toward_aorta.norm().max(1e-9)).unwrap_or_else(|| baffle_core::mesh::axes_across(&toward_lv).0);
+        let second = across.try_normalize(1e-6 * toward_aorta.norm().max(1e-9)).unwrap_or_else(|| baffle_core::geometry::mesh::axes_across(&toward_lv).0);
         let axes = nalgebra::Matrix3::from_rows(&[toward_lv.transpose(), second.transpose(), toward_lv.cross(&second).transpose()]);
         AnatomyFrame { origin, axes }
     }

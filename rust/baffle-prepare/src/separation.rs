@@ -13,7 +13,7 @@
 
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::interfaces::{InterfaceLoop, Structure};
-use baffle_core::numerics::pca::{polygon_vector_area, Plane};
+use baffle_core::geometry::numerics::pca::{polygon_vector_area, Plane};
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 
@@ -295,8 +295,8 @@ mod tests {
     #[test]
     fn crossing_cuts_on_a_tube_are_moved_apart_by_the_smallest_total() {
         use crate::shapes::capped_tube;
-        use baffle_core::numerics::pca::best_fit_plane;
-        use baffle_core::spatial::TriangleBvh;
+        use baffle_core::geometry::numerics::pca::best_fit_plane;
+        use baffle_core::geometry::spatial::TriangleBvh;
         let tube = capped_tube(Vec3::zeros(), Vec3::new(0.0, 0.0, 10.0), 2.0, 40, 64);
         let bvh = TriangleBvh::new(&tube).unwrap();
         let pool = Structure { label: 1, surface: &tube, bvh: &bvh };
@@ -327,7 +327,7 @@ mod tests {
 
     #[test]
     fn the_normal_points_away_from_the_rv() {
-        let plane = baffle_core::numerics::pca::best_fit_plane(&[Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 5.0), Vec3::new(0.0, 1.0, 5.0), Vec3::new(1.0, 1.0, 5.0)]);
+        let plane = baffle_core::geometry::numerics::pca::best_fit_plane(&[Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 5.0), Vec3::new(0.0, 1.0, 5.0), Vec3::new(1.0, 1.0, 5.0)]);
         assert!(outward_normal(&plane, Vec3::zeros()).z > 0.99);
         assert!(outward_normal(&plane, Vec3::new(0.0, 0.0, 9.0)).z < -0.99);
     }

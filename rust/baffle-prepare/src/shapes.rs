@@ -1,7 +1,7 @@
 //! Closed, outward-wound test shapes (spheres, capped tubes, boxes) for the
 //! synthetic LV / RV / aorta case the tests use when no patient data is present.
 
-use baffle_core::mesh::axes_across;
+use baffle_core::geometry::mesh::axes_across;
 use baffle_core::{TriMesh, Vec3};
 use std::f64::consts::PI;
 
@@ -80,7 +80,7 @@ pub fn box_mesh(lo: Vec3, hi: Vec3) -> TriMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use baffle_core::mesh::manifold_report;
+    use baffle_core::geometry::mesh::manifold_report;
 
     #[test]
     fn shapes_are_closed_and_outward() {

@@ -7,9 +7,9 @@
 //! shrinking the volume.
 
 use crate::voxelize::Grid;
-pub use baffle_core::smoothing::SmoothingOptions;
-use baffle_core::smoothing::{point_neighbors, taubin_smooth, taubin_smooth_pinned};
-use baffle_core::spatial::TriangleBvh;
+pub use baffle_core::geometry::smoothing::SmoothingOptions;
+use baffle_core::geometry::smoothing::{point_neighbors, taubin_smooth, taubin_smooth_pinned};
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_core::{TriMesh, Vec3};
 use rayon::prelude::*;
 
@@ -184,7 +184,7 @@ mod tests {
     use super::*;
     use crate::shapes::uv_sphere;
     use crate::voxelize::voxelize;
-    use baffle_core::mesh::manifold_report;
+    use baffle_core::geometry::mesh::manifold_report;
 
     fn sphere_surface(smoothing: &SmoothingOptions) -> TriMesh {
         let sphere = uv_sphere(Vec3::zeros(), 4.0, 40, 80);

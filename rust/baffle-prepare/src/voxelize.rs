@@ -1,9 +1,9 @@
 //! Step 1: inside/outside masks of closed surfaces on a regular grid [paper 2.2.2:
 //! the blood pools are joined as volumes, so the union has no internal walls].
-//! The voxelizer itself lives in `baffle_core::voxel` (the flow-domain centerline
+//! The voxelizer itself lives in `baffle_core::geometry::voxel` (the flow-domain centerline
 //! uses it too); the morphological closing is this crate's.
 
-pub use baffle_core::voxel::{voxelize, Grid};
+pub use baffle_core::geometry::voxel::{voxelize, Grid};
 use rayon::prelude::*;
 
 /// Morphological closing (dilation, then erosion) with a cube of half-width

@@ -5,7 +5,7 @@
 //! closed, outward, labelled, two flat caps, each rim on its own pool, the caps apart
 //! and no farther from the true interfaces than the reported moves.
 
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_core::{design, DesignOptions, TargetArea, TriMesh, Vec3};
 use baffle_prepare::aorta_family::{aorta_tilt_member, AortaTiltMember};
 use baffle_prepare::{prepare, PrepareOptions, PrepareReport};

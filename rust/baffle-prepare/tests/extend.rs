@@ -4,7 +4,7 @@
 //! the checks `extend` runs itself. p2/p3 are skipped (with a note) without the data.
 
 use baffle_core::io::{read_points, CoordinateSystem};
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{design, DesignOptions, TargetArea, Vec3};
 use baffle_prepare::extend::{extend, ExtendOptions, StjOptions};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};
@@ -224,7 +224,7 @@ fn a_graded_extension_keeps_the_edge_at_the_caps_and_coarsens_beyond() {
 /// extension is made again at one edge, saying why (skipped without the data).
 #[test]
 fn p1s_graded_extension_that_crosses_the_domain_is_made_at_one_edge_and_says_why() {
-    use baffle_core::remesh::{remesh_isotropic, RemeshOptions};
+    use baffle_core::geometry::remesh::{remesh_isotropic, RemeshOptions};
     use baffle_prepare::extend::ExtensionGrading;
     let Some(data) = reference_data_if_present() else { return };
     let dir = data.join("p1");

@@ -10,7 +10,7 @@
 mod realism;
 mod common;
 
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{TriMesh, Vec3};
 use baffle_prepare::extend::{extend, ExtendOptions, Extended};
 use baffle_prepare::read_segmentations;

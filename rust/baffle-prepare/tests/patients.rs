@@ -4,8 +4,8 @@
 //! suture points. Skipped (with a note) when the data directory is absent.
 
 use baffle_core::io::{read_points, read_surface, CoordinateSystem};
-use baffle_core::mesh::manifold_report;
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_core::geometry::mesh::manifold_report;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{design, DesignOptions, TargetArea, TriMesh};
 use baffle_prepare::voxelize::{voxelize, Grid};
 use baffle_prepare::{pools_from_labelmap, prepare, read_segmentations, BloodPools, LabelMap, LabelSurfaceOptions, PoolLabels, PrepareOptions};

@@ -5,7 +5,7 @@
 //! and shifted). Every member must prepare with all its self-checks passed, or be
 //! refused by a named check; a rigidly moved scene must give the same caps, moved with it.
 
-use baffle_core::reference_data::reference_data_if_present;
+use baffle_test_support::reference_data::reference_data_if_present;
 use baffle_core::{TriMesh, Vec3};
 use baffle_prepare::shapes::synthetic_heart;
 use baffle_prepare::voxelize::{voxelize, Grid};

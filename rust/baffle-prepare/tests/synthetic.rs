@@ -2,7 +2,7 @@
 //! as the aorta leaving the RV. The VSD is their circle of intersection, the
 //! aortic annulus the tube's circle on the RV sphere, both known exactly.
 
-use baffle_core::mesh::manifold_report;
+use baffle_core::geometry::mesh::manifold_report;
 use baffle_core::{TriMesh, Vec3};
 use baffle_prepare::shapes::{capped_tube, uv_sphere};
 use baffle_prepare::{prepare, BloodPools, PrepareError, PrepareOptions};

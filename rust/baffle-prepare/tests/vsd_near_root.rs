@@ -6,7 +6,7 @@
 //! 287 mm2 VSD cap for a 225 mm2 VSD loop (the wrap of 0.06 / mm) without a word; now a
 //! move stays where the cap still closes the VSD, or prepare refuses, naming the widening.
 
-use baffle_core::spatial::TriangleBvh;
+use baffle_core::geometry::spatial::TriangleBvh;
 use baffle_prepare::lv_family::{lv_family_pools, LvFamilyParams};
 use baffle_prepare::openings::largest_opening;
 use baffle_prepare::{prepare, BloodPools, PrepareOptions};

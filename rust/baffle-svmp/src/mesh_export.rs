@@ -5,7 +5,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use baffle_core::io::{write_vtp, DataArray, PolyData, MODEL_FACE_ID};
-use baffle_core::spatial::Aabb;
+use baffle_core::geometry::spatial::Aabb;
 use baffle_core::Vec3;
 use baffle_mesh::tetmesh::face_key;
 use baffle_mesh::{write_vtu, FaceSet, TetMesh};

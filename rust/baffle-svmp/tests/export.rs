@@ -205,7 +205,7 @@ fn volume_file_holds_the_tets_in_cm_with_one_based_ids() {
         t
     };
     assert_eq!(sorted(&vtu.mesh.tets), sorted(&mesh.tets));
-    let bounds = baffle_core::spatial::Aabb::from_points(&mesh.points_mm);
+    let bounds = baffle_core::geometry::spatial::Aabb::from_points(&mesh.points_mm);
     let axis = (bounds.max - bounds.min).imax();
     let along: Vec<f64> = vtu.mesh.tets.iter().map(|t| t.iter().map(|&i| vtu.mesh.points_mm[i as usize][axis]).sum()).collect();
     assert!(along.windows(2).all(|w| w[0] <= w[1]), "tets not in slabs along axis {axis}");

@@ -21,7 +21,7 @@ pub mod sparse_cg;
 pub mod svg;
 
 use crate::sparse_cg::{conjugate_gradient, SparseSym};
-use baffle_core::mesh::{FaceLabels, TriMesh, Vec3};
+use baffle_core::geometry::mesh::{FaceLabels, TriMesh, Vec3};
 use nalgebra::Vector2;
 
 pub type Vec2 = Vector2<f64>;

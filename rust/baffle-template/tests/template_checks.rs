@@ -8,7 +8,7 @@ use baffle_template::drawing::TemplateText;
 use baffle_template::{template_from_domain, FlattenMethod};
 
 fn patient(patient: &str) -> Option<(TriMesh, Vec<Vec3>, Vec<String>, TargetArea)> {
-    let dir = baffle_core::reference_data::reference_data_if_present()?.join(patient);
+    let dir = baffle_test_support::reference_data::reference_data_if_present()?.join(patient);
     let table: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("../patients.json")).ok()?).ok()?;
     let bsa_m2 = table["patients"][patient]["bsa_m2"].as_f64()?;
     let surface = read_surface(&dir.join("design_input/capped_ventricle.vtp")).expect("surface");

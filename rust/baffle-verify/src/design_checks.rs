@@ -4,7 +4,7 @@
 //! after a design and refuses to write a domain that fails one (report.json `checks`).
 
 use crate::{edge_usage_counts, section_area_nearest, signed_volume_mm3};
-use baffle_core::self_check::SelfCheck;
+use baffle_core::analyses::self_check::SelfCheck;
 use baffle_core::{DesignResult, Vec3};
 
 /// A section re-cut by other code may differ from the construction's by rounding only
@@ -55,7 +55,7 @@ fn smallest_recut_section(result: &DesignResult) -> SelfCheck {
 /// (the domain is then not to be written).
 pub fn checked_design(mut result: DesignResult) -> Result<DesignResult, baffle_core::DesignError> {
     let checks = design_checks(&result);
-    baffle_core::self_check::first_failure(&checks).map_err(|why| baffle_core::DesignError::numerical("design self-check", why))?;
+    baffle_core::analyses::self_check::first_failure(&checks).map_err(|why| baffle_core::DesignError::numerical("design self-check", why))?;
     result.report.checks = checks;
     Ok(result)
 }

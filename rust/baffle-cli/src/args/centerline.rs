@@ -44,7 +44,7 @@ super::settings_args! {
         pub recenter_fraction: f64,
         /// The peak flow (ml/s): <stem>.json then holds hemodynamics_estimate, dp at peak flow
         /// between the planes and the peak velocity from the sections normal to the centerline
-        /// (baffle_core::hemodynamics_estimate; the planes' areas from their triangles).
+        /// (baffle_core::analyses::hemodynamics_estimate; the planes' areas from their triangles).
         #[arg(long, allow_hyphen_values = true)]
         pub peak_flow_ml_s: Option<f64>,
         /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,

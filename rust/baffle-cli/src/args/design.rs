@@ -80,7 +80,7 @@ super::settings_args! {
         pub flow_sections: bool,
         /// The patient's peak flow (ml/s; the paper's is 3.26 x CI x BSA): report.json then
         /// holds hemodynamics_estimate, dp at peak flow and the peak velocity from the tunnel's
-        /// flow-normal sections (baffle_core::hemodynamics_estimate, docs/hemodynamics_estimate.md).
+        /// flow-normal sections (baffle_core::analyses::hemodynamics_estimate, docs/hemodynamics_estimate.md).
         #[arg(long, allow_hyphen_values = true)]
         pub peak_flow_ml_s: Option<f64>,
         /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.

@@ -6,7 +6,7 @@ use vtkio::model::{Attribute, DataSet, ElementType, IOBuffer, Piece, VertexNumbe
 
 use super::error::{malformed, IoErrorKind};
 use super::polydata::{assemble, CellSections, DataArray, Numbers, PolyData};
-use crate::mesh::Vec3;
+use crate::geometry::mesh::Vec3;
 
 /// Parse a whole legacy `.vtk` file holding POLYDATA.
 pub(crate) fn parse_legacy(bytes: &[u8]) -> Result<PolyData, IoErrorKind> {

@@ -1,11 +1,13 @@
 //! File I/O: surfaces and polylines (VTK XML `.vtp`, legacy `.vtk`, `.stl`), tetrahedral
-//! volumes (`.vtu`, read) and suture point lists (Slicer markups, CSV, JSON).
+//! volumes (`.vtu`, read) and suture point lists (Slicer markups, CSV, JSON); and a
+//! design's result files ([`outputs`]).
 //!
 //! Geometry is returned as stored (millimetres expected, frame as in the file).
 //! Every error is an [`IoError`] whose message starts with the file's path.
 
 mod atomic;
 mod error;
+pub mod outputs;
 mod legacy;
 mod points;
 mod polydata;
@@ -23,7 +25,7 @@ pub use polydata::{ArrayValues, DataArray, LabeledSurface, PolyData, PolyDataOut
 pub use vtp_read::ScalarType;
 pub use vtu_read::{read_vtu, TetGrid};
 
-use crate::mesh::TriMesh;
+use crate::geometry::mesh::TriMesh;
 use error::read_bytes;
 
 /// File formats told apart by extension.
@@ -112,12 +114,12 @@ pub fn write_trimesh_vtp(path: &Path, mesh: &TriMesh) -> Result<(), IoError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Vec3;
+    use crate::geometry::mesh::Vec3;
     use std::collections::BTreeSet;
     use std::path::PathBuf;
 
     fn data_dir() -> Option<PathBuf> {
-        crate::reference_data::reference_data_if_present()
+        baffle_test_support::reference_data::reference_data_if_present()
     }
 
     fn scratch_dir() -> PathBuf {
@@ -149,7 +151,7 @@ mod tests {
             assert_eq!(s.mesh.points.len(), piece_count(&path, "NumberOfPoints"), "{patient}");
             assert_eq!(s.mesh.triangles.len(), piece_count(&path, "NumberOfPolys"), "{patient}");
             assert_eq!(labels(&s.mesh), BTreeSet::from([2, 11, 16]), "{patient}");
-            let report = crate::mesh::manifold_report(&s.mesh);
+            let report = crate::geometry::mesh::manifold_report(&s.mesh);
             assert!(report.is_closed_manifold(), "{patient}: {report:?}");
             assert!(s.mesh.signed_volume_mm3() > 0.0, "{patient}: README says outward-wound");
         }
@@ -373,7 +375,7 @@ mod tests {
     fn assert_is_closed_tetra(mesh: &TriMesh) {
         assert_eq!(mesh.points.len(), 4, "shared corners are merged");
         assert_eq!(mesh.triangles.len(), 4);
-        assert!(crate::mesh::manifold_report(mesh).is_closed_manifold());
+        assert!(crate::geometry::mesh::manifold_report(mesh).is_closed_manifold());
         assert!((mesh.signed_volume_mm3() - 1.0 / 6.0).abs() < 1e-12);
     }
 

@@ -7,7 +7,7 @@ use serde_json::{json, Value};
 
 use super::atomic::write_atomic;
 use super::error::{malformed, read_bytes, IoError, IoErrorKind};
-use crate::mesh::Vec3;
+use crate::geometry::mesh::Vec3;
 
 /// Patient frame of coordinates: Slicer stores LPS in files, works in RAS internally.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

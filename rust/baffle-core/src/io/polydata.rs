@@ -2,7 +2,7 @@
 //! readers and the writer, and its conversion to a labelled triangle mesh.
 
 use super::error::{malformed, IoErrorKind};
-use crate::mesh::{TriMesh, Vec3};
+use crate::geometry::mesh::{TriMesh, Vec3};
 
 /// Name of the per-triangle face label array (SimVascular / Martinez et al. convention).
 pub const MODEL_FACE_ID: &str = "ModelFaceID";

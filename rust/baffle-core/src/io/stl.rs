@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 
 use super::error::{malformed, IoErrorKind};
-use crate::mesh::{TriMesh, Vec3};
+use crate::geometry::mesh::{TriMesh, Vec3};
 
 /// Parse a whole STL file.
 pub(crate) fn parse_stl(bytes: &[u8]) -> Result<TriMesh, IoErrorKind> {

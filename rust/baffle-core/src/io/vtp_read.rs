@@ -13,7 +13,7 @@ use quick_xml::Reader;
 
 use super::error::{malformed, IoErrorKind};
 use super::polydata::{assemble, CellSections, Numbers, PolyData};
-use crate::mesh::Vec3;
+use crate::geometry::mesh::Vec3;
 
 /// Parse a whole `.vtp` file.
 pub(crate) fn parse_vtp(bytes: &[u8]) -> Result<PolyData, IoErrorKind> {

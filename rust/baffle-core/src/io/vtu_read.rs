@@ -5,7 +5,7 @@
 
 use super::error::{malformed, IoError, IoErrorKind};
 use super::polydata::DataArray;
-use crate::mesh::Vec3;
+use crate::geometry::mesh::Vec3;
 use std::path::Path;
 use vtkio::model::{Attribute, CellType, Cells, DataSet, IOBuffer, Piece, UnstructuredGridPiece, Vtk};
 

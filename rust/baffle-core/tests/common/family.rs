@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use baffle_core::phantom::phantom;
-use baffle_core::phantom_family::FamilyMember;
+use baffle_test_support::phantom_family::FamilyMember;
 use baffle_core::{design, DesignError, DesignOptions, DesignResult, TargetArea};
 
 /// What the design did with one member.
@@ -25,7 +25,7 @@ pub enum Outcome {
 /// section held to the target itself, not to the checks' rounding allowance.
 pub fn verified_smallest_section_mm2(result: &DesignResult) -> Result<f64, String> {
     let checks = baffle_verify::design_checks(result);
-    baffle_core::self_check::first_failure(&checks)?;
+    baffle_core::analyses::self_check::first_failure(&checks)?;
     let section = checks.iter().find(|c| c.name == "smallest checked section, re-cut").ok_or("no section check")?;
     let target_mm2 = result.report.target_area_mm2;
     if section.value < target_mm2 {
@@ -75,7 +75,7 @@ pub struct Tally {
 pub fn sweep(seeds: impl Iterator<Item = u64>) -> Tally {
     let mut tally = Tally { seam_range_mm: (f64::INFINITY, 0.0), ..Tally::default() };
     for seed in seeds {
-        match run_member(&baffle_core::phantom_family::family_member(seed)) {
+        match run_member(&baffle_test_support::phantom_family::family_member(seed)) {
             Outcome::Designed { seam_mm, expanded } => {
                 tally.designed += 1;
                 tally.expanded += usize::from(expanded);

@@ -5,5 +5,5 @@ use std::path::PathBuf;
 
 /// The patients' data directory, or `None` (with a note) when it is absent.
 pub fn data_dir() -> Option<PathBuf> {
-    baffle_core::reference_data::reference_data_if_present()
+    baffle_test_support::reference_data::reference_data_if_present()
 }

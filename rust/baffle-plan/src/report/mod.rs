@@ -13,8 +13,8 @@ use crate::centerline_cmd::CenterlineFigures;
 use crate::run_summary::{required, RunSummary};
 use baffle_cfd::Waveform;
 use baffle_core::design::SectionRecord;
-use baffle_core::hemodynamics_estimate::{compare_with_3d, EstimateComparison, EstimateOutcome};
-use baffle_core::rv_outflow::{NarrowedSection, RvOutflow};
+use baffle_core::analyses::hemodynamics_estimate::{compare_with_3d, EstimateComparison, EstimateOutcome};
+use baffle_core::analyses::rv_outflow::{NarrowedSection, RvOutflow};
 use baffle_core::DesignReport;
 use baffle_mesh::QualityReport;
 use baffle_prepare::extend::ExtendReport;
@@ -1029,8 +1029,8 @@ mod tests {
     #[test]
     fn the_designs_estimate_is_read_typed_and_set_beside_the_3d_run() {
         let path = Path::new("design/report.json");
-        let tunnel = baffle_core::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
-        let e = baffle_core::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap();
+        let tunnel = baffle_core::analyses::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
+        let e = baffle_core::analyses::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap();
         let estimated = EstimateOutcome::Estimated(e.clone());
         let design = Some(&estimated);
         // The 3D dp equal to the estimate: within its measured error.

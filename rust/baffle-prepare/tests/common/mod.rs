@@ -2,7 +2,7 @@
 //! LV family's sweep example: baffle-verify's edge use, winding and volume, the caps
 //! re-fitted here, the new caps' centroids tested inside their pools.
 
-use baffle_core::spatial::{winding_number, TriangleBvh};
+use baffle_core::geometry::spatial::{winding_number, TriangleBvh};
 use baffle_core::TriMesh;
 use baffle_prepare::extend::Extended;
 use baffle_prepare::BloodPools;
@@ -69,7 +69,7 @@ pub fn check_extended(name: &str, domain: &TriMesh, pools: &BloodPools, extended
     assert_eq!(rim_edges, designed_rims, "{name}: 3 faces meet exactly along the interior caps' rims");
     // The designed caps are kept, as projected onto their planes (the extend report's
     // `cap_projections`), to the bit.
-    let (projected, _) = baffle_core::caps::project_caps_onto_planes(domain, &[(11, "VSD"), (16, "aortic-annulus")]).expect("usable caps");
+    let (projected, _) = baffle_core::geometry::caps::project_caps_onto_planes(domain, &[(11, "VSD"), (16, "aortic-annulus")]).expect("usable caps");
     for label in [11, 16] {
         assert_eq!(cap_triangles(s, label), cap_triangles(&projected, label), "{name}: cap {label} changed");
     }

@@ -5,8 +5,8 @@
 //! hand (as the held-back patient's). Every perturbation keeps the caps planar
 //! and the surface closed; none moves a cap point off its plane.
 
-use baffle_core::numerics::pca::best_fit_plane;
-use baffle_core::numerics::random::SplitMix64;
+use baffle_core::geometry::numerics::pca::best_fit_plane;
+use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::{TriMesh, Vec3};
 use baffle_prepare::BloodPools;
 use nalgebra::{Rotation3, Unit};
@@ -25,7 +25,7 @@ pub fn published_domain(path: &Path) -> TriMesh {
 
 /// Each triangle split in 4 at its edges' midpoints (labels kept): planar caps stay planar.
 pub fn subdivided(mesh: &TriMesh) -> TriMesh {
-    baffle_core::perturb::subdivide(mesh)
+    baffle_test_support::perturb::subdivide(mesh)
 }
 
 /// The points that no triangle of `caps` uses (they may move without bending a cap).
