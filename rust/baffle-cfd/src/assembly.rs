@@ -402,11 +402,16 @@ fn element_row_into(
         let reynolds = st.tau_b * v * st.fine_s[ai] * st.fine_s[bi];
         let diag = rho * idt * mass + rho * v * convection + mu * v * crate::flow_mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
         let mut blk = [0.0; BB];
-        let transposed = if phys.formulation.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
             blk[i * B + i] += diag;
             for j in 0..3 {
-                blk[i * B + j] += t.lsic * g[ai][i] * g[bi][j] + transposed * g[ai][j] * g[bi][i];
+                blk[i * B + j] += t.lsic * g[ai][i] * g[bi][j];
+            }
+            // Apart, so the default (Laplacian form) does not multiply by zero 9 times a block.
+            if phys.formulation.stress_viscosity {
+                for j in 0..3 {
+                    blk[i * B + j] += mu * v * g[ai][j] * g[bi][i];
+                }
             }
             // pressure column: -(p, div w) + SUPG grad p
             blk[i * B + 3] = -0.25 * v * g[ai][i] + t.supg_p[i];
