@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::sparse::{split_by, BlockPattern, Scalar, B, BB};
+use crate::sparse::{split_by, BlockAcc, BlockPattern, Scalar, B, BB};
 
 /// Most aggregates the coarse level is given: its dense LU (4 unknowns per aggregate)
 /// then costs at most ~1 GFLOP a solve, whatever the mesh.
@@ -154,13 +154,12 @@ impl<'a> ProlongedOperator<'a> {
         let along: Vec<f64> = self.rank_one.iter().map(|(c, _, zb)| c * zb.iter().zip(e).map(|(x, y)| x * y).sum::<f64>()).collect();
         let (row_ptr, aggregate) = (&self.structure.row_ptr, &self.structure.aggregate);
         az.par_chunks_mut(B).enumerate().with_min_len(256).for_each(|(i, azi)| {
-            let mut acc = [0.0; B];
+            // Lane sums, as the block SpMV: one horizontal sum per row, not per block.
+            let mut lanes = BlockAcc::<f64>::default();
             for k in row_ptr[i]..row_ptr[i + 1] {
-                let (block, ec) = (&self.blocks[k], &e[aggregate[k] as usize * B..][..B]);
-                for r in 0..B {
-                    acc[r] += (0..B).map(|c| block[r * B + c] * ec[c]).sum::<f64>();
-                }
+                lanes.add(&self.blocks[k], &e[aggregate[k] as usize * B..][..B]);
             }
+            let acc = lanes.sum();
             for (r, a) in acc.iter().enumerate() {
                 let rank_one: f64 = self.rank_one.iter().zip(&along).map(|((_, b, _), s)| s * b[i * B + r]).sum();
                 azi[r] = V::from_f64(azi[r].to_f64() + a + rank_one);

@@ -426,6 +426,24 @@ pub fn solve_refined(
     restart: usize,
     max_iterations: usize,
 ) -> GmresOutcome {
+    solve_refined_from(apply_a, apply_m, apply_a_low, apply_m_low, b, x, None, tol, restart, max_iterations)
+}
+
+/// [`solve_refined`] given A x of the guess `x` when the caller has it (`guess_product`;
+/// the solver forms it in the same pass over the matrix as its residual).
+#[allow(clippy::too_many_arguments)]
+pub fn solve_refined_from(
+    apply_a: &dyn Fn(&[f64], &mut [f64]),
+    apply_m: &dyn Preconditioner<f64>,
+    apply_a_low: &dyn Fn(&[f32], &mut [f32]),
+    apply_m_low: &dyn Preconditioner<f32>,
+    b: &[f64],
+    x: &mut [f64],
+    guess_product: Option<&[f64]>,
+    tol: f64,
+    restart: usize,
+    max_iterations: usize,
+) -> GmresOutcome {
     let b_norm = norm(b);
     if b_norm == 0.0 {
         x.iter_mut().for_each(|v| *v = 0.0);
@@ -436,7 +454,10 @@ pub fn solve_refined(
     let mut iterations = 0;
     let mut r_norm = b_norm;
     if x.iter().any(|&v| v != 0.0) {
-        apply_a(x, &mut work);
+        match guess_product {
+            Some(ax) => work.copy_from_slice(ax),
+            None => apply_a(x, &mut work),
+        }
         residual.par_iter_mut().zip(b.par_iter().zip(&work)).for_each(|(ri, (bi, ai))| *ri = bi - ai);
         r_norm = norm(&residual);
         if !(r_norm < b_norm) {

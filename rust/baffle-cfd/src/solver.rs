@@ -156,11 +156,11 @@ use rayon::prelude::*;
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
 use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection, ProlongedOperator};
-use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome, Preconditioner};
+use crate::linear::{gmres, partitions, solve_refined_from, BlockIlu, GmresOutcome, Preconditioner};
 use crate::flow_mesh::{element_faces, tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
-use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, split_by, spmv, BlockPattern, Scalar, B, BB};
+use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, split_by, spmv, spmv2, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
 
 /// Pressure and flow on one face at one step.
@@ -758,6 +758,27 @@ impl<'a> Solver<'a> {
         }
     }
 
+    /// [`Self::apply_operator`] of x into y and of v into w in one pass over the matrix.
+    fn apply_operator2(problem: &Problem, vals: &[f64], x: &[f64], y: &mut [f64], v: &[f64], w: &mut [f64]) {
+        spmv2(&problem.pattern, vals, x, y, v, w);
+        for (x, y) in [(x, y), (v, w)] {
+            for o in &problem.outlets {
+                let q = dot(&o.flux_weights, x);
+                if q != 0.0 && o.resistance_dyn_s_cm5 > 0.0 {
+                    crate::sparse::axpy(o.resistance_dyn_s_cm5 * q, &o.flux_weights, y);
+                }
+            }
+        }
+    }
+
+    /// `av` = K v made the product of the matrix with identity rows for the prescribed
+    /// velocity components ([`Self::apply_dirichlet_rows`]; the flux weights are 0 there).
+    fn identity_rows_product(&self, v: &[f64], av: &mut [f64]) {
+        for (i, _) in self.problem.dirichlet.iter().enumerate().filter(|(_, &d)| d) {
+            av[i * B..i * B + 3].copy_from_slice(&v[i * B..i * B + 3]);
+        }
+    }
+
     /// Identity rows for prescribed velocity components (the update there is 0), the
     /// thread partitions in parallel (serial, ~1 % of a step on p3 1.25 mm with the
     /// second core idle).
@@ -800,6 +821,7 @@ impl<'a> Solver<'a> {
         let n = x.len();
         let mut r = vec![0.0; n];
         let mut dx = vec![0.0; n];
+        let mut guess_product = vec![0.0; n];
         let mut stats = StepStats::new();
         let max_iterations = control.max_iterations;
         for it in 0..=max_iterations {
@@ -809,13 +831,22 @@ impl<'a> Solver<'a> {
             let t0 = Instant::now();
             self.problem.assembler.assemble(&self.problem.pattern, phys, x, x_old, &mut self.vals, &mut self.rhs);
             self.add_backflow(x);
-            Self::apply_operator(&self.problem, &self.vals, x, &mut r);
-            r.par_iter_mut().zip(&self.rhs).with_min_len(4096).for_each(|(ri, fi)| *ri = fi - *ri);
             let will_solve = it < max_iterations;
+            let guess = will_solve && self.initial_guess(it, effort, &mut dx);
+            // A Newton matrix differs from K: its product with the guess waits for it.
+            let guessed = guess && !newton && dx.iter().any(|&v| v != 0.0);
+            match guessed {
+                true => Self::apply_operator2(&self.problem, &self.vals, x, &mut r, &dx, &mut guess_product),
+                false => Self::apply_operator(&self.problem, &self.vals, x, &mut r),
+            }
+            r.par_iter_mut().zip(&self.rhs).with_min_len(4096).for_each(|(ri, fi)| *ri = fi - *ri);
             if newton && will_solve {
                 self.problem.assembler.add_convection_jacobian(&self.problem.pattern, phys, x, &mut self.vals);
             }
             self.apply_dirichlet_rows(&mut r);
+            if guessed {
+                self.identity_rows_product(&dx, &mut guess_product);
+            }
             self.timings.assembly_s += t0.elapsed().as_secs_f64();
             let res = crate::sparse::norm(&r);
             if !res.is_finite() {
@@ -838,15 +869,14 @@ impl<'a> Solver<'a> {
                 convert_into(&self.vals, &mut self.vals_low);
             }
             let t2 = Instant::now();
-            let guess = self.initial_guess(it, effort, &mut dx);
-            let mut out = self.solve_linear(effort, &r, &mut dx, reused);
+            let mut out = self.solve_linear(effort, &r, &mut dx, reused, guessed.then_some(&guess_product[..]));
             // A reused factorization that no longer preconditions well is dropped at once.
             if reused && !out.converged {
                 let t3 = Instant::now();
                 self.refresh_preconditioner(effort).map_err(singular)?;
                 self.timings.preconditioner_s += t3.elapsed().as_secs_f64();
                 self.initial_guess(it, effort, &mut dx);
-                let retry = self.solve_linear(effort, &r, &mut dx, false);
+                let retry = self.solve_linear(effort, &r, &mut dx, false, None);
                 self.factors.record(false, effort, retry.iterations);
                 out = GmresOutcome { iterations: out.iterations + retry.iterations, ..retry };
             } else {
@@ -919,7 +949,7 @@ impl<'a> Solver<'a> {
     /// Solve A dx = r with the current factors ([`Self::refresh_preconditioner`]); with
     /// `reused` factors within [`FactorsUse::reused_budget`] iterations. `dx` holds the
     /// initial guess ([`Self::initial_guess`]).
-    fn solve_linear(&self, effort: Effort, r: &[f64], dx: &mut [f64], reused: bool) -> GmresOutcome {
+    fn solve_linear(&self, effort: Effort, r: &[f64], dx: &mut [f64], reused: bool, guess_product: Option<&[f64]>) -> GmresOutcome {
         let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
         let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
         let (tol, restart) = (s.linear_tolerance, s.gmres_restart);
@@ -935,7 +965,7 @@ impl<'a> Solver<'a> {
                 let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
                 let apply_m = TwoLevel { ilu, coarse, apply_a: &apply_a };
                 let apply_m_low = TwoLevel { ilu, coarse, apply_a: &apply_a_low };
-                solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, tol, restart, max_iterations)
+                solve_refined_from(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, guess_product, tol, restart, max_iterations)
             }
             Effort::Normal => {
                 let ilu = self.ilu.as_ref().expect(factors);
