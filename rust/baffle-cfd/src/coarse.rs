@@ -121,10 +121,11 @@ impl ProlongedPattern {
             let base = self.row_ptr[rows.start];
             for p in pattern.row_ptr[rows.start]..pattern.row_ptr[rows.end] {
                 let (j, block) = (pattern.cols[p] as usize, &mut piece[self.slot[p] as usize - base]);
-                for c in (0..B).filter(|&c| free[j * B + c]) {
-                    for r in 0..B {
-                        block[r * B + c] += vals[p * BB + r * B + c];
-                    }
+                let (free_j, src) = (&free[j * B..(j + 1) * B], &vals[p * BB..(p + 1) * BB]);
+                // A select, not a skipped column, so that the loop has no branch to stop
+                // it vectorizing.
+                for (k, (d, v)) in block.iter_mut().zip(src).enumerate() {
+                    *d += if free_j[k % B] { *v } else { 0.0 };
                 }
             }
         });
