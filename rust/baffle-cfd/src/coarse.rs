@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::sparse::{split_by, BlockAcc, BlockPattern, Scalar, B, BB};
+use crate::sparse::{split_by, wide, BlockAcc, BlockPattern, Scalar, B, BB};
 
 /// Most aggregates the coarse level is given: its dense LU (4 unknowns per aggregate)
 /// then costs at most ~1 GFLOP a solve, whatever the mesh.
@@ -117,7 +117,7 @@ impl ProlongedPattern {
         let tasks: Vec<std::ops::Range<usize>> = (0..n).step_by(PROLONGED_ROWS_PER_TASK).map(|s| s..(s + PROLONGED_ROWS_PER_TASK).min(n)).collect();
         let mut blocks = vec![[0.0; BB]; self.aggregate.len()];
         let pieces = split_by(&mut blocks, tasks.iter().map(|r| self.row_ptr[r.end] - self.row_ptr[r.start]));
-        pieces.into_par_iter().zip(&tasks).for_each(|(piece, rows)| {
+        pieces.into_par_iter().zip(&tasks).for_each(|(piece, rows)| wide(#[inline(always)] || {
             let base = self.row_ptr[rows.start];
             for p in pattern.row_ptr[rows.start]..pattern.row_ptr[rows.end] {
                 let (j, block) = (pattern.cols[p] as usize, &mut piece[self.slot[p] as usize - base]);
@@ -128,10 +128,13 @@ impl ProlongedPattern {
                     *d += if free_j[k % B] { *v } else { 0.0 };
                 }
             }
-        });
+        }));
         blocks
     }
 }
+
+/// Node rows per call of [`wide`] in [`ProlongedOperator::add_product`].
+const PRODUCT_ROWS_PER_CALL: usize = 64;
 
 /// A Z for the block matrix K plus rank-one terms c b b^T, so that the product of a
 /// corrected vector, A (z + Z e), is A z + (A Z) e without another fine product: K Z
@@ -154,17 +157,21 @@ impl<'a> ProlongedOperator<'a> {
     fn add_product<V: Scalar>(&self, e: &[f64], az: &mut [V]) {
         let along: Vec<f64> = self.rank_one.iter().map(|(c, _, zb)| c * zb.iter().zip(e).map(|(x, y)| x * y).sum::<f64>()).collect();
         let (row_ptr, aggregate) = (&self.structure.row_ptr, &self.structure.aggregate);
-        az.par_chunks_mut(B).enumerate().with_min_len(256).for_each(|(i, azi)| {
-            // Lane sums, as the block SpMV: one horizontal sum per row, not per block.
-            let mut lanes = BlockAcc::<f64>::default();
-            for k in row_ptr[i]..row_ptr[i + 1] {
-                lanes.add(&self.blocks[k], &e[aggregate[k] as usize * B..][..B]);
-            }
-            let acc = lanes.sum();
-            for (r, a) in acc.iter().enumerate() {
-                let rank_one: f64 = self.rank_one.iter().zip(&along).map(|((_, b, _), s)| s * b[i * B + r]).sum();
-                azi[r] = V::from_f64(azi[r].to_f64() + a + rank_one);
-            }
+        az.par_chunks_mut(B * PRODUCT_ROWS_PER_CALL).enumerate().with_min_len(4).for_each(|(c, azc)| {
+            wide(#[inline(always)] || {
+                for (i, azi) in (c * PRODUCT_ROWS_PER_CALL..).zip(azc.chunks_exact_mut(B)) {
+                    // Lane sums, as the block SpMV: one horizontal sum per row, not per block.
+                    let mut lanes = BlockAcc::<f64>::default();
+                    for k in row_ptr[i]..row_ptr[i + 1] {
+                        lanes.add(&self.blocks[k], &e[aggregate[k] as usize * B..][..B]);
+                    }
+                    let acc = lanes.sum();
+                    for (r, a) in acc.iter().enumerate() {
+                        let rank_one: f64 = self.rank_one.iter().zip(&along).map(|((_, b, _), s)| s * b[i * B + r]).sum();
+                        azi[r] = V::from_f64(azi[r].to_f64() + a + rank_one);
+                    }
+                }
+            })
         });
     }
 
@@ -198,7 +205,7 @@ impl<'a> ProlongedOperator<'a> {
 
 /// Z^T v: `v`'s free unknowns summed per aggregate and component. Nodes in chunks of
 /// [`RESTRICT_NODES_PER_TASK`] in parallel, the chunks' sums added in order: serial, it
-/// left the second core idle for about 1 % of a step (p3 1.25 mm).
+/// left the other core idle (1.0 % of p3 1.25 mm's CPU samples, on the main thread).
 fn restrict<V: Scalar>(v: &[V], aggregates: &Aggregates, free: &[bool]) -> Vec<f64> {
     let nc = aggregates.count * B;
     let chunk = |(vc, (fc, ac)): (&[V], (&[bool], &[u32]))| {
@@ -298,7 +305,7 @@ fn lu_in_place(a: &mut [f64], n: usize) -> Vec<usize> {
 }
 
 /// Solve with [`lu_in_place`]'s factors. The row sums run in [`LU_LANES`] partial sums:
-/// one running sum waited on each add's latency (~1 % of a step on p3 1.25 mm).
+/// one running sum waited on each add's latency, serial (1.3 % of p3 1.25 mm's CPU samples).
 fn lu_solve(lu: &[f64], perm: &[usize], b: &[f64]) -> Vec<f64> {
     let n = perm.len();
     let mut x: Vec<f64> = perm.iter().map(|&p| b[p]).collect();

@@ -144,6 +144,19 @@
 //! from two updates (10 iterations at half the tolerance, error 7.6e-6 rms): the better
 //! the guess, the more error the residual test leaves where the residual hardly sees it.
 //!
+//! Eighth session (issue 28 item 4, 2026-12-05, same case; `perf record` of the run: the
+//! assembly ~34 % of the CPU samples, ILU(0) sweeps 17 %, block products 20 % (f32 14,
+//! f64 6), the coarse level ~11 %, Gram-Schmidt 5 %, the main thread alone 7 % while the
+//! other core waited). The hot kernels (block products, ILU(0) sweeps, Gram-Schmidt,
+//! both assembly passes) are compiled for AVX2 + FMA as well and chosen at run time
+//! ([`crate::sparse::wide`]; the release build's baseline is SSE2), bit for bit the same
+//! (Rust never fuses a * b + c); the serial stretches (coarse restriction, coarse LU
+//! solves, Dirichlet rows) run in parallel or in lane sums; a step's residual and its
+//! guess's product share one pass over the f64 matrix. 60 steps, 8 runs of each build
+//! interleaved, load 11-12 from other jobs: wall median 12.87 -> 10.62 s (paired ratio
+//! 0.905, 0.67-1.21), CPU time 7.18 -> 6.41 s (paired 0.912, 0.83-0.95); dp at step 60
+//! +1e-10 mmHg (the coarse level's sums in another order), 170 steps: peak dp -2.9e-10.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
@@ -780,8 +793,7 @@ impl<'a> Solver<'a> {
     }
 
     /// Identity rows for prescribed velocity components (the update there is 0), the
-    /// thread partitions in parallel (serial, ~1 % of a step on p3 1.25 mm with the
-    /// second core idle).
+    /// thread partitions in parallel (serial, the other core waited).
     fn apply_dirichlet_rows(&mut self, r: &mut [f64]) {
         let (pattern, parts, dirichlet) = (&self.problem.pattern, &self.problem.parts, &self.problem.dirichlet);
         let val_parts = split_by(&mut self.vals, parts.iter().map(|rows| pattern.blocks_in(rows) * BB));
