@@ -148,14 +148,15 @@
 //! assembly ~34 % of the CPU samples, ILU(0) sweeps 17 %, block products 20 % (f32 14,
 //! f64 6), the coarse level ~11 %, Gram-Schmidt 5 %, the main thread alone 7 % while the
 //! other core waited). The hot kernels (block products, ILU(0) sweeps, Gram-Schmidt,
-//! both assembly passes) are compiled for AVX2 + FMA as well and chosen at run time
-//! ([`crate::sparse::wide`]; the release build's baseline is SSE2), bit for bit the same
-//! (Rust never fuses a * b + c); the serial stretches (coarse restriction, coarse LU
-//! solves, Dirichlet rows) run in parallel or in lane sums; a step's residual and its
-//! guess's product share one pass over the f64 matrix. 60 steps, 8 runs of each build
-//! interleaved, load 11-12 from other jobs: wall median 12.87 -> 10.62 s (paired ratio
-//! 0.905, 0.67-1.21), CPU time 7.18 -> 6.41 s (paired 0.912, 0.83-0.95); dp at step 60
-//! +1e-10 mmHg (the coarse level's sums in another order), 170 steps: peak dp -2.9e-10.
+//! both assembly passes, the coarse A Z) are compiled for AVX2 + FMA as well and chosen
+//! at run time ([`crate::sparse::wide`]; the release build's baseline is SSE2), bit for
+//! bit the same (Rust never fuses a * b + c); the serial stretches (coarse restriction,
+//! coarse LU solves, Dirichlet rows) run in parallel or in lane sums; a step's residual
+//! and its guess's product share one pass over the f64 matrix. 60 steps, 10 runs of each
+//! build interleaved, load 5-6 from other jobs (binaries of 0c23a60 and e1f4389): wall
+//! median 9.72 -> 7.76 s (paired ratio 0.858, 0.70-1.09), CPU time 6.95 -> 5.97 s (paired
+//! 0.890, 0.835-0.927); dp at step 60 +1e-10 mmHg (the coarse level's sums in another
+//! order); 170 steps: peak dp 6.150023529 mmHg, -2.9e-10.
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
