@@ -27,7 +27,7 @@
 
 use rayon::prelude::*;
 
-use crate::sparse::{split_by, BlockPattern, B, BB};
+use crate::sparse::{split_by, wide, BlockPattern, B, BB};
 
 /// Constant data of one tetrahedron.
 #[derive(Clone, Copy, Debug)]
@@ -120,6 +120,7 @@ pub struct ElementSystem {
     pub f: [[f64; B]; 4],
 }
 
+#[inline(always)]
 fn mean3(v: &[[f64; 3]; 4]) -> [f64; 3] {
     [0, 1, 2].map(|k| 0.25 * (v[0][k] + v[1][k] + v[2][k] + v[3][k]))
 }
@@ -127,6 +128,7 @@ fn mean3(v: &[[f64; 3]; 4]) -> [f64; 3] {
 /// Stabilization parameters (tau in s, nu_C in cm^2/s) for advecting velocity `a` in an
 /// element of metric `g` ([`metric`], made once per element: the centroid, the four Gauss
 /// points and the Reynolds-stress term share it).
+#[inline(always)]
 pub fn stabilization(g: &[[f64; 3]; 3], a: [f64; 3], phys: &Physics) -> (f64, f64) {
     let c_inverse = phys.formulation.tau_metric.constants().1;
     let gg: f64 = g.iter().flatten().map(|x| x * x).sum();
@@ -138,6 +140,7 @@ pub fn stabilization(g: &[[f64; 3]; 3], a: [f64; 3], phys: &Physics) -> (f64, f6
 }
 
 /// v.G.v
+#[inline(always)]
 fn quadratic_form(g: &[[f64; 3]; 3], v: [f64; 3]) -> f64 {
     let mut vgv = 0.0;
     for i in 0..3 {
@@ -149,6 +152,7 @@ fn quadratic_form(g: &[[f64; 3]; 3], v: [f64; 3]) -> f64 {
 }
 
 /// The element metric G = scale sum_a grad N_a (x) grad N_a of phys' [`TauMetric`].
+#[inline(always)]
 pub fn metric(geo: &ElementGeometry, phys: &Physics) -> [[f64; 3]; 3] {
     let scale = phys.formulation.tau_metric.constants().0;
     let mut g = [[0.0; 3]; 3];
@@ -182,6 +186,7 @@ pub fn element_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]
 
 /// [`element_state`] in an element of metric `g` (the assembly makes it once for this
 /// and the [`GaussState`]).
+#[inline(always)]
 fn element_state_in(geo: &ElementGeometry, g: &[[f64; 3]; 3], a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], p: &[f64; 4], phys: &Physics) -> ElementState {
     let a_bar = mean3(a);
     let u_old_bar = mean3(u_old);
@@ -200,6 +205,7 @@ fn element_state_in(geo: &ElementGeometry, g: &[[f64; 3]; 3], a: &[[f64; 3]; 4],
 
 /// tau_B = rho / sqrt(u'.G.u') and u'.grad N_b of svMultiPhysics' Reynolds-stress term
 /// (0 where u' vanishes).
+#[inline(always)]
 fn reynolds_stress(geo: &ElementGeometry, g: &[[f64; 3]; 3], u_fine: [f64; 3], phys: &Physics) -> (f64, [f64; 4]) {
     let ugu = quadratic_form(g, u_fine);
     if !(ugu > 0.0) {
@@ -213,6 +219,7 @@ fn reynolds_stress(geo: &ElementGeometry, g: &[[f64; 3]; 3], u_fine: [f64; 3], p
 const GAUSS_NEAR: f64 = 0.585_410_196_624_968_5;
 const GAUSS_FAR: f64 = 0.138_196_601_125_010_5;
 
+#[inline(always)]
 fn gauss_weight(g: usize, b: usize) -> f64 {
     if g == b {
         GAUSS_NEAR
@@ -221,6 +228,7 @@ fn gauss_weight(g: usize, b: usize) -> f64 {
     }
 }
 
+#[inline(always)]
 fn at_gauss_point(v: &[[f64; 3]; 4], g: usize) -> [f64; 3] {
     [0, 1, 2].map(|k| (0..4).map(|b| gauss_weight(g, b) * v[b][k]).sum())
 }
@@ -251,6 +259,7 @@ pub fn gauss_state(geo: &ElementGeometry, a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 
 }
 
 /// [`gauss_state`] in an element of metric `g`.
+#[inline(always)]
 fn gauss_state_in(geo: &ElementGeometry, g: &[[f64; 3]; 3], a: &[[f64; 3]; 4], u_old: &[[f64; 3]; 4], phys: &Physics) -> GaussState {
     let mut st = GaussState::default();
     let w = 0.25 * geo.volume_cm3;
@@ -297,6 +306,7 @@ struct StabilizationTerms {
 }
 
 /// The old velocity's SUPG and PSPG shares of row ai's right-hand side (velocity, pressure).
+#[inline(always)]
 fn stabilization_rhs(geo: &ElementGeometry, st: &ElementState, gauss: Option<&GaussState>, phys: &Physics, ai: usize) -> ([f64; 3], f64) {
     let (rho, idt, g) = (phys.density_g_cm3, phys.inv_dt_per_s, &geo.grads_per_cm);
     match gauss {
@@ -308,6 +318,7 @@ fn stabilization_rhs(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Ga
     }
 }
 
+#[inline(always)]
 fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: usize, bi: usize) -> StabilizationTerms {
     let (rho, idt, v, g) = (phys.density_g_cm3, phys.inv_dt_per_s, geo.volume_cm3, &geo.grads_per_cm);
     let (tau, s) = (st.tau, &st.s);
@@ -320,6 +331,7 @@ fn centroid_terms(geo: &ElementGeometry, st: &ElementState, phys: &Physics, ai: 
     }
 }
 
+#[inline(always)]
 fn gauss_terms(geo: &ElementGeometry, gs: &GaussState, phys: &Physics, ai: usize, bi: usize) -> StabilizationTerms {
     let (rho, idt, g) = (phys.density_g_cm3, phys.inv_dt_per_s, &geo.grads_per_cm);
     StabilizationTerms {
@@ -331,12 +343,14 @@ fn gauss_terms(geo: &ElementGeometry, gs: &GaussState, phys: &Physics, ai: usize
     }
 }
 
+#[inline(always)]
 fn add3(x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
     [x[0] + y[0], x[1] + y[1], x[2] + y[2]]
 }
 
 /// u' = -tau (dt-term + a.grad a + grad p / rho) at the centroid (the viscous part of r_M
 /// vanishes on P1).
+#[inline(always)]
 fn fine_scale_velocity(geo: &ElementGeometry, a: &[[f64; 3]; 4], a_bar: [f64; 3], u_old_bar: [f64; 3], p: &[f64; 4], tau: f64, phys: &Physics) -> [f64; 3] {
     let g = &geo.grads_per_cm;
     let mut r = [0.0; 3];
@@ -373,7 +387,7 @@ pub fn element_row(geo: &ElementGeometry, st: &ElementState, gauss: Option<&Gaus
 /// whole, the row's 512 bytes were zeroed and copied out per element and node, which
 /// took a quarter of the assembly (memset and memmove in the profile of p3's run).
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 fn element_row_into(
     geo: &ElementGeometry,
     st: &ElementState,
@@ -402,11 +416,16 @@ fn element_row_into(
         let reynolds = st.tau_b * v * st.fine_s[ai] * st.fine_s[bi];
         let diag = rho * idt * mass + rho * v * convection + mu * v * crate::flow_mesh::dot(g[ai], g[bi]) + t.supg_u + reynolds;
         let mut blk = [0.0; BB];
-        let transposed = if phys.formulation.stress_viscosity { mu * v } else { 0.0 };
         for i in 0..3 {
             blk[i * B + i] += diag;
             for j in 0..3 {
-                blk[i * B + j] += t.lsic * g[ai][i] * g[bi][j] + transposed * g[ai][j] * g[bi][i];
+                blk[i * B + j] += t.lsic * g[ai][i] * g[bi][j];
+            }
+            // Apart, so the default (Laplacian form) does not multiply by zero 9 times a block.
+            if phys.formulation.stress_viscosity {
+                for j in 0..3 {
+                    blk[i * B + j] += mu * v * g[ai][j] * g[bi][i];
+                }
             }
             // pressure column: -(p, div w) + SUPG grad p
             blk[i * B + 3] = -0.25 * v * g[ai][i] + t.supg_p[i];
@@ -510,11 +529,13 @@ impl Assembler {
         };
         val_parts.into_par_iter().zip(rhs_parts).zip(&self.parts).for_each(|((vals_p, rhs_p), rows)| {
             let base = pattern.row_ptr[rows.start];
-            for i in rows.clone() {
-                let (first, end) = (pattern.row_ptr[i], pattern.row_ptr[i + 1]);
-                let rhs_i = if rhs_p.is_empty() { &mut [][..] } else { &mut rhs_p[(i - rows.start) * B..(i - rows.start + 1) * B] };
-                visit(i, &mut vals_p[(first - base) * BB..(end - base) * BB], first, rhs_i);
-            }
+            wide(#[inline(always)] || {
+                for i in rows.clone() {
+                    let (first, end) = (pattern.row_ptr[i], pattern.row_ptr[i + 1]);
+                    let rhs_i = if rhs_p.is_empty() { &mut [][..] } else { &mut rhs_p[(i - rows.start) * B..(i - rows.start + 1) * B] };
+                    visit(i, &mut vals_p[(first - base) * BB..(end - base) * BB], first, rhs_i);
+                }
+            })
         });
     }
 
@@ -525,7 +546,7 @@ impl Assembler {
 
     /// Add `block` to the block of row `row_vals` (which starts at pattern block `first`)
     /// that element `e`'s node pair (ai, bi) lands in.
-    #[inline]
+    #[inline(always)]
     fn add_block(&self, row_vals: &mut [f64], first: usize, e: usize, ai: usize, bi: usize, block: &[f64; BB]) {
         let at = (self.positions[e][ai * 4 + bi] as usize - first) * BB;
         row_vals[at..at + BB].iter_mut().zip(block).for_each(|(d, s)| *d += s);
@@ -574,13 +595,14 @@ impl Assembler {
     fn update_states(&mut self, phys: &Physics, a: &[f64], u_old: &[f64]) {
         let nodal = |t: &[u32; 4], field: &[f64]| t.map(|n| [0, 1, 2].map(|c| field[n as usize * B + c]));
         let (tets, geometry) = (&self.tets, &self.geometry);
-        let fill = |st: &mut ElementState, gs: Option<&mut GaussState>, t: &[u32; 4], geo: &ElementGeometry| {
+        // Per element through `wide`: these sums are compute-bound.
+        let fill = |st: &mut ElementState, gs: Option<&mut GaussState>, t: &[u32; 4], geo: &ElementGeometry| wide(#[inline(always)] || {
             let (g, a_e, u_old_e) = (metric(geo, phys), nodal(t, a), nodal(t, u_old));
             *st = element_state_in(geo, &g, &a_e, &u_old_e, &t.map(|n| a[n as usize * B + 3]), phys);
             if let Some(gs) = gs {
                 *gs = gauss_state_in(geo, &g, &a_e, &u_old_e, phys);
             }
-        };
+        });
         let elements = tets.par_iter().zip(geometry);
         if phys.formulation.gauss_stabilization {
             self.gauss_states.resize(tets.len(), GaussState::default());
@@ -596,7 +618,7 @@ impl Assembler {
     pub fn assemble(&mut self, pattern: &BlockPattern, phys: &Physics, a: &[f64], u_old: &[f64], vals: &mut [f64], rhs: &mut [f64]) {
         self.update_states(phys, a, u_old);
         let this = &*self;
-        this.for_each_row(pattern, vals, Some(rhs), |i, row_vals, first, rhs_i| {
+        this.for_each_row(pattern, vals, Some(rhs), #[inline(always)] |i, row_vals, first, rhs_i| {
             row_vals.fill(0.0);
             rhs_i.fill(0.0);
             let u_old_i = [0, 1, 2].map(|c| u_old[i * B + c]);

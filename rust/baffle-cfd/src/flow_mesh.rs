@@ -39,9 +39,11 @@ pub fn tet_volume_cm3(p: &[[f64; 3]], t: &[u32; 4]) -> f64 {
     dot(u, cross(v, w)) / 6.0
 }
 
+#[inline(always)]
 pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
+#[inline(always)]
 pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }

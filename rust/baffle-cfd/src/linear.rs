@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::sparse::{axpy, block, dot_serial, invert4, mul4, norm, split_by, BlockAcc, BlockPattern, Scalar, B, BB};
+use crate::sparse::{axpy, block, dot_serial, invert4, mul4, norm, split_by, wide, BlockAcc, BlockPattern, Scalar, B, BB};
 
 /// Block-Jacobi over contiguous row partitions of block ILU(0): each partition is
 /// factored and solved independently (couplings between partitions are dropped),
@@ -74,7 +74,7 @@ impl<T: Scalar> Triangle<T> {
 
     /// sum over the s-th swept row's blocks of block x z_col (z holds the partition
     /// starting at row r0).
-    #[inline]
+    #[inline(always)]
     fn row_product<V: Scalar>(&self, s: usize, z: &[V], r0: usize) -> [f64; B] {
         let mut acc = BlockAcc::<T>::default();
         for p in self.row_ptr[s]..self.row_ptr[s + 1] {
@@ -147,10 +147,11 @@ impl<T: Scalar> BlockIlu<T> {
     /// z = M^-1 r.
     pub fn apply<V: Scalar>(&self, r: &[V], z: &mut [V]) {
         let z_parts = split_by(z, self.parts.iter().map(|r| r.len() * B));
-        z_parts.into_par_iter().zip(self.parts.par_iter()).for_each(|(z_p, rows)| self.solve_part(rows.clone(), r, z_p));
+        z_parts.into_par_iter().zip(self.parts.par_iter()).for_each(|(z_p, rows)| wide(#[inline(always)] || self.solve_part(rows.clone(), r, z_p)));
     }
 
     /// Forward then backward sweep of one partition; `z` holds that partition's rows.
+    #[inline(always)]
     fn solve_part<V: Scalar>(&self, rows: Range<usize>, r: &[V], z: &mut [V]) {
         let r0 = rows.start;
         // Forward: z_i = r_i - sum_(k<i) L_ik z_k (unit lower blocks).
@@ -350,32 +351,38 @@ fn orthogonalize_twice<T: Scalar>(basis: &[Vec<T>], w: &mut [T]) -> (Vec<f64>, f
         a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
         a
     };
-    let first = w.par_chunks(GS_CHUNK).enumerate().map(|(ci, wc)| chunk_dots(basis, ci * GS_CHUNK, wc)).reduce(|| vec![0.0; k], add);
+    let first = w.par_chunks(GS_CHUNK).enumerate().map(|(ci, wc)| wide(#[inline(always)] || chunk_dots(basis, ci * GS_CHUNK, wc))).reduce(|| vec![0.0; k], add);
     let second = w
         .par_chunks_mut(GS_CHUNK)
         .enumerate()
         .map(|(ci, wc)| {
-            subtract_chunk(basis, ci * GS_CHUNK, wc, &first);
-            chunk_dots(basis, ci * GS_CHUNK, wc)
+            wide(#[inline(always)] || {
+                subtract_chunk(basis, ci * GS_CHUNK, wc, &first);
+                chunk_dots(basis, ci * GS_CHUNK, wc)
+            })
         })
         .reduce(|| vec![0.0; k], add);
     let norm_sq: f64 = w
         .par_chunks_mut(GS_CHUNK)
         .enumerate()
         .map(|(ci, wc)| {
-            subtract_chunk(basis, ci * GS_CHUNK, wc, &second);
-            dot_serial(wc, wc)
+            wide(#[inline(always)] || {
+                subtract_chunk(basis, ci * GS_CHUNK, wc, &second);
+                dot_serial(wc, wc)
+            })
         })
         .sum();
     (add(first, second), norm_sq.sqrt())
 }
 
 /// The dot products of chunk `wc` (starting at `off`) with each basis vector's chunk.
+#[inline(always)]
 fn chunk_dots<T: Scalar>(basis: &[Vec<T>], off: usize, wc: &[T]) -> Vec<f64> {
     basis.iter().map(|v| dot_serial(&v[off..off + wc.len()], wc)).collect()
 }
 
 /// wc -= sum_j c_j v_j on one chunk, accumulated in f64 and rounded once.
+#[inline(always)]
 fn subtract_chunk<T: Scalar>(basis: &[Vec<T>], off: usize, wc: &mut [T], c: &[f64]) {
     let mut acc = [0.0f64; GS_CHUNK];
     let acc = &mut acc[..wc.len()];
@@ -426,6 +433,24 @@ pub fn solve_refined(
     restart: usize,
     max_iterations: usize,
 ) -> GmresOutcome {
+    solve_refined_from(apply_a, apply_m, apply_a_low, apply_m_low, b, x, None, tol, restart, max_iterations)
+}
+
+/// [`solve_refined`] given A x of the guess `x` when the caller has it (`guess_product`;
+/// the solver forms it in the same pass over the matrix as its residual).
+#[allow(clippy::too_many_arguments)]
+pub fn solve_refined_from(
+    apply_a: &dyn Fn(&[f64], &mut [f64]),
+    apply_m: &dyn Preconditioner<f64>,
+    apply_a_low: &dyn Fn(&[f32], &mut [f32]),
+    apply_m_low: &dyn Preconditioner<f32>,
+    b: &[f64],
+    x: &mut [f64],
+    guess_product: Option<&[f64]>,
+    tol: f64,
+    restart: usize,
+    max_iterations: usize,
+) -> GmresOutcome {
     let b_norm = norm(b);
     if b_norm == 0.0 {
         x.iter_mut().for_each(|v| *v = 0.0);
@@ -436,7 +461,10 @@ pub fn solve_refined(
     let mut iterations = 0;
     let mut r_norm = b_norm;
     if x.iter().any(|&v| v != 0.0) {
-        apply_a(x, &mut work);
+        match guess_product {
+            Some(ax) => work.copy_from_slice(ax),
+            None => apply_a(x, &mut work),
+        }
         residual.par_iter_mut().zip(b.par_iter().zip(&work)).for_each(|(ri, (bi, ai))| *ri = bi - ai);
         r_norm = norm(&residual);
         if !(r_norm < b_norm) {

@@ -144,6 +144,20 @@
 //! from two updates (10 iterations at half the tolerance, error 7.6e-6 rms): the better
 //! the guess, the more error the residual test leaves where the residual hardly sees it.
 //!
+//! Eighth session (issue 28 item 4, 2026-12-05, same case; `perf record` of the run: the
+//! assembly ~34 % of the CPU samples, ILU(0) sweeps 17 %, block products 20 % (f32 14,
+//! f64 6), the coarse level ~11 %, Gram-Schmidt 5 %, the main thread alone 7 % while the
+//! other core waited). The hot kernels (block products, ILU(0) sweeps, Gram-Schmidt,
+//! both assembly passes, the coarse A Z) are compiled for AVX2 + FMA as well and chosen
+//! at run time ([`crate::sparse::wide`]; the release build's baseline is SSE2), bit for
+//! bit the same (Rust never fuses a * b + c); the serial stretches (coarse restriction,
+//! coarse LU solves, Dirichlet rows) run in parallel or in lane sums; a step's residual
+//! and its guess's product share one pass over the f64 matrix. 60 steps, 10 runs of each
+//! build interleaved, load 5-6 from other jobs (binaries of 0c23a60 and e1f4389): wall
+//! median 9.72 -> 7.76 s (paired ratio 0.858, 0.70-1.09), CPU time 6.95 -> 5.97 s (paired
+//! 0.890, 0.835-0.927); dp at step 60 +1e-10 mmHg (the coarse level's sums in another
+//! order); 170 steps: peak dp 6.150023529 mmHg, -2.9e-10.
+//!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
 //! an implicit rank-one term; backflow stabilization at outlets.
@@ -156,11 +170,11 @@ use rayon::prelude::*;
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
 use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection, ProlongedOperator};
-use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome, Preconditioner};
+use crate::linear::{gmres, partitions, solve_refined_from, BlockIlu, GmresOutcome, Preconditioner};
 use crate::flow_mesh::{element_faces, tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
-use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, spmv, BlockPattern, Scalar, B, BB};
+use crate::sparse::{convert_into, dot, reverse_cuthill_mckee, split_by, spmv, spmv2, BlockPattern, Scalar, B, BB};
 use crate::CfdError;
 
 /// Pressure and flow on one face at one step.
@@ -616,6 +630,17 @@ impl<S: Scalar, T: Scalar> Preconditioner<T> for TwoLevel<'_, S, T> {
     }
 }
 
+/// Row `row` (its blocks) with its velocity rows made those of the identity; `diag` is
+/// the diagonal block's index in it.
+fn identity_velocity_rows(row: &mut [f64], diag: usize) {
+    for blk in row.chunks_exact_mut(BB) {
+        blk[..3 * B].iter_mut().for_each(|v| *v = 0.0);
+    }
+    for c in 0..3 {
+        row[diag * BB + c * B + c] = 1.0;
+    }
+}
+
 /// x + ratio (x - prev): the linear extrapolation of the state to the end of the next
 /// (sub-)step, `ratio` being that step's length over the gap between prev and x.
 fn extrapolate(x: &mut [f64], prev: &[f64], ratio: f64) {
@@ -747,21 +772,40 @@ impl<'a> Solver<'a> {
         }
     }
 
-    /// Identity rows for prescribed velocity components (the update there is 0).
-    fn apply_dirichlet_rows(&mut self, r: &mut [f64]) {
-        let pattern = &self.problem.pattern;
-        for (i, _) in self.problem.dirichlet.iter().enumerate().filter(|(_, &d)| d) {
-            for k in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
-                for c in 0..3 {
-                    self.vals[k * BB + c * B..k * BB + c * B + B].iter_mut().for_each(|v| *v = 0.0);
+    /// [`Self::apply_operator`] of x into y and of v into w in one pass over the matrix.
+    fn apply_operator2(problem: &Problem, vals: &[f64], x: &[f64], y: &mut [f64], v: &[f64], w: &mut [f64]) {
+        spmv2(&problem.pattern, vals, x, y, v, w);
+        for (x, y) in [(x, y), (v, w)] {
+            for o in &problem.outlets {
+                let q = dot(&o.flux_weights, x);
+                if q != 0.0 && o.resistance_dyn_s_cm5 > 0.0 {
+                    crate::sparse::axpy(o.resistance_dyn_s_cm5 * q, &o.flux_weights, y);
                 }
             }
-            let d = pattern.diag[i];
-            for c in 0..3 {
-                self.vals[d * BB + c * B + c] = 1.0;
-                r[i * B + c] = 0.0;
-            }
         }
+    }
+
+    /// `av` = K v made the product of the matrix with identity rows for the prescribed
+    /// velocity components ([`Self::apply_dirichlet_rows`]; the flux weights are 0 there).
+    fn identity_rows_product(&self, v: &[f64], av: &mut [f64]) {
+        for (i, _) in self.problem.dirichlet.iter().enumerate().filter(|(_, &d)| d) {
+            av[i * B..i * B + 3].copy_from_slice(&v[i * B..i * B + 3]);
+        }
+    }
+
+    /// Identity rows for prescribed velocity components (the update there is 0), the
+    /// thread partitions in parallel (serial, the other core waited).
+    fn apply_dirichlet_rows(&mut self, r: &mut [f64]) {
+        let (pattern, parts, dirichlet) = (&self.problem.pattern, &self.problem.parts, &self.problem.dirichlet);
+        let val_parts = split_by(&mut self.vals, parts.iter().map(|rows| pattern.blocks_in(rows) * BB));
+        let r_parts = split_by(r, parts.iter().map(|rows| rows.len() * B));
+        val_parts.into_par_iter().zip(r_parts).zip(parts.par_iter()).for_each(|((vals, r), rows)| {
+            let base = pattern.row_ptr[rows.start];
+            for i in rows.clone().filter(|&i| dirichlet[i]) {
+                identity_velocity_rows(&mut vals[(pattern.row_ptr[i] - base) * BB..(pattern.row_ptr[i + 1] - base) * BB], pattern.diag[i] - pattern.row_ptr[i]);
+                r[(i - rows.start) * B..][..3].iter_mut().for_each(|v| *v = 0.0);
+            }
+        });
     }
 
     /// One implicit step: Picard (or Newton) iterations in defect-correction form
@@ -790,6 +834,7 @@ impl<'a> Solver<'a> {
         let n = x.len();
         let mut r = vec![0.0; n];
         let mut dx = vec![0.0; n];
+        let mut guess_product = vec![0.0; n];
         let mut stats = StepStats::new();
         let max_iterations = control.max_iterations;
         for it in 0..=max_iterations {
@@ -799,13 +844,22 @@ impl<'a> Solver<'a> {
             let t0 = Instant::now();
             self.problem.assembler.assemble(&self.problem.pattern, phys, x, x_old, &mut self.vals, &mut self.rhs);
             self.add_backflow(x);
-            Self::apply_operator(&self.problem, &self.vals, x, &mut r);
-            r.iter_mut().zip(&self.rhs).for_each(|(ri, fi)| *ri = fi - *ri);
             let will_solve = it < max_iterations;
+            let guess = will_solve && self.initial_guess(it, effort, &mut dx);
+            // A Newton matrix differs from K: its product with the guess waits for it.
+            let guessed = guess && !newton && dx.iter().any(|&v| v != 0.0);
+            match guessed {
+                true => Self::apply_operator2(&self.problem, &self.vals, x, &mut r, &dx, &mut guess_product),
+                false => Self::apply_operator(&self.problem, &self.vals, x, &mut r),
+            }
+            r.par_iter_mut().zip(&self.rhs).with_min_len(4096).for_each(|(ri, fi)| *ri = fi - *ri);
             if newton && will_solve {
                 self.problem.assembler.add_convection_jacobian(&self.problem.pattern, phys, x, &mut self.vals);
             }
             self.apply_dirichlet_rows(&mut r);
+            if guessed {
+                self.identity_rows_product(&dx, &mut guess_product);
+            }
             self.timings.assembly_s += t0.elapsed().as_secs_f64();
             let res = crate::sparse::norm(&r);
             if !res.is_finite() {
@@ -828,15 +882,14 @@ impl<'a> Solver<'a> {
                 convert_into(&self.vals, &mut self.vals_low);
             }
             let t2 = Instant::now();
-            let guess = self.initial_guess(it, effort, &mut dx);
-            let mut out = self.solve_linear(effort, &r, &mut dx, reused);
+            let mut out = self.solve_linear(effort, &r, &mut dx, reused, guessed.then_some(&guess_product[..]));
             // A reused factorization that no longer preconditions well is dropped at once.
             if reused && !out.converged {
                 let t3 = Instant::now();
                 self.refresh_preconditioner(effort).map_err(singular)?;
                 self.timings.preconditioner_s += t3.elapsed().as_secs_f64();
                 self.initial_guess(it, effort, &mut dx);
-                let retry = self.solve_linear(effort, &r, &mut dx, false);
+                let retry = self.solve_linear(effort, &r, &mut dx, false, None);
                 self.factors.record(false, effort, retry.iterations);
                 out = GmresOutcome { iterations: out.iterations + retry.iterations, ..retry };
             } else {
@@ -909,7 +962,7 @@ impl<'a> Solver<'a> {
     /// Solve A dx = r with the current factors ([`Self::refresh_preconditioner`]); with
     /// `reused` factors within [`FactorsUse::reused_budget`] iterations. `dx` holds the
     /// initial guess ([`Self::initial_guess`]).
-    fn solve_linear(&self, effort: Effort, r: &[f64], dx: &mut [f64], reused: bool) -> GmresOutcome {
+    fn solve_linear(&self, effort: Effort, r: &[f64], dx: &mut [f64], reused: bool, guess_product: Option<&[f64]>) -> GmresOutcome {
         let (problem, vals, s) = (&self.problem, &self.vals, self.settings);
         let apply_a = |v: &[f64], y: &mut [f64]| Self::apply_operator(problem, vals, v, y);
         let (tol, restart) = (s.linear_tolerance, s.gmres_restart);
@@ -925,7 +978,7 @@ impl<'a> Solver<'a> {
                 let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
                 let apply_m = TwoLevel { ilu, coarse, apply_a: &apply_a };
                 let apply_m_low = TwoLevel { ilu, coarse, apply_a: &apply_a_low };
-                solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, tol, restart, max_iterations)
+                solve_refined_from(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, guess_product, tol, restart, max_iterations)
             }
             Effort::Normal => {
                 let ilu = self.ilu.as_ref().expect(factors);

@@ -117,7 +117,7 @@ pub struct BlockAcc<M: Scalar> {
 }
 
 impl<M: Scalar> BlockAcc<M> {
-    #[inline]
+    #[inline(always)]
     pub fn add<T: Scalar>(&mut self, a: &[M; BB], x: &[T]) {
         let x: [M; B] = [M::from_scalar(x[0]), M::from_scalar(x[1]), M::from_scalar(x[2]), M::from_scalar(x[3])];
         for r in 0..B {
@@ -128,30 +128,81 @@ impl<M: Scalar> BlockAcc<M> {
     }
 
     /// The four row sums, in f64.
-    #[inline]
+    #[inline(always)]
     pub fn sum(&self) -> [f64; B] {
         self.lanes.map(|l| (l[0] + l[1]).to_f64() + (l[2] + l[3]).to_f64())
     }
 }
 
 /// Block k of `vals` as a fixed-size array (one bounds check instead of sixteen).
-#[inline]
+#[inline(always)]
 pub fn block<M>(vals: &[M], k: usize) -> &[M; BB] {
     vals[k * BB..(k + 1) * BB].try_into().expect("16 values per block")
 }
 
+/// Runs `f` compiled for AVX2 and FMA where the CPU has them (checked at run time, so
+/// the binary still runs on any x86-64; the build's baseline has only SSE2). What `f`
+/// calls must be inlined into it (`#[inline(always)]`) to be compiled so. The results
+/// are the same bit for bit: Rust never contracts a * b + c into an FMA, so the wider
+/// registers only change how many lanes an operation works on at once.
+#[inline(always)]
+pub(crate) fn wide<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has the features `wide_x86` is compiled for.
+        return unsafe { wide_x86(f) };
+    }
+    f()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn wide_x86<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+/// Block rows per call of [`wide`] in the products.
+const ROWS_PER_CALL: usize = 64;
+
 /// y = A x for block values `vals` (row-major 4x4 per block) on `pattern`.
 pub fn spmv<M: Scalar, T: Scalar>(pattern: &BlockPattern, vals: &[M], x: &[T], y: &mut [T]) {
-    y.par_chunks_mut(B).enumerate().with_min_len(256).for_each(|(i, yi)| {
-        let mut acc = BlockAcc::<M>::default();
-        for k in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
-            let j = pattern.cols[k] as usize;
-            acc.add(block(vals, k), &x[j * B..(j + 1) * B]);
-        }
-        let s = acc.sum();
-        for r in 0..B {
-            yi[r] = T::from_f64(s[r]);
-        }
+    y.par_chunks_mut(B * ROWS_PER_CALL).enumerate().with_min_len(4).for_each(|(c, yc)| {
+        wide(#[inline(always)] || {
+            for (i, yi) in (c * ROWS_PER_CALL..).zip(yc.chunks_exact_mut(B)) {
+                let mut acc = BlockAcc::<M>::default();
+                for k in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
+                    let j = pattern.cols[k] as usize;
+                    acc.add(block(vals, k), &x[j * B..(j + 1) * B]);
+                }
+                let s = acc.sum();
+                for r in 0..B {
+                    yi[r] = T::from_f64(s[r]);
+                }
+            }
+        })
+    });
+}
+
+/// y = A x and w = A v in one pass over A, bit for bit two [`spmv`]s: reading the
+/// matrix is most of a product's cost.
+pub fn spmv2<M: Scalar, T: Scalar>(pattern: &BlockPattern, vals: &[M], x: &[T], y: &mut [T], v: &[T], w: &mut [T]) {
+    let n = B * ROWS_PER_CALL;
+    y.par_chunks_mut(n).zip(w.par_chunks_mut(n)).enumerate().with_min_len(4).for_each(|(c, (yc, wc))| {
+        wide(#[inline(always)] || {
+            for (i, (yi, wi)) in (c * ROWS_PER_CALL..).zip(yc.chunks_exact_mut(B).zip(wc.chunks_exact_mut(B))) {
+                let (mut ax, mut av) = (BlockAcc::<M>::default(), BlockAcc::<M>::default());
+                for k in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
+                    let j = pattern.cols[k] as usize;
+                    ax.add(block(vals, k), &x[j * B..(j + 1) * B]);
+                    av.add(block(vals, k), &v[j * B..(j + 1) * B]);
+                }
+                let (sx, sv) = (ax.sum(), av.sum());
+                for r in 0..B {
+                    yi[r] = T::from_f64(sx[r]);
+                    wi[r] = T::from_f64(sv[r]);
+                }
+            }
+        })
     });
 }
 
@@ -160,7 +211,7 @@ pub fn spmv<M: Scalar, T: Scalar>(pattern: &BlockPattern, vals: &[M], x: &[T], y
 const DOT_LANES: usize = 8;
 
 /// a . b over one slice pair, in f64 with [`DOT_LANES`] partial sums.
-#[inline]
+#[inline(always)]
 pub fn dot_serial<S: Scalar, T: Scalar>(a: &[S], b: &[T]) -> f64 {
     let mut lanes = [0.0f64; DOT_LANES];
     let (ac, bc) = (a.chunks_exact(DOT_LANES), b.chunks_exact(DOT_LANES));
