@@ -61,9 +61,11 @@ fn the_design_reports_the_hemodynamics_estimate_only_with_a_peak_flow() {
     assert!(dp.is_finite() && v > 70.0 / e["throat_area_mm2"].as_f64().unwrap(), "{e}"); // ml/s over mm2 is m/s
     assert!(e["dp_uncertainty"].as_str().unwrap().contains("p1-p3") && e["peak_flow_ml_s"] == 70.0, "{e}");
     assert!(String::from_utf8_lossy(&out.stdout).contains("estimate at peak flow 70.0 ml/s"));
-    // `baffle centerline` on the written domain estimates the same tunnel the same way.
+    // `baffle centerline` on the written domain, at the voxel the design's estimate says it
+    // traced on, estimates the same tunnel the same way.
+    let voxel_mm = e["centerline_voxel_mm"].as_f64().unwrap().to_string();
     let line = dir.join("flow").join("c.vtp");
-    let out = baffle(&["centerline", "--surface", dir.join("domain.vtp").to_str().unwrap(), "--peak-flow-ml-s", "70", "--out", line.to_str().unwrap()]);
+    let out = baffle(&["centerline", "--surface", dir.join("domain.vtp").to_str().unwrap(), "--peak-flow-ml-s", "70", "--voxel-mm", &voxel_mm, "--out", line.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let c = &serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(line.with_extension("json")).unwrap()).unwrap()["hemodynamics_estimate"];
     for key in ["dp_estimate_mmhg", "v_max_estimate_m_s", "throat_area_mm2", "vsd_area_mm2", "aortic_area_mm2"] {

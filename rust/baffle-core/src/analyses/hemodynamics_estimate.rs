@@ -116,6 +116,10 @@ pub struct HemodynamicsEstimate {
     pub method: String,
     /// Wall time of the estimate with the sections it needs (ms; 0 when given the sections).
     pub wall_time_ms: f64,
+    /// The voxel its centerline was traced on (mm; `lumen_voxel_mm`), where it traced one:
+    /// `baffle centerline --voxel-mm` with it re-makes the same sections.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub centerline_voxel_mm: Option<f64>,
 }
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg):
@@ -265,6 +269,7 @@ pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64
         peak_flow_ml_s: q_ml_s,
         method: METHOD.into(),
         wall_time_ms: 0.0,
+        centerline_voxel_mm: None,
     })
 }
 
@@ -303,7 +308,10 @@ impl EstimateOutcome {
         };
         let started = std::time::Instant::now();
         match tunnel_sections(domain, labels).and_then(|t| estimate(&t, q, blood)) {
-            Ok(e) => EstimateOutcome::Estimated(HemodynamicsEstimate { wall_time_ms: started.elapsed().as_secs_f64() * 1e3, ..e }),
+            Ok(e) => {
+                let (wall_time_ms, voxel_mm) = (started.elapsed().as_secs_f64() * 1e3, lumen_voxel_mm(e.vsd_area_mm2.min(e.aortic_area_mm2)));
+                EstimateOutcome::Estimated(HemodynamicsEstimate { wall_time_ms, centerline_voxel_mm: Some(voxel_mm), ..e })
+            }
             Err(why) => EstimateOutcome::Absent { absent_because: why },
         }
     }
