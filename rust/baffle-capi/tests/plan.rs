@@ -289,7 +289,7 @@ fn two_targets_are_refused_in_the_plans_words_before_any_stage_runs() {
     assert!(z_and_diameter.contains("--z-score -2 applies"), "{z_and_diameter}");
     // A bad area is the design's to name, before any stage too.
     let negative = refused(&|o| o.target_area_mm2 = -5.0, &mut watch);
-    assert!(negative.contains("the target area (mm2) = -5 must be a positive"), "{negative}");
+    assert!(negative.contains("target area: area (mm2) = -5 must be a positive"), "{negative}");
     assert!(watch.seen.is_empty(), "no stage ran: {:?}", watch.seen);
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "nothing written");
 }

@@ -284,8 +284,9 @@ fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     // The flow is BSA x cardiac index, and the design needs its target.
     flow_bsa_m2(args)?;
     let default_bsa = args.design.phantom.then(|| baffle_core::phantom::phantom_default().bsa_m2);
-    // A target area that cannot be computed (a negative diameter) is named now too.
-    target_from(&args.design.target, default_bsa)?.area_mm2().map_err(|e| format!("the target {e}"))?;
+    // A target area that cannot be computed (a negative diameter) is named now too, in the
+    // design's own words.
+    target_from(&args.design.target, default_bsa)?.area_mm2().map_err(|e| baffle_core::DesignError::Target(e).to_string())?;
     if let Some(hr) = args.hr {
         crate::case::heart_rate_bpm("--hr (heart rate)", hr)?;
     }
