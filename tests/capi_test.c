@@ -162,12 +162,23 @@ static void test_plan_options_and_case(void) {
   FILE *file;
   CHECK(baffle_plan_options_init(&options) == BAFFLE_STATUS_OK, "%s", baffle_last_error());
   CHECK(options.struct_size == sizeof options && options.mode == BAFFLE_PLAN_MODE_PULSATILE, "plan defaults");
+  /* The target fields appended after the first layout: not given (the BSA's annulus at z 0). */
+  CHECK(isnan(options.z_score) && isnan(options.target_area_mm2) && isnan(options.annulus_diameter_mm), "plan target defaults");
   options.phantom = 1;
   options.sbp_mmhg = 107;
   options.dbp_mmhg = 78;
   options.mode = BAFFLE_PLAN_MODE_QUICK;
   expect_error(baffle_plan(&options, NULL, NULL, NULL, &result), BAFFLE_STATUS_NULL_POINTER, "options.out_dir");
   CHECK(result == NULL, "no plan result after a failure");
+  /* Two targets are refused in the plan's words before any stage runs (nothing written). */
+  options.out_dir = "capi_test_two_targets";
+  options.target_area_mm2 = 120;
+  options.annulus_diameter_mm = 12;
+  expect_error(baffle_plan(&options, NULL, NULL, NULL, &result), BAFFLE_STATUS_INVALID_ARGUMENT, "give one target");
+  CHECK(result == NULL && fopen("capi_test_two_targets/report.json", "r") == NULL, "no plan of two targets");
+  options.out_dir = NULL;
+  options.target_area_mm2 = NAN;
+  options.annulus_diameter_mm = NAN;
   CHECK(baffle_plan_write_case(&options, "volume.vtu", "volume-faces.vtp", ".", &path) == BAFFLE_STATUS_OK, "%s",
         baffle_last_error());
   file = path ? fopen(path, "r") : NULL;

@@ -120,6 +120,10 @@ class PlanOptions(ctypes.Structure):
         ("elevated_flow", c_int32),
         ("flow_sections", c_int32),
         ("patient_label", c_char_p),
+        # Appended after the first layout: the design's target (NaN: not given).
+        ("z_score", c_double),
+        ("target_area_mm2", c_double),
+        ("annulus_diameter_mm", c_double),
     ]
 
 

@@ -122,6 +122,9 @@ def plan(
     points=None,
     phantom: bool = False,
     bsa_m2: Optional[float] = None,
+    z_score: Optional[float] = None,
+    target_area_mm2: Optional[float] = None,
+    annulus_diameter_mm: Optional[float] = None,
     sbp_mmhg: float,
     dbp_mmhg: float,
     heart_rate_bpm: Optional[float] = None,
@@ -141,7 +144,11 @@ def plan(
     The ventricle: `surface` (capped, labelled .vtp/.vtk/.stl) with `points` (suture points
     file), or `segmentations` (a folder of LV/RV/aorta surfaces, prepared first; the CFD
     then runs on the extended domain) with `points`, or `phantom=True`. `bsa_m2` (the
-    phantom's unless given) sets the target and the flow; `sbp_mmhg`/`dbp_mmhg` the outlet.
+    phantom's unless given) sets the flow and, at `z_score` (default 0), the target's
+    Boston annulus; or the target is `target_area_mm2` or `annulus_diameter_mm` (as
+    `baffle plan --target-area-mm2/--annulus-diameter-mm`; `bsa_m2` then sets the flow
+    only). Two targets (an area and a diameter, or either with a nonzero z_score) are
+    refused with BaffleError. `sbp_mmhg`/`dbp_mmhg` set the outlet.
     `mode`: "pulsatile" (over `cycles`), "quick" (rest to the first flow peak) or "steady".
     `single_mesh` skips the mesh study; `flow_sections` holds the flow-normal sections at
     the target too. Unset values are `baffle plan`'s defaults.
@@ -162,6 +169,9 @@ def plan(
         "single_mesh": int(bool(single_mesh)),
         "elevated_flow": int(bool(elevated_flow)),
         "flow_sections": int(bool(flow_sections)),
+        "z_score": z_score,
+        "target_area_mm2": target_area_mm2,
+        "annulus_diameter_mm": annulus_diameter_mm,
     }
     options = _plan_options(paths, values, mode)
     progress_bridge, cancel_bridge = _ProgressBridge(progress), _CancelBridge(cancel)

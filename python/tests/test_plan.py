@@ -4,6 +4,7 @@ options are named before any stage, and write_case() writes the plan's own CFD c
 The plan meshes with gmsh; BAFFLE_SKIP_GMSH=1 skips those tests."""
 
 import json
+import math
 import os
 
 import pytest
@@ -90,3 +91,30 @@ def test_flow_sections_reach_the_design(tmp_path):
     ruled = baffle.design(surface.points, surface.triangles, surface.labels, points, bsa_m2=bsa_m2, flow_sections=True)
     flow = ruled.report["flow_sections"]
     assert flow["goal_area_mm2"] == pytest.approx(plain.target_area_mm2) and len(flow["rounds"]) >= 1
+
+
+def _designed_target_mm2(out, **target):
+    """The quick phantom plan with `target`, stopped once its design is written: the
+    design report's target area (mm2)."""
+    design_report = out / "design" / "report.json"
+    with pytest.raises(baffle.Cancelled):
+        baffle.plan(out, cancel=design_report.exists, **QUICK, **target)
+    return json.loads(design_report.read_text())["target_area_mm2"]
+
+
+def test_the_plans_target_is_the_z_score_area_or_diameter_given(tmp_path):
+    z0 = _designed_target_mm2(tmp_path / "z0")
+    z1 = _designed_target_mm2(tmp_path / "z1", z_score=1)
+    assert z1 > z0
+    assert _designed_target_mm2(tmp_path / "area", bsa_m2=0.37, target_area_mm2=120) == 120
+    assert _designed_target_mm2(tmp_path / "diameter", annulus_diameter_mm=12) == pytest.approx(math.pi * 36)
+
+
+def test_two_targets_are_refused_with_the_librarys_words(tmp_path):
+    seen = []
+    with pytest.raises(baffle.BaffleError, match="give one target: --target-area-mm2 or --annulus-diameter-mm, not both") as error:
+        baffle.plan(tmp_path / "plan", progress=lambda f, s: seen.append(s), target_area_mm2=120, annulus_diameter_mm=12, **QUICK)
+    assert error.value.status == 2
+    with pytest.raises(baffle.BaffleError, match="--z-score 1 applies to the BSA's annulus"):
+        baffle.plan(tmp_path / "plan", z_score=1, target_area_mm2=120, **QUICK)
+    assert seen == [] and not (tmp_path / "plan").exists()

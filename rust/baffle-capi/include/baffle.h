@@ -280,7 +280,9 @@ typedef int32_t (*BaffleProgressFn)(double fraction, const char *stage, void *us
 /*
  Options of baffle_plan() and baffle_plan_write_case(). Fill with
  baffle_plan_options_init(), then set the ventricle, the suture points, the patient's
- numbers and the output folder. Strings are UTF-8 paths (NULL: not given), lengths in mm.
+ numbers, the target if not the BSA's annulus at z 0, and the output folder. Its first
+ field is the size the caller compiled against, so fields are appended in later
+ versions: a caller's older, shorter struct keeps the defaults of the newer fields. Strings are UTF-8 paths (NULL: not given), lengths in mm.
  */
 typedef struct BafflePlanOptions {
   /*
@@ -356,6 +358,23 @@ typedef struct BafflePlanOptions {
    How the report names the patient; NULL: the paper's id, or "not named".
    */
   const char *patient_label;
+  /*
+   Appended after the first layout (a caller compiled against it keeps these
+   defaults): the design's target, as the command line's --z-score,
+   --target-area-mm2 and --annulus-diameter-mm. bsa_m2 stays the flow's BSA.
+   The Boston annulus z-score of the target for bsa_m2; NaN (the default) or 0: z 0.
+   */
+  double z_score;
+  /*
+   Target cross-section area (mm2) instead of the BSA's annulus; NaN: not given.
+   */
+  double target_area_mm2;
+  /*
+   Target aortic annulus diameter (mm), A = pi (D/2)^2, instead of the BSA's annulus;
+   NaN: not given. Both this and target_area_mm2, or either with a nonzero z_score,
+   are refused (InvalidArgument), as the command line refuses them.
+   */
+  double annulus_diameter_mm;
 } BafflePlanOptions;
 
 /*
@@ -640,7 +659,7 @@ enum BaffleStatus baffle_plan_result_report_html_path(const struct BafflePlanRes
  for the volume mesh `mesh_volume_path` and its labelled faces `mesh_faces_path` (as
  `baffle mesh` writes them; relative paths are relative to case_dir), from the
  options' bsa_m2 (or the phantom's), blood pressure, heart rate, cardiac index, mode and
- cycles; the ventricle, points and out_dir are not used. The inflow is the VSD cap and
+ cycles; the ventricle, points, out_dir and the design's target are not used. The inflow is the VSD cap and
  the outflow the aortic cap of the designed domain (the plan's default labels). The
  case is checked as `baffle simulate` will check it (a bad blood pressure is
  InvalidArgument, named). `*out_case_path` (may be NULL) gets the written file's path

@@ -44,7 +44,9 @@ pub enum BaffleVerdict {
 
 /// Options of baffle_plan() and baffle_plan_write_case(). Fill with
 /// baffle_plan_options_init(), then set the ventricle, the suture points, the patient's
-/// numbers and the output folder. Strings are UTF-8 paths (NULL: not given), lengths in mm.
+/// numbers, the target if not the BSA's annulus at z 0, and the output folder. Its first
+/// field is the size the caller compiled against, so fields are appended in later
+/// versions: a caller's older, shorter struct keeps the defaults of the newer fields. Strings are UTF-8 paths (NULL: not given), lengths in mm.
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct BafflePlanOptions {
@@ -87,6 +89,17 @@ pub struct BafflePlanOptions {
     pub flow_sections: i32,
     /// How the report names the patient; NULL: the paper's id, or "not named".
     pub patient_label: *const c_char,
+    /// Appended after the first layout (a caller compiled against it keeps these
+    /// defaults): the design's target, as the command line's --z-score,
+    /// --target-area-mm2 and --annulus-diameter-mm. bsa_m2 stays the flow's BSA.
+    /// The Boston annulus z-score of the target for bsa_m2; NaN (the default) or 0: z 0.
+    pub z_score: f64,
+    /// Target cross-section area (mm2) instead of the BSA's annulus; NaN: not given.
+    pub target_area_mm2: f64,
+    /// Target aortic annulus diameter (mm), A = pi (D/2)^2, instead of the BSA's annulus;
+    /// NaN: not given. Both this and target_area_mm2, or either with a nonzero z_score,
+    /// are refused (InvalidArgument), as the command line refuses them.
+    pub annulus_diameter_mm: f64,
 }
 
 impl Default for BafflePlanOptions {
@@ -111,12 +124,16 @@ impl Default for BafflePlanOptions {
             elevated_flow: 0,
             flow_sections: 0,
             patient_label: std::ptr::null(),
+            z_score: f64::NAN,
+            target_area_mm2: f64::NAN,
+            annulus_diameter_mm: f64::NAN,
         }
     }
 }
 
-/// The first published layout is the whole struct.
-const PLAN_V1_SIZE: usize = std::mem::size_of::<BafflePlanOptions>();
+/// Size of the first published layout (up to patient_label); any caller struct is at
+/// least this long, and the fields after it keep their defaults for such a caller.
+const PLAN_V1_SIZE: usize = std::mem::offset_of!(BafflePlanOptions, z_score);
 
 /// Fill `out_options` with the plan's defaults and struct_size (no ventricle, no blood
 /// pressure, no output folder: the caller sets them).
@@ -163,6 +180,11 @@ unsafe fn plan_settings(o: &BafflePlanOptions) -> Result<PlanSettings, CallError
     s.design.phantom = o.phantom != 0;
     s.design.out = optional_path(o.out_dir, "options.out_dir")?.unwrap_or_default();
     s.design.target.bsa = optional_f64(o.bsa_m2);
+    // The target as the command line sets it; contradictions are the plan's to refuse
+    // (plan_stages, with its own words).
+    s.design.target.z_score = optional_f64(o.z_score).unwrap_or(s.design.target.z_score);
+    s.design.target.target_area_mm2 = optional_f64(o.target_area_mm2);
+    s.design.target.annulus_diameter_mm = optional_f64(o.annulus_diameter_mm);
     s.design.flow_sections = o.flow_sections != 0;
     s.cardiac_index = o.cardiac_index_l_min_m2;
     s.cycles = o.cycles as usize;
@@ -402,7 +424,7 @@ pub unsafe extern "C" fn baffle_plan_result_report_html_path(result: *const Baff
 /// for the volume mesh `mesh_volume_path` and its labelled faces `mesh_faces_path` (as
 /// `baffle mesh` writes them; relative paths are relative to case_dir), from the
 /// options' bsa_m2 (or the phantom's), blood pressure, heart rate, cardiac index, mode and
-/// cycles; the ventricle, points and out_dir are not used. The inflow is the VSD cap and
+/// cycles; the ventricle, points, out_dir and the design's target are not used. The inflow is the VSD cap and
 /// the outflow the aortic cap of the designed domain (the plan's default labels). The
 /// case is checked as `baffle simulate` will check it (a bad blood pressure is
 /// InvalidArgument, named). `*out_case_path` (may be NULL) gets the written file's path

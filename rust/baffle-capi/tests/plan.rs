@@ -228,3 +228,68 @@ fn the_case_a_front_end_writes_is_the_plans() {
     assert_eq!(status, BaffleStatus::InvalidArgument);
     assert!(last_error().contains("--bsa"), "{}", last_error());
 }
+
+/// The quick phantom plan of `edit`, stopped once its design is written: the design
+/// report's target area (mm2).
+fn designed_target_mm2(name: &str, edit: impl FnOnce(&mut BafflePlanOptions)) -> f64 {
+    let out = temp_dir(name);
+    let out_c = c_path(&out);
+    let mut options = quick_phantom(&out_c);
+    edit(&mut options);
+    let mut watch = Watch { stop_when: Some(out.join("design").join("report.json")), ..Watch::default() };
+    let (status, result) = run(&options, &mut watch);
+    assert_eq!(status, BaffleStatus::Cancelled, "{}", last_error());
+    assert!(result.is_null());
+    let report = read_json(&out.join("design").join("report.json"));
+    report["target_area_mm2"].as_f64().unwrap_or_else(|| panic!("no target_area_mm2 in {report}"))
+}
+
+#[test]
+fn the_target_options_reach_the_design_and_an_older_struct_keeps_the_bsa_target() {
+    // NaN/0 z-score, no area, no diameter: the phantom's BSA at z 0, as before.
+    let z0 = designed_target_mm2("target-default", |_| {});
+    let z1 = designed_target_mm2("target-z1", |o| o.z_score = 1.0);
+    assert!(z1 > z0, "z 1 ({z1} mm2) is larger than z 0 ({z0} mm2)");
+    assert_eq!(designed_target_mm2("target-z0", |o| o.z_score = 0.0), z0);
+    assert_eq!(designed_target_mm2("target-area", |o| (o.bsa_m2, o.target_area_mm2) = (0.37, 120.0)), 120.0);
+    let d = 12.0_f64;
+    let by_diameter = designed_target_mm2("target-diameter", |o| o.annulus_diameter_mm = d);
+    assert!((by_diameter - std::f64::consts::PI * (d / 2.0).powi(2)).abs() < 1e-9, "{by_diameter}");
+    // A caller compiled against the first layout (up to patient_label): the bytes after
+    // it are not read, so whatever lies there leaves the target at the BSA's z 0.
+    let old = std::mem::offset_of!(BafflePlanOptions, z_score) as u32;
+    assert_eq!(old as usize, std::mem::offset_of!(BafflePlanOptions, patient_label) + std::mem::size_of::<*const c_char>());
+    let older = designed_target_mm2("target-older", |o| (o.struct_size, o.z_score, o.target_area_mm2) = (old, 3.0, 999.0));
+    assert_eq!(older, z0);
+    // One byte short of the first layout is not a layout this library knows.
+    let out = temp_dir("target-short");
+    let out_c = c_path(&out);
+    let mut options = quick_phantom(&out_c);
+    options.struct_size = old - 8;
+    assert_eq!(run(&options, &mut Watch::default()).0, BaffleStatus::UnsupportedVersion);
+    assert!(last_error().contains(&format!("takes {old}..")), "{}", last_error());
+}
+
+#[test]
+fn two_targets_are_refused_in_the_plans_words_before_any_stage_runs() {
+    let out = temp_dir("two-targets");
+    let out_c = c_path(&out);
+    let mut watch = Watch::default();
+    let refused = |edit: &dyn Fn(&mut BafflePlanOptions), watch: &mut Watch| {
+        let mut options = quick_phantom(&out_c);
+        edit(&mut options);
+        assert_eq!(run(&options, watch).0, BaffleStatus::InvalidArgument);
+        last_error()
+    };
+    let both = refused(&|o| (o.target_area_mm2, o.annulus_diameter_mm) = (120.0, 12.0), &mut watch);
+    assert!(both.contains("give one target: --target-area-mm2 or --annulus-diameter-mm, not both"), "{both}");
+    let z_and_area = refused(&|o| (o.target_area_mm2, o.z_score) = (120.0, 1.0), &mut watch);
+    assert!(z_and_area.contains("--z-score 1 applies to the BSA's annulus"), "{z_and_area}");
+    let z_and_diameter = refused(&|o| (o.annulus_diameter_mm, o.z_score) = (12.0, -2.0), &mut watch);
+    assert!(z_and_diameter.contains("--z-score -2 applies"), "{z_and_diameter}");
+    // A bad area is the design's to name, before any stage too.
+    let negative = refused(&|o| o.target_area_mm2 = -5.0, &mut watch);
+    assert!(negative.contains("target area: area (mm2) = -5 must be a positive"), "{negative}");
+    assert!(watch.seen.is_empty(), "no stage ran: {:?}", watch.seen);
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "nothing written");
+}

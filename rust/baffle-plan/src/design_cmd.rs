@@ -142,8 +142,20 @@ impl From<Frame> for CoordinateSystem {
 }
 
 /// The target area the arguments give (`default_bsa_m2`, the phantom's, when none does).
+/// A given area or diameter is the target (a BSA beside it is then the flow's only, in
+/// `baffle plan`); both of them, or either with a nonzero z-score (which would not change
+/// it), contradict each other and are refused, as the command line's argument groups do,
+/// for the callers that fill the settings themselves (the C ABI).
 pub fn target_from(args: &TargetSettings, default_bsa_m2: Option<f64>) -> Result<TargetArea, String> {
     let z_score = args.z_score;
+    if args.target_area_mm2.is_some() && args.annulus_diameter_mm.is_some() {
+        return Err("give one target: --target-area-mm2 or --annulus-diameter-mm, not both".into());
+    }
+    if z_score != 0.0 && (args.target_area_mm2.is_some() || args.annulus_diameter_mm.is_some()) {
+        return Err(format!(
+            "--z-score {z_score} applies to the BSA's annulus; it would not change a given --target-area-mm2 or --annulus-diameter-mm (give one target)"
+        ));
+    }
     if let Some(a) = args.target_area_mm2 {
         return Ok(TargetArea::AreaMm2(a));
     }

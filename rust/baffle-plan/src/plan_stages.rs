@@ -284,7 +284,9 @@ fn check_arguments(args: &PlanSettings) -> Result<(), String> {
     // The flow is BSA x cardiac index, and the design needs its target.
     flow_bsa_m2(args)?;
     let default_bsa = args.design.phantom.then(|| baffle_core::phantom::phantom_default().bsa_m2);
-    target_from(&args.design.target, default_bsa)?;
+    // A target area that cannot be computed (a negative diameter) is named now too, in the
+    // design's own words.
+    target_from(&args.design.target, default_bsa)?.area_mm2().map_err(|e| baffle_core::DesignError::Target(e).to_string())?;
     if let Some(hr) = args.hr {
         crate::case::heart_rate_bpm("--hr (heart rate)", hr)?;
     }
@@ -372,6 +374,22 @@ mod tests {
         let error = |bp| plan_stages(&plan(|a| (a.design.surface = Some("capped.vtp".into()), a.bp = bp).1)).unwrap_err().to_string();
         assert!(error((78.0, 107.0)).contains("DBP 107 mmHg exceeds SBP 78 mmHg"), "{}", error((78.0, 107.0)));
         assert!(error((f64::NAN, 78.0)).starts_with("--bp NaN/78"), "{}", error((f64::NAN, 78.0)));
+    }
+
+    #[test]
+    fn a_given_area_or_diameter_is_the_target_beside_the_flows_bsa_and_two_targets_are_refused() {
+        let surface = |a: &mut PlanSettings| a.design.surface = Some("capped.vtp".into());
+        // --bsa stays the flow's: the area or the diameter alone is the target.
+        assert!(plan_stages(&plan(|a| (surface(a), a.design.target.target_area_mm2 = Some(200.0)).1)).is_ok());
+        assert!(plan_stages(&plan(|a| (surface(a), a.design.target.annulus_diameter_mm = Some(16.0)).1)).is_ok());
+        assert!(plan_stages(&plan(|a| (surface(a), a.design.target.z_score = 1.5).1)).is_ok());
+        let error = |edit: fn(&mut PlanSettings)| plan_stages(&plan(|a| (surface(a), edit(a)).1)).unwrap_err().to_string();
+        let both = error(|a| (a.design.target.target_area_mm2, a.design.target.annulus_diameter_mm) = (Some(200.0), Some(16.0)));
+        assert!(both.contains("give one target: --target-area-mm2 or --annulus-diameter-mm, not both"), "{both}");
+        let z_and_area = error(|a| (a.design.target.target_area_mm2, a.design.target.z_score) = (Some(200.0), 1.0));
+        assert!(z_and_area.contains("--z-score 1 applies to the BSA's annulus"), "{z_and_area}");
+        let z_and_diameter = error(|a| (a.design.target.annulus_diameter_mm, a.design.target.z_score) = (Some(16.0), -1.0));
+        assert!(z_and_diameter.contains("--z-score -1 applies"), "{z_and_diameter}");
     }
 
     #[test]

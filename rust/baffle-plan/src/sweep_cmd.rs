@@ -254,7 +254,8 @@ fn plan_args(args: &SweepSettings, row_dir: &Path, target_area_mm2: f64) -> Plan
     let mut design = args.design.clone();
     design.out = row_dir.to_path_buf();
     if target_area_mm2.is_finite() {
-        design.target.target_area_mm2 = Some(target_area_mm2);
+        // The row's area is the whole target: its z-score (if any) already made it.
+        design.target = TargetSettings { target_area_mm2: Some(target_area_mm2), annulus_diameter_mm: None, z_score: 0.0, ..design.target };
     }
     let c = &args.cfd;
     PlanSettings {

@@ -42,26 +42,33 @@ def folder_name(curve_name: str) -> str:
 
 
 def plan_kwargs(parameters: "candidate.DesignParameters", single_mesh: bool, patient_label: str) -> dict:
-    """baffle.plan()'s options from the candidate's parameters. The library's plan call
-    (the C ABI's BafflePlanOptions, baffle.plan) takes the target as a BSA only, at z-score
-    0 (the command line's `baffle plan` has --z-score, --target-area-mm2 and
-    --annulus-diameter-mm; the C ABI does not yet): an explicit area or diameter, or another
-    z-score, is refused rather than planned for a target the candidate does not have."""
-    parameters.validate()
-    if parameters.target_mode not in ("bsa", "height_weight") or parameters.z_score != 0.0:
-        target = (parameters.target_mode if parameters.target_mode in ("area", "diameter")
-                  else f"z-score {parameters.z_score:g}")
-        raise candidate.BaffleDesignerError(
-            f"the whole plan designs for the BSA at z-score 0 (the library's plan call takes no other target yet), not for {target}: "
-            "choose BSA or height and weight with z-score 0, or use Design and Simulate")
+    """baffle.plan()'s options from the candidate's parameters: the CFD inputs as Simulate
+    uses them (bsa_m2 is the flow's: the BSA, or Haycock's from height and weight), and the
+    panel's target as the live design uses it (design_kwargs): the z-score of the BSA's
+    annulus, or the explicit area or diameter (the plan's --z-score, --target-area-mm2,
+    --annulus-diameter-mm). Height and weight reach the plan as their Haycock BSA, the
+    design's own formula, so the annulus is the same."""
+    target = plan_target(parameters)
     case = parameters.case_kwargs()  # checks the CFD inputs as Simulate does
     return {
         **case,
+        **target,
         "edge_length_mm": parameters.mesh_edge_length_mm,
         "single_mesh": bool(single_mesh),
         "flow_sections": bool(parameters.flow_sections),
         "patient_label": patient_label,
     }
+
+
+# The live design's target arguments the plan takes as its own (the body size is the flow's
+# bsa_m2 there).
+PLAN_TARGET_KEYS = ("z_score", "target_area_mm2", "annulus_diameter_mm")
+
+
+def plan_target(parameters: "candidate.DesignParameters") -> dict:
+    """The design's target (validated) as baffle.plan's target arguments."""
+    target = parameters.design_kwargs()
+    return {key: float(target[key]) for key in PLAN_TARGET_KEYS if key in target}
 
 
 def write_surface_lps(polydata: vtk.vtkPolyData, path: str) -> str:

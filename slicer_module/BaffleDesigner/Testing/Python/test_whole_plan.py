@@ -3,8 +3,8 @@ a quick plan on the phantom (one coarse mesh, rest to the first flow peak) from 
 under a transform, whose verdict, dp and threshold arrive on the parameter node and the
 curve as the library gave them and whose geometry loads back onto the design; a cancel
 after the design (the design's folder kept, reported cancelled, not failed); the library's
-error in its own words; the targets the plan cannot design for, refused before it
-starts; and p2's segmentation planned from its segments (patient data: skipped without it,
+error in its own words; the panel's target (z-score, area or diameter) reaching the
+plan's design as the live design uses it; and p2's segmentation planned from its segments (patient data: skipped without it,
 failed under CI=true). The plan meshes with gmsh: without it the runs skip."""
 
 import json
@@ -122,19 +122,40 @@ def test_the_librarys_error_in_its_own_words(scene, tmp_path):
     assert not (tmp_path / "bad").exists()
 
 
-@pytest.mark.parametrize("change, named", [
-    (dict(target_mode="area", target_area_mm2=70.0), "not for area"),
-    (dict(target_mode="diameter"), "not for diameter"),
-    (dict(z_score=1.0), "not for z-score 1"),
+def designed_by_the_plan(logic, curve, out):
+    """The candidate's plan started and cancelled once its design is written (no mesh or
+    CFD: seconds): the plan's design report."""
+    job = logic.startPlan(curve, str(out), single_mesh=True)
+    job.wait(timeout=300, until=lambda: (out / "design" / "report.json").exists())
+    job.cancel()
+    job.wait(timeout=300)
+    assert (out / "design" / "report.json").is_file(), job.message
+    return json.loads((out / "design" / "report.json").read_text())
+
+
+@pytest.mark.parametrize("change", [
+    dict(target_mode="area", target_area_mm2=70.0),
+    dict(target_mode="diameter", annulus_diameter_mm=9.4),
+    dict(target_mode="diameter", annulus_diameter_mm=9.4, z_score=1.0),  # the z-score is the BSA's only, as in the live design
+    dict(z_score=1.0),
+    dict(target_mode="height_weight", height_cm=60.0, weight_kg=6.0, z_score=-1.0),
 ])
-def test_a_target_the_plan_cannot_design_for_is_refused_before_it_starts(scene, tmp_path, change, named):
+def test_the_panels_target_reaches_the_plan_as_the_live_design_uses_it(scene, tmp_path, change):
     _, logic, _, curve = phantom_candidate(scene)
     parameters = logic.parameters(curve)
     for name, value in change.items():
         setattr(parameters, name, value)
-    job = logic.startPlan(curve, str(tmp_path / "plan"), parameters=parameters)
-    assert job.state == process.FAILED and named in job.message and "the library's plan call takes no other target yet" in job.message
-    assert not (tmp_path / "plan").exists()
+    logic.setParameters(curve, parameters)
+    design_report = designed_by_the_plan(logic, curve, tmp_path / "plan")
+    logic.design(curve)  # the same candidate designed live in the scene
+    assert design_report["target_area_mm2"] == pytest.approx(float(attribute(curve, "TargetAreaMm2")), rel=1e-9)
+    if change.get("target_mode") == "area":
+        assert design_report["target_area_mm2"] == 70.0
+    if change.get("z_score", 0.0) > 0 and change.get("target_mode", "bsa") == "bsa":  # above the BSA's z 0
+        z0 = bdcandidate.DesignParameters(bsa_m2=parameters.bsa_m2)
+        logic.setParameters(curve, z0)
+        logic.design(curve)
+        assert design_report["target_area_mm2"] > float(attribute(curve, "TargetAreaMm2"))
 
 
 def test_the_plans_folder_is_named_after_the_curve():

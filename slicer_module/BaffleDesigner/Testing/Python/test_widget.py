@@ -449,17 +449,30 @@ def test_run_whole_plan_shows_the_librarys_error(widget, tmp_path):
     assert w.logic.parameterNode().GetAttribute("BaffleDesigner.PlanStatus") == "failed"
 
 
-def test_run_whole_plan_refuses_a_target_it_cannot_design_for(widget):
+def test_run_whole_plan_designs_for_the_panels_explicit_area(widget):
+    """An explicit area in the panel is the plan's target (its design report holds it);
+    cancelled once the design is written, so no mesh or CFD runs."""
+    import json
+
     w = widget
-    model, curve, _ = phantom_candidate()
+    require_cfd(w)
+    model, curve, bsa = phantom_candidate()
     w.ui.surfaceSelector.setCurrentNode(model)
     w.ui.curveSelector.setCurrentNode(curve)
-    w.ui.targetModeComboBox.currentIndex = 2  # an explicit area
-    before = set(os.listdir(slicer.app.temporaryPath))
+    w.ui.targetModeComboBox.currentIndex = bdcandidate().TARGET_MODES.index("area")
+    w.ui.areaSpinBox.value = 65.0
+    w.ui.bsaSpinBox.value = bsa  # the flow's BSA
+    w.ui.systolicSpinBox.value, w.ui.diastolicSpinBox.value = 107.0, 78.0
+    w.ui.flowModeComboBox.currentIndex = bdcandidate().FLOW_MODES.index("quick")
+    w.ui.planSingleMeshCheckBox.checked = True
     w.ui.runPlanButton.click()
-    assert w.run is None and w.ui.runPlanButton.enabled
-    assert w.ui.statusLabel.text.startswith("Run whole plan: the plan could not start: the whole plan designs for the BSA")
-    assert set(os.listdir(slicer.app.temporaryPath)) == before  # no folder left behind
+    assert w.run is not None and w.runKind == "whole plan", w.ui.statusLabel.text
+    folder = Path(w.run.out_dir)
+    wait_run(w, 300, until=lambda: (folder / "design" / "report.json").exists())
+    if w.run is not None:
+        w.ui.cancelButton.click()
+        wait_run(w, 300)
+    assert json.loads((folder / "design" / "report.json").read_text())["target_area_mm2"] == 65.0
 
 
 def test_cancel_a_whole_plan_in_the_panel(widget):
