@@ -144,7 +144,7 @@
 //! from two updates (10 iterations at half the tolerance, error 7.6e-6 rms): the better
 //! the guess, the more error the residual test leaves where the residual hardly sees it.
 //!
-//! Eighth session (issue 28 item 4, 2026-12-05, same case; `perf record` of the run: the
+//! AVX2 kernels (issue 28 item 4, same case; `perf record` of the run: the
 //! assembly ~34 % of the CPU samples, ILU(0) sweeps 17 %, block products 20 % (f32 14,
 //! f64 6), the coarse level ~11 %, Gram-Schmidt 5 %, the main thread alone 7 % while the
 //! other core waited). The hot kernels (block products, ILU(0) sweeps, Gram-Schmidt,
@@ -156,7 +156,10 @@
 //! build interleaved, load 5-6 from other jobs (binaries of 0c23a60 and e1f4389): wall
 //! median 9.72 -> 7.76 s (paired ratio 0.858, 0.70-1.09), CPU time 6.95 -> 5.97 s (paired
 //! 0.890, 0.835-0.927); dp at step 60 +1e-10 mmHg (the coarse level's sums in another
-//! order); 170 steps: peak dp 6.150023529 mmHg, -2.9e-10.
+//! order); 170 steps: peak dp 6.150023529 mmHg, -2.9e-10. Quiet machine (load < 2.5), 10
+//! runs interleaved, binaries of 0c23a60 and abda88d: 4.92 -> 4.35 s (paired 0.88,
+//! 0.68-1.09); svMultiPhysics on the same 60 steps in the same sitting, 2 ranks: 196.8 s,
+//! 45 times ours (docs/validation.md).
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
