@@ -420,26 +420,10 @@ const MIN_ROUND_REDUCTION: f64 = 0.5;
 ///
 /// `x` holds the initial guess (zeros: none). The target stays relative to ||b||, and
 /// from a guess it is [`GUESS_TOLERANCE_FACTOR`] times tighter; a guess whose residual
-/// is not below ||b|| is dropped for zero.
+/// is not below ||b|| is dropped for zero. `guess_product` is A x of that guess when the
+/// caller has it (the solver forms it in the same pass over the matrix as its residual).
 #[allow(clippy::too_many_arguments)]
 pub fn solve_refined(
-    apply_a: &dyn Fn(&[f64], &mut [f64]),
-    apply_m: &dyn Preconditioner<f64>,
-    apply_a_low: &dyn Fn(&[f32], &mut [f32]),
-    apply_m_low: &dyn Preconditioner<f32>,
-    b: &[f64],
-    x: &mut [f64],
-    tol: f64,
-    restart: usize,
-    max_iterations: usize,
-) -> GmresOutcome {
-    solve_refined_from(apply_a, apply_m, apply_a_low, apply_m_low, b, x, None, tol, restart, max_iterations)
-}
-
-/// [`solve_refined`] given A x of the guess `x` when the caller has it (`guess_product`;
-/// the solver forms it in the same pass over the matrix as its residual).
-#[allow(clippy::too_many_arguments)]
-pub fn solve_refined_from(
     apply_a: &dyn Fn(&[f64], &mut [f64]),
     apply_m: &dyn Preconditioner<f64>,
     apply_a_low: &dyn Fn(&[f32], &mut [f32]),
@@ -574,6 +558,7 @@ mod tests {
             &ilu,
             &b,
             &mut x,
+            None,
             1e-11,
             30,
             500,
@@ -586,7 +571,7 @@ mod tests {
         let err = x.iter().zip(&x_true).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(err < 1e-6, "max error {err}");
         // A zero right-hand side needs no iteration.
-        let out = solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &ilu, &|v, y| spmv(&pattern, &vals_low, v, y), &ilu, &vec![0.0; n * B], &mut x, 1e-8, 30, 500);
+        let out = solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &ilu, &|v, y| spmv(&pattern, &vals_low, v, y), &ilu, &vec![0.0; n * B], &mut x, None, 1e-8, 30, 500);
         assert_eq!((out.iterations, out.converged), (0, true));
         assert!(x.iter().all(|&v| v == 0.0));
     }
@@ -601,7 +586,7 @@ mod tests {
         spmv(&pattern, &vals, &x_true, &mut b);
         let ilu = BlockIlu::<f32>::factor(&pattern, &vals, partitions(&pattern, 2)).unwrap();
         let solve = |x: &mut Vec<f64>| {
-            solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &ilu, &|v, y| spmv(&pattern, &vals_low, v, y), &ilu, &b, x, 1e-4, 30, 500)
+            solve_refined(&|v, y| spmv(&pattern, &vals, v, y), &ilu, &|v, y| spmv(&pattern, &vals_low, v, y), &ilu, &b, x, None, 1e-4, 30, 500)
         };
         let true_rel = |x: &[f64]| {
             let mut ax = vec![0.0; n * B];

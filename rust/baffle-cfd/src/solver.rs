@@ -173,7 +173,7 @@ use rayon::prelude::*;
 use crate::assembly::{Assembler, Physics};
 use crate::boundary::{boundary_triangles, face_geometries, FaceGeometry, FaceKind};
 use crate::coarse::{aggregate, aggregate_size, Aggregates, CoarseCorrection, ProlongedOperator};
-use crate::linear::{gmres, partitions, solve_refined_from, BlockIlu, GmresOutcome, Preconditioner};
+use crate::linear::{gmres, partitions, solve_refined, BlockIlu, GmresOutcome, Preconditioner};
 use crate::flow_mesh::{element_faces, tri_key, Face, FlowMesh};
 use crate::settings::{CaseSettings, InflowProfile, NonlinearIterations, RunMode};
 use crate::time_integration::TimeIntegration;
@@ -981,7 +981,7 @@ impl<'a> Solver<'a> {
                 let apply_a_low = |v: &[f32], y: &mut [f32]| Self::apply_operator(problem, vals_low, v, y);
                 let apply_m = TwoLevel { ilu, coarse, apply_a: &apply_a };
                 let apply_m_low = TwoLevel { ilu, coarse, apply_a: &apply_a_low };
-                solve_refined_from(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, guess_product, tol, restart, max_iterations)
+                solve_refined(&apply_a, &apply_m, &apply_a_low, &apply_m_low, r, dx, guess_product, tol, restart, max_iterations)
             }
             Effort::Normal => {
                 let ilu = self.ilu.as_ref().expect(factors);
