@@ -154,17 +154,22 @@ pub struct TimeSpec {
     pub steady_max_iterations: Option<usize>,
     /// The discrete method's ingredients, for comparing it with svMultiPhysics one at a
     /// time (docs/validation.md, issue 28): tau's metric "svmultiphysics" (default) or
-    /// "invariant" (`baffle_cfd::assembly::TauMetric`), the Galerkin convection
-    /// "centroid" (default) or "exact", VMS advection by a + u' (default false), the
-    /// viscous term "laplacian" (default) or "stress", the stabilization's quadrature
-    /// "centroid" (default) or "gauss" (four points, as svMultiPhysics), svMultiPhysics'
-    /// VMS Reynolds-stress term (default false).
+    /// "invariant" (`baffle_cfd::assembly::TauMetric`), the Galerkin convection "exact"
+    /// (default) or "centroid", VMS advection by a + u' (default true), the viscous term
+    /// "laplacian" (default) or "stress", the stabilization's quadrature "gauss" (default:
+    /// four points, as svMultiPhysics) or "centroid", svMultiPhysics' VMS Reynolds-stress
+    /// term (default true). These switch the embedded engine only: an export to
+    /// svMultiPhysics runs its own method.
     pub tau_metric: Option<String>,
     pub convection: Option<String>,
     pub vms_advection: Option<bool>,
     pub viscous_form: Option<String>,
     pub stabilization_quadrature: Option<String>,
     pub vms_reynolds_stress: Option<bool>,
+    /// Whether tau holds the time step (default true, svMultiPhysics' 4 (C_t/dt)^2): the
+    /// discrete problem then changes with dt at a fixed mesh; false keeps tau's flow and
+    /// mesh scales only, so a dt study sees the time scheme's own error.
+    pub tau_includes_dt: Option<bool>,
 }
 
 impl Default for TimeSpec {
@@ -190,6 +195,7 @@ impl Default for TimeSpec {
             viscous_form: None,
             stabilization_quadrature: None,
             vms_reynolds_stress: None,
+            tau_includes_dt: None,
         }
     }
 }
@@ -415,6 +421,9 @@ fn formulation(t: &TimeSpec, s: &mut CaseSettings) -> Result<(), String> {
     if let Some(v) = t.vms_reynolds_stress {
         s.formulation.vms_reynolds_stress = v;
     }
+    if let Some(v) = t.tau_includes_dt {
+        s.tau_includes_dt = v;
+    }
     if let Some(k) = pick("viscous_form", &t.viscous_form, &["laplacian", "stress"])? {
         s.formulation.stress_viscosity = k == 1;
     }
@@ -582,6 +591,8 @@ mod tests {
         assert_eq!(ingredients(&d), (baffle_cfd::assembly::TauMetric::SvMultiPhysics, true, true, false, true, true));
         let (s, _) = with("\"tau_metric\": \"invariant\", \"convection\": \"centroid\", \"vms_advection\": false, \"viscous_form\": \"stress\", \"stabilization_quadrature\": \"centroid\", \"vms_reynolds_stress\": false").unwrap();
         assert_eq!(ingredients(&s), (baffle_cfd::assembly::TauMetric::Invariant, false, false, true, false, false));
+        assert!(d.tau_includes_dt, "tau holds dt by default, as svMultiPhysics");
+        assert!(!with("\"tau_includes_dt\": false").unwrap().0.tau_includes_dt);
         let e = with("\"tau_metric\": \"shakib\"").unwrap_err();
         assert!(e.contains("time.tau_metric 'shakib': expected invariant or svmultiphysics"), "{e}");
         assert!(with("\"viscous_form\": \"full\"").unwrap_err().contains("expected laplacian or stress"));
