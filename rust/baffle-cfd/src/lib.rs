@@ -27,7 +27,7 @@ mod test_data;
 
 pub use error::CfdError;
 pub use flow_mesh::{Face, FlowMesh, ValidationReport};
-pub use settings::{CaseSettings, InflowProfile, NonlinearIterations, Outlet, RunMode, AUTO_NONLINEAR_CAP, TWO_LEVEL_AGGREGATE_NODES};
+pub use settings::{CaseSettings, InflowProfile, NonlinearIterations, Outlet, RunMode, AUTO_NONLINEAR_CAP, SVMULTIPHYSICS_FORMULATION, TWO_LEVEL_AGGREGATE_NODES};
 pub use solver::{simulate, simulate_from, FaceResult, Run, SolverState, SteadyProgress, StepResult, StepView, Summary, Timings};
 pub use periodicity::periodicity_nrmsd;
 pub use time_integration::{TimeIntegration, DEFAULT_RHO_INF};

@@ -116,6 +116,20 @@ pub struct CaseSettings {
     pub steady_tolerance: f64,
 }
 
+/// svMultiPhysics' method, the solver's default (issue 28): with tau's metric alone our dp
+/// was 7.3 % below svMultiPhysics' at p3's first peak on the same mesh; the Reynolds-stress
+/// term closes most of it (-2.2 %), Gauss-point stabilization and exact convection the rest
+/// (+0.0 %), VMS advection keeps the jet's kinetic energy at the aortic plane (v_max -0.6
+/// %); docs/validation.md. An export to svMultiPhysics runs this method and tau with dt.
+pub const SVMULTIPHYSICS_FORMULATION: Formulation = Formulation {
+    tau_metric: TauMetric::SvMultiPhysics,
+    exact_convection: true,
+    vms_advection: true,
+    stress_viscosity: false,
+    gauss_stabilization: true,
+    vms_reynolds_stress: true,
+};
+
 impl CaseSettings {
     /// Paper defaults: rho 1.06, mu 0.04, dt 1 ms, 4 cycles, linear tolerance 1e-4,
     /// backflow stabilization 0.2.
@@ -134,19 +148,7 @@ impl CaseSettings {
             mode: RunMode::Transient,
             time_integration: TimeIntegration::BackwardEuler,
             tau_includes_dt: true,
-            // svMultiPhysics' VMS in full (issue 28): with tau's metric alone our dp was
-            // 7.3 % below svMultiPhysics' at p3's first peak on the same mesh; the
-            // Reynolds-stress term closes most of it (-2.2 %), Gauss-point stabilization and
-            // exact convection the rest (+0.0 %), VMS advection keeps the jet's kinetic
-            // energy at the aortic plane (v_max -0.6 %); docs/validation.md.
-            formulation: Formulation {
-                tau_metric: TauMetric::SvMultiPhysics,
-                exact_convection: true,
-                vms_advection: true,
-                stress_viscosity: false,
-                gauss_stabilization: true,
-                vms_reynolds_stress: true,
-            },
+            formulation: SVMULTIPHYSICS_FORMULATION,
             nonlinear_iterations: None,
             nonlinear_tolerance: 1e-3,
             // GMRES(30): on tubes of 9.7k-622k tets 4-10 % fewer iterations and 10-17 % less

@@ -159,7 +159,7 @@ pub struct TimeSpec {
     /// "laplacian" (default) or "stress", the stabilization's quadrature "gauss" (default:
     /// four points, as svMultiPhysics) or "centroid", svMultiPhysics' VMS Reynolds-stress
     /// term (default true). These switch the embedded engine only: an export to
-    /// svMultiPhysics runs its own method.
+    /// svMultiPhysics refuses a case that sets them away from its method.
     pub tau_metric: Option<String>,
     pub convection: Option<String>,
     pub vms_advection: Option<bool>,

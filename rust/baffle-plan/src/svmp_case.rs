@@ -10,8 +10,6 @@ use baffle_svmp::{export_case, CaseManifest, ExportOptions, ExportedCase};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
-/// first step); [`inflow_line`] says how the inflow was fitted.
 /// svMultiPhysics always integrates by generalized-alpha: a case that chose it keeps its
 /// rho_inf, a backward-Euler case gets svMultiPhysics' default.
 fn spectral_radius(settings: &CaseSettings) -> f64 {
@@ -21,6 +19,25 @@ fn spectral_radius(settings: &CaseSettings) -> f64 {
     }
 }
 
+/// svMultiPhysics runs its own method: a case that switched the embedded engine's
+/// ingredients (`time.tau_metric` ... `time.tau_includes_dt`) would be run as another
+/// method than it names, so its export is refused, naming what differs.
+fn check_svmultiphysics_method(settings: &CaseSettings) -> Result<(), String> {
+    let mut differs = Vec::new();
+    if settings.formulation != baffle_cfd::SVMULTIPHYSICS_FORMULATION {
+        differs.push(format!("the element terms ({:?}; svMultiPhysics': {:?})", settings.formulation, baffle_cfd::SVMULTIPHYSICS_FORMULATION));
+    }
+    if !settings.tau_includes_dt {
+        differs.push("time.tau_includes_dt false (svMultiPhysics' tau holds dt)".to_string());
+    }
+    match differs.is_empty() {
+        true => Ok(()),
+        false => Err(format!("the case chooses a method svMultiPhysics does not run: {}; remove these time.* fields to compare the engines", differs.join("; "))),
+    }
+}
+
+/// Export the loaded case to `dir` (also `baffle simulate --engine svmultiphysics`'s
+/// first step); [`inflow_line`] says how the inflow was fitted.
 pub(crate) fn export_to(
     dir: &Path,
     case: &case::Case,
@@ -28,6 +45,7 @@ pub(crate) fn export_to(
     settings: &CaseSettings,
     mpi_processes: usize,
 ) -> Result<ExportedCase, String> {
+    check_svmultiphysics_method(settings)?;
     let planes = case.faces.planes.clone();
     let tet_mesh = tet_mesh_mm(mesh, &planes);
     let options = ExportOptions {
@@ -118,5 +136,18 @@ mod tests {
         assert_eq!(spectral_radius(&s), baffle_svmp::DEFAULT_SPECTRAL_RADIUS);
         s.time_integration = baffle_cfd::TimeIntegration::GeneralizedAlpha { rho_inf: 0.3 };
         assert_eq!(spectral_radius(&s), 0.3);
+    }
+
+    #[test]
+    fn a_case_with_the_embedded_engines_own_method_is_not_exported_as_svmultiphysics() {
+        let svmp = CaseSettings::new(1, baffle_cfd::Waveform::Constant { q_ml_s: 1.0 }, Vec::new());
+        assert_eq!(check_svmultiphysics_method(&svmp), Ok(()));
+        let mut without_dt = svmp.clone();
+        without_dt.tau_includes_dt = false;
+        assert!(check_svmultiphysics_method(&without_dt).unwrap_err().contains("time.tau_includes_dt false"));
+        let mut invariant = svmp.clone();
+        invariant.formulation.tau_metric = baffle_cfd::assembly::TauMetric::Invariant;
+        let e = check_svmultiphysics_method(&invariant).unwrap_err();
+        assert!(e.contains("Invariant") && e.contains("does not run"), "{e}");
     }
 }
