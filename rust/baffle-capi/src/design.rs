@@ -3,7 +3,7 @@
 use crate::mesh_handle::BaffleMesh;
 use crate::options::read_options;
 use crate::result::BaffleResult;
-use crate::status::{arg_ref, check_finite, guarded, in_slice, out_handle, set_last_max_feasible_area_mm2, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, guarded, in_slice, out_handle, set_last_max_feasible_area_mm2, xyz_points, BaffleStatus, CallError};
 use baffle_core::analyses::hemodynamics_estimate::{Blood, EstimateOutcome};
 use baffle_core::{DesignError, Vec3};
 use baffle_plan::design_cmd::design_by_rule;
@@ -58,9 +58,7 @@ fn suture_points(values: &[f64]) -> Result<Vec<Vec3>, CallError> {
     if values.is_empty() {
         return Err(CallError::null("suture_points_mm (no points given)"));
     }
-    xyz_count(values.len(), "suture_points_mm")?;
-    check_finite(values, "suture_points_mm")?;
-    Ok(values.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
+    xyz_points(values, "suture_points_mm")
 }
 
 /// # Safety

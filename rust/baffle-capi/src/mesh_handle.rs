@@ -1,7 +1,7 @@
 //! The mesh handle: a labelled triangle surface built from plain arrays (or VTK's
 //! offsets/connectivity pair), validated on the way in, copied out on request.
 
-use crate::status::{arg_ref, check_finite, free_handle, guarded, in_slice, out_handle, out_ref, out_slice, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, free_handle, guarded, in_slice, out_handle, out_ref, out_slice, xyz_points, BaffleStatus, CallError};
 use baffle_core::{TriMesh, Vec3};
 
 /// Opaque, immutable triangle surface (mm) with one int32 label per triangle.
@@ -88,12 +88,11 @@ unsafe fn new_mesh(
 }
 
 fn mesh_points(values: &[f64]) -> Result<Vec<Vec3>, CallError> {
-    xyz_count(values.len(), "points_mm")?;
-    check_finite(values, "points_mm")?;
+    // Before the copy: a surface that large would not fit in memory twice.
     if values.len() / 3 > u32::MAX as usize {
         return Err(CallError::invalid("more points than 32-bit indices can address"));
     }
-    Ok(values.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
+    xyz_points(values, "points_mm")
 }
 
 fn point_index(cell: usize, index: i64, point_count: usize) -> Result<u32, CallError> {

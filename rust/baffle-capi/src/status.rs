@@ -4,6 +4,7 @@
 use std::cell::{Cell, RefCell};
 use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use baffle_core::Vec3;
 
 /// What a call did. 0 is success; every other value has a message in
 /// baffle_last_error().
@@ -195,15 +196,23 @@ fn checked_array<T>(ptr: *const T, len: usize, name: &str) -> Result<(), CallErr
 }
 
 /// `len` as a whole number of xyz triples, or an error naming the array.
-pub(crate) fn xyz_count(len: usize, name: &str) -> Result<usize, CallError> {
+fn xyz_count(len: usize, name: &str) -> Result<usize, CallError> {
     if !len.is_multiple_of(3) {
         return Err(CallError::invalid(format!("{name} has {len} values, not a multiple of 3 (x, y, z per point)")));
     }
     Ok(len / 3)
 }
 
+/// The caller's flat array `values` (x, y, z per point) as points, or an error naming the
+/// array `name`: a length that is not whole triples, or a non-finite coordinate.
+pub(crate) fn xyz_points(values: &[f64], name: &str) -> Result<Vec<Vec3>, CallError> {
+    xyz_count(values.len(), name)?;
+    check_finite(values, name)?;
+    Ok(values.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
+}
+
 /// Error if any coordinate is NaN or infinite, naming the first such point.
-pub(crate) fn check_finite(values: &[f64], name: &str) -> Result<(), CallError> {
+fn check_finite(values: &[f64], name: &str) -> Result<(), CallError> {
     match values.iter().position(|v| !v.is_finite()) {
         Some(i) => Err(CallError::invalid(format!("{name}: point {} has a non-finite coordinate ({})", i / 3, values[i]))),
         None => Ok(()),

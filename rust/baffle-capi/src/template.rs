@@ -4,7 +4,7 @@
 
 use crate::alloc::{malloc_copy, malloc_string};
 use crate::mesh_handle::BaffleMesh;
-use crate::status::{arg_ref, check_finite, free_handle, guarded, in_slice, optional_str, out_handle, out_ref, xyz_count, BaffleStatus, CallError};
+use crate::status::{arg_ref, free_handle, guarded, in_slice, optional_str, out_handle, out_ref, xyz_points, BaffleStatus, CallError};
 use baffle_core::{FaceLabels, TriMesh, Vec3};
 use baffle_template::drawing::{today_utc, TemplateText};
 use baffle_template::raster::DEFAULT_DPI;
@@ -68,7 +68,7 @@ pub unsafe extern "C" fn baffle_template(
     guarded(|| {
         let out = out_handle(out_template, "out_template")?;
         let domain = arg_ref(domain, "domain")?;
-        let points = points(in_slice(suture_points_mm, suture_points_len, "suture_points_mm")?)?;
+        let points = xyz_points(in_slice(suture_points_mm, suture_points_len, "suture_points_mm")?, "suture_points_mm")?;
         let names: Vec<String> = optional_str(point_labels, "point_labels")?.map_or_else(Vec::new, |s| s.split('\n').map(str::to_string).collect());
         let text = TemplateText {
             patient_label: optional_str(patient_label, "patient_label")?.unwrap_or_default().to_string(),
@@ -86,12 +86,6 @@ pub unsafe extern "C" fn baffle_template(
         *out = Box::into_raw(Box::new(BaffleTemplate { template, report_json }));
         Ok(())
     })
-}
-
-fn points(values: &[f64]) -> Result<Vec<Vec3>, CallError> {
-    xyz_count(values.len(), "suture_points_mm")?;
-    check_finite(values, "suture_points_mm")?;
-    Ok(values.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect())
 }
 
 /// # Safety

@@ -43,9 +43,9 @@ use crate::polygon2d::{distance_to_polygon_mm, inside_polygon};
 use crate::clip::{clip_between, Clipped, Cut};
 use crate::error::PrepareError;
 use crate::input::BloodPools;
-use crate::prepare::{cap_report, everywhere, lap_timer, union_in_frame, validate, AnatomyFrame, CapReport, PrepareOptions};
+use crate::prepare::{cap_report, check_closed_outward, everywhere, lap_timer, union_in_frame, validate, AnatomyFrame, CapReport, PrepareOptions};
 use baffle_core::geometry::caps::{cap_flatness, project_caps_onto_planes, CapFlatness, CapProjection};
-use baffle_core::geometry::mesh::{edge_key, manifold_report};
+use baffle_core::geometry::mesh::edge_key;
 use baffle_core::geometry::numerics::pca::Plane;
 use baffle_core::steps::sections::{cut_mesh, Contour};
 use baffle_core::analyses::self_check::{first_failure, SelfCheck};
@@ -456,14 +456,7 @@ fn validate_options(options: &ExtendOptions) -> Result<(), PrepareError> {
 }
 
 fn check_domain(domain: &TriMesh) -> Result<(), PrepareError> {
-    let r = manifold_report(domain);
-    if !r.is_closed_manifold() || r.inconsistently_wound_edges > 0 {
-        return Err(PrepareError::geometry("designed domain", format!("it must be closed and consistently wound: {r:?}")));
-    }
-    if domain.signed_volume_mm3() <= 0.0 {
-        return Err(PrepareError::geometry("designed domain", "it must be wound outward (positive volume)"));
-    }
-    Ok(())
+    check_closed_outward(domain, "designed domain", "it")
 }
 
 /// A designed domain has a baffle: without one it is most likely the capped ventricle
@@ -891,13 +884,7 @@ fn drop_pinches(mesh: &TriMesh, keep: &mut [bool]) {
 fn check_extended(surface: &TriMesh, designed_triangles: usize, interior: &[i32]) -> Result<SelfCheck, PrepareError> {
     let fail = |m: String| Err(PrepareError::geometry("extended domain", m));
     let wall = surface.with_labels(|l| !interior.contains(&l));
-    let r = manifold_report(&wall);
-    if !r.is_closed_manifold() || r.inconsistently_wound_edges > 0 {
-        return fail(format!("without its interior caps it is not closed and consistently wound: {r:?}"));
-    }
-    if wall.signed_volume_mm3() <= 0.0 {
-        return fail("it is wound inward".into());
-    }
+    check_closed_outward(&wall, "extended domain", "without its interior caps it")?;
     let edges = surface.edge_triangles();
     for (t, tri) in surface.triangles.iter().enumerate().filter(|(t, _)| interior.contains(&surface.face_ids[*t])) {
         for k in 0..3 {

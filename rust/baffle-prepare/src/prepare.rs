@@ -401,12 +401,18 @@ fn aorta_on_lv(aorta: &TriMesh, lv: &Structure, voxel_mm: f64) -> String {
 }
 
 fn check_result(mesh: &TriMesh) -> Result<(), PrepareError> {
+    check_closed_outward(mesh, "result", "the capped surface")
+}
+
+/// `mesh` must be closed, consistently wound and outward (a lumen the later steps can cut
+/// and mesh); otherwise an error of `step` saying which, `subject` naming the surface.
+pub(crate) fn check_closed_outward(mesh: &TriMesh, step: &'static str, subject: &str) -> Result<(), PrepareError> {
     let report = manifold_report(mesh);
     if !report.is_closed_manifold() || report.inconsistently_wound_edges > 0 {
-        return Err(PrepareError::geometry("result", format!("the capped surface is not closed and consistently wound: {report:?}")));
+        return Err(PrepareError::geometry(step, format!("{subject} is not closed and consistently wound: {report:?}")));
     }
     if mesh.signed_volume_mm3() <= 0.0 {
-        return Err(PrepareError::geometry("result", "the capped surface is wound inward"));
+        return Err(PrepareError::geometry(step, format!("{subject} is wound inward")));
     }
     Ok(())
 }
