@@ -20,23 +20,7 @@ pub struct Pchip {
 impl Pchip {
     /// Interpolant through (x_i, y_i); x strictly increasing, at least 2 points.
     pub fn new(x: &[f64], y: &[f64]) -> Result<Self, String> {
-        if x.len() != y.len() {
-            return Err(format!("PCHIP: {} x values but {} y values", x.len(), y.len()));
-        }
-        if x.len() < 2 {
-            return Err(format!("PCHIP needs at least 2 points, got {}", x.len()));
-        }
-        if let Some(i) = (0..x.len()).find(|&i| !x[i].is_finite() || !y[i].is_finite()) {
-            return Err(format!("PCHIP: point {i} is not finite (x = {}, y = {})", x[i], y[i]));
-        }
-        if let Some(i) = (1..x.len()).find(|&i| x[i] <= x[i - 1]) {
-            return Err(format!(
-                "PCHIP: x must be strictly increasing, but x[{i}] = {} <= x[{}] = {}",
-                x[i],
-                i - 1,
-                x[i - 1]
-            ));
-        }
+        super::check_samples("PCHIP", x, y, 2)?;
         Ok(Pchip { x: x.to_vec(), y: y.to_vec(), slopes: knot_slopes(x, y) })
     }
 
