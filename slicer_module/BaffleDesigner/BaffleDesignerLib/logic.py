@@ -306,21 +306,8 @@ def polygon_area(loop: np.ndarray) -> float:
 def section_loop(domain: vtk.vtkPolyData, origin, normal) -> Optional[np.ndarray]:
     """The loop where the plane (origin, normal) cuts the closed domain, on the connected
     piece nearest the origin: (n, 3) points in order, or None when the plane misses."""
-    plane = vtk.vtkPlane()
-    plane.SetOrigin(*origin)
-    plane.SetNormal(*normal)
-    cutter = vtk.vtkCutter()
-    cutter.SetInputData(domain)
-    cutter.SetCutFunction(plane)
-    connectivity = vtk.vtkPolyDataConnectivityFilter()
-    connectivity.SetInputConnection(cutter.GetOutputPort())
-    connectivity.SetExtractionModeToClosestPointRegion()
-    connectivity.SetClosestPoint(*origin)
-    stripper = vtk.vtkStripper()
-    stripper.SetInputConnection(connectivity.GetOutputPort())
-    stripper.JoinContiguousSegmentsOn()
-    stripper.Update()
-    loop_data = stripper.GetOutput()
+    _, vtk_adapters = library()
+    loop_data = vtk_adapters.joined_lines(vtk_adapters.plane_cut(domain, origin, normal, nearest=True))
     if loop_data.GetNumberOfLines() != 1 or loop_data.GetNumberOfPoints() < 3:
         return None
     points = numpy_support.vtk_to_numpy(loop_data.GetPoints().GetData())
