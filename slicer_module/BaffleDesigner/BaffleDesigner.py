@@ -769,14 +769,20 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         """The library's verdict (its words, dp, v_max and threshold) in the status line, and
         the plan loaded as Load plan folder loads it; a cancel or failure says why, in the
         library's words."""
-        curve = self.runCurve
+        if state != bdprocess.COMPLETED:
+            self.reportRunEnd("Run whole plan", job, state)
+            return
+        loaded = self.showPlanReport(job.out_dir)
+        self.setStatus("\n".join(filter(None, (f"{self.runCurve.GetName()}: {job.message}", loaded))))
+
+    def reportRunEnd(self, title, job, state):
+        """A failed run's message as an error titled `title`, else in the status line after
+        the candidate's name; whether the run completed."""
         if state == bdprocess.FAILED:
-            self.showError("Run whole plan", job.message)
-        elif state == bdprocess.CANCELLED:
-            self.setStatus(f"{curve.GetName()}: {job.message}")
-        else:
-            loaded = self.showPlanReport(job.out_dir)
-            self.setStatus("\n".join(filter(None, (f"{curve.GetName()}: {job.message}", loaded))))
+            self.showError(title, job.message)
+            return False
+        self.setStatus(f"{self.runCurve.GetName()}: {job.message}")  # the results, or why there are none
+        return state == bdprocess.COMPLETED
 
     def workDirectory(self, kind):
         return tempfile.mkdtemp(prefix=f"BaffleDesigner-{kind.replace(' ', '-')}-", dir=slicer.app.temporaryPath)
@@ -889,24 +895,13 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.updateGUIFromCurve()
 
     def reportSimulationEnd(self, job, state):
-        curve = self.runCurve
-        if state == bdprocess.FAILED:
-            self.showError("The simulation failed", job.message)
-            return
-        self.setStatus(f"{curve.GetName()}: {job.message}")  # the results, or why they were not loaded
-        if state == bdprocess.COMPLETED:
-            self.showOutputs(curve, bdcandidate.REF_SIM_CHART, bdcandidate.REF_SIM_SUMMARY)
+        if self.reportRunEnd("The simulation failed", job, state):
+            self.showOutputs(self.runCurve, bdcandidate.REF_SIM_CHART, bdcandidate.REF_SIM_SUMMARY)
 
     def reportPrepareEnd(self, job, state):
         """The prepared ventricle is loaded: design on it; else say why not."""
-        curve = self.runCurve
-        if state == bdprocess.FAILED:
-            self.showError("The prepare step failed", job.message)
-        elif state == bdprocess.CANCELLED:
-            self.setStatus(f"{curve.GetName()}: {job.message}")
-        else:
-            self.setStatus(f"{curve.GetName()}: {job.message}")
-            self.designNow(curve)
+        if self.reportRunEnd("The prepare step failed", job, state):
+            self.designNow(self.runCurve)
 
     def reportVolumeMeshEnd(self, run, state):
         curve = self.runCurve
