@@ -67,6 +67,8 @@ PLAN = "whole plan"
 # The BaffleDesignerLib modules in import order (each imports only those before it), for reload.
 LIB_MODULES = ("environment", "process", "logic", "rims", "prepare", "plan", "simulation", "report")
 CHECKING = "checking the baffle program ..."
+# The buttons whose tooltip is their help (from the .ui) or the reason they are disabled.
+RUN_BUTTONS = ("designButton", "autoUpdateCheckBox", "volumeMeshButton", "simulateButton", "runPlanButton")
 
 
 SETTING_PROGRAM = "BaffleDesigner/ProgramPath"
@@ -113,6 +115,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         uiWidget = slicer.util.loadUI(self.resourcePath("UI/BaffleDesigner.ui"))
         self.layout.addWidget(uiWidget)
         self.ui = slicer.util.childWidgetVariables(uiWidget)
+        # The run buttons' help (written once, in the .ui): shown while no reason disables them.
+        self.helpTexts = {name: getattr(self.ui, name).toolTip for name in RUN_BUTTONS}
         uiWidget.setMRMLScene(slicer.mrmlScene)
         self.uiWidget = uiWidget
 
@@ -377,23 +381,19 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         try:
             curve = self.curve
             enabled = curve is not None
-            for widget in (self.ui.designButton, self.ui.autoUpdateCheckBox):
+            for name in ("designButton", "autoUpdateCheckBox"):
+                widget = getattr(self.ui, name)
                 widget.enabled = enabled and not self.packageProblem and (widget is not self.ui.designButton or self.designJob is None)
-                widget.toolTip = self.packageProblem or widget.toolTip
+                widget.toolTip = self.packageProblem or self.helpTexts[name]
             self.ui.compareButton.enabled = enabled
             self.updateTemplateButtons()
             idle = enabled and self.run is None
             self.ui.volumeMeshButton.enabled = idle and not self.volumeMeshReason
-            self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or "Tetrahedral mesh of the domain by `baffle mesh`."
+            self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or self.helpTexts["volumeMeshButton"]
             self.ui.simulateButton.enabled = idle and not (self.simulateReason or self.volumeMeshReason)
-            self.ui.simulateButton.toolTip = self.simulateReason or self.volumeMeshReason or (
-                "Mesh the domain (baffle mesh) and run the CFD assessment (baffle simulate) as separate processes."
-            )
+            self.ui.simulateButton.toolTip = self.simulateReason or self.volumeMeshReason or self.helpTexts["simulateButton"]
             self.ui.runPlanButton.enabled = idle and self.designJob is None and not self.packageProblem
-            self.ui.runPlanButton.toolTip = self.packageProblem or (
-                "Run the candidate's whole plan through the library (design, centerline, volume mesh, CFD, report; "
-                "a segmentation is prepared first) and load its report and geometry as Load plan folder does."
-            )
+            self.ui.runPlanButton.toolTip = self.packageProblem or self.helpTexts["runPlanButton"]
             if curve is None:
                 self.setStatus("Select the suture points (BafflePlanner's closed curve).")
                 return
