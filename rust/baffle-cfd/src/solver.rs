@@ -1385,13 +1385,8 @@ mod tests {
         // GMRES takes A z from the preconditioner (A z_ilu + (A Z) e): it must be what the
         // operator gives for z, with older coarse factors (a reused preconditioner) too.
         let n = 60;
-        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
-        let pattern = BlockPattern::from_tets(n, &tets);
-        let matrix = |shift: f64| -> Vec<f64> {
-            let mut v: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5).collect();
-            (0..n).for_each(|i| (0..B).for_each(|c| v[pattern.diag[i] * BB + c * B + c] += 6.0 + shift));
-            v
-        };
+        let pattern = crate::sparse::chain_pattern(n, [0, 1, 2, 3]);
+        let matrix = |shift: f64| crate::sparse::test_matrix(&pattern, 13, |_| 6.0 + shift);
         let (old, vals) = (matrix(0.0), matrix(0.7));
         let b: Vec<f64> = (0..n * B).map(|k| if k / B >= n - 4 && k % B < 3 { 0.2 } else { 0.0 }).collect();
         let rank_one = [(5.0, &b[..])];
