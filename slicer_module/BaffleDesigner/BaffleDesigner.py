@@ -90,6 +90,11 @@ def childEnvironment(gmsh=None):
     return env
 
 
+def gmshAvailability():
+    """(available, reason) of gmsh for `baffle mesh` run from here."""
+    return bdenvironment.gmsh_availability(childEnvironment())
+
+
 class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def __init__(self, parent=None):
         ScriptedLoadableModuleWidget.__init__(self, parent)
@@ -1126,13 +1131,19 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
             time.sleep(0.05)
         return job.state
 
+    def _skipped(self, test, *checks):
+        """Whether `test` cannot run here: the first of `checks` (each returning (available,
+        reason)) that fails, its reason shown."""
+        for check in checks:
+            available, reason = check()
+            if not available:
+                self.delayDisplay(f"{test} test SKIPPED: {reason}")
+                return True
+        return False
+
     def test_phantom_simulate_cancel_and_errors(self):
         executable = bdenvironment.find_baffle_executable()
-        available, reason = bdprocess.simulate_availability(executable)
-        if available:
-            available, reason = bdenvironment.gmsh_availability(childEnvironment())
-        if not available:
-            self.delayDisplay(f"Simulate test SKIPPED: {reason}")
+        if self._skipped("Simulate", lambda: bdprocess.simulate_availability(executable), gmshAvailability):
             return
         self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
         logic, curve, bsa = self._phantomCandidate()
@@ -1191,9 +1202,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         """A quick whole plan of the phantom through the library (one 1.5 mm mesh, rest to
         the first flow peak): the library's verdict and dp on the parameter node, as its
         report.json has them, and its geometry loaded as Load plan folder loads it."""
-        available, reason = bdenvironment.gmsh_availability(childEnvironment())
-        if not available:
-            self.delayDisplay(f"Whole plan test SKIPPED: {reason}")
+        if self._skipped("Whole plan", gmshAvailability):
             return
         self.delayDisplay("Phantom: the whole plan through the library")
         logic, curve, bsa = self._phantomCandidate()
