@@ -7,6 +7,7 @@ existing libbaffle to skip the cargo build (it is then copied instead). pip hide
 output unless -v, so cargo's progress is written to the user's terminal (/dev/tty) when
 there is one; BAFFLE_BUILD_QUIET=1 keeps it quiet."""
 
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -22,11 +23,12 @@ REPO = HERE.parent
 
 
 def library_name() -> str:
-    if sys.platform == "win32":
-        return "baffle.dll"
-    if sys.platform == "darwin":
-        return "libbaffle.dylib"
-    return "libbaffle.so"
+    """baffle/_library_file.py's, read from the file: importing the package would load the
+    library this build is about to make."""
+    spec = importlib.util.spec_from_file_location("baffle_library_file", HERE / "baffle" / "_library_file.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.library_name()
 
 
 def cargo_built_library() -> Path:

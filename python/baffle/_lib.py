@@ -3,10 +3,11 @@
 import ctypes
 import math
 import os
-import sys
 from ctypes import POINTER, c_char_p, c_double, c_int, c_int32, c_int64, c_size_t, c_uint32, c_void_p
 from pathlib import Path
 from typing import Optional
+
+from ._library_file import library_name
 
 # The header's BAFFLE_ABI_VERSION this module was written against.
 ABI_VERSION = 1
@@ -39,14 +40,6 @@ class Cancelled(BaffleError):
     """The progress callback asked to stop."""
 
 
-def _library_name() -> str:
-    if sys.platform == "win32":
-        return "baffle.dll"
-    if sys.platform == "darwin":
-        return "libbaffle.dylib"
-    return "libbaffle.so"
-
-
 def _library_path() -> Path:
     """BAFFLE_LIBRARY, else the copy installed with the package, else a development
     tree's cargo build (python/baffle -> ../../target/release)."""
@@ -54,7 +47,7 @@ def _library_path() -> Path:
     if given:
         return Path(given)
     here = Path(__file__).resolve().parent
-    candidates = [here / _library_name(), here.parent.parent / "target" / "release" / _library_name()]
+    candidates = [here / library_name(), here.parent.parent / "target" / "release" / library_name()]
     for candidate in candidates:
         if candidate.exists():
             return candidate

@@ -503,6 +503,16 @@ def mid_centerline(centerline):
 def speed_cut(peak, origin, normal):
     """The peak speed on the plane through `origin` (normal `normal`), only the piece of it
     that holds `origin`'s flow (a plane through the whole domain also crosses other parts)."""
+    cut = plane_cut(peak, origin, normal, nearest=True)
+    if cut.GetNumberOfCells() == 0:
+        raise RenderError("the cut plane through the middle of the flow-domain centerline misses the mesh")
+    return cut
+
+
+def plane_cut(data, origin, normal, nearest: bool = False):
+    """The cut of `data` (a surface or a volume mesh) by the plane through `origin` with
+    `normal`; with `nearest`, only its connected piece nearest `origin` (a plane through a
+    curved domain also crosses it elsewhere). Also the package's (vtk_adapters.plane_cut)."""
     from vtkmodules.vtkCommonDataModel import vtkPlane
     from vtkmodules.vtkFiltersCore import vtkCutter, vtkPolyDataConnectivityFilter
 
@@ -510,17 +520,17 @@ def speed_cut(peak, origin, normal):
     plane.SetOrigin(*origin)
     plane.SetNormal(*normal)
     cutter = vtkCutter()
-    cutter.SetInputData(peak)
+    cutter.SetInputData(data)
     cutter.SetCutFunction(plane)
-    connected = vtkPolyDataConnectivityFilter()
-    connected.SetInputConnection(cutter.GetOutputPort())
-    connected.SetExtractionModeToClosestPointRegion()
-    connected.SetClosestPoint(*origin)
-    connected.Update()
-    cut = connected.GetOutput()
-    if cut.GetNumberOfCells() == 0:
-        raise RenderError("the cut plane through the middle of the flow-domain centerline misses the mesh")
-    return cut
+    if not nearest:
+        cutter.Update()
+        return cutter.GetOutput()
+    piece = vtkPolyDataConnectivityFilter()
+    piece.SetInputConnection(cutter.GetOutputPort())
+    piece.SetExtractionModeToClosestPointRegion()
+    piece.SetClosestPoint(*origin)
+    piece.Update()
+    return piece.GetOutput()
 
 
 def rim_tube(cap, radius_mm):

@@ -1,12 +1,15 @@
-"""vtkPolyData <-> baffle arrays (points, triangle polys, ModelFaceID). Needs the
-`vtk` module (the PyPI wheel, or Slicer's VTK); uses only APIs of VTK 9.1-9.5."""
+"""vtkPolyData <-> baffle arrays (points, triangle polys, ModelFaceID), and the plane cuts
+the package, its tests and the Slicer module measure sections with. Needs the `vtk` module
+(the PyPI wheel, or Slicer's VTK); uses only APIs of VTK 9.1-9.5."""
 
 import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+from vtkmodules.vtkFiltersCore import vtkStripper
 
 from .design import DesignResult, Mesh, design
+from .render import plane_cut  # noqa: F401  (render.py runs as a script on its own, so the cut lives there)
 
 LABEL_ARRAY = "ModelFaceID"
 # vtkIdType is 64-bit in the wheels and Slicer, but VTK can be built with 32-bit ids.
@@ -79,3 +82,13 @@ def centerline_polydata(result: DesignResult) -> vtkPolyData:
         array.SetName(name)
         polydata.GetPointData().AddArray(array)
     return polydata
+
+
+def joined_lines(lines: vtkPolyData) -> vtkPolyData:
+    """The line segments of `lines` (a cut) joined into polylines, a closed one repeating its
+    first point last."""
+    stripper = vtkStripper()
+    stripper.SetInputData(lines)
+    stripper.JoinContiguousSegmentsOn()
+    stripper.Update()
+    return stripper.GetOutput()

@@ -51,17 +51,6 @@ def read_vtp(path):
 
 def plane_cut(polydata, origin, normal):
     """The plane's cut through a surface as polylines: vtkCutter, joined by vtkStripper."""
-    from vtkmodules.vtkCommonDataModel import vtkPlane
-    from vtkmodules.vtkFiltersCore import vtkCutter, vtkStripper
+    from baffle.vtk_adapters import joined_lines, plane_cut
 
-    plane = vtkPlane()
-    plane.SetOrigin(*origin)
-    plane.SetNormal(*normal)
-    cutter = vtkCutter()
-    cutter.SetInputData(polydata)
-    cutter.SetCutFunction(plane)
-    stripper = vtkStripper()
-    stripper.SetInputConnection(cutter.GetOutputPort())
-    stripper.JoinContiguousSegmentsOn()
-    stripper.Update()
-    return stripper.GetOutput()
+    return joined_lines(plane_cut(polydata, origin, normal))

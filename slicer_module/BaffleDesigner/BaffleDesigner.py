@@ -67,6 +67,8 @@ PLAN = "whole plan"
 # The BaffleDesignerLib modules in import order (each imports only those before it), for reload.
 LIB_MODULES = ("environment", "process", "logic", "rims", "prepare", "plan", "simulation", "report")
 CHECKING = "checking the baffle program ..."
+# The buttons whose tooltip is their help (from the .ui) or the reason they are disabled.
+RUN_BUTTONS = ("designButton", "autoUpdateCheckBox", "volumeMeshButton", "simulateButton", "runPlanButton")
 
 
 SETTING_PROGRAM = "BaffleDesigner/ProgramPath"
@@ -86,6 +88,11 @@ def childEnvironment(gmsh=None):
     if gmsh:
         env["BAFFLE_GMSH"] = gmsh
     return env
+
+
+def gmshAvailability():
+    """(available, reason) of gmsh for `baffle mesh` run from here."""
+    return bdenvironment.gmsh_availability(childEnvironment())
 
 
 class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
@@ -113,6 +120,8 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         uiWidget = slicer.util.loadUI(self.resourcePath("UI/BaffleDesigner.ui"))
         self.layout.addWidget(uiWidget)
         self.ui = slicer.util.childWidgetVariables(uiWidget)
+        # The run buttons' help (written once, in the .ui): shown while no reason disables them.
+        self.helpTexts = {name: getattr(self.ui, name).toolTip for name in RUN_BUTTONS}
         uiWidget.setMRMLScene(slicer.mrmlScene)
         self.uiWidget = uiWidget
 
@@ -377,23 +386,19 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         try:
             curve = self.curve
             enabled = curve is not None
-            for widget in (self.ui.designButton, self.ui.autoUpdateCheckBox):
+            for name in ("designButton", "autoUpdateCheckBox"):
+                widget = getattr(self.ui, name)
                 widget.enabled = enabled and not self.packageProblem and (widget is not self.ui.designButton or self.designJob is None)
-                widget.toolTip = self.packageProblem or widget.toolTip
+                widget.toolTip = self.packageProblem or self.helpTexts[name]
             self.ui.compareButton.enabled = enabled
             self.updateTemplateButtons()
             idle = enabled and self.run is None
             self.ui.volumeMeshButton.enabled = idle and not self.volumeMeshReason
-            self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or "Tetrahedral mesh of the domain by `baffle mesh`."
+            self.ui.volumeMeshButton.toolTip = self.volumeMeshReason or self.helpTexts["volumeMeshButton"]
             self.ui.simulateButton.enabled = idle and not (self.simulateReason or self.volumeMeshReason)
-            self.ui.simulateButton.toolTip = self.simulateReason or self.volumeMeshReason or (
-                "Mesh the domain (baffle mesh) and run the CFD assessment (baffle simulate) as separate processes."
-            )
+            self.ui.simulateButton.toolTip = self.simulateReason or self.volumeMeshReason or self.helpTexts["simulateButton"]
             self.ui.runPlanButton.enabled = idle and self.designJob is None and not self.packageProblem
-            self.ui.runPlanButton.toolTip = self.packageProblem or (
-                "Run the candidate's whole plan through the library (design, centerline, volume mesh, CFD, report; "
-                "a segmentation is prepared first) and load its report and geometry as Load plan folder does."
-            )
+            self.ui.runPlanButton.toolTip = self.packageProblem or self.helpTexts["runPlanButton"]
             if curve is None:
                 self.setStatus("Select the suture points (BafflePlanner's closed curve).")
                 return
@@ -769,14 +774,20 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         """The library's verdict (its words, dp, v_max and threshold) in the status line, and
         the plan loaded as Load plan folder loads it; a cancel or failure says why, in the
         library's words."""
-        curve = self.runCurve
+        if state != bdprocess.COMPLETED:
+            self.reportRunEnd("Run whole plan", job, state)
+            return
+        loaded = self.showPlanReport(job.out_dir)
+        self.setStatus("\n".join(filter(None, (f"{self.runCurve.GetName()}: {job.message}", loaded))))
+
+    def reportRunEnd(self, title, job, state):
+        """A failed run's message as an error titled `title`, else in the status line after
+        the candidate's name; whether the run completed."""
         if state == bdprocess.FAILED:
-            self.showError("Run whole plan", job.message)
-        elif state == bdprocess.CANCELLED:
-            self.setStatus(f"{curve.GetName()}: {job.message}")
-        else:
-            loaded = self.showPlanReport(job.out_dir)
-            self.setStatus("\n".join(filter(None, (f"{curve.GetName()}: {job.message}", loaded))))
+            self.showError(title, job.message)
+            return False
+        self.setStatus(f"{self.runCurve.GetName()}: {job.message}")  # the results, or why there are none
+        return state == bdprocess.COMPLETED
 
     def workDirectory(self, kind):
         return tempfile.mkdtemp(prefix=f"BaffleDesigner-{kind.replace(' ', '-')}-", dir=slicer.app.temporaryPath)
@@ -889,24 +900,13 @@ class BaffleDesignerWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.updateGUIFromCurve()
 
     def reportSimulationEnd(self, job, state):
-        curve = self.runCurve
-        if state == bdprocess.FAILED:
-            self.showError("The simulation failed", job.message)
-            return
-        self.setStatus(f"{curve.GetName()}: {job.message}")  # the results, or why they were not loaded
-        if state == bdprocess.COMPLETED:
-            self.showOutputs(curve, bdcandidate.REF_SIM_CHART, bdcandidate.REF_SIM_SUMMARY)
+        if self.reportRunEnd("The simulation failed", job, state):
+            self.showOutputs(self.runCurve, bdcandidate.REF_SIM_CHART, bdcandidate.REF_SIM_SUMMARY)
 
     def reportPrepareEnd(self, job, state):
         """The prepared ventricle is loaded: design on it; else say why not."""
-        curve = self.runCurve
-        if state == bdprocess.FAILED:
-            self.showError("The prepare step failed", job.message)
-        elif state == bdprocess.CANCELLED:
-            self.setStatus(f"{curve.GetName()}: {job.message}")
-        else:
-            self.setStatus(f"{curve.GetName()}: {job.message}")
-            self.designNow(curve)
+        if self.reportRunEnd("The prepare step failed", job, state):
+            self.designNow(self.runCurve)
 
     def reportVolumeMeshEnd(self, run, state):
         curve = self.runCurve
@@ -1131,13 +1131,19 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
             time.sleep(0.05)
         return job.state
 
+    def _skipped(self, test, *checks):
+        """Whether `test` cannot run here: the first of `checks` (each returning (available,
+        reason)) that fails, its reason shown."""
+        for check in checks:
+            available, reason = check()
+            if not available:
+                self.delayDisplay(f"{test} test SKIPPED: {reason}")
+                return True
+        return False
+
     def test_phantom_simulate_cancel_and_errors(self):
         executable = bdenvironment.find_baffle_executable()
-        available, reason = bdprocess.simulate_availability(executable)
-        if available:
-            available, reason = bdenvironment.gmsh_availability(childEnvironment())
-        if not available:
-            self.delayDisplay(f"Simulate test SKIPPED: {reason}")
+        if self._skipped("Simulate", lambda: bdprocess.simulate_availability(executable), gmshAvailability):
             return
         self.delayDisplay("Phantom: steady simulation (mesh 1.25 mm), then a cancelled pulsatile run")
         logic, curve, bsa = self._phantomCandidate()
@@ -1196,9 +1202,7 @@ class BaffleDesignerTest(ScriptedLoadableModuleTest):
         """A quick whole plan of the phantom through the library (one 1.5 mm mesh, rest to
         the first flow peak): the library's verdict and dp on the parameter node, as its
         report.json has them, and its geometry loaded as Load plan folder loads it."""
-        available, reason = bdenvironment.gmsh_availability(childEnvironment())
-        if not available:
-            self.delayDisplay(f"Whole plan test SKIPPED: {reason}")
+        if self._skipped("Whole plan", gmshAvailability):
             return
         self.delayDisplay("Phantom: the whole plan through the library")
         logic, curve, bsa = self._phantomCandidate()

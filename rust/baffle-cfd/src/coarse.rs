@@ -353,8 +353,7 @@ mod tests {
     #[test]
     fn aggregates_are_connected_and_about_the_asked_size() {
         let n = 40;
-        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
-        let pattern = BlockPattern::from_tets(n, &tets);
+        let pattern = crate::sparse::chain_pattern(n, [0, 1, 2, 3]);
         let agg = aggregate(&pattern, 8);
         assert!(agg.of_node.iter().all(|&a| (a as usize) < agg.count));
         let sizes: Vec<usize> = (0..agg.count).map(|a| agg.of_node.iter().filter(|&&x| x as usize == a).count()).collect();
@@ -368,8 +367,7 @@ mod tests {
         // Several aggregates, prescribed unknowns and a rank-one outlet term: az = A z
         // before the correction stays az = A z after it (A = K + c b b^T).
         let n = 40;
-        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
-        let pattern = BlockPattern::from_tets(n, &tets);
+        let pattern = crate::sparse::chain_pattern(n, [0, 1, 2, 3]);
         let vals: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5 + if k % (BB + 1) == 0 { 4.0 } else { 0.0 }).collect();
         let dirichlet: Vec<bool> = (0..n).map(|i| i % 7 == 0).collect();
         let b: Vec<f64> = (0..n * B).map(|k| if k / B >= n - 5 && k % B < 3 { 0.1 * (k % 5) as f64 } else { 0.0 }).collect();
@@ -401,7 +399,7 @@ mod tests {
             s.windows(2).all(|w| w[0] != w[1])
         }).collect();
         let pattern = BlockPattern::from_tets(n, &tets);
-        let vals: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % 17) as f64 / 17.0 - 0.5).collect();
+        let vals = crate::sparse::test_matrix(&pattern, 17, |_| 0.0);
         let dirichlet: Vec<bool> = (0..n).map(|i| i % 5 == 0).collect();
         let b: Vec<f64> = (0..n * B).map(|k| if k / B >= n - 4 && k % B < 3 { 0.1 + 0.01 * k as f64 } else { 0.0 }).collect();
         let aggregates = aggregate(&pattern, 4);
@@ -430,17 +428,8 @@ mod tests {
     fn the_coarse_correction_is_exact_on_the_coarse_space() {
         // With one aggregate per node Z = I: the correction is A^-1 itself.
         let n = 6;
-        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
-        let pattern = BlockPattern::from_tets(n, &tets);
-        let mut vals = vec![0.0; pattern.cols.len() * BB];
-        for (k, v) in vals.iter_mut().enumerate() {
-            *v = ((k * 7919) % 13) as f64 / 13.0 - 0.5;
-        }
-        for i in 0..n {
-            for c in 0..B {
-                vals[pattern.diag[i] * BB + c * B + c] += 5.0;
-            }
-        }
+        let pattern = crate::sparse::chain_pattern(n, [0, 1, 2, 3]);
+        let vals = crate::sparse::test_matrix(&pattern, 13, |_| 5.0);
         let single = Aggregates { of_node: (0..n as u32).collect(), count: n };
         let coarse = CoarseCorrection::new(&pattern, &vals, &[], single, &vec![false; n]);
         let x_true: Vec<f64> = (0..n * B).map(|i| (i as f64 * 0.3).sin()).collect();

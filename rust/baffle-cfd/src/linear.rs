@@ -497,8 +497,7 @@ mod tests {
 
     /// A 1D chain of nodes with diagonally dominant nonsymmetric 4x4 blocks.
     fn chain(n: usize) -> (BlockPattern, Vec<f64>) {
-        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
-        let pattern = BlockPattern::from_tets(n, &tets);
+        let pattern = crate::sparse::chain_pattern(n, [0, 1, 2, 3]);
         let mut vals = vec![0.0; pattern.cols.len() * BB];
         for i in 0..n {
             for p in pattern.row_ptr[i]..pattern.row_ptr[i + 1] {
@@ -679,17 +678,8 @@ mod tests {
         // three partitions drop their couplings: both must be dropped exactly as in
         // the scalar definition, whatever order the sweeps store the factors in.
         let n_nodes = 30;
-        let tets: Vec<[u32; 4]> = (0..n_nodes as u32 - 7).map(|i| [i, i + 1, i + 5, i + 7]).collect();
-        let pattern = BlockPattern::from_tets(n_nodes, &tets);
-        let mut vals = vec![0.0; pattern.cols.len() * BB];
-        for (k, v) in vals.iter_mut().enumerate() {
-            *v = ((k * 7919) % 17) as f64 / 17.0 - 0.5;
-        }
-        for i in 0..n_nodes {
-            for c in 0..B {
-                vals[pattern.diag[i] * BB + c * B + c] += 6.0;
-            }
-        }
+        let pattern = crate::sparse::chain_pattern(n_nodes, [0, 1, 5, 7]);
+        let vals = crate::sparse::test_matrix(&pattern, 17, |_| 6.0);
         let r: Vec<f64> = (0..n_nodes * B).map(|i| (i as f64 * 0.61).sin()).collect();
         for n_parts in [1, 3] {
             let parts = partitions(&pattern, n_parts);
@@ -712,15 +702,7 @@ mod tests {
         // Two decoupled halves: block Jacobi of exact LUs solves exactly in one application.
         let tets = vec![[0, 1, 2, 3], [4, 5, 6, 7]];
         let pattern = BlockPattern::from_tets(8, &tets);
-        let mut vals = vec![0.0; pattern.cols.len() * BB];
-        for (k, v) in vals.iter_mut().enumerate() {
-            *v = ((k * 7919) % 13) as f64 / 13.0 - 0.5;
-        }
-        for i in 0..8 {
-            for c in 0..B {
-                vals[pattern.diag[i] * BB + c * B + c] += 4.0 + i as f64;
-            }
-        }
+        let vals = crate::sparse::test_matrix(&pattern, 13, |node| 4.0 + node as f64);
         let parts = partitions(&pattern, 2);
         assert_eq!(parts, vec![0..4, 4..8]);
         let ilu = BlockIlu::<f64>::factor(&pattern, &vals, parts).unwrap();

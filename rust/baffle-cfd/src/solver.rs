@@ -1,165 +1,93 @@
 //! Time stepping, boundary conditions and per-step results.
 //!
-//! Linear solver choice: the coupled Picard (Oseen) system of all (u, v, w, p) is
-//! solved at once by GMRES(30) (60 before 2026-12-02), preconditioned on the right with node-block (4x4)
-//! ILU(0) on a reverse Cuthill-McKee ordering, split into one row partition per
-//! thread (block Jacobi of ILU(0)) so factorization and triangular solves run in
-//! parallel. Measured on p2's published mesh (25,680 nodes, 147,013 tets, 102,720
-//! unknowns; 2 threads, release, linear tolerance 1e-4; previous session, f64):
-//!   - transient, dt = 1 ms, impulsive start at 58 mL/s: 3 Picard iterations per
-//!     step, ~43 GMRES iterations per solve, 2.0-2.8 s per step;
-//!   - the same with one partition (1 thread): ~36 GMRES iterations per solve but
-//!     3.2 s per step, so the 2 partitions win by 1.45x despite +20% iterations;
-//!   - steady (Q_peak, pseudo dt 10 ms): 35-80 GMRES iterations per solve; per
-//!     Picard iteration ~1.0 s = assembly + residual 0.24 s, ILU(0) 0.05 s,
-//!     GMRES 0.73 s (~14 ms per GMRES iteration); peak resident memory 195 MB.
-//! Steady Stokes-like systems of the tube tests converge to 1e-8 in tens of
-//! iterations. A pressure-projection scheme was not tried.
+//! The numbers below are the measurements that chose each piece (p2's published mesh:
+//! 25,680 nodes, 147,013 tets, 102,720 unknowns; p3's published 1.25 mm mesh: 66,677
+//! tets; 2 threads, release); docs/measurements.md keeps the full runs.
 //!
-//! Steady solve (issue #4 follow-up, measured on p2 at Q_peak 70 mL/s, plug inflow,
-//! 2 threads, with other jobs sharing the 2 cores): the old fixed pseudo dt 10 ms with
-//! one Picard iteration per pseudo step stalled at 3.6e-4 after 45 iterations. Now the
-//! pseudo step grows by switched evolution relaxation (dt_k = dt_0 r_0 / r_k) and the
-//! linearization switches to Newton (Galerkin convection Jacobian; SUPG/tau derivatives
-//! omitted) below a relative residual of 1e-2: converged to 6.6e-5 (target 1e-4) in 23
-//! iterations (15 Picard + 8 Newton), 1478 GMRES iterations, 27 s wall on a quiet
-//! machine (48 and 71 s with other jobs' compiles running, load 3-5); dp(11-16) 7.381 mmHg, v_max 250.3 cm/s,
-//! the same as the unconverged 7.4 / 250: the difference to the paper is not an
-//! unconverged solve. Newton from the start (pure Newton with SER) failed: the residual
-//! rose 4x and GMRES/ILU(0) needed 359 then > 600 iterations (the Jacobian far from
-//! the solution is strongly non-diagonally dominant). Newton iterations converge
-//! linearly (ratio ~0.6, inexact Jacobian) and need ~100 GMRES iterations each vs ~45
-//! for Picard. With the Poiseuille inflow profile the same scheme did not converge in
-//! 60 iterations (1.6e-3; dp 6.31 mmHg, v_max 239 cm/s at that point).
+//! Linear solver: the coupled Picard (Oseen) system of all (u, v, w, p) is solved at
+//! once by GMRES(30), preconditioned on the right with node-block (4x4) ILU(0) on a
+//! reverse Cuthill-McKee ordering, split into one row partition per thread (block
+//! Jacobi of ILU(0)) so factorization and triangular solves run in parallel: on p2 the
+//! 2 partitions need ~20 % more GMRES iterations than one but are 1.45x faster. ILU(0)'s
+//! iterations grow with the mesh (tubes of 9.7k / 45k / 150k tets: 49 / 108 / 283 a
+//! step), so the default preconditioner is two-level ([`crate::coarse`]): ILU(0), then a
+//! Galerkin coarse correction on node aggregates (piecewise-constant u, v, w, p; dense
+//! LU of at most 4 x 256 unknowns): 31 / 41 / 45 iterations on the tubes, 15 instead of
+//! 40 on p2, the same dp to 0.06 %. A step whose solve stalls is retried down
+//! [`RETRY_LADDER`] before the run fails. A Woodbury correction of the preconditioner
+//! for the resistance outlets' rank-one terms does not pay (39.6 instead of 40.0
+//! iterations a step: the plateau of every solve does not come from the outlets); a
+//! pressure-projection scheme and a block (Schur) preconditioner were not tried.
+//!
+//! Steady solve: the pseudo step grows by switched evolution relaxation
+//! (dt_k = dt_0 r_0 / r_k) and the linearization switches to Newton (Galerkin convection
+//! Jacobian; SUPG/tau derivatives omitted) below a relative residual of 1e-2. A fixed
+//! pseudo dt of 10 ms with one Picard iteration per pseudo step stalls (p2 at Q_peak
+//! 70 mL/s: 3.6e-4 after 45 iterations); the switched scheme reaches 6.6e-5 (target
+//! 1e-4) in 23 iterations (15 Picard + 8 Newton), dp(11-16) 7.381 mmHg. Newton from the
+//! start fails: far from the solution the Jacobian is strongly non-diagonally dominant
+//! and GMRES/ILU(0) needs hundreds of iterations while the residual rises. With the
+//! Poiseuille inflow profile the scheme does not converge in 60 iterations.
 //!
 //! Transient: linear extrapolation 2 u_n - u_(n-1) is the initial guess of every step;
 //! with one Picard iteration (`NonlinearIterations::Fixed(1)`, backward Euler's default)
 //! the step is semi-implicit (one linear solve with the extrapolated convection velocity,
-//! no residual re-assembly afterwards). Accuracy, p2 from rest at t = 0 through peak flow (180 steps, bench
-//! `--compare-schemes --t0 0 --steps 180`): semi-implicit vs Picard iterated to 1e-3
-//! (2-4 iterations a step) differ by at most ~0.3% in dp(11-16) (e.g. 5.738 vs 5.755
-//! mmHg at t = 0.110 s; 7.364 vs 7.367 mmHg at peak flow, t = 0.165 s) and by < 0.1
-//! cm/s in v_max, while the run took 760 s vs 2089 s on the loaded machine. The
-//! semi-implicit scheme passes the Womersley test (verification.rs: alpha 4,
-//! amplitude +1.8%, phase -0.9%).
+//! no residual re-assembly afterwards): on p2 from rest through peak flow it differs from
+//! Picard iterated to 1e-3 by at most ~0.3 % in dp(11-16) and < 0.1 cm/s in v_max, in a
+//! third of the time, and it passes the Womersley test (verification.rs: alpha 4,
+//! amplitude +1.8 %, phase -0.9 %). Generalized-alpha ([`crate::time_integration`]) runs
+//! by default a convergence-controlled Picard loop (`NonlinearIterations::Auto`,
+//! [`LoopControl`]): it solves until the update changes velocity and pressure by less
+//! than 1e-3 ([`relative_change`]), at most 6 times, with the factors reused across the
+//! solves as across steps; this removes the semi-implicit step's oscillation in the VSD
+//! jet (p2 at 1 ms: dp 7.272 instead of 7.030 mmHg, 1.9 solves a step).
 //!
-//! Mixed precision (`mixed_precision`, default on): the ILU(0) factors are stored in
-//! f32 and the inner GMRES runs on f32 copies of the matrix and vectors, with the
-//! residual re-formed in f64 after each inner solve (`linear::solve_refined`; a stalled
-//! round falls back to f64 GMRES, as happens for the steady Stokes systems of the tube
-//! tests at tolerance 1e-8). The kernels are memory-bound: on p2, semi-implicit, 10
-//! steps from t = 0.1 s, 3 runs each alternating (bench `--picard 1 --precision both`,
-//! load average ~3 on the 2 cores): median 1.150 s per step (19-20 ms per GMRES
-//! iteration) vs 1.377 s (25-26 ms) in f64, the same ~40 GMRES iterations a step and
-//! the same dp to 4 decimals. At that load 4 cycles (2728 steps) project to ~52 min;
-//! the 30-minute target is not met. Against the code before this change (commit
-//! c69b820, its p2_timing example, same 10-step window, semi-implicit, same machine,
-//! quiet: load < 2 from the runs themselves): 1.61-1.67 s per step (31.5 ms per GMRES
-//! iteration) before, 1.216-1.237 s (21-22 ms) now with mixed precision and
-//! 1.346-1.433 s (26-27 ms) with f64; this machine runs that old code 1.8x slower
-//! than the previous session's (0.91 s per step there). GMRES orthogonalization was then classical
-//! Gram-Schmidt in two fused passes with one conditional re-orthogonalization (DGKS,
-//! 0.7; now unconditional, see below). Not yet tried: ILU reuse across steps, a block (Schur) preconditioner.
-//! (Generalized-alpha time stepping has since been added beside backward Euler:
-//! [`crate::time_integration`].) Peak resident memory 171-236 MB.
-//! Steady estimate with mixed precision (bench `--steady --runs 3`, load ~4): median
-//! 90.5 s, 24 iterations, 1481 GMRES iterations, dp(11-16) 7.381 mmHg as in f64.
+//! Factors kept over steps ([`FactorsUse`]): the ILU(0) factors and the coarse correction
+//! serve several steps, while the f32 operator copy is refreshed at every solve; a solve
+//! with old factors has a bounded budget and is redone with new ones when it misses (the
+//! step right after an impulsive start does), and renewal follows the iterations aging
+//! adds. On p2 from rest to the first peak: 12 factorizations instead of 164, 14.2
+//! instead of 13.7 GMRES iterations a step, the same dp and v_max to 4 digits. Fixed
+//! reuse for 2-8 solves stalled.
 //!
-//! Kernels (bench `kernels`: p2's pattern, minimum of 9 repetitions, 2 threads, load ~5
-//! from other jobs, before -> after, 2026-12-01): ILU(0) application f32 19.4-24.4 ->
-//! 9.5-12.0 ms, f64 21.7-25.4 -> 13.3-18.2 ms, by storing L and U apart in sweep order
-//! (`linear::Triangle`); block SpMV f32 5.6-7.0 -> 4.1-5.0 ms and 40 f32 GMRES
-//! iterations 1.54-1.94 -> 0.89-0.91 s, by 4-lane block accumulators that compute in
-//! the matrix's precision (`sparse::BlockAcc`) and 8-lane dot products; the f32 matrix
-//! copy and the ILU storage are reused across steps. In the solver bench (p2, 8 steps
-//! from t = 0.1 s, same load) GMRES went from 42.4-47.1 to 35.2-35.3 ms per iteration
-//! with the same 42.1 iterations a step and the same dp to 4 decimals. With the other
-//! jobs paused (load ~2, the bench's own threads; `--runs 3 --steps 10 --precision
-//! both`): median 0.987 s per step mixed (16 ms per GMRES iteration, 40 iterations a
-//! step; assembly 0.26 s, ILU factorization 0.08 s) and 1.324 s in f64. Then assembling
-//! the elements in the order of their lowest (RCM) node, so the scatter into the matrix
-//! stays in cache: assembly 0.26 -> 0.166 s, 0.929 s per step (median of 2), ~42 min
-//! for 4 cycles: still over the 30-minute target. On the machine with nothing else
-//! running (load < 1.2, `--runs 3 --steps 10`): median 0.730 s per step (13 ms per GMRES
-//! iteration; assembly 0.14 s, ILU factorization 0.07 s), ~33 min for 4 cycles; the
-//! steady estimate 28.0 s (24 iterations, dp 7.381 mmHg). The full 4-cycle run
-//! (bench `--full`) took 35.4 min.
+//! Initial guess of a step's solve: the previous step's update (`Solver::initial_guess`),
+//! solved to half the tolerance ([`crate::linear::GUESS_TOLERANCE_FACTOR`]): ~15 -> ~12
+//! GMRES iterations a step on p3, dp closer to a converged (1e-7) run than without it. At
+//! the full tolerance (9 iterations) or extrapolated from two updates (10 iterations) the
+//! error against the converged run is 4-5x larger: the better the guess, the more error
+//! the residual test leaves where the residual hardly sees it.
 //!
-//! Third session (2026-12-01/02, nothing else running, same benches): the ILU(0)
-//! backward sweep took 4x the forward one (12.0 vs 2.7 ms, f32, loaded machine)
-//! because U's rows were read from high to low addresses with the dependent block
-//! first; U is now stored in sweep order with the nearest column last
-//! (`linear::Triangle`), and ILU(0) application f32 went 7.0 -> 1.9-2.4 ms, 40 f32
-//! GMRES iterations 0.71 -> 0.30-0.35 s. Gram-Schmidt is unconditional CGS2 in three
-//! passes (the DGKS test fired at every iteration). Solver bench 0.730 -> 0.577 s per
-//! step (median of 3; 40 GMRES iterations a step, 9 ms each); full 4-cycle run 26.9
-//! min (0.592 s/step, 38.7 GMRES iterations a step, dp(11-16) at peak flow 7.368
-//! mmHg, v_max 252.6 cm/s, periodicity NRMSD 4.8e-7, peak memory 222 MB). Then the
-//! row-by-row assembly (`assembly::Assembler`): assembly 121-134 -> 91 ms (kernels
-//! bench), solver bench median 0.480 s per step, full 4-cycle run 23.7 min (0.520
-//! s/step, 38.9 GMRES iterations a step, the same dp and v_max at peak flow, peak
-//! memory 224 MB), steady estimate 18.8 s (median of 3). Tried and dropped: a Woodbury correction of the preconditioner for the
-//! resistance outlets' rank-one terms (39.6 instead of 40.0 GMRES iterations a step:
-//! the ~12-iteration plateau of every solve does not come from the outlets).
+//! Mixed precision (`mixed_precision`, default on): the ILU(0) factors are stored in f32
+//! and the inner GMRES runs on f32 copies of the matrix and vectors, with the residual
+//! re-formed in f64 after each inner solve (`linear::solve_refined`; a stalled round
+//! falls back to f64 GMRES, as happens for the steady Stokes systems of the tube tests at
+//! tolerance 1e-8). The kernels are memory-bound: on p2 a step takes 1.15 s mixed
+//! against 1.38 s in f64, with the same ~40 GMRES iterations and the same dp to 4
+//! decimals.
 //!
-//! Fourth session (issue 14, 2026-12-02, load 7-12 from other jobs): ILU(0)'s GMRES
-//! iterations grow with the mesh (tubes of 9.7k / 45k / 150k tets: 49 / 108 / 283 a
-//! step; p2's published mesh 40). The default preconditioner is now two-level
-//! ([`crate::coarse`]): ILU(0), then a Galerkin coarse correction on node aggregates
-//! (piecewise-constant u, v, w, p; dense LU of at most 4 x 256 unknowns). Tubes 31 / 41
-//! / 45 iterations, 0.033 / 0.36 / 1.65 s a step against 0.043 / 0.78 / 6.2 s; p2's
-//! published mesh 15.3 iterations, 0.61 against 1.07 s a step, the same dp to 0.06 %.
-//! A step whose solve stalls is retried down [`RETRY_LADDER`] before the run fails.
-//!
-//! Fifth session (issue 14, 2026-12-03): transient runs keep the ILU(0) factors and the
-//! coarse correction over several steps ([`FactorsUse`]). An earlier trial (fixed reuse
-//! for 2-8 solves, p2 from rest at t = 0.1 s, docs/measurements.md) had stalled. Here the f32 operator
-//! copy is refreshed at every solve, a solve with old factors has a bounded budget and is
-//! redone with new ones when it misses (the step right after an impulsive start does),
-//! and renewal follows the iterations aging adds. p2 from rest to the first peak (164
-//! steps) makes 12 factorizations instead of 164 at 14.2 instead of 13.7 GMRES
-//! iterations a step, with the same dp and v_max to 4 digits.
-//!
-//! Sixth session (issue 14 item 4, 2026-12-03): generalized-alpha's default is the
-//! convergence-controlled Picard loop (`NonlinearIterations::Auto`, [`LoopControl`]):
-//! solves until the update changes velocity and pressure by less than 1e-3
-//! ([`relative_change`]), at most 6, the factors reused across them as across steps. On
-//! p2 from rest to the first peak (bench `--time-accuracy`) it removes the semi-implicit
-//! step's oscillation in the VSD jet: dp 7.272 instead of 7.030 mmHg at 1 ms with 1.9
-//! solves a step, 7.338 instead of 8.173 at 2 ms with 2.6 (7.283 at 0.5 ms, 7.367 at
-//! 0.25 ms: near the peak the jet's dp itself fluctuates by ~0.1 mmHg within a few ms).
-//!
-//! Seventh session (issue 28 item 4, 2026-12-05, p3's published 1.25 mm mesh, 66,677
-//! tets, 60 steps from rest, load 6-9 from other jobs on the 2 cores, A/B interleaved):
-//! element rows no longer returned by value (memset + memmove of 512 bytes per element
-//! and node were ~7 % of the run's CPU), one pass for both element states, A Z's
-//! structure kept with the coarse correction, one element-face map in the set-up: median
-//! wall time 13.9 -> 12.3 s (10 runs each), dp bit for bit but for the coarse matrix's
-//! summation order (6e-11). Then the previous step's update as the initial guess of a
-//! step's solve (`Solver::initial_guess`, to half the tolerance,
-//! [`crate::linear::GUESS_TOLERANCE_FACTOR`]): ~15 -> ~12 GMRES iterations a step,
-//! dp at step 60 3.6e-6 from before, closer to a converged (1e-7) run than before.
-//! Tried and dropped: the guess at the full tolerance (9 iterations, but dp's error
-//! against the converged run 8e-6 rms instead of 1.7e-6) and extrapolating the guess
-//! from two updates (10 iterations at half the tolerance, error 7.6e-6 rms): the better
-//! the guess, the more error the residual test leaves where the residual hardly sees it.
-//!
-//! AVX2 kernels (issue 28 item 4, same case; `perf record` of the run: the
-//! assembly ~34 % of the CPU samples, ILU(0) sweeps 17 %, block products 20 % (f32 14,
-//! f64 6), the coarse level ~11 %, Gram-Schmidt 5 %, the main thread alone 7 % while the
-//! other core waited). The hot kernels (block products, ILU(0) sweeps, Gram-Schmidt,
-//! both assembly passes, the coarse A Z) are compiled for AVX2 + FMA as well and chosen
-//! at run time ([`crate::sparse::wide`]; the release build's baseline is SSE2), bit for
-//! bit the same (Rust never fuses a * b + c); the serial stretches (coarse restriction,
-//! coarse LU solves, Dirichlet rows) run in parallel or in lane sums; a step's residual
-//! and its guess's product share one pass over the f64 matrix. 60 steps, 10 runs of each
-//! build interleaved, load 5-6 from other jobs (binaries of 0c23a60 and e1f4389): wall
-//! median 9.72 -> 7.76 s (paired ratio 0.858, 0.70-1.09), CPU time 6.95 -> 5.97 s (paired
-//! 0.890, 0.835-0.927); dp at step 60 +1e-10 mmHg (the coarse level's sums in another
-//! order); 170 steps: peak dp 6.150023529 mmHg, -2.9e-10. Quiet machine (load < 2.5), 10
-//! runs interleaved, binaries of 0c23a60 and abda88d: 4.92 -> 4.35 s (paired 0.88,
-//! 0.68-1.09); svMultiPhysics on the same 60 steps in the same sitting, 2 ranks: 196.8 s,
-//! 45 times ours (docs/validation.md).
+//! Kernels, each kept because it shortened the solver bench with dp unchanged:
+//!   - L and U of ILU(0) stored apart in sweep order, U's rows with the nearest column
+//!     last (`linear::Triangle`): read from high to low addresses with the dependent
+//!     block first, the backward sweep had taken 4x the forward one;
+//!   - block products with 4-lane accumulators in the matrix's precision
+//!     (`sparse::BlockAcc`), 8-lane dot products; the f32 matrix copy and the ILU storage
+//!     reused across steps;
+//!   - Gram-Schmidt as unconditional CGS2 in three passes (a DGKS re-orthogonalization
+//!     test fired at every iteration anyway);
+//!   - row-by-row assembly (`assembly::Assembler`) over the elements in the order of
+//!     their lowest (RCM) node, so the scatter into the matrix stays in cache; element
+//!     rows written in place, not returned by value (the copies were ~7 % of the CPU);
+//!     one pass for both element states; the coarse level's A Z structure kept with the
+//!     correction; one element-face map in the set-up;
+//!   - the hot kernels (block products, ILU(0) sweeps, Gram-Schmidt, both assembly
+//!     passes, the coarse A Z) compiled for AVX2 + FMA as well and chosen at run time
+//!     ([`crate::sparse::wide`]; the release build's baseline is SSE2), bit for bit the
+//!     same (Rust never fuses a * b + c); the serial stretches (coarse restriction,
+//!     coarse LU solves, Dirichlet rows) run in parallel or in lane sums; a step's
+//!     residual and its guess's product share one pass over the f64 matrix.
+//! On a quiet machine p3's 60 steps from rest take 4.35 s, 45 times faster than
+//! svMultiPhysics on the same steps (docs/validation.md). The coarse level's sums in
+//! another order move dp by ~1e-10 mmHg; nothing else changes it.
 //!
 //! Boundary conditions: no-slip on every boundary triangle outside the inlet and
 //! outlet faces; plug or Poiseuille inflow (see [`inflow_profile`]); resistance outlets p = R Q as
@@ -1457,13 +1385,8 @@ mod tests {
         // GMRES takes A z from the preconditioner (A z_ilu + (A Z) e): it must be what the
         // operator gives for z, with older coarse factors (a reused preconditioner) too.
         let n = 60;
-        let tets: Vec<[u32; 4]> = (0..n as u32 - 3).map(|i| [i, i + 1, i + 2, i + 3]).collect();
-        let pattern = BlockPattern::from_tets(n, &tets);
-        let matrix = |shift: f64| -> Vec<f64> {
-            let mut v: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5).collect();
-            (0..n).for_each(|i| (0..B).for_each(|c| v[pattern.diag[i] * BB + c * B + c] += 6.0 + shift));
-            v
-        };
+        let pattern = crate::sparse::chain_pattern(n, [0, 1, 2, 3]);
+        let matrix = |shift: f64| crate::sparse::test_matrix(&pattern, 13, |_| 6.0 + shift);
         let (old, vals) = (matrix(0.0), matrix(0.7));
         let b: Vec<f64> = (0..n * B).map(|k| if k / B >= n - 4 && k % B < 3 { 0.2 } else { 0.0 }).collect();
         let rank_one = [(5.0, &b[..])];

@@ -377,6 +377,28 @@ fn pseudo_peripheral(pattern: &BlockPattern, seed: usize) -> usize {
     start
 }
 
+/// A test pattern of `n` nodes: a tet at each node i with the nodes i + `offsets`
+/// (`offsets[0]` = 0, the largest last), as far as they exist.
+#[cfg(test)]
+pub(crate) fn chain_pattern(n: usize, offsets: [u32; 4]) -> BlockPattern {
+    let tets: Vec<[u32; 4]> = (0..n as u32 - offsets[3]).map(|i| offsets.map(|o| i + o)).collect();
+    BlockPattern::from_tets(n, &tets)
+}
+
+/// A test matrix on `pattern`: every entry a fixed pseudo-random value in [-0.5, 0.5)
+/// (repeating every `period` entries), plus `diagonal(node)` on each node block's
+/// diagonal, large enough to make the matrix factor without pivoting.
+#[cfg(test)]
+pub(crate) fn test_matrix(pattern: &BlockPattern, period: usize, diagonal: impl Fn(usize) -> f64) -> Vec<f64> {
+    let mut vals: Vec<f64> = (0..pattern.cols.len() * BB).map(|k| ((k * 7919) % period) as f64 / period as f64 - 0.5).collect();
+    for (node, &d) in pattern.diag.iter().enumerate() {
+        for c in 0..B {
+            vals[d * BB + c * B + c] += diagonal(node);
+        }
+    }
+    vals
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -11,7 +11,7 @@ use crate::steps::partition::{keep_capped_side, remesh_kept, KeptRegion};
 use crate::steps::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
 use crate::steps::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
 use crate::analyses::rv_cost::{rv_cost, RvCost};
-use crate::steps::seam::seam_on_wall;
+use crate::steps::seam::{seam_on_wall, WallProjector};
 use crate::geometry::spatial::{Aabb, TriangleBvh};
 use crate::steps::surface::Domain;
 use crate::target::TargetArea;
@@ -197,7 +197,8 @@ pub fn design(
 
     clock.stage(0.05, "seam")?;
     let bvh = TriangleBvh::new(&surface).map_err(DesignError::Surface)?;
-    let (projected, imprinted) = seam_on_wall(&surface, &bvh, &labels, suture_points_mm, options.seam_samples, options.max_point_distance_mm)?;
+    let wall = WallProjector::new(&surface, &bvh, &labels, options.max_point_distance_mm);
+    let (projected, imprinted) = seam_on_wall(wall, suture_points_mm, options.seam_samples)?;
     let imprinted_seam_mm: Vec<Vec3> = imprinted.loop_vertices.iter().map(|&v| imprinted.mesh.points[v as usize]).collect();
     let seam_ms = clock.lap();
 

@@ -514,48 +514,15 @@ fn superellipse_coordinate(c: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::geometry::mesh::manifold_report;
+    use crate::geometry::spatial::closest_point_on_triangle;
     use std::collections::BTreeSet;
-
-    /// Closest distance (mm) from `p` to triangle (a, b, c) (Ericson, RTCD 5.1.5).
-    fn point_triangle_distance_mm(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> f64 {
-        let (ab, ac, ap) = (b - a, c - a, p - a);
-        let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-        if d1 <= 0.0 && d2 <= 0.0 {
-            return (p - a).norm();
-        }
-        let bp = p - b;
-        let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-        if d3 >= 0.0 && d4 <= d3 {
-            return (p - b).norm();
-        }
-        let vc = d1 * d4 - d3 * d2;
-        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-            return (p - (a + ab * (d1 / (d1 - d3)))).norm();
-        }
-        let cp = p - c;
-        let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-        if d6 >= 0.0 && d5 <= d6 {
-            return (p - c).norm();
-        }
-        let vb = d5 * d2 - d1 * d6;
-        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-            return (p - (a + ac * (d2 / (d2 - d6)))).norm();
-        }
-        let va = d3 * d6 - d5 * d4;
-        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-            return (p - (b + (c - b) * w)).norm();
-        }
-        let denom = 1.0 / (va + vb + vc);
-        (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm()
-    }
 
     /// Distance (mm) from `p` to the mesh and the label of the nearest triangle.
     fn distance_to_mesh_mm(mesh: &TriMesh, p: Vec3) -> (f64, i32) {
         (0..mesh.triangles.len())
             .map(|t| {
-                let [a, b, c] = mesh.triangle_points(t);
-                (point_triangle_distance_mm(p, a, b, c), mesh.face_ids[t])
+                let (closest, _) = closest_point_on_triangle(&p, &mesh.triangle_points(t));
+                ((p - closest).norm(), mesh.face_ids[t])
             })
             .fold((f64::INFINITY, -1), |best, cur| if cur.0 < best.0 { cur } else { best })
     }

@@ -136,7 +136,7 @@ fn baffle_and_wall_share_the_inserted_seam_exactly() {
         // itself (across a crease it dips below the chord between two samples), so
         // compare with a 20 times denser projection of the same spline.
         let bvh = TriangleBvh::new(&case.surface).unwrap();
-        let dense_seam = seam::project_seam(&case.surface, &bvh, &FaceLabels::default(), &case.points, 12_000, 2.0)
+        let dense_seam = seam::project_seam(seam::WallProjector::new(&case.surface, &bvh, &FaceLabels::default(), 2.0), &case.points, 12_000)
             .unwrap()
             .samples_mm;
         let mut farthest_mm: f64 = 0.0;

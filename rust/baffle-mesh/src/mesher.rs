@@ -879,11 +879,7 @@ mod tests {
     #[test]
     fn failing_gmsh_is_reported_with_its_log() {
         let fake = fake_gmsh("fails", "echo 'Error   : No elements in volume 1'; exit 1");
-        let opts = MeshOptions {
-            gmsh_executable: Some(fake),
-            ..Default::default()
-        };
-        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        let err = mesh_closed_tet_with(fake, None).unwrap_err().to_string();
         assert!(
             err.contains("gmsh exited with") && err.contains("No elements in volume 1"),
             "{err}"
@@ -894,13 +890,8 @@ mod tests {
     #[test]
     fn hanging_gmsh_is_stopped_at_the_timeout() {
         let fake = fake_gmsh("hangs", "sleep 30");
-        let opts = MeshOptions {
-            gmsh_executable: Some(fake),
-            timeout: Some(Duration::from_millis(300)),
-            ..Default::default()
-        };
         let start = std::time::Instant::now();
-        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        let err = mesh_closed_tet_with(fake, Some(Duration::from_millis(300))).unwrap_err().to_string();
         assert!(err.contains("did not finish within"), "{err}");
         assert!(start.elapsed() < Duration::from_secs(10));
     }
@@ -920,6 +911,13 @@ mod tests {
         )
     }
 
+    /// `closed_tet` meshed by the program `gmsh` (a fake one) with the given time limit,
+    /// the other options at their defaults.
+    #[cfg(unix)]
+    fn mesh_closed_tet_with(gmsh: PathBuf, timeout: Option<Duration>) -> Result<(TetMesh, QualityReport), MeshError> {
+        mesh_surface(&closed_tet(), &MeshOptions { gmsh_executable: Some(gmsh), timeout, ..Default::default() })
+    }
+
     /// A fake gmsh writing `without` unless the script turns Netgen's optimizer on.
     fn gmsh_by_optimizer(name: &str, without: &str, with_netgen: &str) -> PathBuf {
         let print = |msh: &str| format!("printf '{}' > volume.msh", msh.replace('\n', "\\n"));
@@ -933,8 +931,7 @@ mod tests {
     #[test]
     fn a_sliver_from_gmsh_is_meshed_again_with_netgens_optimizer() {
         let fake = gmsh_by_optimizer("sliver-then-good", &closed_tet_msh(true), &closed_tet_msh(false));
-        let opts = MeshOptions { gmsh_executable: Some(fake), ..Default::default() };
-        let (mesh, _) = mesh_surface(&closed_tet(), &opts).unwrap();
+        let (mesh, _) = mesh_closed_tet_with(fake, None).unwrap();
         assert_eq!(mesh.tets.len(), 1);
     }
 
@@ -942,8 +939,7 @@ mod tests {
     #[test]
     fn a_sliver_left_by_both_optimizers_is_named_with_its_place() {
         let fake = gmsh_by_optimizer("sliver-twice", &closed_tet_msh(true), &closed_tet_msh(true));
-        let opts = MeshOptions { gmsh_executable: Some(fake), ..Default::default() };
-        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        let err = mesh_closed_tet_with(fake, None).unwrap_err().to_string();
         assert!(err.contains("is degenerate") && err.contains("near (0.33, 0.33, 0.00) mm") && err.contains("again with Netgen"), "{err}");
     }
 
@@ -957,11 +953,7 @@ mod tests {
             "inverted",
             &format!("printf '{}' > volume.msh", msh.replace('\n', "\\n")),
         );
-        let opts = MeshOptions {
-            gmsh_executable: Some(fake),
-            ..Default::default()
-        };
-        let err = mesh_surface(&closed_tet(), &opts).unwrap_err().to_string();
+        let err = mesh_closed_tet_with(fake, None).unwrap_err().to_string();
         assert!(err.contains("tet 0") && err.contains("inverted"), "{err}");
     }
 }

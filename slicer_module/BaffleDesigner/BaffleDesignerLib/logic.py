@@ -17,7 +17,6 @@ several candidate baffles, one per closed curve.
 """
 
 import math
-import threading
 import time
 from typing import Callable, Dict, List, Optional, Tuple
 
@@ -99,33 +98,24 @@ def defined_points_key(curve) -> tuple:
     return tuple(key)
 
 
-class DesignJob:
-    """One candidate's design without blocking the GUI: the inputs are read at start()
-    (MRML, on the caller's thread), baffle.design runs on a worker thread (the ctypes
-    call releases the GIL, so the event loop keeps running), and poll(), called from the
-    caller's timer, writes the outputs once it is done. `progress` / `stage` follow the
-    library's progress callback; cancel() makes that callback return False, which the
-    library honours at its next report. `state` is process.RUNNING / COMPLETED / FAILED /
-    CANCELLED, `error` the BaffleDesignerError of a failed or cancelled one."""
+class DesignJob(process.LibraryJob):
+    """One candidate's design without blocking the GUI (process.LibraryJob): the inputs are
+    read at start() (MRML, on the caller's thread), baffle.design runs on the worker
+    thread, and poll() writes the outputs once it is done. cancel() makes the library's
+    progress callback return False, which the library honours at its next report. `error`
+    is the BaffleDesignerError of a failed or cancelled design."""
+
+    what = "design"
+    poll_interval = 0.02
 
     def __init__(self, logic, curve, allow_prepare: bool = False, progress=None, parameters=None, ventricle=None):
-        self.logic = logic
+        super().__init__(logic, curve, "design")
         self.given_parameters = parameters
         self.ventricle = ventricle
-        self.curve = curve
-        self.curve_id = curve.GetID() if curve is not None else None
         self.allow_prepare = allow_prepare
-        self.user_progress = progress  # called from wait() on the caller's thread
-        self.progress = 0.0
-        self.stage = "design"
-        self.state = ""
-        self.message = ""
-        self.result = None
+        self.user_progress = progress
         self.error: Optional[BaffleDesignerError] = None
         self.points_key: tuple = ()
-        self._cancel = threading.Event()
-        self._thread: Optional[threading.Thread] = None
-        self._outcome = None
         self._parameters = None
         self._started = 0.0
         # Time spent on the caller's (GUI) thread: reading the inputs, writing the outputs.
@@ -143,14 +133,8 @@ class DesignJob:
         finally:
             self.gui_ms += 1000.0 * (time.perf_counter() - self._started)
         self.points_key = defined_points_key(self.curve)
-        name = self.curve.GetName()
-        self._thread = threading.Thread(target=self._work, args=(name, self._parameters, points, mesh), daemon=True)
-        self._thread.start()
+        self.start_worker(self.curve.GetName(), self._parameters, points, mesh)
         return self
-
-    def _report(self, fraction, stage) -> bool:
-        self.progress, self.stage = float(fraction), stage
-        return not self._cancel.is_set()
 
     def _work(self, name, parameters, points, mesh) -> None:
         try:
@@ -160,18 +144,8 @@ class DesignJob:
         except Exception as error:  # a bug must end the job, not leave it running forever
             self._outcome = BaffleDesignerError(f"design failed: {type(error).__name__}: {error}")
 
-    @property
-    def running(self) -> bool:
-        return self.state == process.RUNNING
-
-    def cancel(self) -> None:
-        self._cancel.set()
-
-    def poll(self) -> str:
-        """RUNNING while the library works; then the outputs are written here (once)."""
-        if self.state != process.RUNNING or self._thread is None or self._thread.is_alive():
-            return self.state
-        outcome, self._outcome = self._outcome, None
+    def ended(self, outcome) -> str:
+        """The outputs written into the scene, or the failure recorded on the curve."""
         curve = self.logic.scene.GetNodeByID(self.curve_id) if self.curve_id else None
         if curve is None or curve is not self.curve:
             return self._finish(process.CANCELLED, "the candidate's curve was removed during the design")
@@ -198,17 +172,6 @@ class DesignJob:
         if self.error is None and state == process.CANCELLED:
             self.error = DesignCancelled(message)
         return state
-
-    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.02) -> str:
-        """Poll until the design has ended, reporting progress to the caller's callback."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while self.poll() == process.RUNNING:
-            if self.user_progress is not None and self.user_progress(self.progress, self.stage) is False:
-                self.cancel()
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"design still running after {timeout} s")
-            self._thread.join(poll_interval)
-        return self.state
 
 
 def _nan(value) -> float:
@@ -306,21 +269,8 @@ def polygon_area(loop: np.ndarray) -> float:
 def section_loop(domain: vtk.vtkPolyData, origin, normal) -> Optional[np.ndarray]:
     """The loop where the plane (origin, normal) cuts the closed domain, on the connected
     piece nearest the origin: (n, 3) points in order, or None when the plane misses."""
-    plane = vtk.vtkPlane()
-    plane.SetOrigin(*origin)
-    plane.SetNormal(*normal)
-    cutter = vtk.vtkCutter()
-    cutter.SetInputData(domain)
-    cutter.SetCutFunction(plane)
-    connectivity = vtk.vtkPolyDataConnectivityFilter()
-    connectivity.SetInputConnection(cutter.GetOutputPort())
-    connectivity.SetExtractionModeToClosestPointRegion()
-    connectivity.SetClosestPoint(*origin)
-    stripper = vtk.vtkStripper()
-    stripper.SetInputConnection(connectivity.GetOutputPort())
-    stripper.JoinContiguousSegmentsOn()
-    stripper.Update()
-    loop_data = stripper.GetOutput()
+    _, vtk_adapters = library()
+    loop_data = vtk_adapters.joined_lines(vtk_adapters.plane_cut(domain, origin, normal, nearest=True))
     if loop_data.GetNumberOfLines() != 1 or loop_data.GetNumberOfPoints() < 3:
         return None
     points = numpy_support.vtk_to_numpy(loop_data.GetPoints().GetData())

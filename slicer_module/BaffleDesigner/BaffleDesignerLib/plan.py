@@ -16,8 +16,6 @@ failure)."""
 
 import os
 import re
-import threading
-import time
 from typing import Optional
 
 import numpy as np
@@ -96,26 +94,20 @@ def write_points(points_world: np.ndarray, path: str, name: str) -> str:
     return path
 
 
-class PlanJob:
-    """One candidate's whole plan through the library into `out_dir`, without blocking."""
+class PlanJob(process.LibraryJob):
+    """One candidate's whole plan through the library into `out_dir`, without blocking
+    (process.LibraryJob); `result` is the baffle.PlanResult once completed. cancel()
+    reaches the library through baffle.plan's `cancel`."""
+
+    what = "plan"
 
     def __init__(self, logic, curve, out_dir: str, parameters=None, single_mesh: bool = False, env: Optional[dict] = None):
-        self.logic = logic
-        self.curve = curve
-        self.curve_id = curve.GetID() if curve is not None else None
+        super().__init__(logic, curve, "inputs")
         self.out_dir = out_dir
         self.inputs_dir = out_dir + "-inputs"
         self.given_parameters = parameters
         self.single_mesh = single_mesh
         self.env = env  # the child processes' environment: BAFFLE_GMSH / BAFFLE_PYTHON from it
-        self.progress = 0.0
-        self.stage = "inputs"
-        self.state = ""
-        self.message = ""
-        self.result = None  # baffle.PlanResult once completed
-        self._cancel = threading.Event()
-        self._thread: Optional[threading.Thread] = None
-        self._outcome = None
 
     # ---- the inputs, on the caller's (GUI) thread -----------------------------------------
 
@@ -146,15 +138,14 @@ class PlanJob:
         except (candidate.BaffleDesignerError, OSError) as error:
             self._end(process.FAILED, f"the plan could not start: {error}")
             return self
-        self._thread = threading.Thread(target=self._work, args=(kwargs,), daemon=True)
-        self._thread.start()
+        self.start_worker(kwargs)
         return self
 
     # ---- the library, on the worker thread ------------------------------------------------
 
     def _report(self, fraction, stage) -> bool:
-        self.progress, self.stage = float(fraction), stage
-        return True
+        super()._report(fraction, stage)
+        return True  # cancelling goes through baffle.plan's own `cancel`
 
     def _work(self, kwargs) -> None:
         baffle, _ = candidate.library()
@@ -175,19 +166,9 @@ class PlanJob:
 
     # ---- the end, on the caller's thread --------------------------------------------------
 
-    @property
-    def running(self) -> bool:
-        return self.state == process.RUNNING
-
-    def cancel(self) -> None:
-        self._cancel.set()
-
-    def poll(self) -> str:
-        """RUNNING while the library works; then the result is stored here (once)."""
-        if self.state != process.RUNNING or self._thread is None or self._thread.is_alive():
-            return self.state
+    def ended(self, outcome) -> str:
+        """The result stored here and on the candidate, or why there is none."""
         baffle, _ = candidate.library()
-        outcome, self._outcome = self._outcome, None
         if isinstance(outcome, baffle.Cancelled):
             return self._end(process.CANCELLED, f"{outcome}; the finished stages are kept in {self.out_dir}")
         if isinstance(outcome, baffle.BaffleError):
@@ -205,15 +186,6 @@ class PlanJob:
 
     def _curve_in_scene(self) -> bool:
         return self.curve is not None and self.logic.scene.GetNodeByID(self.curve_id or "") is self.curve
-
-    def wait(self, timeout: Optional[float] = None, poll_interval: float = 0.05, until=None) -> str:
-        """Poll until the plan has ended (or until() is true)."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while self.poll() == process.RUNNING and not (until and until()):
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"plan still running at stage {self.stage} after {timeout} s")
-            self._thread.join(poll_interval)
-        return self.state
 
 
 def result_line(result) -> str:

@@ -281,3 +281,71 @@ class PolledJob:
                 raise TimeoutError(f"{self.stage} still running after {timeout} s")
             time.sleep(poll_interval)
         return self.state
+
+
+class LibraryJob:
+    """Base of the jobs that run one library call on a worker thread without blocking the
+    GUI (the ctypes call releases the GIL, so the event loop keeps running): start() reads
+    the inputs on the caller's thread and hands them to start_worker(); the worker keeps
+    what the call returns or raises in `_outcome`; poll(), called from the caller's timer,
+    hands it once to ended() when the thread is done, on the caller's thread (MRML is
+    written there only). `progress` / `stage` follow the library's progress callback;
+    cancel() sets `_cancel`, which _report() passes back to the library. `state` is
+    RUNNING / COMPLETED / FAILED / CANCELLED. Subclasses define _work() and ended()."""
+
+    what = "job"  # what wait()'s TimeoutError names
+    poll_interval = 0.05
+
+    def __init__(self, logic, curve, stage: str):
+        self.logic = logic
+        self.curve = curve
+        self.curve_id = curve.GetID() if curve is not None else None
+        self.progress = 0.0
+        self.stage = stage
+        self.state = ""
+        self.message = ""
+        self.result = None
+        self.user_progress = None  # called from wait() on the caller's thread; False cancels
+        self._cancel = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._outcome = None
+
+    def start_worker(self, *args) -> None:
+        self._thread = threading.Thread(target=self._work, args=args, daemon=True)
+        self._thread.start()
+
+    def _work(self, *args) -> None:
+        raise NotImplementedError
+
+    def ended(self, outcome) -> str:
+        raise NotImplementedError
+
+    def _report(self, fraction, stage) -> bool:
+        self.progress, self.stage = float(fraction), stage
+        return not self._cancel.is_set()
+
+    @property
+    def running(self) -> bool:
+        return self.state == RUNNING
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def poll(self) -> str:
+        """RUNNING while the library works; then its outcome goes to ended() (once)."""
+        if self.state != RUNNING or self._thread is None or self._thread.is_alive():
+            return self.state
+        outcome, self._outcome = self._outcome, None
+        return self.ended(outcome)
+
+    def wait(self, timeout: Optional[float] = None, poll_interval: Optional[float] = None, until=None) -> str:
+        """Poll until the job has ended (or until() is true), reporting progress to
+        `user_progress`."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() == RUNNING and not (until and until()):
+            if self.user_progress is not None and self.user_progress(self.progress, self.stage) is False:
+                self.cancel()
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"{self.what} still running at stage {self.stage} after {timeout} s")
+            self._thread.join(self.poll_interval if poll_interval is None else poll_interval)
+        return self.state

@@ -6,7 +6,8 @@ surface beyond the plane and within 1.5 rim radii of the rim's axis is cut away 
 segmentation holds of the LV or the aorta there), the cut's one new boundary loop is checked
 against the rim (the rim was marked on the wall, so the loop must follow it), and closed by a
 planar cap of near-wall-sized triangles (constrained Delaunay of the loop plus a lattice
-inside). Labels: 2 wall, 11 VSD cap, 16 aortic cap. Pure vtk + numpy (no scipy in Slicer)."""
+inside). Labels: 2 wall, 11 VSD cap, 16 aortic cap. vtk + numpy (no scipy in Slicer), and
+the baffle package's joined_lines (the design that follows needs the package anyway)."""
 
 from typing import List, Sequence, Tuple
 
@@ -14,7 +15,7 @@ import numpy as np
 import vtk
 from vtkmodules.util import numpy_support
 
-from BaffleDesignerLib.candidate import BaffleDesignerError
+from BaffleDesignerLib.candidate import BaffleDesignerError, library
 
 LABEL_ARRAY = "ModelFaceID"
 WALL, VSD_CAP, AORTIC_CAP = 2, 11, 16
@@ -63,11 +64,9 @@ def boundary_loops(polydata) -> List[np.ndarray]:
     edges.BoundaryEdgesOn()
     for off in (edges.FeatureEdgesOff, edges.ManifoldEdgesOff, edges.NonManifoldEdgesOff):
         off()
-    stripper = vtk.vtkStripper()
-    stripper.SetInputConnection(edges.GetOutputPort())
-    stripper.JoinContiguousSegmentsOn()
-    stripper.Update()
-    out = stripper.GetOutput()
+    edges.Update()
+    _, vtk_adapters = library()
+    out = vtk_adapters.joined_lines(edges.GetOutput())
     if out.GetNumberOfPoints() == 0:
         return []
     points = _points(out)

@@ -260,18 +260,9 @@ def speed_section(fields: vtk.vtkUnstructuredGrid, centerline_node) -> Optional[
     tangent = at(middle + 1) - at(middle - 1)
     if not np.linalg.norm(tangent) > 0:
         return None
-    plane = vtk.vtkPlane()
-    plane.SetOrigin(*at(middle))
-    plane.SetNormal(*(tangent / np.linalg.norm(tangent)))
-    cutter = vtk.vtkCutter()
-    cutter.SetInputData(fields)
-    cutter.SetCutFunction(plane)
-    nearest = vtk.vtkPolyDataConnectivityFilter()  # the pathway's section, not another crossing
-    nearest.SetInputConnection(cutter.GetOutputPort())
-    nearest.SetExtractionModeToClosestPointRegion()
-    nearest.SetClosestPoint(*at(middle))
-    nearest.Update()
-    section = nearest.GetOutput()
+    _, vtk_adapters = candidate.library()
+    # The pathway's section, not another crossing.
+    section = vtk_adapters.plane_cut(fields, at(middle), tangent / np.linalg.norm(tangent), nearest=True)
     return section if section.GetNumberOfCells() > 0 else None
 
 

@@ -128,6 +128,13 @@ mod tests {
         dir
     }
 
+    /// (patient, its file `relative`) of each published patient, p2 first; none without
+    /// the patient data.
+    fn published_files(relative: &str) -> Vec<(&'static str, PathBuf)> {
+        let Some(dir) = data_dir() else { return Vec::new() };
+        ["p2", "p3"].into_iter().map(|patient| (patient, dir.join(patient).join(relative))).collect()
+    }
+
     /// `NumberOfPoints`/`NumberOfPolys` as written in the file's Piece element.
     fn piece_count(path: &Path, attribute: &str) -> usize {
         let text = std::fs::read(path).unwrap();
@@ -143,9 +150,7 @@ mod tests {
 
     #[test]
     fn capped_ventricles_read_with_their_labels() {
-        let Some(dir) = data_dir() else { return };
-        for patient in ["p2", "p3"] {
-            let path = dir.join(patient).join("design_input/capped_ventricle.vtp");
+        for (patient, path) in published_files("design_input/capped_ventricle.vtp") {
             let s = read_surface_labeled(&path).unwrap();
             assert!(s.has_model_face_id);
             assert_eq!(s.mesh.points.len(), piece_count(&path, "NumberOfPoints"), "{patient}");
@@ -154,16 +159,16 @@ mod tests {
             let report = crate::geometry::mesh::manifold_report(&s.mesh);
             assert!(report.is_closed_manifold(), "{patient}: {report:?}");
             assert!(s.mesh.signed_volume_mm3() > 0.0, "{patient}: README says outward-wound");
+            if patient == "p2" {
+                let plain = read_surface(&path).unwrap();
+                assert_eq!((plain.points.len(), plain.triangles.len()), (5312, 10620));
+            }
         }
-        let p2 = read_surface(&dir.join("p2/design_input/capped_ventricle.vtp")).unwrap();
-        assert_eq!((p2.points.len(), p2.triangles.len()), (5312, 10620));
     }
 
     #[test]
     fn published_surfaces_with_appended_base64_and_float32_points() {
-        let Some(dir) = data_dir() else { return };
-        for patient in ["p2", "p3"] {
-            let path = dir.join(patient).join("published_M_final.vtp");
+        for (patient, path) in published_files("published_M_final.vtp") {
             let pd = read_polydata(&path).unwrap();
             assert_eq!(pd.points.len(), piece_count(&path, "NumberOfPoints"));
             assert_eq!(pd.polys.len(), piece_count(&path, "NumberOfPolys"));
@@ -177,9 +182,7 @@ mod tests {
 
     #[test]
     fn published_seams_are_closed_polylines() {
-        let Some(dir) = data_dir() else { return };
-        for patient in ["p2", "p3"] {
-            let path = dir.join(patient).join("design_input/published_seam.vtp");
+        for (patient, path) in published_files("design_input/published_seam.vtp") {
             let pd = read_polydata(&path).unwrap();
             assert!(pd.polys.is_empty());
             assert_eq!(pd.lines.len(), 1, "{patient}");
@@ -191,9 +194,8 @@ mod tests {
 
     #[test]
     fn suture_points_of_both_patients() {
-        let Some(dir) = data_dir() else { return };
-        for patient in ["p2", "p3"] {
-            let sp = read_points(&dir.join(patient).join("design_input/suture_points.mrk.json")).unwrap();
+        for (patient, path) in published_files("design_input/suture_points.mrk.json") {
+            let sp = read_points(&path).unwrap();
             assert_eq!(sp.points_mm.len(), 14, "{patient}");
             assert_eq!(sp.coordinate_system, CoordinateSystem::Lps);
             assert!(sp.closed);

@@ -8,20 +8,7 @@
 /// increasing. Computed as the upper convex hull of the points (monotone-chain scan,
 /// O(n)) interpolated linearly between hull vertices.
 pub fn least_concave_majorant(x: &[f64], y: &[f64]) -> Result<Vec<f64>, String> {
-    if x.len() != y.len() {
-        return Err(format!("concave majorant: {} x values but {} y values", x.len(), y.len()));
-    }
-    if let Some(i) = (0..x.len()).find(|&i| !x[i].is_finite() || !y[i].is_finite()) {
-        return Err(format!("concave majorant: point {i} is not finite (x = {}, y = {})", x[i], y[i]));
-    }
-    if let Some(i) = (1..x.len()).find(|&i| x[i] <= x[i - 1]) {
-        return Err(format!(
-            "concave majorant: x must be strictly increasing, but x[{i}] = {} <= x[{}] = {}",
-            x[i],
-            i - 1,
-            x[i - 1]
-        ));
-    }
+    super::check_samples("concave majorant", x, y, 0)?;
     let hull = upper_hull(x, y);
     let mut majorant = Vec::with_capacity(x.len());
     for pair in hull.windows(2) {

@@ -18,6 +18,25 @@ pub use pchip::{CurveSample, Pchip, PchipCurve3};
 pub use spline::ClosedSpline;
 pub use tps::{ThinPlateSpline, TpsSolver};
 
+/// Checks samples (x_i, y_i) of a function of x: as many x as y, at least `min_points`,
+/// all finite, x strictly increasing. The message starts with `what` and names the
+/// offending count or index.
+fn check_samples(what: &str, x: &[f64], y: &[f64], min_points: usize) -> Result<(), String> {
+    if x.len() != y.len() {
+        return Err(format!("{what}: {} x values but {} y values", x.len(), y.len()));
+    }
+    if x.len() < min_points {
+        return Err(format!("{what} needs at least {min_points} points, got {}", x.len()));
+    }
+    if let Some(i) = (0..x.len()).find(|&i| !x[i].is_finite() || !y[i].is_finite()) {
+        return Err(format!("{what}: point {i} is not finite (x = {}, y = {})", x[i], y[i]));
+    }
+    if let Some(i) = (1..x.len()).find(|&i| x[i] <= x[i - 1]) {
+        return Err(format!("{what}: x must be strictly increasing, but x[{i}] = {} <= x[{}] = {}", x[i], i - 1, x[i - 1]));
+    }
+    Ok(())
+}
+
 /// Nodes and weights of the 8-point Gauss-Legendre rule on [-1, 1] (exact for
 /// polynomials up to degree 15; the speed |C'(t)| of a cubic is the square root of
 /// a quartic, which this integrates to ~1e-10 relative on one spline segment).

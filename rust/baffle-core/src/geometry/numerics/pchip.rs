@@ -7,6 +7,7 @@
 
 use super::{gauss_legendre_8, invert_increasing};
 use crate::geometry::mesh::Vec3;
+use std::ops::{Div, Sub};
 
 /// 1D monotonicity-preserving cubic interpolant y(x).
 #[derive(Clone, Debug)]
@@ -20,23 +21,7 @@ pub struct Pchip {
 impl Pchip {
     /// Interpolant through (x_i, y_i); x strictly increasing, at least 2 points.
     pub fn new(x: &[f64], y: &[f64]) -> Result<Self, String> {
-        if x.len() != y.len() {
-            return Err(format!("PCHIP: {} x values but {} y values", x.len(), y.len()));
-        }
-        if x.len() < 2 {
-            return Err(format!("PCHIP needs at least 2 points, got {}", x.len()));
-        }
-        if let Some(i) = (0..x.len()).find(|&i| !x[i].is_finite() || !y[i].is_finite()) {
-            return Err(format!("PCHIP: point {i} is not finite (x = {}, y = {})", x[i], y[i]));
-        }
-        if let Some(i) = (1..x.len()).find(|&i| x[i] <= x[i - 1]) {
-            return Err(format!(
-                "PCHIP: x must be strictly increasing, but x[{i}] = {} <= x[{}] = {}",
-                x[i],
-                i - 1,
-                x[i - 1]
-            ));
-        }
+        super::check_samples("PCHIP", x, y, 2)?;
         Ok(Pchip { x: x.to_vec(), y: y.to_vec(), slopes: knot_slopes(x, y) })
     }
 
@@ -95,13 +80,20 @@ fn sign(v: f64) -> f64 {
     }
 }
 
+/// The knot spacings h_k and the secants (v_(k+1) - v_k) / h_k of `values` at `knots`
+/// (numbers for [`knot_slopes`], points for [`vector_knot_velocities`]).
+fn secants<T: Copy + Sub<Output = T> + Div<f64, Output = T>>(knots: &[f64], values: &[T]) -> (Vec<f64>, Vec<T>) {
+    let h: Vec<f64> = knots.windows(2).map(|w| w[1] - w[0]).collect();
+    let secant = (0..values.len() - 1).map(|k| (values[k + 1] - values[k]) / h[k]).collect();
+    (h, secant)
+}
+
 /// Knot derivatives by scipy's `_find_derivatives`: interior knots take the weighted
 /// harmonic mean of the neighbouring secant slopes (0 at a local extremum or flat
 /// part), end knots the shape-preserving 3-point formula; 2 points give the line.
 fn knot_slopes(x: &[f64], y: &[f64]) -> Vec<f64> {
     let n = x.len();
-    let h: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
-    let m: Vec<f64> = (0..n - 1).map(|k| (y[k + 1] - y[k]) / h[k]).collect();
+    let (h, m) = secants(x, y);
     if n == 2 {
         return vec![m[0], m[0]];
     }
@@ -137,8 +129,7 @@ fn end_slope(h0: f64, h1: f64, m0: f64, m1: f64) -> f64 {
 /// chord's velocity d_k is its unit direction).
 fn vector_knot_velocities(points: &[Vec3], knots: &[f64]) -> Vec<Vec3> {
     let n = points.len();
-    let h: Vec<f64> = knots.windows(2).map(|w| w[1] - w[0]).collect();
-    let d: Vec<Vec3> = (0..n - 1).map(|k| (points[k + 1] - points[k]) / h[k]).collect();
+    let (h, d) = secants(knots, points);
     if n == 2 {
         return vec![d[0], d[0]];
     }

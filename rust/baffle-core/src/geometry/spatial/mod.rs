@@ -141,9 +141,8 @@ impl TriangleBvh {
         self.closest_point_where(mesh, q, f64::INFINITY, accept)
     }
 
-    /// Nearest point on the accepted triangles within `max_distance_mm`. Subtrees
-    /// whose box is farther than the best hit so far are skipped; the nearer child
-    /// is searched first so the bound tightens early.
+    /// Nearest point on the accepted triangles within `max_distance_mm` (the bound of
+    /// [`Self::nearest_first`]: squared distance).
     pub fn closest_point_where(
         &self,
         mesh: &TriMesh,
@@ -152,51 +151,24 @@ impl TriangleBvh {
         accept: impl Fn(u32) -> bool,
     ) -> Option<ClosestHit> {
         self.assert_built_from(mesh);
-        if max_distance_mm.is_nan() || max_distance_mm < 0.0 {
+        if max_distance_mm.is_nan() || max_distance_mm < 0.0 || self.nodes.is_empty() {
             return None;
         }
-        let root = self.nodes.first()?;
         let mut best: Option<ClosestHit> = None;
-        let mut best_d2 = max_distance_mm * max_distance_mm;
-        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
-        stack.push((0, root.bounds.distance_squared_mm2(&q)));
-        while let Some((index, box_d2)) = stack.pop() {
-            if box_d2 > best_d2 {
-                continue;
-            }
-            let node = &self.nodes[index as usize];
-            if node.is_leaf() {
-                for &t in self.leaf_triangles(node) {
-                    if !accept(t) {
-                        continue;
-                    }
-                    let (point, barycentric) =
-                        closest_point_on_triangle(&q, &mesh.triangle_points(t as usize));
+        self.nearest_first(
+            max_distance_mm * max_distance_mm,
+            |bounds, _| Some(bounds.distance_squared_mm2(&q)),
+            |triangles, best_d2| {
+                for &t in triangles.iter().filter(|&&t| accept(t)) {
+                    let (point, barycentric) = closest_point_on_triangle(&q, &mesh.triangle_points(t as usize));
                     let d2 = (point - q).norm_squared();
-                    if d2 < best_d2 || (best.is_none() && d2 <= best_d2) {
-                        best_d2 = d2;
-                        best = Some(ClosestHit {
-                            triangle: t,
-                            point,
-                            barycentric,
-                            distance_mm: d2.sqrt(),
-                        });
+                    if d2 < *best_d2 || (best.is_none() && d2 <= *best_d2) {
+                        *best_d2 = d2;
+                        best = Some(ClosestHit { triangle: t, point, barycentric, distance_mm: d2.sqrt() });
                     }
                 }
-                continue;
-            }
-            let (left, right) = (node.first, node.first + 1);
-            let left_d2 = self.nodes[left as usize].bounds.distance_squared_mm2(&q);
-            let right_d2 = self.nodes[right as usize].bounds.distance_squared_mm2(&q);
-            // Push the farther child first so the nearer one is popped next.
-            if left_d2 <= right_d2 {
-                stack.push((right, right_d2));
-                stack.push((left, left_d2));
-            } else {
-                stack.push((left, left_d2));
-                stack.push((right, right_d2));
-            }
-        }
+            },
+        );
         best
     }
 
@@ -245,37 +217,50 @@ impl TriangleBvh {
         }
         let inv_dir = dir.map(|c| 1.0 / c);
         let mut best: Option<(f64, u32)> = None;
-        let mut best_t = f64::INFINITY;
-        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
-        if let Some(t) = self.nodes[0].bounds.ray_entry(&origin, &inv_dir, best_t) {
-            stack.push((0, t));
-        }
-        while let Some((index, entry_t)) = stack.pop() {
-            if entry_t > best_t {
-                continue;
-            }
-            let node = &self.nodes[index as usize];
-            if node.is_leaf() {
-                for &t in self.leaf_triangles(node) {
-                    if let Some(hit_t) =
-                        ray_triangle(&origin, &dir, &mesh.triangle_points(t as usize))
-                    {
-                        if hit_t < best_t {
-                            best_t = hit_t;
+        self.nearest_first(
+            f64::INFINITY,
+            |bounds, best_t| bounds.ray_entry(&origin, &inv_dir, best_t),
+            |triangles, best_t| {
+                for &t in triangles {
+                    if let Some(hit_t) = ray_triangle(&origin, &dir, &mesh.triangle_points(t as usize)) {
+                        if hit_t < *best_t {
+                            *best_t = hit_t;
                             best = Some((hit_t, t));
                         }
                     }
                 }
+            },
+        );
+        best
+    }
+
+    /// Visits the leaves whose subtree may hold something better than `bound`, nearer
+    /// first: `lower_bound(box, bound)` is the least a subtree in `box` can give (None:
+    /// nothing), `leaf(triangles, bound)` lowers `bound` by what it finds. The farther
+    /// child is pushed first, so the nearer one is popped next and the bound tightens
+    /// early; a subtree whose lower bound has since passed the bound is skipped.
+    fn nearest_first(
+        &self,
+        mut bound: f64,
+        lower_bound: impl Fn(&Aabb, f64) -> Option<f64>,
+        mut leaf: impl FnMut(&[u32], &mut f64),
+    ) {
+        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
+        if let Some(root) = lower_bound(&self.nodes[0].bounds, bound) {
+            stack.push((0, root));
+        }
+        while let Some((index, least)) = stack.pop() {
+            if least > bound {
                 continue;
             }
-            let entry = |c: u32| {
-                self.nodes[c as usize]
-                    .bounds
-                    .ray_entry(&origin, &inv_dir, best_t)
-            };
+            let node = &self.nodes[index as usize];
+            if node.is_leaf() {
+                leaf(self.leaf_triangles(node), &mut bound);
+                continue;
+            }
+            let child = |c: u32| lower_bound(&self.nodes[c as usize].bounds, bound);
             let (left, right) = (node.first, node.first + 1);
-            // Push the later-entered child first so the nearer one is popped next.
-            match (entry(left), entry(right)) {
+            match (child(left), child(right)) {
                 (Some(l), Some(r)) if l <= r => stack.extend([(right, r), (left, l)]),
                 (Some(l), Some(r)) => stack.extend([(left, l), (right, r)]),
                 (Some(l), None) => stack.push((left, l)),
@@ -283,7 +268,6 @@ impl TriangleBvh {
                 (None, None) => {}
             }
         }
-        best
     }
 
     /// Plane-distance tolerance (mm) for intersection tests on this tree's mesh.

@@ -97,18 +97,10 @@ pub fn order_by_pca_angle(points: &[Vec3]) -> Vec<Vec3> {
 /// paper's angle order, or in the given order (a Slicer closed curve's) where the angle
 /// order jumps across the loop or its seam fails. A loop bent round a strongly curved wall
 /// (a long tunnel) is not star-shaped in its plane, and there the angle order zigzags.
-pub fn seam_on_wall(
-    surface: &TriMesh,
-    bvh: &TriangleBvh,
-    labels: &FaceLabels,
-    points: &[Vec3],
-    sample_count: usize,
-    max_point_distance_mm: f64,
-) -> Result<(ProjectedSeam, ImprintedSeam), DesignError> {
-    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
+pub fn seam_on_wall(projector: WallProjector, points: &[Vec3], sample_count: usize) -> Result<(ProjectedSeam, ImprintedSeam), DesignError> {
     let in_order = |ordered: &[Vec3]| {
         let projected = project_ordered_seam(projector, ordered, sample_count)?;
-        let imprinted = imprint_seam(surface, &projected)?;
+        let imprinted = imprint_seam(projector.surface, &projected)?;
         Ok((projected, imprinted))
     };
     check_suture_points(&projector, points)?;
@@ -136,15 +128,7 @@ fn jumps_across_the_loop(given: &[Vec3], by_angle: &[Vec3]) -> bool {
 }
 
 /// [`project_ordered_seam`] with the points in the paper's angle order.
-pub fn project_seam(
-    surface: &TriMesh,
-    bvh: &TriangleBvh,
-    labels: &FaceLabels,
-    points: &[Vec3],
-    sample_count: usize,
-    max_point_distance_mm: f64,
-) -> Result<ProjectedSeam, DesignError> {
-    let projector = WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm };
+pub fn project_seam(projector: WallProjector, points: &[Vec3], sample_count: usize) -> Result<ProjectedSeam, DesignError> {
     check_suture_points(&projector, points)?;
     project_ordered_seam(projector, &order_by_pca_angle(points), sample_count)
 }
@@ -184,14 +168,21 @@ fn project_ordered_seam(projector: WallProjector, points: &[Vec3], sample_count:
 /// spline between two of them may bulge over the cap. Deeper inside, the points do
 /// not describe a seam on the wall and the sample is refused.
 #[derive(Clone, Copy)]
-struct WallProjector<'a> {
+pub struct WallProjector<'a> {
     surface: &'a TriMesh,
     bvh: &'a TriangleBvh,
     labels: &'a FaceLabels,
     max_rim_shift_mm: f64,
 }
 
-impl WallProjector<'_> {
+impl<'a> WallProjector<'a> {
+    /// The wall of `surface` (its `labels.wall` triangles, `bvh` its hierarchy): a suture
+    /// point may lie up to `max_point_distance_mm` off it, and a spline sample that far
+    /// inside a cap's rim is moved onto the rim.
+    pub fn new(surface: &'a TriMesh, bvh: &'a TriangleBvh, labels: &'a FaceLabels, max_point_distance_mm: f64) -> Self {
+        WallProjector { surface, bvh, labels, max_rim_shift_mm: max_point_distance_mm }
+    }
+
     fn project(&self, q: Vec3, sample: usize) -> Result<ClosestHit, DesignError> {
         let labels = self.labels;
         let wall = self

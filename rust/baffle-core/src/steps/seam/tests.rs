@@ -52,7 +52,7 @@ fn seam_on_a_box_face_is_an_exact_edge_loop() {
             Vec3::new(2.0 + 1.3 * a.cos(), 2.0 + 1.1 * a.sin(), 4.0)
         })
         .collect();
-    let seam = project_seam(&mesh, &bvh, &labels, &pts, 200, 2.0).unwrap();
+    let seam = project_seam(WallProjector::new(&mesh, &bvh, &labels, 2.0), &pts, 200).unwrap();
     let imprinted = imprint_seam(&mesh, &seam).unwrap();
     let rep = manifold_report(&imprinted.mesh);
     assert!(rep.is_closed_manifold(), "{rep:?}");
@@ -91,7 +91,7 @@ fn seam_over_a_box_edge_is_traced() {
             }
         })
         .collect();
-    let seam = project_seam(&mesh, &bvh, &labels, &pts, 300, 2.0).unwrap();
+    let seam = project_seam(WallProjector::new(&mesh, &bvh, &labels, 2.0), &pts, 300).unwrap();
     let imprinted = imprint_seam(&mesh, &seam).unwrap();
     assert!(manifold_report(&imprinted.mesh).is_closed_manifold());
     assert!(imprinted.loop_vertices.len() >= 300);
@@ -123,11 +123,11 @@ fn too_few_or_far_points_are_named() {
     let bvh = TriangleBvh::new(&mesh).unwrap();
     let labels = FaceLabels::default();
     let three = vec![Vec3::new(1., 1., 4.), Vec3::new(2., 1., 4.), Vec3::new(2., 2., 4.)];
-    let e = project_seam(&mesh, &bvh, &labels, &three, 100, 2.0).unwrap_err();
+    let e = project_seam(WallProjector::new(&mesh, &bvh, &labels, 2.0), &three, 100).unwrap_err();
     assert!(e.to_string().contains("at least 4"), "{e}");
     let mut far = three.clone();
     far.push(Vec3::new(1., 2., 7.5));
-    let e = project_seam(&mesh, &bvh, &labels, &far, 100, 2.0).unwrap_err();
+    let e = project_seam(WallProjector::new(&mesh, &bvh, &labels, 2.0), &far, 100).unwrap_err();
     assert!(e.to_string().contains("point 4") && e.to_string().contains("3.50 mm"), "{e}");
 }
 
@@ -150,7 +150,7 @@ fn seam_across_a_cap_is_rejected() {
         })
         .collect();
     let labels = FaceLabels::default();
-    let err = project_seam(&mesh, &bvh, &labels, &pts, 200, 2.0)
+    let err = project_seam(WallProjector::new(&mesh, &bvh, &labels, 2.0), &pts, 200)
         .and_then(|s| imprint_seam(&mesh, &s).map(|_| ()))
         .unwrap_err();
     assert!(err.to_string().contains("VSD cap"), "{err}");
@@ -186,13 +186,13 @@ fn a_seam_bulging_over_a_cap_rim_follows_the_rim() {
     let bvh = TriangleBvh::new(&mesh).unwrap();
     let labels = FaceLabels::default();
     let points = octagon_on_top(2.4);
-    let seam = project_seam(&mesh, &bvh, &labels, &points, 200, 2.0).unwrap();
+    let seam = project_seam(WallProjector::new(&mesh, &bvh, &labels, 2.0), &points, 200).unwrap();
     let leftmost = seam.path.iter().map(|p| p.position_mm.x).fold(f64::INFINITY, f64::min);
     assert!((leftmost - 1.0).abs() < 1e-9, "the seam runs along the rim x = 1, not {leftmost}");
     let imprinted = imprint_seam(&mesh, &seam).unwrap();
     assert!(manifold_report(&imprinted.mesh).is_closed_manifold());
     // With a tolerance below the bulge the same points are refused, and the distance named.
-    let err = project_seam(&mesh, &bvh, &labels, &points, 200, 0.08).unwrap_err().to_string();
+    let err = project_seam(WallProjector::new(&mesh, &bvh, &labels, 0.08), &points, 200).unwrap_err().to_string();
     assert!(err.contains("crosses the VSD cap") && err.contains("inside its rim"), "{err}");
 }
 
@@ -202,7 +202,7 @@ fn a_suture_point_on_a_cap_rim_is_on_the_wall() {
     let bvh = TriangleBvh::new(&mesh).unwrap();
     let mut points = octagon_on_top(2.5);
     points[3] = Vec3::new(1.0, 2.3, 4.0);
-    project_seam(&mesh, &bvh, &FaceLabels::default(), &points, 200, 2.0).unwrap();
+    project_seam(WallProjector::new(&mesh, &bvh, &FaceLabels::default(), 2.0), &points, 200).unwrap();
 }
 
 #[test]
@@ -212,7 +212,7 @@ fn a_seam_across_a_cap_band_is_refused_by_name() {
     let mesh = with_cap(grid_box(16), |c| (c.x - 2.0).abs() < 0.25 && (c.z > 3.99 || c.y < 1e-9 || c.y > 4.0 - 1e-9));
     let bvh = TriangleBvh::new(&mesh).unwrap();
     let points: Vec<Vec3> = octagon_on_top(2.0).into_iter().filter(|p| (p.x - 2.0).abs() > 0.3).collect();
-    let err = project_seam(&mesh, &bvh, &FaceLabels::default(), &points, 200, 2.0).unwrap_err().to_string();
+    let err = project_seam(WallProjector::new(&mesh, &bvh, &FaceLabels::default(), 2.0), &points, 200).unwrap_err().to_string();
     assert!(err.contains("crosses the VSD cap") && err.contains("leaves it on another"), "{err}");
 }
 
@@ -282,9 +282,9 @@ fn the_given_order_is_tried_where_the_angle_order_zigzags_into_a_crossing_seam()
     let bvh = TriangleBvh::new(surface).unwrap();
     let labels = FaceLabels::default();
     assert!(!is_rotation_or_reversal(points, &order_by_pca_angle(points)), "the angle order should zigzag on this loop");
-    let by_angle = project_seam(surface, &bvh, &labels, points, 600, 2.0).and_then(|p| imprint_seam(surface, &p));
+    let by_angle = project_seam(WallProjector::new(surface, &bvh, &labels, 2.0), points, 600).and_then(|p| imprint_seam(surface, &p));
     assert!(matches!(by_angle, Err(DesignError::Seam(ref why)) if why.contains("crosses itself")), "{:?}", by_angle.err());
-    let (projected, _) = seam_on_wall(surface, &bvh, &labels, points, 600, 2.0).unwrap();
+    let (projected, _) = seam_on_wall(WallProjector::new(surface, &bvh, &labels, 2.0), points, 600).unwrap();
     assert_eq!(projected.ordered_points_mm, *points);
     let target = crate::TargetArea::AreaMm2(30.0);
     let designed = crate::design(surface, points, &target, &Default::default(), &mut |_, _| true).unwrap();
