@@ -111,6 +111,37 @@ fn a_remeshed_designed_domain_refines_the_whole_boundary_with_conforming_planes(
     std::fs::remove_dir_all(out).ok();
 }
 
+#[test]
+fn caps_off_their_planes_are_flattened_before_the_domain_is_remeshed() {
+    let Some(data) = baffle_test_support::reference_data::reference_data_if_present() else { return };
+    let out = temp_dir("p2-bent-remesh");
+    let (domain_path, segmentations) = designed_p2(&data, &out);
+    let domain = read_surface_labeled(&domain_path).unwrap().mesh;
+    // The VSD cap bent 1 % of its diameter off its plane, as a smoothed segmentation gives
+    // (the held-back patient's caps are planar to 1.5 %).
+    let bent_path = out.join("bent.vtp");
+    baffle_core::io::write_trimesh_vtp(&bent_path, &baffle_test_support::perturb::bend_cap(&domain, 11, 0.01)).unwrap();
+    let extended = out.join("extended.vtp");
+    ok(baffle(&["extend", "--domain", s(&bent_path), "--segmentations", s(&segmentations), "--remesh-domain-edge-mm", "0.6", "--out", s(&extended)]));
+    let report = report_of(&extended);
+    // The report gives the cap as given, not the flattened, remeshed domain's rounding.
+    let diameter_mm = 2.0 * (label_area_mm2(&domain, 11) / std::f64::consts::PI).sqrt();
+    let off_mm = report["vsd_cap_off_plane_mm"].as_f64().unwrap();
+    assert!(off_mm > 0.002 * diameter_mm && off_mm < 0.02 * diameter_mm, "VSD cap off plane {off_mm:.4} mm, diameter {diameter_mm:.2} mm");
+    // The extended domain carries the flat cap: its points on the reported plane.
+    let projection = report["cap_projections"].as_array().unwrap().iter().find(|p| p["label"] == 11).expect("the VSD cap's projection");
+    let vector = |key: &str| baffle_core::Vec3::from_iterator(projection[key].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()));
+    let (point, normal) = (vector("plane_point_mm"), vector("plane_normal"));
+    let surface = read_surface_labeled(&extended).unwrap().mesh;
+    let worst_mm = (0..surface.triangles.len())
+        .filter(|&t| surface.face_ids[t] == 11)
+        .flat_map(|t| surface.triangle_points(t))
+        .map(|p| (p - point).dot(&normal).abs())
+        .fold(0.0, f64::max);
+    assert!(worst_mm < 1e-6 * diameter_mm, "a VSD cap point {worst_mm:.2e} mm off the reported plane");
+    std::fs::remove_dir_all(out).ok();
+}
+
 fn report_of(extended: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(extended.with_file_name("extended-report.json")).unwrap()).unwrap()
 }

@@ -9,7 +9,7 @@ use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
 use baffle_core::geometry::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
 use baffle_core::{FaceLabels, TriMesh};
-use baffle_prepare::extend::{extend, ExtendOptions, ExtensionGrading, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
+use baffle_prepare::extend::{extend, flatten_designed_caps, ExtendOptions, ExtensionGrading, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
 use crate::progress::Progress;
 use std::path::PathBuf;
@@ -139,9 +139,12 @@ fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), St
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the designed domain's caps need their labels", args.domain.display()));
     }
-    let domain = match args.remesh_domain_edge_mm {
-        Some(edge_mm) => remeshed_domain(&labeled.mesh, edge_mm).map_err(|e| format!("{}: {e}", args.domain.display()))?,
-        None => labeled.mesh,
+    let (domain, caps_as_given) = match args.remesh_domain_edge_mm {
+        Some(edge_mm) => {
+            let (flat, projections) = flatten_designed_caps(&labeled.mesh, &args.labels).map_err(|e| format!("{}: {e}", args.domain.display()))?;
+            (remeshed_domain(&flat, edge_mm).map_err(|e| format!("{}: {e}", args.domain.display()))?, Some(projections))
+        }
+        None => (labeled.mesh, None),
     };
     let pools = read_pools(&args.source)?;
     let options = ExtendOptions {
@@ -156,7 +159,10 @@ fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), St
         grading: extension_grading(args.extension_coarsening)?,
         ..ExtendOptions::default()
     };
-    let extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
+    let mut extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
+    if let Some(projections) = caps_as_given {
+        extended.report.keep_caps_as_given(projections);
+    }
     crate::files::create_parent_dir(&args.out)?;
     write_trimesh_vtp(&args.out, &extended.surface).map_err(|e| e.to_string())?;
     let report = report_path(&args.out);

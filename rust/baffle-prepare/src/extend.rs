@@ -311,9 +311,7 @@ fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions
     let mut lap = lap_timer();
     let l = &options.labels;
     check_domain(domain)?;
-    // The method needs each cap's rim and plane, not micrometre planarity (`CapFlatness`).
-    let caps = [(l.vsd_cap, "VSD"), (l.aortic_cap, "aortic-annulus")];
-    let (flattened, cap_projections) = project_caps_onto_planes(domain, &caps).map_err(|e| PrepareError::geometry("designed domain", e))?;
+    let (flattened, cap_projections) = flatten_designed_caps(domain, l)?;
     let domain = &flattened;
     let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
     let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
@@ -408,6 +406,27 @@ fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions
 
 /// How far the cap labelled `label` was off its plane before the projection.
 /// (Every cap `designed_cap` accepted was projected, so each label has its record.)
+/// The designed domain with its VSD and aortic caps projected onto their least-squares
+/// planes: the method needs each cap's rim and plane, not micrometre planarity
+/// (`CapFlatness`). A caller that remeshes the domain finer flattens it first: the remesh
+/// keeps flat caps on their planes, whereas a projection after it can turn over a sliver
+/// the remesh left beside a rim (p3's chain at 0.3 mm, caps 4 micrometres off plane).
+pub fn flatten_designed_caps(domain: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh, Vec<CapProjection>), PrepareError> {
+    let caps = [(labels.vsd_cap, "VSD"), (labels.aortic_cap, "aortic-annulus")];
+    project_caps_onto_planes(domain, &caps).map_err(|e| PrepareError::geometry("designed domain", e))
+}
+
+impl ExtendReport {
+    /// The caps as the caller gave them, where it flattened them ([`flatten_designed_caps`])
+    /// before extending: their deviation, not the flattened domain's rounding.
+    pub fn keep_caps_as_given(&mut self, projections: Vec<CapProjection>) {
+        let [vsd, aortic] = self.interior_labels;
+        self.vsd_cap_off_plane_mm = off_plane_as_given_mm(&projections, vsd);
+        self.aortic_cap_off_plane_mm = off_plane_as_given_mm(&projections, aortic);
+        self.cap_projections = projections;
+    }
+}
+
 fn off_plane_as_given_mm(projections: &[CapProjection], label: i32) -> f64 {
     projections.iter().find(|p| p.label == label).map_or(0.0, |p| p.off_plane_mm)
 }
