@@ -7,9 +7,8 @@ use crate::error::PlanError;
 use crate::prepare_cmd::{read_pools, report_path, PrepareSource};
 use crate::files::write_atomic;
 use baffle_core::io::{read_surface_labeled, write_trimesh_vtp};
-use baffle_core::geometry::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
-use baffle_core::{FaceLabels, TriMesh};
-use baffle_prepare::extend::{extend, flatten_designed_caps, ExtendOptions, ExtensionGrading, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
+use baffle_core::FaceLabels;
+use baffle_prepare::extend::{extend, ExtendOptions, ExtensionGrading, ExtendReport, StjOptions, INFLOW_CAP_LABEL, OUTFLOW_CAP_LABEL};
 use baffle_prepare::PrepareOptions;
 use crate::progress::Progress;
 use std::path::PathBuf;
@@ -99,19 +98,6 @@ pub fn run_extend(args: &ExtendSettings, progress: &Progress) -> Result<(), Plan
     Ok(())
 }
 
-/// The designed domain remeshed isotropically at `edge_mm` (caps stay planar: the
-/// remesher keeps label boundaries and projects every point back onto its label's faces).
-fn remeshed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, String> {
-    let options = RemeshOptions { target_edge_mm: edge_mm, guard_slivers: true, ..RemeshOptions::default() };
-    let remeshed = remesh_isotropic(domain, &options).map_err(|e| format!("remeshing the designed domain at {edge_mm} mm: {e}"))?;
-    // The remesher projects onto the input's own faces; on a tightly curved baffle that
-    // can fold the result through itself, which no later stage could mesh.
-    match where_it_crosses_itself(&remeshed) {
-        Some(crossing) => Err(format!("remeshing the designed domain at {edge_mm} mm made it cross itself: {crossing} (try another --remesh-domain-edge-mm)")),
-        None => Ok(remeshed),
-    }
-}
-
 /// Where the extension keeps the designed rims' edge: one cap diameter from each cap
 /// covers the LV flow converging into the VSD and the jet leaving the annulus, whose
 /// pressure the measurement planes average.
@@ -139,13 +125,6 @@ fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), St
     if !labeled.has_model_face_id {
         return Err(format!("{}: no ModelFaceID cell array; the designed domain's caps need their labels", args.domain.display()));
     }
-    let (domain, caps_as_given) = match args.remesh_domain_edge_mm {
-        Some(edge_mm) => {
-            let (flat, projections) = flatten_designed_caps(&labeled.mesh, &args.labels).map_err(|e| format!("{}: {e}", args.domain.display()))?;
-            (remeshed_domain(&flat, edge_mm).map_err(|e| format!("{}: {e}", args.domain.display()))?, Some(projections))
-        }
-        None => (labeled.mesh, None),
-    };
     let pools = read_pools(&args.source)?;
     let options = ExtendOptions {
         union: PrepareOptions { voxel_mm: args.voxel_mm, ..PrepareOptions::default() },
@@ -153,16 +132,14 @@ fn extend_and_write(args: &ExtendSettings) -> Result<(ExtendReport, PathBuf), St
         inflow_label: args.inflow_label,
         outflow_label: args.outflow_label,
         remesh_edge_mm: args.remesh_edge_mm.or(args.remesh_domain_edge_mm),
+        remesh_domain_edge_mm: args.remesh_domain_edge_mm,
         stj: StjOptions { fixed_diameters: args.outflow_diameters, ..StjOptions::default() },
         inflow_offset_mm: args.inflow_offset_mm,
         without_baffle: args.no_baffle,
         grading: extension_grading(args.extension_coarsening)?,
         ..ExtendOptions::default()
     };
-    let mut extended = extend(&domain, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
-    if let Some(projections) = caps_as_given {
-        extended.report.keep_caps_as_given(projections);
-    }
+    let extended = extend(&labeled.mesh, &pools, &options).map_err(|e| format!("{}: {e}", args.domain.display()))?;
     crate::files::create_parent_dir(&args.out)?;
     write_trimesh_vtp(&args.out, &extended.surface).map_err(|e| e.to_string())?;
     let report = report_path(&args.out);

@@ -46,6 +46,7 @@ use crate::input::BloodPools;
 use crate::prepare::{cap_report, check_closed_outward, everywhere, lap_timer, union_in_frame, validate, AnatomyFrame, CapReport, PrepareOptions};
 use baffle_core::geometry::caps::{cap_flatness, project_caps_onto_planes, CapFlatness, CapProjection};
 use baffle_core::geometry::mesh::edge_key;
+use baffle_core::geometry::remesh::{remesh_isotropic, where_it_crosses_itself, RemeshOptions};
 use baffle_core::geometry::numerics::pca::Plane;
 use baffle_core::steps::sections::{cut_mesh, Contour};
 use baffle_core::analyses::self_check::{first_failure, SelfCheck};
@@ -118,6 +119,9 @@ pub struct ExtendOptions {
     pub outflow_label: i32,
     /// Target edge of the extension's remesh (mm); `None`: the designed caps' mean rim edge.
     pub remesh_edge_mm: Option<f64>,
+    /// Remesh the designed domain itself at this edge (mm) first, after flattening its caps
+    /// (a mesh study's level); `None`: keep its triangles.
+    pub remesh_domain_edge_mm: Option<f64>,
     pub stj: StjOptions,
     /// The mid-LV plane this far (mm) from the LV centroid along the VSD normal (positive:
     /// away from the VSD), and only there (a sensitivity study of the inflow position);
@@ -179,6 +183,7 @@ impl Default for ExtendOptions {
             inflow_label: INFLOW_CAP_LABEL,
             outflow_label: OUTFLOW_CAP_LABEL,
             remesh_edge_mm: None,
+            remesh_domain_edge_mm: None,
             stj: StjOptions::default(),
             inflow_offset_mm: None,
             without_baffle: false,
@@ -296,9 +301,18 @@ struct DesignedCap {
 pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
     // Bad options are the caller's to mend, not a reason to drop the grading.
     validate_options(options)?;
-    match (extend_as_asked(domain, pools, options), options.grading) {
+    check_domain(domain)?;
+    // The caps are flattened before any remesh: the remesh keeps flat caps on their planes,
+    // whereas projecting them after it can turn over a sliver the remesh left beside a rim
+    // (p3's chain at 0.3 mm, caps 4 micrometres off plane).
+    let (flattened, cap_projections) = flatten_designed_caps(domain, &options.labels)?;
+    let domain = &match options.remesh_domain_edge_mm {
+        Some(edge_mm) => remeshed_designed_domain(&flattened, edge_mm)?,
+        None => flattened,
+    };
+    match (extend_as_asked(domain, &cap_projections, pools, options), options.grading) {
         (Err(graded), Some(_)) => {
-            let mut extended = extend_as_asked(domain, pools, &ExtendOptions { grading: None, ..options.clone() })?;
+            let mut extended = extend_as_asked(domain, &cap_projections, pools, &ExtendOptions { grading: None, ..options.clone() })?;
             extended.report.grading_dropped = Some(format!("the graded extension failed ({graded}); extended at one edge instead"));
             Ok(extended)
         }
@@ -306,13 +320,11 @@ pub fn extend(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> 
     }
 }
 
-/// [`extend`] with `options` (validated) as given.
-fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
+/// [`extend`] with `options` (validated) as given, on the checked `domain` whose caps
+/// `cap_projections` flattened.
+fn extend_as_asked(domain: &TriMesh, cap_projections: &[CapProjection], pools: &BloodPools, options: &ExtendOptions) -> Result<Extended, PrepareError> {
     let mut lap = lap_timer();
     let l = &options.labels;
-    check_domain(domain)?;
-    let (flattened, cap_projections) = flatten_designed_caps(domain, l)?;
-    let domain = &flattened;
     let vsd = designed_cap(domain, l.vsd_cap, "VSD")?;
     let annulus = designed_cap(domain, l.aortic_cap, "aortic-annulus")?;
     check_baffle(domain, l.baffle, options.without_baffle)?;
@@ -391,9 +403,9 @@ fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions
             ),
             other_lv_rv_contact: lv_part.other_contact().map(|w| format!("{w}: left out of the LV part, which takes the RV only over the VSD, so it is wall in the extended domain")),
         },
-        vsd_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.vsd_cap),
-        aortic_cap_off_plane_mm: off_plane_as_given_mm(&cap_projections, l.aortic_cap),
-        cap_projections,
+        vsd_cap_off_plane_mm: off_plane_as_given_mm(cap_projections, l.vsd_cap),
+        aortic_cap_off_plane_mm: off_plane_as_given_mm(cap_projections, l.aortic_cap),
+        cap_projections: cap_projections.to_vec(),
         stj: stj_report,
         remesh_edge_mm: edge_mm,
         grading: options.grading,
@@ -404,29 +416,31 @@ fn extend_as_asked(domain: &TriMesh, pools: &BloodPools, options: &ExtendOptions
     Ok(Extended { surface, report })
 }
 
-/// How far the cap labelled `label` was off its plane before the projection.
-/// (Every cap `designed_cap` accepted was projected, so each label has its record.)
 /// The designed domain with its VSD and aortic caps projected onto their least-squares
 /// planes: the method needs each cap's rim and plane, not micrometre planarity
-/// (`CapFlatness`). A caller that remeshes the domain finer flattens it first: the remesh
-/// keeps flat caps on their planes, whereas a projection after it can turn over a sliver
-/// the remesh left beside a rim (p3's chain at 0.3 mm, caps 4 micrometres off plane).
-pub fn flatten_designed_caps(domain: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh, Vec<CapProjection>), PrepareError> {
+/// (`CapFlatness`).
+fn flatten_designed_caps(domain: &TriMesh, labels: &FaceLabels) -> Result<(TriMesh, Vec<CapProjection>), PrepareError> {
     let caps = [(labels.vsd_cap, "VSD"), (labels.aortic_cap, "aortic-annulus")];
     project_caps_onto_planes(domain, &caps).map_err(|e| PrepareError::geometry("designed domain", e))
 }
 
-impl ExtendReport {
-    /// The caps as the caller gave them, where it flattened them ([`flatten_designed_caps`])
-    /// before extending: their deviation, not the flattened domain's rounding.
-    pub fn keep_caps_as_given(&mut self, projections: Vec<CapProjection>) {
-        let [vsd, aortic] = self.interior_labels;
-        self.vsd_cap_off_plane_mm = off_plane_as_given_mm(&projections, vsd);
-        self.aortic_cap_off_plane_mm = off_plane_as_given_mm(&projections, aortic);
-        self.cap_projections = projections;
+/// The designed domain remeshed at `edge_mm`, checked as the domain given is. Flat caps
+/// stay flat: the remesher keeps label boundaries and projects every point back onto its
+/// label's faces. On a tightly curved baffle that projection can fold the result through
+/// itself, which no later stage could mesh.
+fn remeshed_designed_domain(domain: &TriMesh, edge_mm: f64) -> Result<TriMesh, PrepareError> {
+    let fail = |m: String| PrepareError::geometry("designed domain", m);
+    let options = RemeshOptions { target_edge_mm: edge_mm, guard_slivers: true, ..RemeshOptions::default() };
+    let remeshed = remesh_isotropic(domain, &options).map_err(|e| fail(format!("remeshing the designed domain at {edge_mm} mm: {e}")))?;
+    if let Some(crossing) = where_it_crosses_itself(&remeshed) {
+        return Err(fail(format!("remeshing the designed domain at {edge_mm} mm made it cross itself: {crossing} (try another --remesh-domain-edge-mm)")));
     }
+    check_domain(&remeshed)?;
+    Ok(remeshed)
 }
 
+/// How far the cap labelled `label` was off its plane before the projection.
+/// (Every cap `designed_cap` accepted was projected, so each label has its record.)
 fn off_plane_as_given_mm(projections: &[CapProjection], label: i32) -> f64 {
     projections.iter().find(|p| p.label == label).map_or(0.0, |p| p.off_plane_mm)
 }
@@ -450,6 +464,9 @@ fn arr(v: Vec3) -> [f64; 3] {
 
 fn validate_options(options: &ExtendOptions) -> Result<(), PrepareError> {
     validate(&options.union)?;
+    if let Some(edge_mm) = options.remesh_domain_edge_mm.filter(|e| !(e.is_finite() && *e > 0.0)) {
+        return Err(PrepareError::Option(format!("remeshing the designed domain at {edge_mm} mm: the edge must be a positive length")));
+    }
     let l = &options.labels;
     let used = [l.wall, l.baffle, l.vsd_cap, l.aortic_cap];
     for (name, label) in [("inflow", options.inflow_label), ("outflow", options.outflow_label)] {
