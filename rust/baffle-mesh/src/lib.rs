@@ -18,7 +18,7 @@ pub mod vtu;
 
 pub use error::MeshError;
 pub use gmsh::{find_gmsh, GmshCommand, GMSH_ENV};
-pub use mesher::{check_resolves_flow, mesh_surface, split_interior_labels, MeshOptions};
+pub use mesher::{check_resolves_flow, expected_tetrahedra, mesh_surface, split_interior_labels, MeshOptions};
 pub use process::start_retrying_busy;
 pub use quality::{quality_report, QualityReport};
 pub use tetmesh::{FaceSet, TetMesh};
