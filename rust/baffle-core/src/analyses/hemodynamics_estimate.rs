@@ -35,7 +35,7 @@
 //!   may be too close to the throat for. The jet is a top-hat of the throat's area whose
 //!   radius grows as a free round jet's equal-mass-and-momentum top-hat, r_j = r_t + x / B_u
 //!   (B_u = 5.8: Hussein, Capp & George 1994, J. Fluid Mech. 258:31; Pope 2000, Turbulent
-//!   Flows, Table 5.1 and eq. 5.6), x the centerline distance from the throat. The plane's
+//!   Flows, Table 5.1), x the centerline distance from the throat. The plane's
 //!   static pressure is the momentum balance of that jet carrying Q inside the plane's area
 //!   (wall shear and the recirculation's backflow neglected): p_x - p_t = rho Q^2 (1/A_t -
 //!   1/A_j) / A_ao, the fraction R = (1/A_t - 1/A_j) / (1/A_t - 1/A_ao) of the fully mixed
@@ -273,8 +273,8 @@ pub fn expansion_loss_dyn_cm2(q_ml_s: f64, throat_mm2: f64, downstream_mm2: f64,
     kt * 0.5 * rho * (u_t - u_d).powi(2)
 }
 
-/// The free round jet's top-hat radius (mm) of the same volume and momentum flux, at
-/// `x_mm` from a nozzle of `nozzle_diameter_mm` in the self-similar far field: momentum
+/// The free round jet's top-hat radius (mm) of the same volume and momentum flux, `x_mm`
+/// from the nozzle in the self-similar far field, whatever the nozzle's diameter d: momentum
 /// M = rho U_J^2 pi d^2 / 4 conserved with a Gaussian profile whose centerline speed is
 /// U_c = B_u d U_J / x gives the top-hat speed U_c / 2 over radius x / B_u.
 pub fn free_jet_top_hat_radius_mm(x_mm: f64) -> f64 {
@@ -520,8 +520,8 @@ mod tests {
 
     #[test]
     fn a_p2_like_tunnel_whose_throat_is_the_vsd_plane_keeps_the_fully_mixed_estimate() {
-        // p2 z = 2: the VSD plane (86.7 mm2) is the throat, the aortic plane (134.9 mm2) is
-        // ~20 mm on; the jet fills it after B_u (r_ao - r_t) = 7.6 mm.
+        // As p2 z = 2: the VSD plane (86.7 mm2) is the throat, the aortic plane (134.9 mm2)
+        // 20 mm on (13.7 mm there); the jet fills it after B_u (r_ao - r_t) = 7.6 mm.
         let t = tube(&[90.0, 95.0, 100.0, 110.0, 120.0], 5.0, 86.7, 134.9);
         let e = estimate(&t, Q, Blood::default()).unwrap();
         assert!(e.throat_at_mm == 0.0 && e.aortic_plane_at_mm == 20.0 && e.recovered_fraction == 1.0, "{e:?}");
