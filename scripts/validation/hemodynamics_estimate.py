@@ -3,12 +3,15 @@
 first-peak rows of docs/validation.md ("dp against the baffle's size on the paper's design
 input", 0.85 mm boundary / 1.25 mm interior): the published domains via `baffle centerline
 --peak-flow-ml-s`, our designs on the paper's design input via `baffle design --z-score z
---peak-flow-ml-s`. Writes the markdown table of docs/hemodynamics_estimate.md to stdout.
+--peak-flow-ml-s`. Writes the markdown table of docs/hemodynamics_estimate.md to stdout, with
+the jet's recovery term (the unrecovered jet, its distance and area) and two readings of it that
+the code does not use (`jet_variants_mmhg`), and the counts per patient.
 
     python3 scripts/validation/hemodynamics_estimate.py [--out DIR] [--baffle target/release/baffle]
 """
 import argparse
 import json
+import math
 import os
 import subprocess
 from pathlib import Path
@@ -55,6 +58,25 @@ def no_recovery_mmhg(e):
     return RHO_G_CM3 / 2 * (u(e["throat_area_mm2"]) ** 2 - u(e["vsd_area_mm2"]) ** 2) / DYN_CM2_PER_MMHG + e["friction_mmhg"]
 
 
+def jet_variants_mmhg(e):
+    """Two readings of the jet term, not in the code, for the table only (same published B_u = 5.8):
+    "free jet": a free round jet keeps its momentum flux, so the plane recovers nothing until the
+    jet's top-hat (radius r_t + x / B_u) fills it, then everything; "vena contracta": the code's
+    top-hat recovery but from the vena contracta's area 0.62 A_t (the model's v_max jet)."""
+    q, b_u, cc = e["peak_flow_ml_s"], 5.8, 0.62
+    u = lambda a_mm2: q / (a_mm2 * 1e-2)
+    a_t, a_ao, a_vsd = e["throat_area_mm2"], e["aortic_area_mm2"], e["vsd_area_mm2"]
+    x_mm = e["aortic_plane_at_mm"] - e["throat_at_mm"]
+    mixed = e["bernoulli_mmhg"] + e["expansion_loss_mmhg"] + e["friction_mmhg"]
+    fills = (a_t / math.pi) ** 0.5 + x_mm / b_u >= (a_ao / math.pi) ** 0.5
+    free_jet = mixed if fills else no_recovery_mmhg(e)
+    a_0 = cc * a_t
+    a_j = min(math.pi * ((a_0 / math.pi) ** 0.5 + x_mm / b_u) ** 2, a_ao)
+    recovered = (1 / a_0 - 1 / a_j) / (1 / a_0 - 1 / a_ao)
+    unmixed = RHO_G_CM3 / 2 * (u(a_0) ** 2 - u(a_vsd) ** 2) / DYN_CM2_PER_MMHG + e["friction_mmhg"]
+    return free_jet, unmixed + recovered * (mixed - unmixed)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", type=Path, default=Path("out/hemodynamics-estimate"))
@@ -62,29 +84,45 @@ def main():
     args = ap.parse_args()
     data = Path(os.environ.get("BAFFLE_DATA_DIR", Path(__file__).resolve().parents[2] / ".." / "shared" / "data"))
     patients = json.loads((data / "patients.json").read_text())["patients"]
-    print("| patient | row (z) | 3D dp static (mmHg) | estimate (mmHg) | error (mmHg) | within 20 % / 1 mmHg | Bernoulli / expansion / friction (mmHg) | no-recovery variant (mmHg) | 3D dp total, flow-weighted | expansion + friction | 3D v_max (m/s) | estimate (m/s) | error | throat (mm2, at mm) | VSD / aortic plane (mm2) | estimate wall time (ms) | baffle now (mm2) |")
-    print("|" + "---|" * 17)
+    print("| patient | row (z) | 3D dp static (mmHg) | estimate (mmHg) | error (mmHg) | within 20 % / 1 mmHg | Bernoulli / expansion / friction / unrecovered jet (mmHg) | fully mixed, before (mmHg) | throat to aortic plane (mm, throat diameters) | jet area at the plane (mm2), recovered fraction | no-recovery variant (mmHg) | free-jet / vena-contracta variants (mmHg) | 3D dp total, flow-weighted | expansion + friction | 3D v_max (m/s) | estimate (m/s) | error | throat (mm2, at mm) | VSD / aortic plane (mm2) | estimate wall time (ms) | baffle now (mm2) |")
+    print("|" + "---|" * 21)
     counts = {"dp": 0, "loss": 0, "v": 0, "rows": 0}
+    per_patient, errors, variants = {}, [], {}
     for patient, row, (dp3, dpt3, v3) in CFD_ROWS:
         report, err = estimate_for(args.baffle, data, args.out, patient, row, patients[patient])
         e = report and report["hemodynamics_estimate"]
         if e is None:
-            print(f"| {patient} | {row} | {dp3} | not made: {err} |" + " |" * 13)
+            print(f"| {patient} | {row} | {dp3} | not made: {err} |" + " |" * 17)
             continue
         wall_ms = f"{e['wall_time_ms']:.0f}" if row != "published" else "- (centerline)"
         baffle = f"{report['baffle_area_mm2']:.1f}" if "baffle_area_mm2" in report else "-"
         dp, v, loss = e["dp_estimate_mmhg"], e["v_max_estimate_m_s"], e["expansion_loss_mmhg"] + e["friction_mmhg"]
         counts["rows"] += 1
         counts["dp"] += within(dp, dp3)
+        hits, rows = per_patient.get(patient, (0, 0))
+        per_patient[patient] = (hits + within(dp, dp3), rows + 1)
+        errors.append(dp - dp3)
+        jet = e.get("unrecovered_jet_mmhg", 0.0)
+        distance = e.get("aortic_plane_at_mm", float("nan")) - e["throat_at_mm"]
+        throat_d_mm = 2 * (e["throat_area_mm2"] / math.pi) ** 0.5
+        free_jet, vena_contracta = jet_variants_mmhg(e)
+        for name, value in (("free_jet", free_jet), ("vena_contracta", vena_contracta)):
+            hits, rows = variants.get((name, patient), (0, 0))
+            variants[(name, patient)] = (hits + within(value, dp3), rows + 1)
         counts["loss"] += within(loss, dpt3)
         counts["v"] += abs(v - v3) <= 0.2 * v3
         print(
             f"| {patient} | {row} | {dp3:.2f} | {dp:.2f} | {dp - dp3:+.2f} | {'yes' if within(dp, dp3) else 'no'} | "
-            f"{e['bernoulli_mmhg']:.2f} / {e['expansion_loss_mmhg']:.2f} / {e['friction_mmhg']:.2f} | {no_recovery_mmhg(e):.2f} | {dpt3:.2f} | {loss:.2f} | "
+            f"{e['bernoulli_mmhg']:.2f} / {e['expansion_loss_mmhg']:.2f} / {e['friction_mmhg']:.2f} / {jet:.2f} | {dp - jet:.2f} | "
+            f"{distance:.1f}, {distance / throat_d_mm:.2f} | {e.get('jet_area_at_aortic_plane_mm2', float('nan')):.1f}, {e.get('recovered_fraction', 1.0):.2f} | {no_recovery_mmhg(e):.2f} | {free_jet:.2f} / {vena_contracta:.2f} | {dpt3:.2f} | {loss:.2f} | "
             f"{v3:.2f} | {v:.2f} | {100 * (v - v3) / v3:+.0f} % | {e['throat_area_mm2']:.1f}, {e['throat_at_mm']:.1f} | {e['vsd_area_mm2']:.1f} / {e['aortic_area_mm2']:.1f} | {wall_ms} | {baffle} |"
         )
     n = counts["rows"]
-    print(f"\nrows estimated: {n}; dp static within 20 % or 1 mmHg: {counts['dp']} of {n}; expansion + friction against the 3D total-pressure loss within 20 % or 1 mmHg: {counts['loss']} of {n}; v_max within 20 %: {counts['v']} of {n}")
+    by_patient = ", ".join(f"{p} {h} of {r}" for p, (h, r) in sorted(per_patient.items()))
+    print(f"\nrows estimated: {n}; dp static within 20 % or 1 mmHg: {counts['dp']} of {n} ({by_patient}), error {min(errors):+.2f} to {max(errors):+.2f} mmHg; expansion + friction against the 3D total-pressure loss within 20 % or 1 mmHg: {counts['loss']} of {n}; v_max within 20 %: {counts['v']} of {n}")
+    for name in ("free_jet", "vena_contracta"):
+        hits = {p: h for (v, p), (h, _) in variants.items() if v == name}
+        print(f"{name} variant within 20 % or 1 mmHg: {sum(hits.values())} of {n} (" + ", ".join(f"{p} {h}" for p, h in sorted(hits.items())) + ")")
 
 
 if __name__ == "__main__":

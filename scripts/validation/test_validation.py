@@ -471,3 +471,19 @@ def test_the_criterion_is_20_percent_or_1_mmhg_and_the_unmixed_jet_is_bernoulli(
     # Q 70 ml/s through 70 mm2 (100 cm/s) from 140 mm2 (50 cm/s): rho/2 (100^2 - 50^2).
     e = {"peak_flow_ml_s": 70.0, "throat_area_mm2": 70.0, "vsd_area_mm2": 140.0, "friction_mmhg": 0.1}
     assert hemodynamics_estimate.no_recovery_mmhg(e) == pytest.approx(0.53 * 7500 / 1333.22 + 0.1)
+
+
+def test_the_jet_variants_are_the_mixed_model_far_away_and_the_unmixed_jet_close():
+    # Throat 40 mm2 at 10 mm, aortic plane 160 mm2: the free jet's top-hat fills it after
+    # 5.8 (r_ao - r_t) = 20.7 mm.
+    e = {"peak_flow_ml_s": 70.0, "throat_area_mm2": 40.0, "vsd_area_mm2": 80.0, "aortic_area_mm2": 160.0,
+         "throat_at_mm": 10.0, "friction_mmhg": 0.1, "bernoulli_mmhg": -2.0, "expansion_loss_mmhg": 3.0}
+    mixed = -2.0 + 3.0 + 0.1
+    free_jet, vena_contracta = hemodynamics_estimate.jet_variants_mmhg({**e, "aortic_plane_at_mm": 10.0 + 1e3})
+    assert free_jet == pytest.approx(mixed) and vena_contracta == pytest.approx(mixed)
+    free_jet, vena_contracta = hemodynamics_estimate.jet_variants_mmhg({**e, "aortic_plane_at_mm": 10.0 + 20.0})
+    assert free_jet == pytest.approx(hemodynamics_estimate.no_recovery_mmhg(e))
+    # At the throat the vena contracta's jet is unmixed: rho/2 (U_vc^2 - U_vsd^2) + friction.
+    _, vena_contracta = hemodynamics_estimate.jet_variants_mmhg({**e, "aortic_plane_at_mm": 10.0})
+    u_vc, u_vsd = 70.0 / (0.62 * 0.4), 70.0 / 0.8
+    assert vena_contracta == pytest.approx(0.53 * (u_vc ** 2 - u_vsd ** 2) / 1333.22 + 0.1)
