@@ -173,11 +173,12 @@ pub fn expected_tetrahedra(surface: &TriMesh, edge_length_mm: f64, largest_edge_
         .map(|t| {
             let [a, b, c] = t.map(|v| surface.points[v as usize]);
             let cone_mm3 = outward * (b - a).cross(&(c - a)).dot(&(a - centroid)) / 6.0;
-            let size_mm = (((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0).clamp(edge_length_mm, largest_mm);
+            let size_mm = (((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0).max(edge_length_mm).min(largest_mm);
             tetrahedra_at(cone_mm3, size_mm)
         })
         .sum();
-    graded.clamp(coarsest, finest)
+    // max/min rather than clamp: no panic on a NaN volume (the input checks name it later).
+    graded.max(coarsest).min(finest)
 }
 
 /// Refuse, before any work, a mesh too large for the machine (a tiny edge length
@@ -755,6 +756,20 @@ mod tests {
         assert!(err.contains("leaves about 1 tetrahedra for the 0.2 mm3") && err.contains("at most 0.2 mm"), "{err}");
         // The suggested edge is the one that gives the minimum.
         assert!(check_resolves_flow(&closed, 0.215).is_ok() && check_resolves_flow(&closed, 0.22).is_err());
+    }
+
+    #[test]
+    fn a_graded_count_follows_the_boundarys_own_size_between_the_uniform_ones() {
+        let closed = closed_tet();
+        let at = |edge: f64, largest: Option<f64>| expected_tetrahedra(&closed, edge, largest);
+        // Its edges (1 and sqrt 2 mm) are coarser than 0.1 mm: gmsh would grade up to them.
+        let graded = at(0.1, Some(10.0));
+        assert!(at(1.3, None) < graded && graded < at(1.1, None), "{graded}");
+        // The largest edge caps the boundary's size; without grading the edge rules.
+        assert!((at(0.1, Some(1.0)) - at(1.0, None)).abs() < 1e-9 * at(1.0, None));
+        assert_eq!(at(0.1, Some(0.1)), at(0.1, None));
+        // No panic on a value the option checks refuse later.
+        assert!(!at(0.1, Some(f64::NAN)).is_nan());
     }
 
     #[test]
