@@ -12,8 +12,9 @@ pub struct MeshSettings {
     pub surface: PathBuf,
     /// Largest tetrahedron edge length (mm); the paper used 1.25 / 0.95 / 0.75.
     pub edge_length_mm: f64,
-    /// Largest edge where the boundary's triangles are longer (a graded extension, `baffle
-    /// extend --extension-coarsening`); `None`: the edge length everywhere.
+    /// Largest tetrahedron edge where the boundary's triangles are longer (an extended
+    /// domain made with `baffle extend --extension-coarsening R`: give R x the edge
+    /// length); default: the edge length everywhere.
     pub largest_edge_mm: Option<f64>,
     /// Output volume mesh (.vtu). Beside it: <stem>-faces.vtp (ModelFaceID,
     /// GlobalNodeID) and <stem>-quality.json.

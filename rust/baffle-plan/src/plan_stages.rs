@@ -31,9 +31,9 @@ pub struct PlanSettings {
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
     pub edge_length_mm: f64,
-    /// On an extended domain, the LV and aortic parts coarsen away from the designed caps
-    /// up to this many times each level's edge (`baffle extend --extension-coarsening`);
-    /// 1: one edge everywhere.
+    /// On an extended domain, coarsen the LV and aortic parts away from the VSD and
+    /// aortic caps up to this many times each level's edge (within one cap diameter of
+    /// the caps the edge stays); 1: the whole domain at the edge.
     pub extension_coarsening: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
