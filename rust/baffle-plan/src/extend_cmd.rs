@@ -13,6 +13,7 @@ use baffle_prepare::PrepareOptions;
 use crate::progress::Progress;
 use std::path::PathBuf;
 
+documented_settings! {
 pub struct ExtendSettings {
     /// Designed domain (domain.vtp from `baffle design`): closed, mm, ModelFaceID.
     pub domain: PathBuf,
@@ -59,6 +60,7 @@ pub struct ExtendSettings {
     /// as it is (e.g. a capped ventricle, for a pre-repair flow). Without it such a
     /// domain is refused: `baffle extend` expects `baffle design`'s domain.
     pub no_baffle: bool,
+}
 }
 
 impl Default for ExtendSettings {

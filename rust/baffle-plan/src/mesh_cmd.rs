@@ -7,6 +7,7 @@ use baffle_mesh::{check_resolves_flow, mesh_surface, split_interior_labels, writ
 use crate::progress::Progress;
 use std::path::PathBuf;
 
+documented_settings! {
 pub struct MeshSettings {
     /// Closed, labelled surface (e.g. domain.vtp from `baffle design`), mm.
     pub surface: PathBuf,
@@ -26,6 +27,7 @@ pub struct MeshSettings {
     pub interior_labels: Vec<i32>,
     /// gmsh executable (default: $BAFFLE_GMSH, then gmsh on PATH, then the Python wheel).
     pub gmsh: Option<PathBuf>,
+}
 }
 
 impl Default for MeshSettings {

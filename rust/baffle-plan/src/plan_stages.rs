@@ -8,6 +8,7 @@ use crate::prepare_cmd::PrepareSource;
 use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use std::path::{Path, PathBuf};
 
+documented_settings! {
 pub struct PlanSettings {
     pub design: DesignSettings,
     /// Build the capped ventricle from segmentations or a label map first (a `prepare`
@@ -55,6 +56,7 @@ pub struct PlanSettings {
     /// How the report names the patient (default: the paper's patient id when the input
     /// lies in one of its patients' folders).
     pub patient_label: Option<String>,
+}
 }
 
 /// Cardiac cycles of a pulsatile run by default.
