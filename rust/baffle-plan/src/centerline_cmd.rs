@@ -16,6 +16,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+documented_settings! {
 #[derive(Clone)]
 pub struct CenterlineSettings {
     /// Closed lumen surface with ModelFaceID (e.g. domain.vtp of `baffle design`).
@@ -50,6 +51,7 @@ pub struct CenterlineSettings {
     /// Output centerline (.vtp, point arrays s_mm, radius_mm and, with --results,
     /// pressure_mmhg and speed_m_s); <stem>.json beside it holds the figures.
     pub out: PathBuf,
+}
 }
 
 impl Default for CenterlineSettings {

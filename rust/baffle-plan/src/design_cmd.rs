@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 
 // Required-ness of --surface/--points is checked at run time (read_inputs), so that
 // `baffle plan` can offer other sources of the surface.
+documented_settings! {
 #[derive(Clone)]
 pub struct DesignSettings {
     /// Closed, labelled ventricle surface (.vtp, .vtk or .stl), in mm (required unless --phantom).
@@ -75,7 +76,9 @@ pub struct DesignSettings {
     /// Print Slicer CLI progress tags (<filter-progress>) instead of a summary.
     pub progress_tags: bool,
 }
+}
 
+documented_settings! {
 #[derive(Clone, Default)]
 pub struct TargetSettings {
     /// Target cross-section area (mm2).
@@ -91,6 +94,7 @@ pub struct TargetSettings {
     /// Annulus z-score for --bsa or --height-cm/--weight-kg (not with a given area or diameter,
     /// which it would not change).
     pub z_score: f64,
+}
 }
 
 /// The defaults are `baffle_core`'s (`DesignOptions::default()`, `FaceLabels::default()`).

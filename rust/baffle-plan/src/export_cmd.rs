@@ -8,6 +8,7 @@ use crate::svmp_case::{export_to, inflow_line};
 use baffle_cfd::RunMode;
 use std::path::PathBuf;
 
+documented_settings! {
 pub struct ExportSettings {
     /// Case file (JSON), as for `baffle simulate`.
     pub case: PathBuf,
@@ -17,6 +18,7 @@ pub struct ExportSettings {
     pub mpi_processes: usize,
     /// Export the steady estimate (constant inflow at Q_peak) instead of the pulsatile run.
     pub steady: bool,
+}
 }
 
 /// MPI processes of run.sh by default.

@@ -13,6 +13,7 @@ use baffle_prepare::PrepareOptions;
 use crate::progress::Progress;
 use std::path::PathBuf;
 
+documented_settings! {
 pub struct ExtendSettings {
     /// Designed domain (domain.vtp from `baffle design`): closed, mm, ModelFaceID.
     pub domain: PathBuf,
@@ -40,8 +41,11 @@ pub struct ExtendSettings {
     /// planes conforming, for a mesh study that refines the boundary too (the interior caps
     /// share their rims with the boundary, so `baffle mesh` cannot remesh an extended domain).
     pub remesh_domain_edge_mm: Option<f64>,
-    /// Coarsen the LV and aortic parts away from the designed caps up to this many times
-    /// the edge ([`EXTENSION_MARGIN_DIAMETERS`], [`EXTENSION_GROWTH`]); 1: uniform.
+    // The margin and the growth are EXTENSION_MARGIN_DIAMETERS and EXTENSION_GROWTH.
+    /// Coarsen the LV and aortic parts away from the designed caps, up to this many times
+    /// the edge (within one cap diameter of each cap the edge stays, then grows 0.2 mm
+    /// per mm); 1: the edge everywhere. Mesh the result with `baffle mesh
+    /// --largest-edge-mm` at this many times the edge length.
     pub extension_coarsening: f64,
     /// Move the inflow cap (mid-LV plane) this far (mm) from the LV volume centroid along
     /// the VSD normal (positive: away from the VSD, toward the apex), for a sensitivity
@@ -56,6 +60,7 @@ pub struct ExtendSettings {
     /// as it is (e.g. a capped ventricle, for a pre-repair flow). Without it such a
     /// domain is refused: `baffle extend` expects `baffle design`'s domain.
     pub no_baffle: bool,
+}
 }
 
 impl Default for ExtendSettings {

@@ -24,6 +24,33 @@
 //! 6. `plan_cmd` (every stage, report).
 //! 7. `sweep_cmd` (design_cmd, report's plots, plan_cmd's stages for `--cfd`).
 
+/// Declares a settings struct exactly as written (its fields' doc comments stay its
+/// rustdoc) and gives it `FIELD_DOCS`: each field's name and doc comment lines. The
+/// command line's help shows these texts (baffle-cli's `settings_args!`), so an option's
+/// help is written once, here, on the field it sets. Declared before the modules, which
+/// use it by its name alone; the struct inside is not indented, so it reads (and its
+/// history blames) as a plain struct.
+macro_rules! documented_settings {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident {
+            $($(#[doc = $doc:literal])* $field_vis:vis $field:ident: $ty:ty),+ $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        $vis struct $name {
+            $($(#[doc = $doc])* $field_vis $field: $ty),+
+        }
+
+        impl $name {
+            /// Each field's name and the lines of its doc comment, as rustdoc gets them
+            /// (one `#[doc]` string a `///` line, its leading space kept): the command
+            /// line's help texts of the options that set these fields.
+            pub const FIELD_DOCS: &'static [(&'static str, &'static [&'static str])] = &[$((stringify!($field), &[$($doc),*])),+];
+        }
+    };
+}
+
 pub mod error;
 pub mod files;
 pub mod progress;

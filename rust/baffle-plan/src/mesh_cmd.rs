@@ -7,13 +7,15 @@ use baffle_mesh::{check_resolves_flow, mesh_surface, split_interior_labels, writ
 use crate::progress::Progress;
 use std::path::PathBuf;
 
+documented_settings! {
 pub struct MeshSettings {
     /// Closed, labelled surface (e.g. domain.vtp from `baffle design`), mm.
     pub surface: PathBuf,
     /// Largest tetrahedron edge length (mm); the paper used 1.25 / 0.95 / 0.75.
     pub edge_length_mm: f64,
-    /// Largest edge where the boundary's triangles are longer (a graded extension, `baffle
-    /// extend --extension-coarsening`); `None`: the edge length everywhere.
+    /// Largest tetrahedron edge where the boundary's triangles are longer (an extended
+    /// domain made with `baffle extend --extension-coarsening R`: give R x the edge
+    /// length); default: the edge length everywhere.
     pub largest_edge_mm: Option<f64>,
     /// Output volume mesh (.vtu). Beside it: <stem>-faces.vtp (ModelFaceID,
     /// GlobalNodeID) and <stem>-quality.json.
@@ -25,6 +27,7 @@ pub struct MeshSettings {
     pub interior_labels: Vec<i32>,
     /// gmsh executable (default: $BAFFLE_GMSH, then gmsh on PATH, then the Python wheel).
     pub gmsh: Option<PathBuf>,
+}
 }
 
 impl Default for MeshSettings {

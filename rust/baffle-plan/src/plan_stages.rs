@@ -8,6 +8,7 @@ use crate::prepare_cmd::PrepareSource;
 use baffle_cfd::hemodynamics::{hemodynamics, ClinicalInputs, CARDIAC_INDEX_DEFAULT_L_MIN_M2, CARDIAC_INDEX_ELEVATED_L_MIN_M2};
 use std::path::{Path, PathBuf};
 
+documented_settings! {
 pub struct PlanSettings {
     pub design: DesignSettings,
     /// Build the capped ventricle from segmentations or a label map first (a `prepare`
@@ -31,9 +32,9 @@ pub struct PlanSettings {
     pub cycles: usize,
     /// Largest tetrahedron edge of the nominal mesh (mm); the paper used 0.95.
     pub edge_length_mm: f64,
-    /// On an extended domain, the LV and aortic parts coarsen away from the designed caps
-    /// up to this many times each level's edge (`baffle extend --extension-coarsening`);
-    /// 1: one edge everywhere.
+    /// On an extended domain, coarsen the LV and aortic parts away from the VSD and
+    /// aortic caps up to this many times each level's edge (within one cap diameter of
+    /// the caps the edge stays); 1: the whole domain at the edge.
     pub extension_coarsening: f64,
     /// The default: also mesh and simulate at the paper's coarse and fine sizes (1.25 /
     /// 0.75 mm, scaled by --edge-length-mm / 0.95), the boundary refined with the volume
@@ -55,6 +56,7 @@ pub struct PlanSettings {
     /// How the report names the patient (default: the paper's patient id when the input
     /// lies in one of its patients' folders).
     pub patient_label: Option<String>,
+}
 }
 
 /// Cardiac cycles of a pulsatile run by default.

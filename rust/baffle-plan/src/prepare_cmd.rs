@@ -13,6 +13,7 @@ use baffle_prepare::{
 use crate::progress::Progress;
 use std::path::{Path, PathBuf};
 
+documented_settings! {
 /// Where the blood pools come from: per-structure surfaces or a label map (also
 /// `baffle plan`'s arguments for its prepare stage).
 #[derive(Clone, Debug)]
@@ -34,6 +35,7 @@ pub struct PrepareSource {
     pub pulmonary_label: i32,
     /// Skip the 3x3x3 median filter of each --labelmap label mask.
     pub no_median: bool,
+}
 }
 
 /// The label map's pulmonary artery label by default (the convention: PA 7).
@@ -79,6 +81,7 @@ impl PrepareSource {
     }
 }
 
+documented_settings! {
 pub struct PrepareSettings {
     pub source: PrepareSource,
     /// Output capped ventricle (.vtp): ModelFaceID 2 RV wall, 11 VSD cap, 16 aortic cap.
@@ -96,6 +99,7 @@ pub struct PrepareSettings {
     pub no_remesh: bool,
     /// Taubin smoothing iterations of the union surface.
     pub smoothing_iterations: usize,
+}
 }
 
 /// The defaults are `baffle_prepare`'s own (`PrepareOptions::default()`).

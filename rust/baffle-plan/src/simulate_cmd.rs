@@ -18,6 +18,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
+documented_settings! {
 #[derive(Default)]
 pub struct SimulateSettings {
     /// Case file (JSON): mesh, face roles, fluid, inflow, outlet, time stepping, output.
@@ -73,6 +74,7 @@ pub struct SimulateSettings {
     /// (its results so far written; a library caller's cancel, e.g. `baffle plan`'s). With
     /// a cancel the run installs no signal handlers (the caller's process keeps its own).
     pub cancel: Option<Cancel>,
+}
 }
 
 #[derive(Serialize, Deserialize)]

@@ -32,6 +32,7 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+documented_settings! {
 pub struct SweepSettings {
     pub design: DesignSettings,
     /// Annulus z-scores to design at (comma-separated; with --bsa or --height-cm/--weight-kg).
@@ -43,7 +44,9 @@ pub struct SweepSettings {
     pub prepare: PrepareSource,
     pub cfd: SweepCfd,
 }
+}
 
+documented_settings! {
 /// The quick dp estimate per designed target (opt-in: it is minutes, the design seconds).
 pub struct SweepCfd {
     /// Also mesh each designed domain and run the quick estimate (`baffle plan --quick`:
@@ -58,6 +61,7 @@ pub struct SweepCfd {
     pub edge_length_mm: f64,
     /// Cardiac index of --cfd's runs (L/min/m2): the mean flow is BSA x cardiac index.
     pub cardiac_index: f64,
+}
 }
 
 /// The plan's quick settings by default, at the paper's coarse mesh size (for speed).

@@ -15,6 +15,7 @@ use baffle_template::raster::DEFAULT_DPI;
 use baffle_template::{template_from_domain, FlattenMethod, PageFormat};
 use std::path::PathBuf;
 
+documented_settings! {
 pub struct TemplateSettings {
     /// Designed domain (domain.vtp from `baffle design`): ModelFaceID baffle, VSD and aortic caps.
     pub domain: PathBuf,
@@ -37,6 +38,7 @@ pub struct TemplateSettings {
     pub method: TemplateMethod,
     /// ModelFaceIDs of the domain's baffle, VSD and aortic-annulus caps.
     pub labels: FaceLabels,
+}
 }
 
 #[derive(Clone, Copy, Default)]
