@@ -488,3 +488,27 @@ fn a_graded_remesh_keeps_the_target_near_the_disc_and_coarsens_away_from_it() {
     // The cap's area stays (the graded side is projected back onto the cylinder).
     assert!((label_area(&graded, 11) - PI * CYL_R * CYL_R).abs() < 0.02 * PI * CYL_R * CYL_R);
 }
+
+#[test]
+fn far_below_the_inputs_edge_the_remesh_is_approached_in_halvings() {
+    // One midpoint halving of the input's mean edge reaches 4/3 of the next target.
+    assert!(approach_targets_mm(0.79, 0.3).is_empty());
+    assert_eq!(approach_targets_mm(0.8, 0.26), vec![0.52]);
+    assert_eq!(approach_targets_mm(0.8, 0.1), vec![0.4, 0.2]);
+}
+
+#[test]
+fn a_coarse_surface_remeshes_at_a_tenth_of_its_edge() {
+    // p3's 0.85 mm domain failed below 0.27 mm: its one split pass overshot the budget.
+    // Here a 2 mm remesh of the capped cylinder is refined to 0.2 mm (its open end split too).
+    let coarse = remesh_isotropic(&capped_cylinder(5), &opts(2.0)).unwrap();
+    let fine = remesh_isotropic(&coarse, &RemeshOptions { split_boundary: true, ..opts(0.2) }).unwrap();
+    assert_clean_open_manifold(&fine);
+    let lengths = unique_edge_lengths(&fine);
+    let median = percentile(&lengths, 0.5);
+    assert!((0.16..=0.27).contains(&median), "median edge {median} mm at a 0.2 mm target");
+    for label in [2, 11] {
+        let (a0, a1) = (label_area(&coarse, label), label_area(&fine, label));
+        assert!((a1 - a0).abs() < 0.01 * a0, "label {label} area {a0} -> {a1}");
+    }
+}
