@@ -25,7 +25,8 @@ pub use grading::{SizeGrading, MAX_GROWTH};
 pub struct RemeshOptions {
     /// Target edge length L (mm); the paper uses 0.85 mm.
     pub target_edge_mm: f64,
-    /// Split/collapse/flip/smooth rounds.
+    /// Split/collapse/flip/smooth rounds at the target (after the rounds that approach it
+    /// from a much coarser input, see `approach_targets_mm`).
     pub iterations: usize,
     /// Allow splitting boundary (seam) edges; off keeps every boundary vertex an input vertex.
     pub split_boundary: bool,
