@@ -302,12 +302,6 @@ pub fn recovered_fraction(throat_area_mm2: f64, jet_area_mm2: f64, aortic_area_m
     (1.0 / throat_area_mm2 - 1.0 / jet_mm2) / (1.0 / throat_area_mm2 - 1.0 / aortic_area_mm2)
 }
 
-/// The static-pressure rise (dyn/cm2) from the throat to a plane of `aortic_area_mm2` that
-/// a top-hat jet of `jet_area_mm2` carrying `q_ml_s` crosses: momentum flux plus pressure
-/// force conserved, (p_x - p_t) A_ao = rho Q (U_t - U_j), wall shear neglected.
-pub fn jet_static_rise_dyn_cm2(q_ml_s: f64, throat_area_mm2: f64, jet_area_mm2: f64, aortic_area_mm2: f64, rho: f64) -> f64 {
-    rho * q_ml_s * (velocity_cm_s(q_ml_s, throat_area_mm2) - velocity_cm_s(q_ml_s, jet_area_mm2)) / (aortic_area_mm2 * 1e-2)
-}
 
 /// The estimate for `tunnel` at peak flow `q_ml_s` with expansion coefficient `kt`.
 pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64) -> Result<HemodynamicsEstimate, String> {
@@ -432,6 +426,14 @@ pub fn lumen_voxel_mm(cap_area_mm2: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The static-pressure rise (dyn/cm2) from the throat to a plane of `aortic_area_mm2`
+    /// that a top-hat jet of `jet_area_mm2` carrying `q_ml_s` crosses: momentum flux plus
+    /// pressure force conserved, (p_x - p_t) A_ao = rho Q (U_t - U_j), wall shear neglected.
+    /// The balance `recovered_fraction` is derived from, re-made here to check it.
+    fn jet_static_rise_dyn_cm2(q_ml_s: f64, throat_area_mm2: f64, jet_area_mm2: f64, aortic_area_mm2: f64, rho: f64) -> f64 {
+        rho * q_ml_s * (velocity_cm_s(q_ml_s, throat_area_mm2) - velocity_cm_s(q_ml_s, jet_area_mm2)) / (aortic_area_mm2 * 1e-2)
+    }
 
     const Q: f64 = 70.0;
 
