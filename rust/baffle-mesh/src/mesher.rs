@@ -160,13 +160,14 @@ fn tetrahedra_at(volume_mm3: f64, size_mm: f64) -> f64 {
 /// the sum is kept between the counts at the largest and at the finest size.
 pub fn expected_tetrahedra(surface: &TriMesh, edge_length_mm: f64, largest_edge_mm: Option<f64>) -> f64 {
     let largest_mm = largest_edge_mm.unwrap_or(edge_length_mm).max(edge_length_mm);
-    let volume_mm3 = surface.signed_volume_mm3().abs();
+    let signed_volume_mm3 = surface.signed_volume_mm3();
+    let volume_mm3 = signed_volume_mm3.abs();
     let (finest, coarsest) = (tetrahedra_at(volume_mm3, edge_length_mm), tetrahedra_at(volume_mm3, largest_mm));
     if largest_mm == edge_length_mm || surface.points.is_empty() {
         return finest;
     }
     let centroid = surface.points.iter().sum::<Vec3>() / surface.points.len() as f64;
-    let outward = surface.signed_volume_mm3().signum();
+    let outward = signed_volume_mm3.signum();
     let graded: f64 = surface
         .triangles
         .iter()
