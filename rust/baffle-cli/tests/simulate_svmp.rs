@@ -24,7 +24,8 @@ const Q_MEAN_ML_S: f64 = 21.46;
 const COLUMNS: [&str; 6] = ["plane_11", "inflow", "wall_1", "outlet_3", "plane_10", "wall_4"];
 /// The embedded engine's columns for this case: faces in id order, named by role.
 const CSV_HEADER: &str = "step,time_s,prescribed_inflow_ml_s,inflow_ml_s,outflow_ml_s,max_velocity_m_s,residual,\
-                          p_wall_1_mmhg,p_inlet_2_mmhg,p_outlet_3_mmhg,p_wall_4_mmhg,p_plane1_10_mmhg,p_plane2_11_mmhg";
+                          p_wall_1_mmhg,p_inlet_2_mmhg,p_outlet_3_mmhg,p_wall_4_mmhg,p_plane1_10_mmhg,p_plane2_11_mmhg,\
+                          q_wall_1_ml_s,q_inlet_2_ml_s,q_outlet_3_ml_s,q_wall_4_ml_s,q_plane1_10_ml_s,q_plane2_11_ml_s";
 /// One 0.682 s cycle at 10 ms: 68 steps, results saved at the peak, step 16.
 const STEPS: usize = 68;
 const PEAK_STEP: usize = 16;
@@ -159,6 +160,7 @@ fn recorded_outputs_become_the_embedded_engines_summary_and_time_series() {
         assert!(row[6].is_nan(), "svMultiPhysics' residual is not read back");
         for (j, face) in faces_in_csv.iter().enumerate() {
             assert_eq!(row[7 + j], p[column(face)] / DYN_CM2_PER_MMHG, "step {step}, {face}");
+            assert_eq!(row[13 + j], q[column(face)], "step {step}, {face}'s flux as svMultiPhysics recorded it");
         }
     }
 
@@ -170,6 +172,11 @@ fn recorded_outputs_become_the_embedded_engines_summary_and_time_series() {
     assert_eq!(number("peak_time_s"), peak[1]);
     assert_eq!(s["dp_faces"], serde_json::json!([PLANE_1, PLANE_2]));
     assert_eq!(number("dp_peak_mmhg"), peak[11] - peak[12]);
+    // Each plane's flux at the peak and its share of the inflow, as the engine gave them.
+    for (k, plane) in s["plane_flows_at_peak"].as_array().unwrap().iter().enumerate() {
+        assert_eq!((plane["face"].as_i64(), plane["flow_ml_s"].as_f64()), (Some([PLANE_1, PLANE_2][k] as i64), Some(peak[17 + k])), "{plane}");
+        assert_eq!(plane["fraction_of_inflow"].as_f64(), Some(peak[17 + k].abs() / peak[3]), "{plane}");
+    }
     assert_eq!(number("q_peak_ml_s"), peak[3]);
     assert_eq!(number("max_velocity_m_s"), max_speed_m_s);
     assert_eq!(number("max_velocity_run_m_s"), max_speed_m_s);

@@ -165,6 +165,7 @@ fn rows_of(summary: &SvmpSummary, report: &Report, output: &Output, progress: &P
             face_ids: step.faces.iter().map(|f| f.id).collect(),
             face_names,
             face_pressure_mmhg: step.faces.iter().map(|f| f.mean_pressure_dyn_cm2 / DYN_CM2_PER_MMHG).collect(),
+            face_flow_ml_s: step.faces.iter().map(|f| f.flow_ml_s).collect(),
         });
     }
     Ok(rows)
