@@ -487,3 +487,39 @@ def test_the_jet_variants_are_the_mixed_model_far_away_and_the_unmixed_jet_close
     _, vena_contracta = hemodynamics_estimate.jet_variants_mmhg({**e, "aortic_plane_at_mm": 10.0})
     u_vc, u_vsd = 70.0 / (0.62 * 0.4), 70.0 / 0.8
     assert vena_contracta == pytest.approx(0.53 * (u_vc ** 2 - u_vsd ** 2) / 1333.22 + 0.1)
+
+
+import flow_family  # noqa: E402
+
+
+def _estimate(q_ml_s, vsd_mm2, throat_mm2, aortic_mm2, jet_mm2=None, friction_mmhg=0.0):
+    return {"peak_flow_ml_s": q_ml_s, "vsd_area_mm2": vsd_mm2, "throat_area_mm2": throat_mm2, "aortic_area_mm2": aortic_mm2,
+            "jet_area_at_aortic_plane_mm2": jet_mm2 or aortic_mm2, "friction_mmhg": friction_mmhg}
+
+
+def test_the_family_fits_recover_known_kinetic_energy_coefficients():
+    # Rows made by dp = 0.4 K_t + 1.9 K_ao - 2.6 K_vsd + friction: the fit gives back the weights,
+    # and the jet model's (K_jet = K_ao here) the sum on the aortic plane.
+    rng = np.random.default_rng(3)
+    rows = []
+    for _ in range(12):
+        e = _estimate(rng.uniform(30, 90), rng.uniform(80, 130), rng.uniform(30, 60), rng.uniform(35, 80), friction_mmhg=rng.uniform(0, 0.2))
+        k_t, k_ao, minus_k_vsd, friction = flow_family.regressors(e)
+        rows.append((e, 0.4 * k_t + 1.9 * k_ao + 2.6 * minus_k_vsd + friction))
+    assert flow_family.fit_dynamic_weights(rows) == pytest.approx([0.4, 1.9, 2.6], rel=1e-9)
+    e = rows[0][0]
+    assert flow_family.fitted_mmhg([0.4, 1.9, 2.6], e) == pytest.approx(rows[0][1], rel=1e-12)
+    jet_rows = [(e, 1.5 * flow_family.dynamic_mmhg(e, "aortic_area_mm2") - 2.6 * flow_family.dynamic_mmhg(e, "vsd_area_mm2") + e["friction_mmhg"]) for e, _ in rows]
+    assert flow_family.fit_jet_weights(jet_rows) == pytest.approx([1.5, 2.6], rel=1e-9)
+
+
+def test_the_family_dynamic_pressure_is_rho_half_u_squared_in_mmhg():
+    # 70 ml/s through 100 mm2 is 70 cm/s: 1.06 / 2 x 70^2 = 2597 dyn/cm2 = 1.948 mmHg.
+    e = _estimate(70.0, 100.0, 100.0, 100.0)
+    assert flow_family.dynamic_mmhg(e, "vsd_area_mm2") == pytest.approx(0.53 * 4900 / 1333.22, rel=1e-12)
+
+
+def test_the_family_summary_counts_the_criterion_and_its_edges():
+    # Within: 0.2 x 10 = 2 mmHg at dp 10 (edge included), 1 mmHg at dp 2; outside: 2.01 at 10.
+    row = flow_family.summary("x", [(12.0, 10.0), (2.9, 2.0), (12.01, 10.0)])
+    assert row.startswith("| x | 2 of 3 (67 %) |"), row
