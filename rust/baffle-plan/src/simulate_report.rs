@@ -283,9 +283,10 @@ fn summary_figures(report: &Report, rows: &[Row], ending: &Ending, wall_time_s: 
 /// The flow is incompressible, so every plane across the domain carries the inflow; the
 /// nodal velocity field of P1 elements with pressure stabilization carries less, by the
 /// share of the flux the stabilization term holds (the weak continuity equation conserves
-/// the sum, and the inflow and outflow still balance). That share shrinks as the mesh
-/// resolves the flow, but it is not dp's error: on a 5-ring Poiseuille tube whose dp is
-/// within 0.02 % of Hagen-Poiseuille the planes carry 97.5 % (`baffle-cli` simulate tests).
+/// the sum, and the inflow and outflow still balance). It is not dp's error: on a 5-ring
+/// Poiseuille tube whose dp is within 0.02 % of Hagen-Poiseuille the planes carry 97.5 %
+/// (`baffle-cli` simulate tests), and at a sharp annulus it stays the same on a finer mesh
+/// (docs/cfd.md).
 fn plane_flows(case: &case::Case, peak: &Row) -> Vec<serde_json::Value> {
     let finite = |v: f64| v.is_finite().then_some(v);
     case.faces
