@@ -4,11 +4,14 @@ hearts (`cargo run --release -p baffle-prepare --example flow_family DIR`), each
 `baffle plan --quick --single-mesh` at its drawn body size, target z-score and cardiac index.
 
     python3 scripts/validation/flow_family.py run DIR [--baffle B] [--edge-length-mm 0.6]
-    python3 scripts/validation/flow_family.py table DIR
+    python3 scripts/validation/flow_family.py table DIR [--patients OUT] [--baffle B]
 
-`run` plans every member folder of DIR that has no finished plan (plan/report.json) and writes
-one line of results per member to DIR/results.jsonl (failures with their error); `table` prints
-the error distribution (markdown) of the estimate against the 3D dp.
+`run` plans every member folder of DIR not yet in DIR/results.jsonl and writes one line of
+results per member there (failures with their error; the 3D planes re-measured with VTK);
+`table` prints (markdown) the planes' kinetic-energy coefficients against the model's uniform
+flow, and the error distribution of the code's estimate and of two models fitted on the even
+seeds, on the odd seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
+(their estimates made into OUT).
 """
 import argparse
 import json

@@ -57,6 +57,7 @@ fn write_member(dir: &Path, seed: u64) -> Result<(), String> {
         lv_radius_mm: rng.between(9.0, 11.0),
         rv_radius_mm: rng.between(8.0, 10.0),
         vsd_overlap_mm: rng.between(2.0, 4.0),
+        // Half the diameter, cm to mm.
         aorta_radius_mm: 5.0 * boston_aortic_annulus_diameter_cm(inputs.bsa_m2, aortic_z_score),
         tilt_deg: rng.between(0.0, 15.0),
         sideways_deg: rng.between(-20.0, 20.0),
@@ -70,6 +71,6 @@ fn write_member(dir: &Path, seed: u64) -> Result<(), String> {
     write_markups_closed_curve(&dir.join("suture_points.mrk.json"), "BC", &member.suture_points_mm, CoordinateSystem::Lps)
         .map_err(|e| e.to_string())?;
     let json = serde_json::json!({ "seed": seed, "shape": member.params, "aortic_z_score": aortic_z_score, "plan": inputs });
-    std::fs::write(dir.join("member.json"), serde_json::to_string_pretty(&json).unwrap_or_default())
-        .map_err(|e| format!("{}: {e}", dir.display()))
+    let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("member.json"), text).map_err(|e| format!("{}: {e}", dir.display()))
 }
