@@ -8,7 +8,11 @@
 //! suture_points.mrk.json), plus member.json with its shape and the plan's inputs, for
 //! `scripts/validation/flow_family.py` to plan.
 //!
-//!     cargo run --release -p baffle-prepare --example flow_family OUT [first seed] [count]
+//!     cargo run --release -p baffle-prepare --example flow_family OUT [first seed] [count] [tilt from] [tilt to]
+//!
+//! The tilt's range (degrees, default 0 to 15) sets the tunnel's length: a negative tilt
+//! leans the aorta away from the VSD, so the tunnel runs over the RV's top and its throat
+//! can lie well before the annulus, as in p1-p3 (`-35 0`: the long-tunnel family).
 
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::target::boston_aortic_annulus_diameter_cm;
@@ -33,8 +37,9 @@ fn main() {
     };
     let first: u64 = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(0);
     let count: u64 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(100);
+    let tilt_deg = (args.get(3).and_then(|a| a.parse().ok()).unwrap_or(0.0), args.get(4).and_then(|a| a.parse().ok()).unwrap_or(15.0));
     for seed in first..first + count {
-        if let Err(e) = write_member(&out.join(format!("m{seed:03}")), seed) {
+        if let Err(e) = write_member(&out.join(format!("m{seed:03}")), seed, tilt_deg) {
             eprintln!("member {seed}: {e}");
             std::process::exit(1);
         }
@@ -42,7 +47,7 @@ fn main() {
     println!("wrote {count} members to {}", out.display());
 }
 
-fn write_member(dir: &Path, seed: u64) -> Result<(), String> {
+fn write_member(dir: &Path, seed: u64, tilt_deg: (f64, f64)) -> Result<(), String> {
     let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xF10F_A111_0031);
     let inputs = PlanInputs {
         bsa_m2: rng.between(0.15, 0.35),
@@ -59,7 +64,7 @@ fn write_member(dir: &Path, seed: u64) -> Result<(), String> {
         vsd_overlap_mm: rng.between(2.0, 4.0),
         // Half the diameter, cm to mm.
         aorta_radius_mm: 5.0 * boston_aortic_annulus_diameter_cm(inputs.bsa_m2, aortic_z_score),
-        tilt_deg: rng.between(0.0, 15.0),
+        tilt_deg: rng.between(tilt_deg.0, tilt_deg.1),
         sideways_deg: rng.between(-20.0, 20.0),
     };
     let member = aorta_tilt_from(seed, params);
