@@ -86,7 +86,7 @@ def main():
     r.add_argument("--baffle", default="target/release/baffle")
     r.add_argument("--edge-length-mm", type=float, default=0.6)
     t = sub.add_parser("table")
-    t.add_argument("dir")
+    t.add_argument("dir", nargs="+", help="one or more family folders; the fit takes the even seeds of all")
     t.add_argument("--patients", type=Path, help="also the 21 p1-p3 rows of hemodynamics_estimate.py, estimated into this folder")
     t.add_argument("--baffle", default="target/release/baffle")
     args = ap.parse_args()
@@ -205,26 +205,37 @@ def patient_parts(args):
     return [(f"{p} (1.25 mm 3D rows)", rows) for p, rows in sorted(by_patient.items())]
 
 
-def table(args):
-    rows = [json.loads(line) for line in (Path(args.dir) / "results.jsonl").read_text().splitlines() if line.strip()]
+def family_rows(family):
+    """The planned members of one family folder (with their planes), and its failures."""
+    rows = [json.loads(line) for line in (family / "results.jsonl").read_text().splitlines() if line.strip()]
     ok = [r for r in rows if "estimate" in r]
     for r in ok:
-        r.setdefault("planes", plane_figures(Path(args.dir) / f"m{r['seed']:03d}" / "plan"))
+        r.setdefault("planes", plane_figures(family / f"m{r['seed']:03d}" / "plan"))
     failed = [r for r in rows if "error" in r]
     dp3 = [r["comparison"]["dp_3d_mmhg"] for r in ok]
-    print(f"members: {len(rows)}; planned: {len(ok)}; failed: {len(failed)}; 3D dp {min(dp3):.2f} to {max(dp3):.2f} mmHg")
+    print(f"{family}: members {len(rows)}; planned {len(ok)}; failed {len(failed)}; 3D dp {min(dp3):.2f} to {max(dp3):.2f} mmHg")
     for r in failed:
         print(f"- m{r['seed']:03d}: {r['error'][:200]}")
-    fit = [(r["estimate"], r["comparison"]["dp_3d_mmhg"]) for r in ok if r["seed"] % 2 == 0]
-    held = [(r["estimate"], r["comparison"]["dp_3d_mmhg"]) for r in ok if r["seed"] % 2 == 1]
+    return ok
+
+
+def table(args):
+    families = {Path(d).name: family_rows(Path(d)) for d in args.dir}
+    ok = [r for rows in families.values() for r in rows]
+    pair = lambda r: (r["estimate"], r["comparison"]["dp_3d_mmhg"])
+    fit = [pair(r) for r in ok if r["seed"] % 2 == 0]
+    held = [pair(r) for r in ok if r["seed"] % 2 == 1]
     coef = fit_dynamic_weights(fit)
     jet_coef = fit_jet_weights(fit)
     print(f"\nfitted on the {len(fit)} even seeds: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
     print(f"fitted on the {len(fit)} even seeds: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
-    print(where_the_estimate_misses(ok))
+    for name, rows in families.items():
+        print(f"\n{name}:" + where_the_estimate_misses(rows))
     print("\n| model, rows | within 20 % or 1 mmHg | error min / 5 % / median / 95 % / max (mmHg) | relative error 5 / 50 / 95 % (rows with 3D dp > 1 mmHg) |")
     print("|---|---|---|---|")
     parts = [("fit part (even seeds)", fit), ("held-out part (odd seeds)", held)]
+    if len(families) > 1:
+        parts += [(f"held-out part of {name}", [pair(r) for r in rows if r["seed"] % 2 == 1]) for name, rows in families.items()]
     if args.patients:
         parts += patient_parts(args)
     for name, part in parts:
