@@ -162,31 +162,32 @@ pub struct HemodynamicsEstimate {
 }
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg), over
-/// the 121 rows of docs/hemodynamics_estimate.md: the 21 of p1-p3 (published domains and
+/// the 221 rows of docs/hemodynamics_estimate.md: the 21 of p1-p3 (published domains and
 /// designs on the paper's design input, `scripts/validation/hemodynamics_estimate.py`,
 /// against the 3D first peak on 0.85 / 1.25 mm meshes: -10.91 at p1 z = -1 to +0.26 at
-/// p2 z = 2) and the 100 synthetic hearts of the flow family (`scripts/validation/
-/// flow_family.py`, the plan's quick run on one 0.6 mm mesh: -12.15 to -0.69). No
+/// p2 z = 2) and the 200 synthetic hearts of the short- and long-tunnel flow families
+/// (`scripts/validation/flow_family.py`, the plan's quick run on one 0.6 mm mesh: -12.15
+/// to -0.41). No
 /// coefficient of the model was fitted to those rows; this is their measured spread, not a
 /// model property, and a design unlike them can fall outside it.
 pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-12.15, 0.26);
 /// The measured range of the v_max estimate's relative error, (estimate - 3D) / 3D with
 /// the 3D value the first-peak maximum speed on the flow centerline, over the same rows:
-/// -15 % (p2 z = 3) to +5 % (p1 published) on p1-p3, -12 % to +46 % on the flow family
-/// (median +11 %: its annulus, a tube's sharp rim, is the throat on most members).
-pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.46);
+/// -15 % (p2 z = 3) to +5 % (p1 published) on p1-p3, -12 % to +49 % on the flow families
+/// (medians +11 % and +20 %: their annulus, a tube's sharp rim, is the throat on most members).
+pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.49);
 
 /// The measured error of dp against the 3D first peak, in words (from `DP_ERROR_RANGE_MMHG`).
 pub fn dp_uncertainty() -> String {
     let (below, above) = (-DP_ERROR_RANGE_MMHG.0, DP_ERROR_RANGE_MMHG.1);
-    format!("against the 3D first-peak static dp (121 rows of docs/hemodynamics_estimate.md: p1-p3's published domains and designs on 0.85 / 1.25 mm meshes, and 100 synthetic hearts on 0.6 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 3.27 below); within 20 % or 1 mmHg on 12 of 121 (p2 10 of 10; p1, p3 and the synthetic hearts 2 of 111). Outside p2 it is a lower bound, not a prediction: the 3D flow crosses the planes faster than a uniform flow of their area, and loses more total pressure than the model's expansion and friction")
+    format!("against the 3D first-peak static dp (221 rows of docs/hemodynamics_estimate.md: p1-p3's published domains and designs on 0.85 / 1.25 mm meshes, and 200 synthetic hearts on 0.6 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 2.87 below); within 20 % or 1 mmHg on 23 of 221 (p2 10 of 10; p1, p3 and the synthetic hearts 13 of 211). Outside p2 it is a lower bound, not a prediction: the 3D flow crosses the planes faster than a uniform flow of their area, and loses more total pressure than the model's expansion and friction")
 }
 
 /// The measured error of v_max against the 3D centerline maximum on the same rows, in
 /// words (from `V_MAX_RELATIVE_ERROR_RANGE`).
 pub fn v_max_uncertainty() -> String {
     let (lo, hi) = (V_MAX_RELATIVE_ERROR_RANGE.0 * 100.0, V_MAX_RELATIVE_ERROR_RANGE.1 * 100.0);
-    format!("{lo:+.0} % to {hi:+.0} % of the 3D first-peak maximum speed on the flow centerline (same 121 rows, docs/hemodynamics_estimate.md)")
+    format!("{lo:+.0} % to {hi:+.0} % of the 3D first-peak maximum speed on the flow centerline (same 221 rows, docs/hemodynamics_estimate.md)")
 }
 
 /// The estimate beside a 3D run's dp and v_max: the differences, and whether each lies
@@ -598,7 +599,7 @@ mod tests {
         assert!((e.dp_estimate_mmhg - (e.bernoulli_mmhg + e.expansion_loss_mmhg + e.friction_mmhg + e.unrecovered_jet_mmhg)).abs() < 1e-12);
         assert!((0.0..=1.0).contains(&e.recovered_fraction) && e.aortic_plane_at_mm > e.throat_at_mm, "{e:?}");
         assert!((e.v_max_estimate_m_s - Q / (e.throat_area_mm2 * 1e-2) / VENA_CONTRACTA_CC * 1e-2).abs() < 1e-12);
-        assert!(e.friction_mmhg > 0.0 && e.wall_time_ms > 0.0 && e.dp_uncertainty.contains("12 of 121"));
+        assert!(e.friction_mmhg > 0.0 && e.wall_time_ms > 0.0 && e.dp_uncertainty.contains("23 of 221"));
         match EstimateOutcome::for_domain(&result.domain, labels, None, Blood::default()) {
             EstimateOutcome::Absent { absent_because } => assert!(absent_because.contains("--peak-flow-ml-s")),
             other => panic!("{other:?}"),
@@ -688,7 +689,7 @@ mod tests {
     fn the_uncertainty_texts_state_the_measured_ranges() {
         let e = estimate_of(1.0, 1.0);
         assert!(e.dp_uncertainty.contains("from 12.15 mmHg below to 0.26 mmHg above"), "{}", e.dp_uncertainty);
-        assert!(e.v_max_uncertainty.starts_with("-15 % to +46 %"), "{}", e.v_max_uncertainty);
+        assert!(e.v_max_uncertainty.starts_with("-15 % to +49 %"), "{}", e.v_max_uncertainty);
         // What a design writes reads back as the same outcome (baffle plan's report reads it).
         for outcome in [EstimateOutcome::Estimated(e), EstimateOutcome::Absent { absent_because: "no flow".into() }] {
             let back: EstimateOutcome = serde_json::from_value(serde_json::to_value(&outcome).unwrap()).unwrap();
