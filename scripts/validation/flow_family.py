@@ -4,7 +4,7 @@ hearts (`cargo run --release -p baffle-prepare --example flow_family DIR`), each
 `baffle plan --quick --single-mesh` at its drawn body size, target z-score and cardiac index.
 
     python3 scripts/validation/flow_family.py run DIR [--baffle B] [--edge-length-mm 0.6]
-    python3 scripts/validation/flow_family.py table DIR [--patients OUT] [--baffle B]
+    python3 scripts/validation/flow_family.py table DIR [DIR ...] [--patients OUT] [--baffle B]
 
 `run` plans every member folder of DIR not yet in DIR/results.jsonl and writes one line of
 results per member there (failures with their error; the 3D planes re-measured with VTK);
