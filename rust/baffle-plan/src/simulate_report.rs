@@ -69,12 +69,16 @@ impl Row {
             face_flow_ml_s: r.faces.iter().map(|f| f.flow_ml_s).collect(),
         }
     }
+    /// Face `id`'s value in `values` (one per face of the row; NaN where it has none).
+    fn of_face(&self, values: &[f64], id: i32) -> f64 {
+        self.face_ids.iter().position(|&f| f == id).and_then(|k| values.get(k).copied()).unwrap_or(f64::NAN)
+    }
     fn pressure(&self, id: i32) -> f64 {
-        self.face_ids.iter().position(|&f| f == id).map_or(f64::NAN, |k| self.face_pressure_mmhg[k])
+        self.of_face(&self.face_pressure_mmhg, id)
     }
     /// The flux through face `id` (NaN where the row has none).
     fn flow(&self, id: i32) -> f64 {
-        self.face_ids.iter().position(|&f| f == id).and_then(|k| self.face_flow_ml_s.get(k).copied()).unwrap_or(f64::NAN)
+        self.of_face(&self.face_flow_ml_s, id)
     }
 }
 
