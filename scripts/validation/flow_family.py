@@ -115,20 +115,9 @@ def tolerance_mmhg(dp):
     return max(0.2 * abs(dp), 1.0)
 
 
-def fit_dynamic_weights(rows):
-    """Least squares of dp_3D = a K_t + b K_ao + c (-K_vsd) + friction, each row weighted by its
-    tolerance, so the fit minimises the error in units of the criterion."""
-    import numpy as np
-    x = np.array([regressors(e)[:3] for e, _ in rows])
-    y = np.array([dp - regressors(e)[3] for e, dp in rows])
-    w = np.array([1 / tolerance_mmhg(dp) for _, dp in rows])
-    coef, *_ = np.linalg.lstsq(x * w[:, None], y * w, rcond=None)
-    return coef
-
-
-def fitted_mmhg(coef, e):
-    k = regressors(e)
-    return sum(c * v for c, v in zip(coef, k[:3])) + k[3]
+def dynamic_regressors(e):
+    """The throat's, the aortic plane's and (minus) the VSD plane's dynamic pressures."""
+    return regressors(e)[:3]
 
 
 def jet_regressors(e):
@@ -137,19 +126,38 @@ def jet_regressors(e):
     return [dynamic_mmhg(e, "jet_area_at_aortic_plane_mm2"), -dynamic_mmhg(e, "vsd_area_mm2")]
 
 
-def fit_jet_weights(rows):
-    """Least squares of dp_3D - friction = a K_jet - b K_vsd, weighted by the criterion's tolerance:
-    a and b are the planes' kinetic-energy coefficients the 3D flow shows on average."""
+def fit_weights(rows, regressors_of):
+    """Least squares of dp_3D - friction on `regressors_of(estimate)`, each row weighted by its
+    tolerance, so the fit minimises the error in units of the criterion."""
     import numpy as np
-    x = np.array([jet_regressors(e) for e, _ in rows])
+    x = np.array([regressors_of(e) for e, _ in rows])
     y = np.array([dp - e["friction_mmhg"] for e, dp in rows])
     w = np.array([1 / tolerance_mmhg(dp) for _, dp in rows])
     coef, *_ = np.linalg.lstsq(x * w[:, None], y * w, rcond=None)
     return coef
 
 
+def predicted_mmhg(coef, regressors_of, e):
+    return sum(c * v for c, v in zip(coef, regressors_of(e))) + e["friction_mmhg"]
+
+
+def fit_dynamic_weights(rows):
+    """dp_3D = a K_t + b K_ao + c (-K_vsd) + friction."""
+    return fit_weights(rows, dynamic_regressors)
+
+
+def fitted_mmhg(coef, e):
+    return predicted_mmhg(coef, dynamic_regressors, e)
+
+
+def fit_jet_weights(rows):
+    """dp_3D = a K_jet - b K_vsd + friction: a and b are the planes' kinetic-energy
+    coefficients the 3D flow shows on average."""
+    return fit_weights(rows, jet_regressors)
+
+
 def jet_fitted_mmhg(coef, e):
-    return sum(c * v for c, v in zip(coef, jet_regressors(e))) + e["friction_mmhg"]
+    return predicted_mmhg(coef, jet_regressors, e)
 
 
 def summary(name, pairs):
@@ -191,9 +199,8 @@ def where_the_estimate_misses(ok):
 def patient_parts(args):
     """p1-p3's 21 rows (docs/hemodynamics_estimate.md: the 3D first peak at 0.85 / 1.25 mm), as
     (estimate, 3D dp) per patient."""
-    import os
     import hemodynamics_estimate as he
-    data = Path(os.environ.get("BAFFLE_DATA_DIR", Path(__file__).resolve().parents[2] / ".." / "shared" / "data"))
+    data = he.data_dir()
     patients = json.loads((data / "patients.json").read_text())["patients"]
     by_patient = {}
     for patient, row, (dp3, _, _) in he.CFD_ROWS:

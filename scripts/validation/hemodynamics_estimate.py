@@ -30,6 +30,11 @@ CFD_ROWS = [
 ]
 
 
+def data_dir():
+    """The patient data: $BAFFLE_DATA_DIR, or ../shared/data beside the repository."""
+    return Path(os.environ.get("BAFFLE_DATA_DIR", Path(__file__).resolve().parents[2] / ".." / "shared" / "data"))
+
+
 def within(est, ref, rel=0.20, abs_mmhg=1.0):
     return abs(est - ref) <= max(rel * abs(ref), abs_mmhg)
 
@@ -82,7 +87,7 @@ def main():
     ap.add_argument("--out", type=Path, default=Path("out/hemodynamics-estimate"))
     ap.add_argument("--baffle", default="target/release/baffle")
     args = ap.parse_args()
-    data = Path(os.environ.get("BAFFLE_DATA_DIR", Path(__file__).resolve().parents[2] / ".." / "shared" / "data"))
+    data = data_dir()
     patients = json.loads((data / "patients.json").read_text())["patients"]
     print("| patient | row (z) | 3D dp static (mmHg) | estimate (mmHg) | error (mmHg) | within 20 % / 1 mmHg | Bernoulli / expansion / friction / unrecovered jet (mmHg) | fully mixed, before (mmHg) | throat to aortic plane (mm, throat diameters) | jet area at the plane (mm2), recovered fraction | no-recovery variant (mmHg) | free-jet / vena-contracta variants (mmHg) | 3D dp total, flow-weighted | expansion + friction | 3D v_max (m/s) | estimate (m/s) | error | throat (mm2, at mm) | VSD / aortic plane (mm2) | estimate wall time (ms) | baffle now (mm2) |")
     print("|" + "---|" * 21)
