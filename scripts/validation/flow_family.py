@@ -9,8 +9,8 @@ hearts (`cargo run --release -p baffle-prepare --example flow_family DIR`), each
 `run` plans every member folder of DIR not yet in DIR/results.jsonl and writes one line of
 results per member there (failures with their error; the 3D planes re-measured with VTK);
 `table` prints (markdown) the planes' kinetic-energy coefficients against the model's uniform
-flow, and the error distribution of the code's estimate and of two models fitted on the even
-seeds, on the odd seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
+flow, the planes' pressure coefficients A and B (plane_coefficients), and the error distribution
+of the code's estimate and of three models fitted on the even seeds, on the odd seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
 (their estimates made into OUT).
 """
 import argparse
@@ -160,6 +160,31 @@ def jet_fitted_mmhg(coef, e):
     return predicted_mmhg(coef, jet_regressors, e)
 
 
+def plane_coefficients(r):
+    """The 3D run's static pressure at each plane below the VSD plane's flow-weighted total
+    pressure P11, in units of a section's dynamic pressure: A = (P11 - p11) / K_vsd at the VSD
+    plane, B = (P11 - p16) / K_throat at the aortic plane (the losses and the kinetic energy
+    left there), so that the 3D dp = p11 - p16 = B K_throat - A K_vsd exactly. A 1D model of
+    the tunnel has to predict these two numbers."""
+    e, planes = r["estimate"], r["planes"]
+    total11 = planes["11"]["total"]
+    return ((total11 - planes["11"]["p"]) / dynamic_mmhg(e, "vsd_area_mm2"),
+            (total11 - planes["16"]["p"]) / dynamic_mmhg(e, "throat_area_mm2"))
+
+
+def fit_plane_coefficients(fit_rows):
+    """The median A and B (plane_coefficients) over the fit part's members."""
+    import numpy as np
+    a, b = zip(*(plane_coefficients(r) for r in fit_rows))
+    return float(np.median(a)), float(np.median(b))
+
+
+def plane_model_mmhg(coef, e):
+    """dp = B K_throat - A K_vsd with the fitted plane coefficients (friction is in B)."""
+    a, b = coef
+    return b * dynamic_mmhg(e, "throat_area_mm2") - a * dynamic_mmhg(e, "vsd_area_mm2")
+
+
 def summary(name, pairs):
     """One markdown row: count within the criterion, error quantiles."""
     import numpy as np
@@ -188,7 +213,9 @@ def where_the_estimate_misses(ok):
     loss3 = [r["planes"]["11"]["total"] - r["planes"]["16"]["total"] for r in ok]
     loss_model = [r["estimate"]["expansion_loss_mmhg"] + r["estimate"]["friction_mmhg"] for r in ok]
     flow = lambda r, k: r["planes"][k]["flow_ml_s"] / r["planes"]["20"]["flow_ml_s"]
+    a_b = [plane_coefficients(r) for r in ok]
     lines = ["\n| over the members (5 % / median / 95 %) | value |", "|---|---|",
+             f"| A = (P11 - p11) / K_vsd | {q([a for a, _ in a_b])} |", f"| B = (P11 - p16) / K_throat | {q([b for _, b in a_b])} |",
              f"| alpha at the VSD plane (11) | {q(a11)} |", f"| alpha at the aortic plane (16) | {q(a16)} |",
              f"| 3D total-pressure loss 11-16 (mmHg) | {q(loss3)} |", f"| model's expansion + friction loss (mmHg) | {q(loss_model)} |",
              f"| 3D flow through plane 11 / inflow | {q([flow(r, '11') for r in ok])} |",
@@ -234,8 +261,10 @@ def table(args):
     held = [pair(r) for r in ok if r["seed"] % 2 == 1]
     coef = fit_dynamic_weights(fit)
     jet_coef = fit_jet_weights(fit)
+    plane_coef = fit_plane_coefficients([r for r in ok if r["seed"] % 2 == 0])
     print(f"\nfitted on the {len(fit)} even seeds: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
     print(f"fitted on the {len(fit)} even seeds: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
+    print(f"plane coefficients, medians of the {len(fit)} even seeds: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
     for name, rows in families.items():
         print(f"\n{name}:" + where_the_estimate_misses(rows))
     print("\n| model, rows | within 20 % or 1 mmHg | error min / 5 % / median / 95 % / max (mmHg) | relative error 5 / 50 / 95 % (rows with 3D dp > 1 mmHg) |")
@@ -249,6 +278,7 @@ def table(args):
         print(summary(f"the code's estimate, {name}", [(e["dp_estimate_mmhg"], dp) for e, dp in part]))
         print(summary(f"fitted dynamic weights, {name}", [(fitted_mmhg(coef, e), dp) for e, dp in part]))
         print(summary(f"fitted jet and VSD coefficients, {name}", [(jet_fitted_mmhg(jet_coef, e), dp) for e, dp in part]))
+        print(summary(f"median plane coefficients, {name}", [(plane_model_mmhg(plane_coef, e), dp) for e, dp in part]))
 
 
 if __name__ == "__main__":

@@ -523,3 +523,20 @@ def test_the_family_summary_counts_the_criterion_and_its_edges():
     # Within: 0.2 x 10 = 2 mmHg at dp 10 (edge included), 1 mmHg at dp 2; outside: 2.01 at 10.
     row = flow_family.summary("x", [(12.0, 10.0), (2.9, 2.0), (12.01, 10.0)])
     assert row.startswith("| x | 2 of 3 (67 %) |"), row
+
+
+def test_the_plane_coefficients_give_back_the_3d_dp_and_their_medians_fit():
+    # Planes made with A = 1.7 and B = 1.9: p11 = P11 - A K_vsd, p16 = P11 - B K_throat. The
+    # coefficients come back, dp = B K_t - A K_vsd is the planes' static difference, and the
+    # fit of three members takes the medians.
+    def member(q, a, b):
+        e = _estimate(q, 100.0, 50.0, 60.0)
+        k_vsd, k_t = flow_family.dynamic_mmhg(e, "vsd_area_mm2"), flow_family.dynamic_mmhg(e, "throat_area_mm2")
+        planes = {"11": {"total": 100.0, "p": 100.0 - a * k_vsd}, "16": {"p": 100.0 - b * k_t}}
+        return {"estimate": e, "planes": planes}
+    r = member(70.0, 1.7, 1.9)
+    assert flow_family.plane_coefficients(r) == pytest.approx((1.7, 1.9), rel=1e-12)
+    dp = r["planes"]["11"]["p"] - r["planes"]["16"]["p"]
+    assert flow_family.plane_model_mmhg((1.7, 1.9), r["estimate"]) == pytest.approx(dp, rel=1e-12)
+    fit = [member(70.0, 1.7, 1.9), member(50.0, 1.5, 2.5), member(90.0, 2.0, 1.0)]
+    assert flow_family.fit_plane_coefficients(fit) == pytest.approx((1.7, 1.9), rel=1e-12)
