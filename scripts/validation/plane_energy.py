@@ -8,7 +8,8 @@ VTK rather than read from either engine's summary.
 
 prints, per run, dp between the planes 11 and 16, the total-pressure loss between them,
 the kinetic-energy flux at each, and the losses from the inlet (20) to plane 11 and from
-plane 16 to the outlet (21), in mmHg. Triangle integrals use the edge-midpoint rule (exact
+plane 16 to the outlet (21), and the static pressure at planes 11 and 16 below plane 11's
+flow-weighted total P11 (flow_family.py's plane coefficients A and B times K_vsd and K_throat), in mmHg. Triangle integrals use the edge-midpoint rule (exact
 for the quadratic products of P1 fields)."""
 import sys
 from pathlib import Path
@@ -75,7 +76,8 @@ def main(argv):
         f = {k: face_integrals(faces, Path(run) / "peak.vtu", k) for k in (20, 11, 16, 21)}
         print(f"{run}: dp 11-16 {f[11]['p'] - f[16]['p']:.3f}, total-pressure loss 11-16 {f[11]['total'] - f[16]['total']:.3f}, "
               f"KE flux 11 {f[11]['ke']:.3f} / 16 {f[16]['ke']:.3f}, loss 20-11 {f[20]['total'] - f[11]['total']:.3f}, "
-              f"loss 16-21 {f[16]['total'] - f[21]['total']:.3f} mmHg; flow at 16 {f[16]['flow_ml_s']:.2f} ml/s")
+              f"loss 16-21 {f[16]['total'] - f[21]['total']:.3f}, P11 - p11 {f[11]['total'] - f[11]['p']:.3f}, "
+              f"P11 - p16 {f[11]['total'] - f[16]['p']:.3f} mmHg; flow at 16 {f[16]['flow_ml_s']:.2f} ml/s")
     return 0
 
 
