@@ -540,3 +540,51 @@ def test_the_plane_coefficients_give_back_the_3d_dp_and_their_medians_fit():
     assert flow_family.plane_model_mmhg((1.7, 1.9), r["estimate"]) == pytest.approx(dp, rel=1e-12)
     fit = [member(70.0, 1.7, 1.9), member(50.0, 1.5, 2.5), member(90.0, 2.0, 1.0)]
     assert flow_family.fit_plane_coefficients(fit) == pytest.approx((1.7, 1.9), rel=1e-12)
+
+
+import potential_flow  # noqa: E402
+
+
+def _tetrahedralized_box(dims, spacing_cm):
+    """Nodes (cm) and tetrahedra of a box of dims[0] x dims[1] x dims[2] nodes, every cube cut
+    into Kuhn's six tetrahedra round its main diagonal (conforming across the cubes)."""
+    nx, ny, nz = dims
+    idx = np.arange(nx * ny * nz).reshape(nx, ny, nz)
+    x = np.stack(np.meshgrid(*(np.arange(n) * h for n, h in zip(dims, spacing_cm)), indexing="ij"), axis=-1).reshape(-1, 3)
+    corner = lambda i, j, k, d: idx[i + d[0], j + d[1], k + d[2]]
+    paths = [((1, 0, 0), (0, 1, 0), (0, 0, 1)), ((1, 0, 0), (0, 0, 1), (0, 1, 0)), ((0, 1, 0), (1, 0, 0), (0, 0, 1)),
+             ((0, 1, 0), (0, 0, 1), (1, 0, 0)), ((0, 0, 1), (1, 0, 0), (0, 1, 0)), ((0, 0, 1), (0, 1, 0), (1, 0, 0))]
+    tets = []
+    for i in range(nx - 1):
+        for j in range(ny - 1):
+            for k in range(nz - 1):
+                for steps in paths:
+                    d = np.zeros(3, dtype=int)
+                    tet = [corner(i, j, k, d)]
+                    for step in steps:
+                        d = d + step
+                        tet.append(corner(i, j, k, d))
+                    tets.append(tet)
+    return x, np.array(tets)
+
+
+def _end_triangles(x, at_z):
+    """The end face z = at_z split into triangles of its nodes (fan over a square grid)."""
+    ids = np.flatnonzero(np.isclose(x[:, 2], at_z))
+    order = ids[np.lexsort((x[ids, 1], x[ids, 0]))]
+    nx = len(np.unique(x[ids, 0]))
+    grid = order.reshape(nx, -1)
+    tris = [[grid[i, j], grid[i + 1, j], grid[i + 1, j + 1]] for i in range(nx - 1) for j in range(grid.shape[1] - 1)]
+    tris += [[grid[i, j], grid[i + 1, j + 1], grid[i, j + 1]] for i in range(nx - 1) for j in range(grid.shape[1] - 1)]
+    return np.array(tris), ids
+
+
+def test_potential_flow_through_a_straight_duct_is_uniform_at_q_over_a():
+    # A 0.4 x 0.3 x 1.0 cm duct fed 6 ml/s through z = 0, phi = 0 at z = 1: u = (0, 0, 50) cm/s
+    # at every node (P1 reproduces the linear potential exactly).
+    x, tets = _tetrahedralized_box((5, 4, 11), (0.1, 0.1, 0.1))
+    inlet, _ = _end_triangles(x, 0.0)
+    _, outlet = _end_triangles(x, x[:, 2].max())
+    u = potential_flow.potential_velocity(x, tets, inlet, outlet, 6.0)
+    assert u[:, 2] == pytest.approx(np.full(len(x), 6.0 / (0.4 * 0.3)), rel=1e-9)
+    assert np.abs(u[:, :2]).max() < 1e-9
