@@ -8,17 +8,32 @@
 //! suture_points.mrk.json), plus member.json with its shape and the plan's inputs, for
 //! `scripts/validation/flow_family.py` to plan.
 //!
-//!     cargo run --release -p baffle-prepare --example flow_family OUT [first seed] [count] [tilt from] [tilt to]
+//!     cargo run --release -p baffle-prepare --example flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to]
 //!
 //! The tilt's range (degrees, default 0 to 15) sets the tunnel's length: a negative tilt
 //! leans the aorta away from the VSD, so the tunnel runs over the RV's top and its throat
 //! can lie well before the annulus, as in p1-p3 (`-35 0`: the long-tunnel family).
+//! The aorta's Boston z-score range (default -2.5 to 2.5) sets how much wider than the
+//! tunnel's target the aortic plane is: p1-p3's aortic roots lie at about +2.5 to +5, their
+//! aortic plane 1.5-3.2 times their throat (`-35 0 2 5`: the wide-root family). The RV's
+//! radius is raised where needed so that the aorta's is at most `MAX_AORTA_TO_RV` of it
+//! (never in the defaults' first 100 seeds, so those members are unchanged).
 
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::target::boston_aortic_annulus_diameter_cm;
 use baffle_core::io::{write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
 use baffle_prepare::aorta_family::{aorta_tilt_from, AortaTiltParams};
 use std::path::{Path, PathBuf};
+
+/// The largest aorta-to-RV radius ratio: the largest of the first two families' 200 members
+/// (0.646, all planned). On the RV sphere the aortic opening's half-angle is then at most
+/// asin 0.65 = 40.5 degrees, which with the VSD's (at most about 46 degrees, at an RV of 8 mm)
+/// stays inside the 90 degrees between their centres at tilt 0 and more so at negative tilts
+/// (the openings apart, so `prepare`'s two cuts do not touch); the tube's start cap, 4 mm
+/// along its axis, stays inside the RV (the annulus lies sqrt(1 - 0.65^2) R = 0.76 R >= 6.1 mm
+/// out); and at tilt <= 0 the tube's rim reaches into the LV sphere by at most 0.42 mm (LV 11,
+/// RV 8, overlap 4 mm, tilt 0), less than the first family's seed 30 (0.60 mm), which planned.
+const MAX_AORTA_TO_RV: f64 = 0.65;
 
 /// The plan's inputs drawn for one member: body size (sets the target and the flow),
 /// target z-score and cardiac index (scales the flow).
@@ -32,14 +47,15 @@ struct PlanInputs {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first().map(PathBuf::from) else {
-        eprintln!("usage: flow_family OUT [first seed] [count]");
+        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to]");
         std::process::exit(2);
     };
-    let first: u64 = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(0);
-    let count: u64 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(100);
-    let tilt_deg = (args.get(3).and_then(|a| a.parse().ok()).unwrap_or(0.0), args.get(4).and_then(|a| a.parse().ok()).unwrap_or(15.0));
+    let first = argument(&args, 1, 0u64);
+    let count = argument(&args, 2, 100u64);
+    let number = |i: usize, default: f64| argument(&args, i, default);
+    let ranges = Ranges { tilt_deg: (number(3, 0.0), number(4, 15.0)), aortic_z_score: (number(5, -2.5), number(6, 2.5)) };
     for seed in first..first + count {
-        if let Err(e) = write_member(&out.join(format!("m{seed:03}")), seed, tilt_deg) {
+        if let Err(e) = write_member(&out.join(format!("m{seed:03}")), seed, &ranges) {
             eprintln!("member {seed}: {e}");
             std::process::exit(1);
         }
@@ -47,7 +63,24 @@ fn main() {
     println!("wrote {count} members to {}", out.display());
 }
 
-fn write_member(dir: &Path, seed: u64, tilt_deg: (f64, f64)) -> Result<(), String> {
+/// The `i`th argument, `default` when it is not given; a malformed one stops the run
+/// rather than falling back to the default unseen.
+fn argument<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
+    args.get(i).map_or(default, |a| {
+        a.parse().unwrap_or_else(|_| {
+            eprintln!("flow_family: argument {i} ({a}) is not a number of the expected kind");
+            std::process::exit(2)
+        })
+    })
+}
+
+/// The drawn ranges the command line sets.
+struct Ranges {
+    tilt_deg: (f64, f64),
+    aortic_z_score: (f64, f64),
+}
+
+fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
     let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xF10F_A111_0031);
     let inputs = PlanInputs {
         bsa_m2: rng.between(0.15, 0.35),
@@ -57,14 +90,15 @@ fn write_member(dir: &Path, seed: u64, tilt_deg: (f64, f64)) -> Result<(), Strin
     // The aorta is the body size's own (its Boston z-score drawn), so the flow per area of the
     // annulus, and with it dp, is that of a child rather than of an aorta drawn apart from the
     // body: a free draw gave 3D dp of 5-58 mmHg.
-    let aortic_z_score = rng.between(-2.5, 2.5);
+    let aortic_z_score = rng.between(ranges.aortic_z_score.0, ranges.aortic_z_score.1);
+    // Half the diameter, cm to mm.
+    let aorta_radius_mm = 5.0 * boston_aortic_annulus_diameter_cm(inputs.bsa_m2, aortic_z_score);
     let params = AortaTiltParams {
         lv_radius_mm: rng.between(9.0, 11.0),
-        rv_radius_mm: rng.between(8.0, 10.0),
+        rv_radius_mm: rng.between(8.0, 10.0).max(aorta_radius_mm / MAX_AORTA_TO_RV),
         vsd_overlap_mm: rng.between(2.0, 4.0),
-        // Half the diameter, cm to mm.
-        aorta_radius_mm: 5.0 * boston_aortic_annulus_diameter_cm(inputs.bsa_m2, aortic_z_score),
-        tilt_deg: rng.between(tilt_deg.0, tilt_deg.1),
+        aorta_radius_mm,
+        tilt_deg: rng.between(ranges.tilt_deg.0, ranges.tilt_deg.1),
         sideways_deg: rng.between(-20.0, 20.0),
     };
     let member = aorta_tilt_from(seed, params);
