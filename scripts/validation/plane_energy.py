@@ -30,7 +30,9 @@ def read(path, reader):
 
 
 def face_integrals(faces, run_vtu, label):
-    """Area, flow (ml/s), area-mean p, flow-weighted p and KE flux (mmHg) over one face."""
+    """Area, flow (ml/s), area-mean p, flow-weighted p and KE flux (mmHg) over one face, and the
+    angle between the face's normal and the flow crossing it (flux-weighted mean in-plane speed
+    against normal speed, degrees)."""
     grid = read(run_vtu, vtk.vtkXMLUnstructuredGridReader)
     locator = vtk.vtkPointLocator()
     locator.SetDataSet(grid)
@@ -50,6 +52,8 @@ def face_integrals(faces, run_vtu, label):
     unit = normal2 / (2 * area[:, None])
     ids = node[t]
     p_mean = flux = ke = pq = np.zeros(len(t))
+    # |u_n| u_n and |u_n| |u_t| summed: the flow's mean normal and in-plane speeds, weighted by flux.
+    normal_weighted = tangential_weighted = np.zeros(len(t))
     for i, j in ((0, 1), (1, 2), (2, 0)):
         um = (u[ids[:, i]] + u[ids[:, j]]) / 2
         pm = (p[ids[:, i]] + p[ids[:, j]]) / 2
@@ -58,8 +62,11 @@ def face_integrals(faces, run_vtu, label):
         flux = flux + un / 3
         ke = ke + 0.5 * RHO_G_CM3 * (um ** 2).sum(1) * un / 3
         pq = pq + pm * un / 3
+        normal_weighted = normal_weighted + un * np.abs(un) / 3
+        tangential_weighted = tangential_weighted + np.abs(un) * np.linalg.norm(um - un[:, None] * unit, axis=1) / 3
     q = (flux * area).sum()
     return {
+        "crossing_angle_deg": float(np.degrees(np.arctan2((tangential_weighted * area).sum(), abs((normal_weighted * area).sum())))),
         "p": (p_mean * area).sum() / area.sum() / DYN_CM2_PER_MMHG,
         "total": ((pq + ke) * area).sum() / q / DYN_CM2_PER_MMHG,
         "ke": (ke * area).sum() / q / DYN_CM2_PER_MMHG,
@@ -77,7 +84,8 @@ def main(argv):
         print(f"{run}: dp 11-16 {f[11]['p'] - f[16]['p']:.3f}, total-pressure loss 11-16 {f[11]['total'] - f[16]['total']:.3f}, "
               f"KE flux 11 {f[11]['ke']:.3f} / 16 {f[16]['ke']:.3f}, loss 20-11 {f[20]['total'] - f[11]['total']:.3f}, "
               f"loss 16-21 {f[16]['total'] - f[21]['total']:.3f}, P11 - p11 {f[11]['total'] - f[11]['p']:.3f}, "
-              f"P11 - p16 {f[11]['total'] - f[16]['p']:.3f} mmHg; flow at 16 {f[16]['flow_ml_s']:.2f} ml/s")
+              f"P11 - p16 {f[11]['total'] - f[16]['p']:.3f} mmHg; flow at 16 {f[16]['flow_ml_s']:.2f} ml/s; "
+              f"the flow crosses 11 at {f[11]['crossing_angle_deg']:.1f} and 16 at {f[16]['crossing_angle_deg']:.1f} degrees from their normals")
     return 0
 
 

@@ -588,3 +588,41 @@ def test_potential_flow_through_a_straight_duct_is_uniform_at_q_over_a():
     u = potential_flow.potential_velocity(x, tets, inlet, outlet, 6.0)
     assert u[:, 2] == pytest.approx(np.full(len(x), 6.0 / (0.4 * 0.3)), rel=1e-9)
     assert np.abs(u[:, :2]).max() < 1e-9
+
+
+import plane_energy  # noqa: E402
+
+
+def test_face_integrals_give_the_angle_at_which_the_flow_crosses_a_face(tmp_path):
+    # 1 m/s normal and tan(30 deg) m/s along x through a 1 mm2 face at p = 5 mmHg: flow 1 ml/s,
+    # crossing angle 30 degrees, KE flux rho/2 |u|^2 = 0.53 x (100^2 + 57.7^2) dyn/cm2.
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk
+    pts, tris = square(3)
+    faces = vtk.vtkPolyData()
+    points = vtk.vtkPoints()
+    points.SetData(numpy_to_vtk(pts, deep=True))
+    faces.SetPoints(points)
+    cells = vtk.vtkCellArray()
+    for t in tris:
+        cells.InsertNextCell(3, [int(i) for i in t])
+    faces.SetPolys(cells)
+    labels = numpy_to_vtk(np.full(len(tris), 11, dtype=np.int32), deep=True)
+    labels.SetName("ModelFaceID")
+    faces.GetCellData().AddArray(labels)
+    grid = vtk.vtkUnstructuredGrid()
+    grid.SetPoints(points)
+    u = np.tile([math.tan(math.radians(30.0)), 0.0, 1.0], (len(pts), 1))
+    for name, values in (("velocity_m_s", u), ("pressure_mmhg", np.full(len(pts), 5.0))):
+        array = numpy_to_vtk(values, deep=True)
+        array.SetName(name)
+        grid.GetPointData().AddArray(array)
+    writer = vtk.vtkXMLUnstructuredGridWriter()
+    writer.SetFileName(str(tmp_path / "peak.vtu"))
+    writer.SetInputData(grid)
+    writer.Write()
+    f = plane_energy.face_integrals(faces, tmp_path / "peak.vtu", 11)
+    assert f["crossing_angle_deg"] == pytest.approx(30.0, abs=1e-9)
+    assert f["flow_ml_s"] == pytest.approx(1.0)
+    assert f["p"] == pytest.approx(5.0)
+    assert f["ke"] == pytest.approx(0.53 * 100.0 ** 2 / math.cos(math.radians(30.0)) ** 2 / 1333.22)
