@@ -15,6 +15,7 @@ of the code's estimate and of three models fitted on the even seeds, on the odd 
 """
 import argparse
 import json
+import math
 import subprocess
 import sys
 import time
@@ -216,6 +217,8 @@ def where_the_estimate_misses(ok):
     a_b = [plane_coefficients(r) for r in ok]
     lines = ["\n| over the members (5 % / median / 95 %) | value |", "|---|---|",
              f"| A = (P11 - p11) / K_vsd | {q([a for a, _ in a_b])} |", f"| B = (P11 - p16) / K_throat | {q([b for _, b in a_b])} |",
+             f"| angle of the flow to the VSD plane's normal (degrees) | {q([r['planes']['11']['crossing_angle_deg'] for r in ok])} |",
+             f"| A cos^2 of that angle | {q([a * math.cos(math.radians(r['planes']['11']['crossing_angle_deg'])) ** 2 for (a, _), r in zip(a_b, ok)])} |",
              f"| alpha at the VSD plane (11) | {q(a11)} |", f"| alpha at the aortic plane (16) | {q(a16)} |",
              f"| 3D total-pressure loss 11-16 (mmHg) | {q(loss3)} |", f"| model's expansion + friction loss (mmHg) | {q(loss_model)} |",
              f"| 3D flow through plane 11 / inflow | {q([flow(r, '11') for r in ok])} |",
@@ -244,7 +247,9 @@ def family_rows(family):
     rows = [json.loads(line) for line in (family / "results.jsonl").read_text().splitlines() if line.strip()]
     ok = [r for r in rows if "estimate" in r]
     for r in ok:
-        r.setdefault("planes", plane_figures(family / f"m{r['seed']:03d}" / "plan"))
+        if "crossing_angle_deg" not in r.get("planes", {}).get("11", {}):
+            # Rows written before the planes had all of today's figures are re-measured.
+            r["planes"] = plane_figures(family / f"m{r['seed']:03d}" / "plan")
     failed = [r for r in rows if "error" in r]
     dp3 = [r["comparison"]["dp_3d_mmhg"] for r in ok]
     print(f"{family}: members {len(rows)}; planned {len(ok)}; failed {len(failed)}; 3D dp {min(dp3):.2f} to {max(dp3):.2f} mmHg")
