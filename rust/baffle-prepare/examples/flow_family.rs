@@ -8,21 +8,31 @@
 //! suture_points.mrk.json), plus member.json with its shape and the plan's inputs, for
 //! `scripts/validation/flow_family.py` to plan.
 //!
-//!     cargo run --release -p baffle-prepare --example flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to]
+//!     cargo run --release -p baffle-prepare --example flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [wide-root]
 //!
 //! The tilt's range (degrees, default 0 to 15) sets the tunnel's length: a negative tilt
 //! leans the aorta away from the VSD, so the tunnel runs over the RV's top and its throat
 //! can lie well before the annulus, as in p1-p3 (`-35 0`: the long-tunnel family).
 //! The aorta's Boston z-score range (default -2.5 to 2.5) sets how much wider than the
 //! tunnel's target the aortic plane is: p1-p3's aortic roots lie at about +2.5 to +5, their
-//! aortic plane 1.5-3.2 times their throat (`-35 0 2 5`: the wide-root family). The RV's
-//! radius is raised where needed so that the aorta's is at most `MAX_AORTA_TO_RV` of it
-//! (never in the defaults' first 100 seeds, so those members are unchanged).
+//! aortic plane 1.5-3.2 times their throat. The RV's radius is raised where needed so that
+//! the aorta's is at most `MAX_AORTA_TO_RV` of it (never in the defaults' first 100 seeds,
+//! so those members are unchanged).
+//!
+//! A wide root alone does not widen the tunnel's end: the aorta family's suture ring keeps
+//! 12 degrees outside the wider opening all along, so the whole tunnel widens with the root
+//! (aortic z 2-5, tilt -35 to 0, seeds 0-11 designed: throat 59-98 mm2, above the target on
+//! all, the aortic plane 1.0-1.6 times it and 0-7.3 mm after it, 3.4-4.4 on 10 of 12). `wide-root` makes p1-p3's shape:
+//! the suture points follow each opening's rim `WIDE_ROOT_SUTURE_MARGIN_MM` outside it and
+//! the VSD is made narrower than the root (`WIDE_ROOT_VSD_HALF_ANGLE`), so the tunnel
+//! narrows toward the VSD and widens into the root. The wide-root family:
+//!
+//!     cargo run --release -p baffle-prepare --example flow_family /work/famW 0 100 -35 0 3 5 wide-root
 
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::target::boston_aortic_annulus_diameter_cm;
 use baffle_core::io::{write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
-use baffle_prepare::aorta_family::{aorta_tilt_from, AortaTiltParams};
+use baffle_prepare::aorta_family::{aorta_tilt_from, rim_following_suture_points, AortaTiltParams};
 use std::path::{Path, PathBuf};
 
 /// The largest aorta-to-RV radius ratio: the largest of the first two families' 200 members
@@ -34,6 +44,23 @@ use std::path::{Path, PathBuf};
 /// out); and at tilt <= 0 the tube's rim reaches into the LV sphere by at most 0.42 mm (LV 11,
 /// RV 8, overlap 4 mm, tilt 0), less than the first family's seed 30 (0.60 mm), which planned.
 const MAX_AORTA_TO_RV: f64 = 0.65;
+
+/// `wide-root`'s suture points lie 1.2 mm (along the RV sphere) outside each opening's rim:
+/// `prepare`'s own tolerance for its caps' rims against the segmentations' openings
+/// (closing radius 0.6 mm + 2 voxels of 0.3), so a cap that passes its checks does not reach
+/// the points. At 1 mm one of the 100 designs (seed 31, overlap 2 mm, VSD cap rim 0.85 mm
+/// outside the opening's) found a point on the VSD cap, at 4 degrees (0.56-0.70 mm) 13 of
+/// 24; at 1.2 mm none of 100, and the tunnel stays narrow (at 1.5 mm the aortic plane was at
+/// least 1.5 times the throat on 63 of 100 designs, at 1.2 mm on 82).
+const WIDE_ROOT_SUTURE_MARGIN_MM: f64 = 1.2;
+
+/// `wide-root`'s VSD half-angle on the RV sphere is at most 0.85 of the aortic opening's
+/// where lowering the drawn overlap, not below its range's 2 mm, can make it so. p1-p3's
+/// aortic plane is 1.45-1.97 times their VSD plane (1.2-1.4 in diameter). Where the VSD was
+/// the wider opening the tunnel narrowed toward the annulus and the throat lay 2.5-3.5 mm
+/// before it; where the root was the wider, 7-10 mm (24 designs of seeds 0-23 before this
+/// rule, 1 mm margin). With it the throat lies 7 mm or more before the plane on 70 of 100.
+const WIDE_ROOT_VSD_HALF_ANGLE: f64 = 0.85;
 
 /// The plan's inputs drawn for one member: body size (sets the target and the flow),
 /// target z-score and cardiac index (scales the flow).
@@ -47,13 +74,24 @@ struct PlanInputs {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first().map(PathBuf::from) else {
-        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to]");
+        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [wide-root]");
         std::process::exit(2);
     };
     let first = argument(&args, 1, 0u64);
     let count = argument(&args, 2, 100u64);
     let number = |i: usize, default: f64| argument(&args, i, default);
-    let ranges = Ranges { tilt_deg: (number(3, 0.0), number(4, 15.0)), aortic_z_score: (number(5, -2.5), number(6, 2.5)) };
+    let ranges = Ranges {
+        tilt_deg: (number(3, 0.0), number(4, 15.0)),
+        aortic_z_score: (number(5, -2.5), number(6, 2.5)),
+        wide_root: match args.get(7).map(String::as_str) {
+            None => false,
+            Some("wide-root") => true,
+            Some(other) => {
+                eprintln!("flow_family: argument 7 ({other}) is not `wide-root`");
+                std::process::exit(2)
+            }
+        },
+    };
     for seed in first..first + count {
         if let Err(e) = write_member(&out.join(format!("m{seed:03}")), seed, &ranges) {
             eprintln!("member {seed}: {e}");
@@ -74,10 +112,12 @@ fn argument<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
     })
 }
 
-/// The drawn ranges the command line sets.
+/// The drawn ranges the command line sets, and whether the members have p1-p3's wide
+/// root (a narrower VSD and suture points along both rims) or the aorta family's shape.
 struct Ranges {
     tilt_deg: (f64, f64),
     aortic_z_score: (f64, f64),
+    wide_root: bool,
 }
 
 fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
@@ -93,7 +133,7 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
     let aortic_z_score = rng.between(ranges.aortic_z_score.0, ranges.aortic_z_score.1);
     // Half the diameter, cm to mm.
     let aorta_radius_mm = 5.0 * boston_aortic_annulus_diameter_cm(inputs.bsa_m2, aortic_z_score);
-    let params = AortaTiltParams {
+    let mut params = AortaTiltParams {
         lv_radius_mm: rng.between(9.0, 11.0),
         rv_radius_mm: rng.between(8.0, 10.0).max(aorta_radius_mm / MAX_AORTA_TO_RV),
         vsd_overlap_mm: rng.between(2.0, 4.0),
@@ -101,7 +141,15 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
         tilt_deg: rng.between(ranges.tilt_deg.0, ranges.tilt_deg.1),
         sideways_deg: rng.between(-20.0, 20.0),
     };
-    let member = aorta_tilt_from(seed, params);
+    let drawn_vsd_overlap_mm = params.vsd_overlap_mm;
+    if ranges.wide_root {
+        let aorta_half = params.opening_half_angles().1;
+        params.vsd_overlap_mm = params.vsd_overlap_for_half_angle(WIDE_ROOT_VSD_HALF_ANGLE * aorta_half, 2.0);
+    }
+    let mut member = aorta_tilt_from(seed, params);
+    if ranges.wide_root {
+        member.suture_points_mm = rim_following_suture_points(&member.params, WIDE_ROOT_SUTURE_MARGIN_MM);
+    }
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let pools = &member.pools;
     for (name, surface) in [("LV.vtp", &pools.lv), ("RV.vtp", &pools.rv), ("aorta.vtp", &pools.aorta)] {
@@ -109,7 +157,14 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
     }
     write_markups_closed_curve(&dir.join("suture_points.mrk.json"), "BC", &member.suture_points_mm, CoordinateSystem::Lps)
         .map_err(|e| e.to_string())?;
-    let json = serde_json::json!({ "seed": seed, "shape": member.params, "aortic_z_score": aortic_z_score, "plan": inputs });
+    let mut json = serde_json::json!({ "seed": seed, "shape": member.params, "aortic_z_score": aortic_z_score, "plan": inputs });
+    if ranges.wide_root {
+        json["wide_root"] = serde_json::json!({
+            "suture_margin_mm": WIDE_ROOT_SUTURE_MARGIN_MM,
+            "vsd_to_aortic_half_angle_at_most": WIDE_ROOT_VSD_HALF_ANGLE,
+            "drawn_vsd_overlap_mm": drawn_vsd_overlap_mm,
+        });
+    }
     let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
     std::fs::write(dir.join("member.json"), text).map_err(|e| format!("{}: {e}", dir.display()))
 }

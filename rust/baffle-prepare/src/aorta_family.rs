@@ -7,7 +7,7 @@
 //! openings and a target below its smaller opening, for `design`.
 
 use crate::input::BloodPools;
-use crate::shapes::{capped_tube, suture_ring, uv_sphere};
+use crate::shapes::{capped_tube, suture_ring, tapered_suture_ring, uv_sphere};
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::Vec3;
 
@@ -53,6 +53,38 @@ impl AortaTiltParams {
         (Vec3::new(x0, 0.0, 0.0), (a * a - x0 * x0).max(0.0).sqrt())
     }
 
+    /// The VSD's and the aortic opening's half-angles on the RV sphere, seen from its
+    /// centre (radians).
+    pub fn opening_half_angles(&self) -> (f64, f64) {
+        let (vsd_center, vsd_radius) = self.vsd_circle();
+        let vsd_half = vsd_radius.atan2(self.rv_center().x - vsd_center.x);
+        let aorta_half = (self.aorta_radius_mm / self.rv_radius_mm).min(1.0).asin();
+        (vsd_half, aorta_half)
+    }
+
+    /// The VSD overlap at which the VSD's half-angle on the RV sphere is `max_vsd_half`
+    /// (radians), kept between `min_overlap_mm` and this member's own: the VSD narrows as
+    /// the spheres overlap less.
+    pub fn vsd_overlap_for_half_angle(&self, max_vsd_half: f64, min_overlap_mm: f64) -> f64 {
+        let half_at = |overlap: f64| AortaTiltParams { vsd_overlap_mm: overlap, ..self.clone() }.opening_half_angles().0;
+        let (mut lo, mut hi) = (min_overlap_mm.min(self.vsd_overlap_mm), self.vsd_overlap_mm);
+        if half_at(hi) <= max_vsd_half {
+            return hi;
+        }
+        if half_at(lo) >= max_vsd_half {
+            return lo;
+        }
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if half_at(mid) > max_vsd_half {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        lo
+    }
+
     /// The annulus: where the tube's axis meets the RV sphere (the tube starts inside it).
     pub fn annulus_center(&self) -> Vec3 {
         let rise = (self.rv_radius_mm.powi(2) - self.aorta_radius_mm.powi(2)).max(0.0).sqrt();
@@ -84,13 +116,23 @@ pub fn aorta_tilt_from(seed: u64, params: AortaTiltParams) -> AortaTiltMember {
         aorta: capped_tube(rv_center + axis * 4.0, rv_center + axis * 25.0, params.aorta_radius_mm, 20, 64),
     };
     // The ring clears the wider opening's half-angle on the RV sphere by 12 degrees.
-    let (vsd_center, vsd_radius) = params.vsd_circle();
-    let vsd_half = vsd_radius.atan2(rv_center.x - vsd_center.x);
-    let aorta_half = (params.aorta_radius_mm / params.rv_radius_mm).min(1.0).asin();
+    let (vsd_half, aorta_half) = params.opening_half_angles();
     let rho = vsd_half.max(aorta_half) + 12f64.to_radians();
     let suture_points_mm = suture_ring(rv_center, params.rv_radius_mm, -Vec3::x(), axis, rho);
     let target_area_mm2 = 0.6 * std::f64::consts::PI * params.aorta_radius_mm.powi(2);
     AortaTiltMember { seed, params, pools, suture_points_mm, target_area_mm2 }
+}
+
+/// Suture points that follow each opening `margin_mm` (along the RV sphere) outside its
+/// rim, the sides going linearly from the VSD's distance to the aorta's, instead of the
+/// member's ring, 12 degrees outside the wider opening all along. With a wide aortic root
+/// that ring is as wide as the root over the whole tunnel, so the tunnel's throat is about
+/// the root's size; this one narrows toward the smaller opening, as a suture line along
+/// both rims does, so the aortic plane can be wider than the throat before it.
+pub fn rim_following_suture_points(params: &AortaTiltParams, margin_mm: f64) -> Vec<Vec3> {
+    let (vsd_half, aorta_half) = params.opening_half_angles();
+    let margin = margin_mm / params.rv_radius_mm;
+    tapered_suture_ring(params.rv_center(), params.rv_radius_mm, -Vec3::x(), params.aorta_axis(), vsd_half + margin, aorta_half + margin)
 }
 
 #[cfg(test)]
@@ -110,5 +152,59 @@ mod tests {
             assert!(r > 3.0, "seed {s}: the spheres overlap in a VSD of radius {r:.2}");
             assert!(c.x > 0.0 && c.x < m.params.lv_radius_mm);
         }
+    }
+
+    #[test]
+    fn rim_following_points_keep_their_margin_from_both_openings() {
+        // A wide root (the aorta 0.65 of the RV) leaning away from a VSD of about 39 degrees.
+        let params = AortaTiltParams {
+            lv_radius_mm: 10.0,
+            rv_radius_mm: 9.0,
+            vsd_overlap_mm: 3.5,
+            aorta_radius_mm: 5.85,
+            tilt_deg: -20.0,
+            sideways_deg: 10.0,
+        };
+        let (vsd_half, aorta_half) = params.opening_half_angles();
+        let (center, margin) = (params.rv_center(), 1.0 / params.rv_radius_mm);
+        let points = rim_following_suture_points(&params, 1.0);
+        assert_eq!(points.len(), 18);
+        let from = |p: &Vec3, d: Vec3| ((p - center) / params.rv_radius_mm).dot(&d).clamp(-1.0, 1.0).acos();
+        for (i, p) in points.iter().enumerate() {
+            assert!(((p - center).norm() - params.rv_radius_mm).abs() < 1e-9, "point {i} is on the RV sphere");
+            // Between the ends the ring is nearer one opening than its own margin only by the
+            // taper, a part of the margin.
+            let (to_vsd, to_aorta) = (from(p, -Vec3::x()) - vsd_half, from(p, params.aorta_axis()) - aorta_half);
+            assert!(to_vsd > 0.5 * margin && to_aorta > 0.5 * margin, "point {i}: {to_vsd:.3} {to_aorta:.3} rad outside the rims");
+        }
+        // The ends: the first point is beside the VSD's centre at its margin, the sixth
+        // beside the aorta's at its own.
+        assert!((from(&points[0], -Vec3::x()) - (vsd_half + margin)).abs() < 1e-9);
+        assert!((from(&points[5], params.aorta_axis()) - (aorta_half + margin)).abs() < 1e-9);
+        // Narrower across the tunnel (points 2 and 12 face each other across the arc, two
+        // fifths along it) than the member's ring, 12 degrees outside the wider opening.
+        let even = aorta_tilt_from(0, params.clone()).suture_points_mm;
+        let across = |ps: &[Vec3]| (ps[2] - ps[12]).norm();
+        assert!(across(&points) < across(&even) - 1.0, "{:.2} against {:.2} mm", across(&points), across(&even));
+    }
+
+    #[test]
+    fn the_vsd_narrows_to_a_half_angle_within_the_overlaps_bounds() {
+        let params = AortaTiltParams {
+            lv_radius_mm: 10.0,
+            rv_radius_mm: 9.0,
+            vsd_overlap_mm: 3.5,
+            aorta_radius_mm: 5.0,
+            tilt_deg: -20.0,
+            sideways_deg: 0.0,
+        };
+        let half = |overlap: f64| AortaTiltParams { vsd_overlap_mm: overlap, ..params.clone() }.opening_half_angles().0;
+        let (at_2, at_3_5) = (half(2.0), half(3.5));
+        assert!(at_2 < at_3_5, "less overlap, a narrower VSD: {at_2} {at_3_5}");
+        let between = 0.5 * (at_2 + at_3_5);
+        let overlap = params.vsd_overlap_for_half_angle(between, 2.0);
+        assert!(overlap > 2.0 && overlap < 3.5 && (half(overlap) - between).abs() < 1e-9, "{overlap}");
+        assert_eq!(params.vsd_overlap_for_half_angle(at_3_5 + 0.01, 2.0), 3.5, "already narrow enough: unchanged");
+        assert_eq!(params.vsd_overlap_for_half_angle(at_2 - 0.01, 2.0), 2.0, "not below the least overlap");
     }
 }
