@@ -29,6 +29,24 @@ def read(path, reader):
     return r.GetOutput()
 
 
+def write_result(grid, velocity_m_s, pressure_mmhg, path):
+    """`grid` (a vtkUnstructuredGrid, points in mm) with nodal velocity and pressure in the
+    names of a `baffle simulate` result, written to `path` (.vtu)."""
+    from vtk.util.numpy_support import numpy_to_vtk
+    out = vtk.vtkUnstructuredGrid()
+    out.DeepCopy(grid)
+    out.GetPointData().Initialize()
+    for name, values in (("velocity_m_s", velocity_m_s), ("pressure_mmhg", pressure_mmhg)):
+        array = numpy_to_vtk(np.ascontiguousarray(values, dtype=float), deep=1)
+        array.SetName(name)
+        out.GetPointData().AddArray(array)
+    writer = vtk.vtkXMLUnstructuredGridWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(out)
+    writer.Write()
+    return path
+
+
 def face_integrals(faces, run_vtu, label):
     """Area, flow (ml/s), area-mean p, flow-weighted p and KE flux (mmHg) over one face, and the
     angle between the face's normal and the flow crossing it (flux-weighted mean in-plane speed

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sparse
 import scipy.sparse.linalg as sparse_linalg
 import vtk
-from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+from vtk.util.numpy_support import vtk_to_numpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import plane_energy  # noqa: E402
@@ -75,18 +75,9 @@ def solve_mesh(mesh_dir, q_ml_s, inlet=20, outlet=21):
     start = time.monotonic()
     u = potential_velocity(x_cm, tets, tris[labels == inlet], np.unique(tris[labels == outlet]), q_ml_s)
     seconds = time.monotonic() - start
-    out = vtk.vtkUnstructuredGrid()
-    out.DeepCopy(grid)
-    out.GetPointData().Initialize()
-    for name, values in (("velocity_m_s", u / 100.0), ("pressure_mmhg", -0.5 * RHO_G_CM3 * (u ** 2).sum(1) / DYN_CM2_PER_MMHG)):
-        array = numpy_to_vtk(np.ascontiguousarray(values), deep=1)
-        array.SetName(name)
-        out.GetPointData().AddArray(array)
-    writer = vtk.vtkXMLUnstructuredGridWriter()
-    writer.SetFileName(str(mesh_dir / "potential.vtu"))
-    writer.SetInputData(out)
-    writer.Write()
-    return mesh_dir / "potential.vtu", seconds, len(x_cm), len(tets)
+    pressure_mmhg = -0.5 * RHO_G_CM3 * (u ** 2).sum(1) / DYN_CM2_PER_MMHG
+    path = plane_energy.write_result(grid, u / 100.0, pressure_mmhg, mesh_dir / "potential.vtu")
+    return path, seconds, len(x_cm), len(tets)
 
 
 def plane_line(name, faces, result):
