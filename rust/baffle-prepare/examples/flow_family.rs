@@ -22,10 +22,11 @@
 //! A wide root alone does not widen the tunnel's end: the aorta family's suture ring keeps
 //! 12 degrees outside the wider opening all along, so the whole tunnel widens with the root
 //! (aortic z 2-5, tilt -35 to 0, seeds 0-11 designed: throat 59-98 mm2, above the target on
-//! all, the aortic plane 1.0-1.6 times it and 0-7.3 mm after it, 3.4-4.4 on 10 of 12). `wide-root` makes p1-p3's shape:
-//! the suture points follow each opening's rim `WIDE_ROOT_SUTURE_MARGIN_MM` outside it and
-//! the VSD is made narrower than the root (`WIDE_ROOT_VSD_HALF_ANGLE`), so the tunnel
-//! narrows toward the VSD and widens into the root. The wide-root family:
+//! all, the aortic plane 1.0-1.6 times it and 0-7.3 mm after it, 3.4-4.4 on 10 of 12).
+//! `wide-root` makes p1-p3's shape: the suture points follow each opening's rim
+//! `WIDE_ROOT_SUTURE_MARGIN_MM` outside it and the VSD is made narrower than the root
+//! (`WIDE_ROOT_VSD_HALF_ANGLE`), so the tunnel narrows toward the VSD and widens into the
+//! root. The wide-root family:
 //!
 //!     cargo run --release -p baffle-prepare --example flow_family /work/famW 0 100 -35 0 3 5 wide-root
 
@@ -49,8 +50,8 @@ const MAX_AORTA_TO_RV: f64 = 0.65;
 /// `prepare`'s own tolerance for its caps' rims against the segmentations' openings
 /// (closing radius 0.6 mm + 2 voxels of 0.3), so a cap that passes its checks does not reach
 /// the points. At 1 mm one of the 100 designs (seed 31, overlap 2 mm, VSD cap rim 0.85 mm
-/// outside the opening's) found a point on the VSD cap, at 4 degrees (0.56-0.70 mm) 13 of
-/// 24; at 1.2 mm none of 100, and the tunnel stays narrow (at 1.5 mm the aortic plane was at
+/// outside the opening's) found a point on the VSD cap, at 4 degrees (0.56-0.70 mm, before
+/// the VSD rule below) 13 of 24; at 1.2 mm none of 100, and the tunnel stays narrow (at 1.5 mm the aortic plane was at
 /// least 1.5 times the throat on 63 of 100 designs, at 1.2 mm on 82).
 const WIDE_ROOT_SUTURE_MARGIN_MM: f64 = 1.2;
 
@@ -59,7 +60,8 @@ const WIDE_ROOT_SUTURE_MARGIN_MM: f64 = 1.2;
 /// aortic plane is 1.45-1.97 times their VSD plane (1.2-1.4 in diameter). Where the VSD was
 /// the wider opening the tunnel narrowed toward the annulus and the throat lay 2.5-3.5 mm
 /// before it; where the root was the wider, 7-10 mm (24 designs of seeds 0-23 before this
-/// rule, 1 mm margin). With it the throat lies 7 mm or more before the plane on 70 of 100.
+/// rule, 1 mm margin). With it the throat lies 7 mm or more before the plane on 70 of the
+/// 100 designs.
 const WIDE_ROOT_VSD_HALF_ANGLE: f64 = 0.85;
 
 /// The plan's inputs drawn for one member: body size (sets the target and the flow),
