@@ -10,7 +10,8 @@ hearts (`cargo run --release -p baffle-prepare --example flow_family DIR`), each
 results per member there (failures with their error; the 3D planes re-measured with VTK);
 `table` prints (markdown) the planes' kinetic-energy coefficients against the model's uniform
 flow, the planes' pressure coefficients A and B (plane_coefficients), and the error distribution
-of the code's estimate and of three models fitted on the even seeds, on the odd seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
+of the derived stenosis model (the code's estimate before the planes' coefficients) and of
+three models fitted on the even seeds (the median plane coefficients are the code's estimate), on the odd seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
 (their estimates made into OUT).
 """
 import argparse
@@ -161,6 +162,12 @@ def jet_fitted_mmhg(coef, e):
     return predicted_mmhg(coef, jet_regressors, e)
 
 
+def stenosis_model_mmhg(e):
+    """The derived one-throat stenosis model's dp: `stenosis_model_dp_mmhg`, or
+    `dp_estimate_mmhg` in reports written while it was the code's estimate."""
+    return e.get("stenosis_model_dp_mmhg", e["dp_estimate_mmhg"])
+
+
 def plane_coefficients(r):
     """The 3D run's static pressure at each plane below the VSD plane's flow-weighted total
     pressure P11, in units of a section's dynamic pressure: A = (P11 - p11) / K_vsd at the VSD
@@ -280,7 +287,7 @@ def table(args):
     if args.patients:
         parts += patient_parts(args)
     for name, part in parts:
-        print(summary(f"the code's estimate, {name}", [(e["dp_estimate_mmhg"], dp) for e, dp in part]))
+        print(summary(f"the derived stenosis model, {name}", [(stenosis_model_mmhg(e), dp) for e, dp in part]))
         print(summary(f"fitted dynamic weights, {name}", [(fitted_mmhg(coef, e), dp) for e, dp in part]))
         print(summary(f"fitted jet and VSD coefficients, {name}", [(jet_fitted_mmhg(jet_coef, e), dp) for e, dp in part]))
         print(summary(f"median plane coefficients, {name}", [(plane_model_mmhg(plane_coef, e), dp) for e, dp in part]))

@@ -619,3 +619,9 @@ def test_face_integrals_give_the_angle_at_which_the_flow_crosses_a_face(tmp_path
     assert f["flow_ml_s"] == pytest.approx(1.0)
     assert f["p"] == pytest.approx(5.0)
     assert f["ke"] == pytest.approx(0.53 * 100.0 ** 2 / math.cos(math.radians(30.0)) ** 2 / 1333.22)
+
+
+def test_the_derived_model_is_read_from_reports_before_and_after_the_planes_coefficients():
+    before = {"dp_estimate_mmhg": 2.5}
+    after = {"dp_estimate_mmhg": 4.0, "stenosis_model_dp_mmhg": 2.5}
+    assert flow_family.stenosis_model_mmhg(before) == flow_family.stenosis_model_mmhg(after) == 2.5

@@ -580,7 +580,7 @@ fn dp_chart(rows: &[Row], x_label: &str, series: &dyn Fn(&str, &'static str, &dy
         lines.push(series("Quick dp estimate: 3D, first peak", "#1f77b4", &|r| r.quick(|q| q.dp_mmhg)));
     }
     let chart = line_chart("dp at peak flow", x_label, "dp (mmHg)", &lines, true);
-    Some(if has_estimate { with_note(&chart, "the reduced-order estimate is a lower bound where the jet is not mixed out (docs/hemodynamics_estimate.md)") } else { chart })
+    Some(if has_estimate { with_note(&chart, "the reduced-order estimate's measured error against 3D runs is in its uncertainty (docs/hemodynamics_estimate.md)") } else { chart })
 }
 
 /// The RV outflow's smallest section after the baffle and the section the baffle narrows

@@ -1,7 +1,21 @@
 //! A reduced-order estimate of dp at peak flow and of the peak velocity (issue 31), from
 //! the tunnel's sections normal to the flow, in well under a second.
 //!
-//! The tunnel is read as one stenosis between two planes (the VSD plane, where the flow
+//! The estimate: the planes' pressure coefficients. The 3D static dp between the planes
+//! splits exactly as dp = B K_throat - A K_vsd, K = rho/2 (Q/A)^2 the dynamic pressure of
+//! the throat's and the VSD plane's mean velocity, A = (P11 - p11) / K_vsd how far the VSD
+//! plane's static pressure lies below its flow-weighted total P11, B = (P11 - p16) /
+//! K_throat how far the aortic plane's does (the losses and the kinetic energy left there).
+//! A and B are measured on 3D first-peak runs: `VSD_PLANE_COEFFICIENT_A` and
+//! `THROAT_COEFFICIENT_B` are their medians over the fit half of three synthetic flow
+//! families (docs/hemodynamics_estimate.md, "Which plane decides dp"), fitted, and checked on
+//! the members they never saw and on p1-p3. A cos^2 of the flow's angle to the VSD plane is
+//! 1.25-1.72 on every member and p1-p3, near a sharp orifice's momentum balance (1.41), so
+//! A is the flow's obliquity at the VSD, which the tunnel's sections do not give; B holds
+//! the throat jet's losses, which the derived model below underestimates.
+//!
+//! The derived model, reported beside it (`stenosis_model_dp_mmhg`, no coefficient fitted;
+//! below every 3D dp of the families, p1 and p3): the tunnel is read as one stenosis between two planes (the VSD plane, where the flow
 //! enters, and the aortic plane, where dp is measured): the flow accelerates from the VSD
 //! plane into the narrowest flow-normal section (the throat), then expands to the aortic
 //! plane. Static dp between the planes at peak flow is, in CGS,
@@ -48,8 +62,8 @@
 //! The peak velocity is the throat's jet: Q / A_t over the vena contracta's contraction
 //! coefficient, the jet being narrower than the section that forms it.
 //!
-//! Not from the 3D runs: no coefficient here is fitted to them. The stated uncertainty is
-//! the error measured against them (docs/hemodynamics_estimate.md), not a model property.
+//! The stated uncertainty is the estimate's error measured against 3D runs
+//! (docs/hemodynamics_estimate.md), not a model property.
 
 use crate::analyses::flow_centerline::{flow_centerline, flow_normal_sections, CenterlineOptions, Lumen, MeasurementPlane};
 use crate::geometry::mesh::{FaceLabels, TriMesh};
@@ -122,11 +136,26 @@ pub struct TunnelSections {
 /// design's report.json by `baffle plan`'s report.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HemodynamicsEstimate {
+    /// B K_throat - A K_vsd (the planes' pressure coefficients).
     pub dp_estimate_mmhg: f64,
     /// The band measured against the 3D first-peak dp (see `dp_uncertainty`).
     pub dp_uncertainty: String,
     pub v_max_estimate_m_s: f64,
     pub v_max_uncertainty: String,
+    /// The throat's and the VSD plane's dynamic pressures rho/2 (Q/A)^2 (mmHg).
+    #[serde(default)]
+    pub k_throat_mmhg: f64,
+    #[serde(default)]
+    pub k_vsd_mmhg: f64,
+    /// The coefficients the estimate used: `VSD_PLANE_COEFFICIENT_A`, `THROAT_COEFFICIENT_B`.
+    #[serde(default)]
+    pub vsd_plane_coefficient_a: f64,
+    #[serde(default)]
+    pub throat_coefficient_b: f64,
+    /// The derived one-throat stenosis model's dp (no fitted coefficient), the sum of the
+    /// terms below: Bernoulli, expansion, friction and the jet's unrecovered energy.
+    #[serde(default)]
+    pub stenosis_model_dp_mmhg: f64,
     pub bernoulli_mmhg: f64,
     pub expansion_loss_mmhg: f64,
     pub friction_mmhg: f64,
@@ -160,6 +189,14 @@ pub struct HemodynamicsEstimate {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub centerline_voxel_mm: Option<f64>,
 }
+
+/// The VSD plane's pressure coefficient A = (P11 - p11) / K_vsd: the median over the fit
+/// part (even seeds) of the three flow families' 3D first-peak runs on 0.6 mm meshes
+/// (`scripts/validation/flow_family.py table`; fitted to 3D runs, see the module's doc).
+pub const VSD_PLANE_COEFFICIENT_A: f64 = 1.693;
+/// The aortic plane's pressure coefficient per throat dynamic pressure, B = (P11 - p16) /
+/// K_throat: the median over the same runs.
+pub const THROAT_COEFFICIENT_B: f64 = 1.805;
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg), over
 /// the 221 rows of docs/hemodynamics_estimate.md: the 21 of p1-p3 (published domains and
@@ -251,7 +288,10 @@ pub fn compare_with_3d(estimate: &HemodynamicsEstimate, dp_3d_mmhg: f64, v_max_3
     })
 }
 
-const METHOD: &str = "one-throat stenosis model along the flow-normal sections: Bernoulli between the VSD and aortic planes, expansion loss Kt rho/2 (U_throat - U_aortic)^2 (Kt 1.52, Seeley & Young 1976), Hagen-Poiseuille friction on each section's equivalent circle (Young & Tsai 1973), the fraction of the mixed-out pressure recovery made at the aortic plane by a top-hat jet spreading as a free round jet (radius + x / 5.8, Hussein et al. 1994; Pope 2000), from the momentum balance; v_max = Q / (0.62 A_throat) (vena contracta); no coefficient fitted to 3D runs (baffle_core::analyses::hemodynamics_estimate)";
+/// What the estimate is, in words for the report (its coefficients from the constants).
+fn method() -> String {
+    format!("the planes' pressure coefficients: dp = B K_throat - A K_vsd, K = rho/2 (Q/A)^2 of the throat (the narrowest flow-normal section or plane) and of the VSD plane, A = {VSD_PLANE_COEFFICIENT_A:.3} and B = {THROAT_COEFFICIENT_B:.3} the medians of 3D first-peak runs on the fit half of three synthetic flow families (fitted to 3D runs; docs/hemodynamics_estimate.md); beside it the derived one-throat stenosis model (Bernoulli between the planes, expansion loss Kt 1.52 after Seeley & Young 1976, Hagen-Poiseuille friction after Young & Tsai 1973, the free round jet's unrecovered energy after Hussein et al. 1994; no coefficient fitted) as stenosis_model_dp_mmhg; v_max = Q / (0.62 A_throat) (vena contracta) (baffle_core::analyses::hemodynamics_estimate)")
+}
 
 /// A section's mean velocity (cm/s) at flow `q_ml_s` through `area_mm2`.
 fn velocity_cm_s(q_ml_s: f64, area_mm2: f64) -> f64 {
@@ -331,11 +371,17 @@ pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64
     let recovered = recovered_fraction(throat_mm2, jet_mm2, tunnel.aortic_area_mm2);
     let unrecovered_jet = (1.0 - recovered) * unmixed_minus_mixed;
     let mmhg = |p: f64| p / DYN_CM2_PER_MMHG;
+    let (k_throat, k_vsd) = (0.5 * rho * u_t * u_t, 0.5 * rho * u_vsd * u_vsd);
     Ok(HemodynamicsEstimate {
-        dp_estimate_mmhg: mmhg(bernoulli + expansion + friction + unrecovered_jet),
+        dp_estimate_mmhg: mmhg(THROAT_COEFFICIENT_B * k_throat - VSD_PLANE_COEFFICIENT_A * k_vsd),
         dp_uncertainty: dp_uncertainty(),
         v_max_estimate_m_s: velocity_cm_s(q_ml_s, throat_mm2) / VENA_CONTRACTA_CC * 1e-2,
         v_max_uncertainty: v_max_uncertainty(),
+        k_throat_mmhg: mmhg(k_throat),
+        k_vsd_mmhg: mmhg(k_vsd),
+        vsd_plane_coefficient_a: VSD_PLANE_COEFFICIENT_A,
+        throat_coefficient_b: THROAT_COEFFICIENT_B,
+        stenosis_model_dp_mmhg: mmhg(bernoulli + expansion + friction + unrecovered_jet),
         bernoulli_mmhg: mmhg(bernoulli),
         expansion_loss_mmhg: mmhg(expansion),
         friction_mmhg: mmhg(friction),
@@ -349,7 +395,7 @@ pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64
         vsd_area_mm2: tunnel.vsd_area_mm2,
         aortic_area_mm2: tunnel.aortic_area_mm2,
         peak_flow_ml_s: q_ml_s,
-        method: METHOD.into(),
+        method: method(),
         wall_time_ms: 0.0,
         centerline_voxel_mm: None,
     })
@@ -453,7 +499,7 @@ mod tests {
         let poiseuille = 8.0 * 0.04 * l_cm * Q / (std::f64::consts::PI * r_cm.powi(4)) / DYN_CM2_PER_MMHG;
         assert!((e.friction_mmhg - poiseuille).abs() < 1e-9 * poiseuille, "{} vs {poiseuille}", e.friction_mmhg);
         assert!(e.bernoulli_mmhg.abs() < 1e-12 && e.expansion_loss_mmhg == 0.0);
-        assert!((e.dp_estimate_mmhg - poiseuille).abs() < 1e-9);
+        assert!((e.stenosis_model_dp_mmhg - poiseuille).abs() < 1e-9);
     }
 
     #[test]
@@ -476,6 +522,25 @@ mod tests {
     }
 
     #[test]
+    fn the_estimate_is_the_planes_coefficients_times_their_dynamic_pressures() {
+        // A 40 mm2 throat between a 100 mm2 VSD plane and an 80 mm2 aortic plane at 70 ml/s:
+        // K_throat = 0.53 x 175^2, K_vsd = 0.53 x 70^2 dyn/cm2.
+        let e = estimate(&tube(&[100.0, 60.0, 40.0, 60.0, 80.0], 2.0, 100.0, 80.0), Q, Blood::default()).unwrap();
+        let (k_t, k_vsd) = (0.53 * 175.0f64.powi(2) / DYN_CM2_PER_MMHG, 0.53 * 70.0f64.powi(2) / DYN_CM2_PER_MMHG);
+        assert!((e.k_throat_mmhg - k_t).abs() < 1e-9 && (e.k_vsd_mmhg - k_vsd).abs() < 1e-9, "{e:?}");
+        assert!((e.dp_estimate_mmhg - (1.805 * k_t - 1.693 * k_vsd)).abs() < 1e-9, "{e:?}");
+        assert_eq!((e.vsd_plane_coefficient_a, e.throat_coefficient_b), (VSD_PLANE_COEFFICIENT_A, THROAT_COEFFICIENT_B));
+        assert!(e.method.contains("A = 1.693 and B = 1.805") && e.method.contains("fitted to 3D runs"), "{}", e.method);
+        // A report written before the coefficients reads back, without them.
+        let mut old = serde_json::to_value(&e).unwrap();
+        for key in ["k_throat_mmhg", "k_vsd_mmhg", "vsd_plane_coefficient_a", "throat_coefficient_b", "stenosis_model_dp_mmhg"] {
+            old.as_object_mut().unwrap().remove(key);
+        }
+        let back: HemodynamicsEstimate = serde_json::from_value(old).unwrap();
+        assert_eq!(back.dp_estimate_mmhg, e.dp_estimate_mmhg);
+    }
+
+    #[test]
     fn a_wider_throat_lowers_dp_and_v_max() {
         let mut last = (f64::INFINITY, f64::INFINITY);
         for throat in [30.0, 40.0, 50.0, 60.0, 70.0, 80.0] {
@@ -491,7 +556,7 @@ mod tests {
         // 40 mm, long enough for the VSD plane's jet to fill the aortic plane.
         let e = estimate(&tube(&[50.0, 75.0, 100.0], 20.0, 50.0, 100.0), Q, Blood::default()).unwrap();
         let expected = 0.5 * 1.06 * ((Q / 1.0).powi(2) - (Q / 0.5).powi(2)) / DYN_CM2_PER_MMHG;
-        assert!((e.bernoulli_mmhg - expected).abs() < 1e-9 && e.dp_estimate_mmhg < 0.0, "{e:?}");
+        assert!((e.bernoulli_mmhg - expected).abs() < 1e-9 && e.stenosis_model_dp_mmhg < 0.0, "{e:?}");
         assert!(e.recovered_fraction == 1.0 && e.unrecovered_jet_mmhg == 0.0, "{e:?}");
     }
 
@@ -512,11 +577,11 @@ mod tests {
         // x -> 0: the plane sees the throat's jet unmixed, no pressure recovered.
         let near = estimate(&throat_then_annulus(1e-9), Q, Blood::default()).unwrap();
         assert!(near.recovered_fraction < 1e-9 && (near.jet_area_at_aortic_plane_mm2 - 40.0).abs() < 1e-6, "{near:?}");
-        assert!((near.dp_estimate_mmhg - unmixed_mmhg(&near)).abs() < 1e-6, "{near:?}");
+        assert!((near.stenosis_model_dp_mmhg - unmixed_mmhg(&near)).abs() < 1e-6, "{near:?}");
         // x -> infinity: the jet fills the plane and the model is the fully mixed one.
         let far = estimate(&throat_then_annulus(1e3), Q, Blood::default()).unwrap();
         assert!(far.recovered_fraction == 1.0 && far.unrecovered_jet_mmhg == 0.0 && far.jet_area_at_aortic_plane_mm2 == 160.0, "{far:?}");
-        assert!((far.dp_estimate_mmhg - (far.bernoulli_mmhg + far.expansion_loss_mmhg + far.friction_mmhg)).abs() < 1e-12);
+        assert!((far.stenosis_model_dp_mmhg - (far.bernoulli_mmhg + far.expansion_loss_mmhg + far.friction_mmhg)).abs() < 1e-12);
         // The jet fills the plane exactly B_u step heights downstream: r_t + x / B_u = r_ao.
         let step_mm = (160.0 / std::f64::consts::PI).sqrt() - (40.0 / std::f64::consts::PI).sqrt();
         assert!(estimate(&throat_then_annulus(ROUND_JET_B_U * step_mm * (1.0 - 1e-6)), Q, Blood::default()).unwrap().recovered_fraction < 1.0);
@@ -530,7 +595,7 @@ mod tests {
         let t = tube(&[90.0, 95.0, 100.0, 110.0, 120.0], 5.0, 86.7, 134.9);
         let e = estimate(&t, Q, Blood::default()).unwrap();
         assert!(e.throat_at_mm == 0.0 && e.aortic_plane_at_mm == 20.0 && e.recovered_fraction == 1.0, "{e:?}");
-        assert!(e.unrecovered_jet_mmhg == 0.0 && e.dp_estimate_mmhg == e.bernoulli_mmhg + e.expansion_loss_mmhg + e.friction_mmhg, "{e:?}");
+        assert!(e.unrecovered_jet_mmhg == 0.0 && e.stenosis_model_dp_mmhg == e.bernoulli_mmhg + e.expansion_loss_mmhg + e.friction_mmhg, "{e:?}");
     }
 
     #[test]
@@ -540,7 +605,7 @@ mod tests {
         for k in 0..=60 {
             let e = estimate(&throat_then_annulus(0.5 * k as f64 + 1e-9), Q, Blood::default()).unwrap();
             // Friction grows with the distance, by the tube's Hagen-Poiseuille; compare without it.
-            let dp = e.dp_estimate_mmhg - e.friction_mmhg;
+            let dp = e.stenosis_model_dp_mmhg - e.friction_mmhg;
             assert!(e.recovered_fraction >= last.0 && dp <= last.1 + 1e-12, "{k}: {e:?}");
             last = (e.recovered_fraction, dp);
         }
@@ -572,7 +637,7 @@ mod tests {
             // Momentum: the plane's static rise from the throat, with the contraction lossless,
             // is the jet's momentum flux given up over the plane's area.
             let p_vsd_minus_p_t = 0.5 * rho * (u_t * u_t - u_vsd * u_vsd);
-            let rise = p_vsd_minus_p_t - (e.dp_estimate_mmhg - e.friction_mmhg) * DYN_CM2_PER_MMHG;
+            let rise = p_vsd_minus_p_t - (e.stenosis_model_dp_mmhg - e.friction_mmhg) * DYN_CM2_PER_MMHG;
             let momentum = jet_static_rise_dyn_cm2(Q, a_t, a_j, a_ao, rho);
             assert!((rise - momentum).abs() < 1e-9 * p_vsd_minus_p_t, "{distance_mm} mm: {rise} vs {momentum}");
             assert!(((rise * a_ao * 1e-2 + rho * Q * u_j) - rho * Q * u_t).abs() < 1e-9 * rho * Q * u_t);
@@ -581,7 +646,7 @@ mod tests {
             let alpha = (a_ao / a_j).powi(2);
             let loss_so_far = 0.5 * rho * ((u_t - u_ao).powi(2) - (u_j - u_ao).powi(2));
             let energy = 0.5 * rho * (alpha * u_ao * u_ao - u_vsd * u_vsd) + loss_so_far;
-            assert!(((e.dp_estimate_mmhg - e.friction_mmhg) * DYN_CM2_PER_MMHG - energy).abs() < 1e-9 * p_vsd_minus_p_t, "{distance_mm} mm");
+            assert!(((e.stenosis_model_dp_mmhg - e.friction_mmhg) * DYN_CM2_PER_MMHG - energy).abs() < 1e-9 * p_vsd_minus_p_t, "{distance_mm} mm");
         }
     }
 
@@ -596,7 +661,8 @@ mod tests {
         // The throat is the narrowest of the flow-normal sections and the two planes.
         let (smallest, _) = crate::flow_target::smallest_flow_section(&result.domain, labels).unwrap();
         assert!(e.throat_area_mm2 <= smallest && e.throat_area_mm2 <= e.vsd_area_mm2.min(e.aortic_area_mm2), "{e:?}");
-        assert!((e.dp_estimate_mmhg - (e.bernoulli_mmhg + e.expansion_loss_mmhg + e.friction_mmhg + e.unrecovered_jet_mmhg)).abs() < 1e-12);
+        assert!((e.stenosis_model_dp_mmhg - (e.bernoulli_mmhg + e.expansion_loss_mmhg + e.friction_mmhg + e.unrecovered_jet_mmhg)).abs() < 1e-12);
+        assert!((e.dp_estimate_mmhg - (THROAT_COEFFICIENT_B * e.k_throat_mmhg - VSD_PLANE_COEFFICIENT_A * e.k_vsd_mmhg)).abs() < 1e-12, "{e:?}");
         assert!((0.0..=1.0).contains(&e.recovered_fraction) && e.aortic_plane_at_mm > e.throat_at_mm, "{e:?}");
         assert!((e.v_max_estimate_m_s - Q / (e.throat_area_mm2 * 1e-2) / VENA_CONTRACTA_CC * 1e-2).abs() < 1e-12);
         assert!(e.friction_mmhg > 0.0 && e.wall_time_ms > 0.0 && e.dp_uncertainty.contains("23 of 221"));
@@ -623,10 +689,18 @@ mod tests {
             eprintln!("{patient}: {e:?} in {:.2} s", started.elapsed().as_secs_f64());
             assert!((e.v_max_estimate_m_s - v_3d).abs() <= 0.2 * v_3d, "{patient}: v_max {} vs 3D {v_3d}", e.v_max_estimate_m_s);
             let loss = e.expansion_loss_mmhg + e.friction_mmhg;
+            let within = |dp: f64| (dp - dp_3d).abs() <= (0.2 * dp_3d.abs()).max(1.0);
             match patient {
-                "p2" => assert!((e.dp_estimate_mmhg - dp_3d).abs() <= 1.0, "p2: dp {} vs 3D {dp_3d}", e.dp_estimate_mmhg),
-                // The stated lower bound: the jet is not mixed out at the aortic plane.
-                _ => assert!(e.dp_estimate_mmhg < dp_3d - 1.0, "{patient}: dp {} vs 3D {dp_3d}: better than documented", e.dp_estimate_mmhg),
+                // p2's flow crosses its VSD plane at 39 degrees (the families' 13-25), so its
+                // VSD-plane coefficient is 2.64, not A: the estimate lies above the 3D dp.
+                "p2" => assert!(e.dp_estimate_mmhg > dp_3d + 1.0, "p2: dp {} vs 3D {dp_3d}: better than documented", e.dp_estimate_mmhg),
+                _ => assert!(within(e.dp_estimate_mmhg), "{patient}: dp {} vs 3D {dp_3d}", e.dp_estimate_mmhg),
+            }
+            // The derived model: p2 within 1 mmHg, a lower bound on p1 and p3 (the jet is not
+            // mixed out at the aortic plane).
+            match patient {
+                "p2" => assert!((e.stenosis_model_dp_mmhg - dp_3d).abs() <= 1.0, "p2: derived dp {} vs 3D {dp_3d}", e.stenosis_model_dp_mmhg),
+                _ => assert!(e.stenosis_model_dp_mmhg < dp_3d - 1.0, "{patient}: derived dp {} vs 3D {dp_3d}: better than documented", e.stenosis_model_dp_mmhg),
             }
             if patient != "p3" {
                 assert!((loss - dp_total_3d).abs() <= (0.2 * dp_total_3d).max(1.0), "{patient}: loss {loss} vs 3D total-pressure loss {dp_total_3d}");
