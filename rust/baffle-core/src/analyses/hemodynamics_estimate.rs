@@ -10,15 +10,15 @@
 //! `THROAT_COEFFICIENT_B` are their medians over the fit half of three synthetic flow
 //! families (docs/hemodynamics_estimate.md, "Which plane decides dp"), fitted, and checked on
 //! the members they never saw and on p1-p3. A cos^2 of the flow's angle to the VSD plane is
-//! 1.25-1.72 on every member and p1-p3, near a sharp orifice's momentum balance (1.41), so
-//! A is the flow's obliquity at the VSD, which the tunnel's sections do not give; B holds
-//! the throat jet's losses, which the derived model below underestimates.
+//! 1.25-1.74 on the 300 members and 1.46-1.59 on p1-p3, near a sharp orifice's momentum
+//! balance (1.41), so A is the flow's obliquity at the VSD, which the tunnel's sections do
+//! not give; B holds the throat jet's losses, which the derived model below underestimates.
 //!
 //! The derived model, reported beside it (`stenosis_model_dp_mmhg`, no coefficient fitted;
-//! below every 3D dp of the families, p1 and p3): the tunnel is read as one stenosis between two planes (the VSD plane, where the flow
-//! enters, and the aortic plane, where dp is measured): the flow accelerates from the VSD
-//! plane into the narrowest flow-normal section (the throat), then expands to the aortic
-//! plane. Static dp between the planes at peak flow is, in CGS,
+//! below every 3D dp of the families, p1 and p3): the tunnel is read as one stenosis
+//! between two planes (the VSD plane, where the flow enters, and the aortic plane, where
+//! dp is measured): the flow accelerates from the VSD plane into the narrowest flow-normal
+//! section (the throat), then expands to the aortic plane. Static dp between the planes at peak flow is, in CGS,
 //!
 //!   dp = rho/2 (U_ao^2 - U_vsd^2)              reversible: Bernoulli between the planes
 //!      + Kt rho/2 (U_t - U_ao)^2               irreversible: the throat's jet expanding
@@ -204,7 +204,7 @@ pub const THROAT_COEFFICIENT_B: f64 = 1.807;
 /// -4.87 to +9.27, the fit's half included) and p1-p3's published domains and designs on the
 /// paper's design input (`scripts/validation/hemodynamics_estimate.py`; 3D first peak on 0.6
 /// mm meshes, 20 rows: -1.45 to +3.19, and on 0.85 / 1.25 mm meshes, 21 rows: -5.63 at p1 z =
-/// -1 to +3.32 at p2 z = 2). The coefficients are fitted on half the families; this is the
+/// -1 to +3.32 at p2 z = -0.75). The coefficients are fitted on half the families; this is the
 /// measured spread, not a model property, and a design unlike them can fall outside it.
 pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-5.63, 9.27);
 /// The measured range of the v_max estimate's relative error, (estimate - 3D) / 3D with
