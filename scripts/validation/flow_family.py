@@ -269,11 +269,12 @@ def table(args):
     families = {Path(d).name: family_rows(Path(d)) for d in args.dir}
     ok = [r for rows in families.values() for r in rows]
     pair = lambda r: (r["estimate"], r["comparison"]["dp_3d_mmhg"])
-    fit = [pair(r) for r in ok if r["seed"] % 2 == 0]
+    fit_rows = [r for r in ok if r["seed"] % 2 == 0]
+    fit = [pair(r) for r in fit_rows]
     held = [pair(r) for r in ok if r["seed"] % 2 == 1]
     coef = fit_dynamic_weights(fit)
     jet_coef = fit_jet_weights(fit)
-    plane_coef = fit_plane_coefficients([r for r in ok if r["seed"] % 2 == 0])
+    plane_coef = fit_plane_coefficients(fit_rows)
     print(f"\nfitted on the {len(fit)} even seeds: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
     print(f"fitted on the {len(fit)} even seeds: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
     print(f"plane coefficients, medians of the {len(fit)} even seeds: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")

@@ -361,17 +361,19 @@ pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64
     let (throat_mm2, throat_at_mm) = throat(tunnel);
     let aortic_plane_at_mm = tunnel.s_mm.last().copied().unwrap_or(0.0);
     let rho = blood.density_g_cm3;
-    let (u_vsd, u_t, u_ao) = (velocity_cm_s(q_ml_s, tunnel.vsd_area_mm2), velocity_cm_s(q_ml_s, throat_mm2), velocity_cm_s(q_ml_s, tunnel.aortic_area_mm2));
-    let bernoulli = 0.5 * rho * (u_ao * u_ao - u_vsd * u_vsd);
+    // Each section's dynamic pressure rho/2 (Q/A)^2 (dyn/cm2): the planes' coefficients
+    // weigh two of them, the derived model's Bernoulli and jet terms differ them.
+    let dynamic = |area_mm2: f64| 0.5 * rho * velocity_cm_s(q_ml_s, area_mm2).powi(2);
+    let (k_vsd, k_throat, k_aortic) = (dynamic(tunnel.vsd_area_mm2), dynamic(throat_mm2), dynamic(tunnel.aortic_area_mm2));
+    let bernoulli = k_aortic - k_vsd;
     let expansion = expansion_loss_dyn_cm2(q_ml_s, throat_mm2, tunnel.aortic_area_mm2, rho, kt);
     let friction = friction_dyn_cm2(&tunnel.s_mm, &tunnel.area_mm2, q_ml_s, blood.viscosity_g_cm_s);
     // The jet's unmixed dp (its kinetic energy unrecovered) minus the fully mixed one's.
-    let unmixed_minus_mixed = 0.5 * rho * (u_t * u_t - u_ao * u_ao) - expansion;
+    let unmixed_minus_mixed = k_throat - k_aortic - expansion;
     let jet_mm2 = jet_area_mm2(throat_mm2, tunnel.aortic_area_mm2, aortic_plane_at_mm - throat_at_mm);
     let recovered = recovered_fraction(throat_mm2, jet_mm2, tunnel.aortic_area_mm2);
     let unrecovered_jet = (1.0 - recovered) * unmixed_minus_mixed;
     let mmhg = |p: f64| p / DYN_CM2_PER_MMHG;
-    let (k_throat, k_vsd) = (0.5 * rho * u_t * u_t, 0.5 * rho * u_vsd * u_vsd);
     Ok(HemodynamicsEstimate {
         dp_estimate_mmhg: mmhg(THROAT_COEFFICIENT_B * k_throat - VSD_PLANE_COEFFICIENT_A * k_vsd),
         dp_uncertainty: dp_uncertainty(),
