@@ -668,6 +668,12 @@ mod tests {
         assert!((0.0..=1.0).contains(&e.recovered_fraction) && e.aortic_plane_at_mm > e.throat_at_mm, "{e:?}");
         assert!((e.v_max_estimate_m_s - Q / (e.throat_area_mm2 * 1e-2) / VENA_CONTRACTA_CC * 1e-2).abs() < 1e-12);
         assert!(e.friction_mmhg > 0.0 && e.wall_time_ms > 0.0 && e.dp_uncertainty.contains("121 of the 150"));
+        // A scene turned and moved in Slicer: the same sections, so the same estimate (the
+        // centerline and the sections follow the lumen's own frame, not the scene's axes).
+        let turn = nalgebra::Rotation3::from_euler_angles(37f64.to_radians(), -23f64.to_radians(), 61f64.to_radians());
+        let turned = TriMesh { points: result.domain.points.iter().map(|p| turn * p + crate::geometry::mesh::Vec3::new(12.0, -40.0, 25.0)).collect(), ..result.domain.clone() };
+        let EstimateOutcome::Estimated(t) = EstimateOutcome::for_domain(&turned, labels, Some(Q), Blood::default()) else { panic!("no estimate turned") };
+        assert!((t.dp_estimate_mmhg - e.dp_estimate_mmhg).abs() < 1e-9 && (t.throat_area_mm2 - e.throat_area_mm2).abs() < 1e-9, "{t:?} vs {e:?}");
         match EstimateOutcome::for_domain(&result.domain, labels, None, Blood::default()) {
             EstimateOutcome::Absent { absent_because } => assert!(absent_because.contains("--peak-flow-ml-s")),
             other => panic!("{other:?}"),

@@ -263,3 +263,24 @@ fn a_narrowing_shows_in_the_flow_normal_sections_where_it_is() {
     assert!((smallest / throat - 1.0).abs() < 0.03, "{smallest} vs {throat}");
     assert!((line.points[0].z + at - 8.0).abs() < 0.6, "throat at s = {at}, z0 = {}", line.points[0].z);
 }
+
+#[test]
+fn a_rotated_and_moved_lumen_gives_the_same_centerline_and_sections_moved_with_it() {
+    // The voxel grid follows the lumen's own frame, so a scene turned in Slicer gives the
+    // same line (to rounding), not one whose staircase fell differently on the scene's axes.
+    let mesh = tube(quarter_circle(10.0), 2.5, 90, 48);
+    let rotation = nalgebra::Rotation3::from_euler_angles(37f64.to_radians(), -23f64.to_radians(), 61f64.to_radians());
+    let shift = Vec3::new(12.0, -40.0, 25.0);
+    let moved = TriMesh { points: mesh.points.iter().map(|p| rotation * p + shift).collect(), ..mesh.clone() };
+    let line_of = |m: &TriMesh| flow_centerline(&Lumen::between_caps(m, 11, 16).unwrap(), &CenterlineOptions::default()).unwrap();
+    let (line, moved_line) = (line_of(&mesh), line_of(&moved));
+    assert_eq!(line.points.len(), moved_line.points.len());
+    assert!((line.length_mm - moved_line.length_mm).abs() < 1e-9, "{} vs {}", line.length_mm, moved_line.length_mm);
+    for (p, q) in line.points.iter().zip(&moved_line.points) {
+        assert!((rotation * p + shift - q).norm() < 1e-9, "{p:?} moved is not {q:?}");
+    }
+    let sections = |m: &TriMesh, l: &FlowCenterline| flow_normal_sections(m, &l.points, &[cap(m, 11), cap(m, 16)]);
+    for (a, b) in sections(&mesh, &line).iter().zip(&sections(&moved, &moved_line)) {
+        assert!(a.zip(*b).map_or(a.is_none() && b.is_none(), |(a, b)| (a - b).abs() < 1e-9), "{a:?} vs {b:?}");
+    }
+}
