@@ -29,10 +29,22 @@
 //! root. The wide-root family:
 //!
 //!     cargo run --release -p baffle-prepare --example flow_family /work/famW 0 100 -35 0 3 5 wide-root
+//!
+//! Every member so far feeds its VSD from an LV sphere whose centre lies on the VSD's axis, so
+//! the flow reaches the VSD head on; in p1-p3 the mid-LV inflow plane's centre lies 49-60 degrees
+//! off the VSD plane's normal (the VSD sits at the LV's base, the LV's bulk toward the apex), and
+//! p2's flow crosses its VSD plane at 39 degrees against the families' 13-25. `oblique-lv` (alone
+//! or as `wide-root,oblique-lv`) swells the LV toward a drawn apex direction away from the VSD
+//! (`oblique_lv`), drawn after every other draw and outside the VSD's cone: the RV, the aorta,
+//! the VSD and the suture points are those of the same seed without it, so the tunnel, its
+//! sections and the estimate are the same and only the flow into the VSD changes:
+//!
+//!     cargo run --release -p baffle-prepare --example flow_family /work/famO 0 100 -35 0 3 5 wide-root,oblique-lv
 
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::target::boston_aortic_annulus_diameter_cm;
 use baffle_core::io::{write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
+use baffle_core::{TriMesh, Vec3};
 use baffle_prepare::aorta_family::{aorta_tilt_from, rim_following_suture_points, AortaTiltParams};
 use std::path::{Path, PathBuf};
 
@@ -76,7 +88,7 @@ struct PlanInputs {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first().map(PathBuf::from) else {
-        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [wide-root]");
+        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [wide-root|oblique-lv|wide-root,oblique-lv]");
         std::process::exit(2);
     };
     let first = argument(&args, 1, 0u64);
@@ -85,14 +97,19 @@ fn main() {
     let ranges = Ranges {
         tilt_deg: (number(3, 0.0), number(4, 15.0)),
         aortic_z_score: (number(5, -2.5), number(6, 2.5)),
-        wide_root: match args.get(7).map(String::as_str) {
-            None => false,
-            Some("wide-root") => true,
-            Some(other) => {
-                eprintln!("flow_family: argument 7 ({other}) is not `wide-root`");
+        wide_root: false,
+        oblique_lv: false,
+    };
+    let ranges = match args.get(7) {
+        None => ranges,
+        Some(modes) => modes.split(',').fold(ranges, |r, mode| match mode {
+            "wide-root" => Ranges { wide_root: true, ..r },
+            "oblique-lv" => Ranges { oblique_lv: true, ..r },
+            other => {
+                eprintln!("flow_family: argument 7's {other} is neither `wide-root` nor `oblique-lv`");
                 std::process::exit(2)
             }
-        },
+        }),
     };
     for seed in first..first + count {
         if let Err(e) = write_member(&out.join(format!("m{seed:03}")), seed, &ranges) {
@@ -114,12 +131,51 @@ fn argument<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
     })
 }
 
-/// The drawn ranges the command line sets, and whether the members have p1-p3's wide
-/// root (a narrower VSD and suture points along both rims) or the aorta family's shape.
+/// The drawn ranges the command line sets, whether the members have p1-p3's wide
+/// root (a narrower VSD and suture points along both rims) or the aorta family's shape, and
+/// whether their LV swells toward an apex off the VSD's axis (`oblique_lv`).
 struct Ranges {
     tilt_deg: (f64, f64),
     aortic_z_score: (f64, f64),
     wide_root: bool,
+    oblique_lv: bool,
+}
+
+/// `oblique-lv`'s apex: the LV sphere's radius grows as R (1 + k s^2) toward the apex
+/// direction u, s = (cos(angle to u) - cos g) / (1 - cos g) within g = 40 degrees of u and 0
+/// beyond, so the surface stays star-shaped about the LV's centre (no fold) and smooth. u is
+/// normal to the VSD's axis (x), so the swelling starts 50 degrees from it, past the VSD's
+/// cone (at most about 31 degrees from the LV's centre in these ranges), and the LV meets the
+/// RV exactly where the sphere did. k up to 2 (an apex at 3 R) moves the mid-LV plane's centre
+/// up to about half the LV's radius off the VSD's axis.
+struct ObliqueLv {
+    apex_direction: Vec3,
+    swelling: f64,
+}
+
+const OBLIQUE_LV_CONE_DEG: f64 = 40.0;
+
+impl ObliqueLv {
+    /// u drawn within 60 degrees of -z about the VSD's axis (the aorta leaves the RV toward +z,
+    /// the apex points away from it), k from 0 to 2.
+    fn draw(rng: &mut SplitMix64) -> ObliqueLv {
+        let azimuth = rng.between(-60.0f64, 60.0).to_radians();
+        ObliqueLv { apex_direction: Vec3::new(0.0, azimuth.sin(), -azimuth.cos()), swelling: rng.between(0.0, 2.0) }
+    }
+
+    /// The LV sphere (centred at the origin) swollen toward the apex.
+    fn apply(&self, sphere: &TriMesh) -> TriMesh {
+        let cos_cone = OBLIQUE_LV_CONE_DEG.to_radians().cos();
+        let points = sphere
+            .points
+            .iter()
+            .map(|p| {
+                let s = ((p.normalize().dot(&self.apex_direction) - cos_cone) / (1.0 - cos_cone)).max(0.0);
+                p * (1.0 + self.swelling * s * s)
+            })
+            .collect();
+        TriMesh { points, ..sphere.clone() }
+    }
 }
 
 fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
@@ -152,6 +208,11 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
     if ranges.wide_root {
         member.suture_points_mm = rim_following_suture_points(&member.params, WIDE_ROOT_SUTURE_MARGIN_MM);
     }
+    // Drawn last, so that the seed's other draws, and with them its tunnel, are unchanged.
+    let oblique_lv = ranges.oblique_lv.then(|| ObliqueLv::draw(&mut rng));
+    if let Some(apex) = &oblique_lv {
+        member.pools.lv = apex.apply(&member.pools.lv);
+    }
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let pools = &member.pools;
     for (name, surface) in [("LV.vtp", &pools.lv), ("RV.vtp", &pools.rv), ("aorta.vtp", &pools.aorta)] {
@@ -166,6 +227,10 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
             "vsd_to_aortic_half_angle_at_most": WIDE_ROOT_VSD_HALF_ANGLE,
             "drawn_vsd_overlap_mm": drawn_vsd_overlap_mm,
         });
+    }
+    if let Some(apex) = &oblique_lv {
+        let u = apex.apex_direction;
+        json["oblique_lv"] = serde_json::json!({ "apex_direction": [u.x, u.y, u.z], "swelling": apex.swelling, "cone_deg": OBLIQUE_LV_CONE_DEG });
     }
     let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
     std::fs::write(dir.join("member.json"), text).map_err(|e| format!("{}: {e}", dir.display()))
