@@ -1,4 +1,5 @@
 """Unit tests of the validation helpers (no CFD run): GCI, plane pressures, conversion."""
+import json
 import math
 import os
 import sys
@@ -625,3 +626,64 @@ def test_the_derived_model_is_read_from_reports_before_and_after_the_planes_coef
     before = {"dp_estimate_mmhg": 2.5}
     after = {"dp_estimate_mmhg": 4.0, "stenosis_model_dp_mmhg": 2.5}
     assert flow_family.stenosis_model_mmhg(before) == flow_family.stenosis_model_mmhg(after) == 2.5
+
+
+def test_the_inflow_and_outflow_angles_are_measured_from_the_vsd_normal_into_the_tunnel(tmp_path):
+    import flow_family as ff
+    # VSD at the origin, its normal given pointing back into the LV (the sign is not trusted):
+    # the inflow cap 10 mm behind and 10 mm to the side (45 degrees), the aortic plane 10 mm
+    # ahead and 17.32 to the side (60 degrees).
+    report = {"vsd_cap": {"centroid_mm": [0, 0, 0], "normal": [-1, 0, 0]},
+              "inflow_cap": {"centroid_mm": [-10, 10, 0]}, "aortic_cap": {"centroid_mm": [10, 0, 17.3205]}}
+    (tmp_path / "extend").mkdir()
+    (tmp_path / "extend" / "extended-report.json").write_text(json.dumps(report))
+    angles = ff.inflow_and_outflow_angles(tmp_path)
+    assert abs(angles["inflow_deg"] - 45.0) < 1e-6 and abs(angles["outflow_deg"] - 60.0) < 1e-3
+
+
+def test_the_realism_perturbations_keep_what_they_promise():
+    import estimate_realism as er
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+    # A closed cylinder whose end caps are labelled 11 and 16 and whose side is wall (2).
+    source = vtk.vtkCylinderSource()
+    source.SetResolution(48)
+    source.SetHeight(10.0)
+    source.SetRadius(4.0)
+    tri = vtk.vtkTriangleFilter()
+    tri.SetInputConnection(source.GetOutputPort())
+    clean = vtk.vtkCleanPolyData()
+    clean.SetInputConnection(tri.GetOutputPort())
+    # Split once, so that the side has points off the caps' rims.
+    split = vtk.vtkLinearSubdivisionFilter()
+    split.SetInputConnection(clean.GetOutputPort())
+    split.SetNumberOfSubdivisions(1)
+    split.Update()
+    poly = split.GetOutput()
+    centres = vtk.vtkCellCenters()
+    centres.SetInputData(poly)
+    centres.Update()
+    y = vtk_to_numpy(centres.GetOutput().GetPoints().GetData())[:, 1]
+    labels = np.where(y > 4.999, 16, np.where(y < -4.999, 11, 2)).astype(np.int32)
+    array = vtk.util.numpy_support.numpy_to_vtk(labels, deep=True)
+    array.SetName("ModelFaceID")
+    poly.GetCellData().AddArray(array)
+    markups = {"markups": [{"coordinateSystem": "LPS", "controlPoints": [{"position": [4.0, 0.0, 0.0]}]}]}
+    points = vtk_to_numpy(poly.GetPoints().GetData())
+    caps = er.cap_points(poly)
+    # Off plane: each cap's points spread by 1.5 % of its diameter along its normal.
+    moved = vtk_to_numpy(er.caps_off_plane(poly, markups)[0].GetPoints().GetData())
+    for ids in caps.values():
+        spread = np.ptp(moved[ids, 1])
+        assert abs(spread - 0.015 * 8.0) < 0.01 * 0.015 * 8.0, spread
+    # Noisy and smoothed walls leave every cap point where it was.
+    for perturb in (er.walls_noisy, er.walls_smoothed):
+        out = vtk_to_numpy(perturb(poly, markups)[0].GetPoints().GetData())
+        on_cap = np.concatenate(list(caps.values()))
+        assert np.array_equal(out[on_cap], points[on_cap]) and not np.array_equal(out, points)
+    # Turned: a rigid motion of the surface and of the markups alike.
+    turned, turned_markups = er.turned(poly, json.loads(json.dumps(markups)))
+    t = vtk_to_numpy(turned.GetPoints().GetData())
+    assert np.allclose(np.linalg.norm(t - t[0], axis=1), np.linalg.norm(points - points[0], axis=1))
+    index = int(np.argmin(np.linalg.norm(points - [4.0, 0.0, 0.0], axis=1)))
+    assert np.allclose(turned_markups["markups"][0]["controlPoints"][0]["position"], t[index], atol=1e-6)
