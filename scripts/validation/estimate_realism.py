@@ -2,7 +2,7 @@
 acquisition of the same heart (issue 31: the estimate on anatomy as it comes, not as the
 paper's files hold it).
 
-    python3 scripts/validation/estimate_realism.py [--baffle target/release/baffle] [--out DIR]
+    python3 scripts/validation/estimate_realism.py [--baffle target/release/baffle] [--out DIR] [--flow-sections]
 
 For each patient the capped ventricle and suture points of design_input/ are perturbed as a
 segmentation or a scene may differ, and designed at z = 0 with the paper's BSA and peak flow:
@@ -15,7 +15,9 @@ segmentation or a scene may differ, and designed at z = 0 with the paper's BSA a
 - subdivided: every triangle split in four (finer than the segmentation's voxels).
 
 It prints dp_estimate_mmhg and the throat's area for each, and the change from the
-unperturbed design, to be read against the estimate's stated error range.
+unperturbed design, to be read against the estimate's stated error range. `--flow-sections`
+designs with `baffle design --flow-sections` (the sections the area constraint holds normal
+to the flow, the sections the estimate reads its throat from).
 """
 import argparse
 import json
@@ -134,9 +136,9 @@ PERTURBATIONS = {"turned": turned, "caps off plane": caps_off_plane, "walls nois
                  "walls smoothed": walls_smoothed, "subdivided": subdivided}
 
 
-def design(baffle, folder, info, out):
+def design(baffle, folder, info, out, extra):
     argv = [baffle, "design", "--surface", folder / "capped_ventricle.vtp", "--points", folder / "suture_points.mrk.json",
-            "--bsa", info["bsa_m2"], "--z-score", 0, "--peak-flow-ml-s", info["q_peak_ml_s"], "--out", out]
+            "--bsa", info["bsa_m2"], "--z-score", 0, "--peak-flow-ml-s", info["q_peak_ml_s"], "--out", out, *extra]
     run = subprocess.run([str(a) for a in argv], capture_output=True, text=True)
     if run.returncode != 0:
         return None, (run.stderr.strip().splitlines() or ["failed"])[-1]
@@ -147,14 +149,16 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baffle", default="target/release/baffle")
     parser.add_argument("--out", default="out/estimate-realism", type=Path)
+    parser.add_argument("--flow-sections", action="store_true")
     args = parser.parse_args()
+    extra = ["--flow-sections"] if args.flow_sections else []
     data = he.data_dir()
     patients = json.loads((data / "patients.json").read_text())["patients"]
     print("| patient | input | dp estimate (mmHg) | change (mmHg) | throat (mm2) | change |")
     print("|---|---|---|---|---|---|")
     for patient in ("p1", "p2", "p3"):
         source = data / patient / "design_input"
-        base, why = design(args.baffle, source, patients[patient], args.out / patient / "as-given")
+        base, why = design(args.baffle, source, patients[patient], args.out / patient / "as-given", extra)
         if base is None:
             print(f"| {patient} | as given | no design: {why} | | | |")
             continue
@@ -165,7 +169,7 @@ def main():
             poly, markups = perturb(read(source / "capped_ventricle.vtp"), json.loads((source / "suture_points.mrk.json").read_text()))
             write(poly, folder / "capped_ventricle.vtp")
             (folder / "suture_points.mrk.json").write_text(json.dumps(markups))
-            e, why = design(args.baffle, folder, patients[patient], folder / "design")
+            e, why = design(args.baffle, folder, patients[patient], folder / "design", extra)
             if e is None:
                 print(f"| {patient} | {name} | refused: {why} | | | |")
                 continue
