@@ -40,6 +40,12 @@
 //! sections and the estimate are the same and only the flow into the VSD changes:
 //!
 //!     cargo run --release -p baffle-prepare --example flow_family /work/famO 0 100 -35 0 3 5 wide-root,oblique-lv
+//!
+//! `turned-lv-triangles` (with the others) turns the LV sphere's triangles about its centre by
+//! (1.9, 2.3) degrees: the same sphere on other triangles, a null replicate that shows how far
+//! the plan and its 3D dp move when nothing physical does:
+//!
+//!     cargo run --release -p baffle-prepare --example flow_family /work/famN 0 24 -35 0 3 5 wide-root,turned-lv-triangles
 
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::target::boston_aortic_annulus_diameter_cm;
@@ -88,7 +94,7 @@ struct PlanInputs {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first().map(PathBuf::from) else {
-        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [wide-root|oblique-lv|wide-root,oblique-lv]");
+        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [modes: wide-root,oblique-lv,turned-lv-triangles]");
         std::process::exit(2);
     };
     let first = argument(&args, 1, 0u64);
@@ -99,14 +105,16 @@ fn main() {
         aortic_z_score: (number(5, -2.5), number(6, 2.5)),
         wide_root: false,
         oblique_lv: false,
+        turned_lv_triangles: false,
     };
     let ranges = match args.get(7) {
         None => ranges,
         Some(modes) => modes.split(',').fold(ranges, |r, mode| match mode {
             "wide-root" => Ranges { wide_root: true, ..r },
             "oblique-lv" => Ranges { oblique_lv: true, ..r },
+            "turned-lv-triangles" => Ranges { turned_lv_triangles: true, ..r },
             other => {
-                eprintln!("flow_family: argument 7's {other} is neither `wide-root` nor `oblique-lv`");
+                eprintln!("flow_family: argument 7's {other} is not `wide-root`, `oblique-lv` or `turned-lv-triangles`");
                 std::process::exit(2)
             }
         }),
@@ -139,6 +147,7 @@ struct Ranges {
     aortic_z_score: (f64, f64),
     wide_root: bool,
     oblique_lv: bool,
+    turned_lv_triangles: bool,
 }
 
 /// `oblique-lv`'s apex: the LV sphere's radius grows as R (1 + k s^2) toward the apex
@@ -212,6 +221,11 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
     let oblique_lv = ranges.oblique_lv.then(|| ObliqueLv::draw(&mut rng));
     if let Some(apex) = &oblique_lv {
         member.pools.lv = apex.apply(&member.pools.lv);
+    }
+    if ranges.turned_lv_triangles {
+        // About the LV's centre, the origin: the sphere stays, its triangles move.
+        let turn = nalgebra::Rotation3::from_axis_angle(&Vec3::x_axis(), 1.9f64.to_radians()) * nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), 2.3f64.to_radians());
+        member.pools.lv.points.iter_mut().for_each(|p| *p = turn * *p);
     }
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let pools = &member.pools;
