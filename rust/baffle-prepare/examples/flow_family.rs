@@ -41,6 +41,9 @@
 //!
 //!     cargo run --release -p baffle-prepare --example flow_family /work/famO 0 100 -35 0 3 5 wide-root,oblique-lv
 //!
+//! Arguments 8 and 9 set the swelling's range (default 0 to 2: the inflow cap's centre up to
+//! about 41 degrees off the VSD's normal; p1-p3's lie at 49-60).
+//!
 //! `turned-lv-triangles` (with the others) turns the LV sphere's triangles about its centre by
 //! (1.9, 2.3) degrees: the same sphere on other triangles, a null replicate that shows how far
 //! the plan and its 3D dp move when nothing physical does:
@@ -94,7 +97,7 @@ struct PlanInputs {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first().map(PathBuf::from) else {
-        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [modes: wide-root,oblique-lv,turned-lv-triangles]");
+        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [modes: wide-root,oblique-lv,turned-lv-triangles] [swelling from] [swelling to]");
         std::process::exit(2);
     };
     let first = argument(&args, 1, 0u64);
@@ -103,6 +106,7 @@ fn main() {
     let ranges = Ranges {
         tilt_deg: (number(3, 0.0), number(4, 15.0)),
         aortic_z_score: (number(5, -2.5), number(6, 2.5)),
+        swelling: (number(8, 0.0), number(9, 2.0)),
         wide_root: false,
         oblique_lv: false,
         turned_lv_triangles: false,
@@ -145,6 +149,8 @@ fn argument<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
 struct Ranges {
     tilt_deg: (f64, f64),
     aortic_z_score: (f64, f64),
+    /// `oblique-lv`'s swelling k is drawn from this range.
+    swelling: (f64, f64),
     wide_root: bool,
     oblique_lv: bool,
     turned_lv_triangles: bool,
@@ -167,9 +173,9 @@ const OBLIQUE_LV_CONE_DEG: f64 = 40.0;
 impl ObliqueLv {
     /// u drawn within 60 degrees of -z about the VSD's axis (the aorta leaves the RV toward +z,
     /// the apex points away from it), k from 0 to 2.
-    fn draw(rng: &mut SplitMix64) -> ObliqueLv {
+    fn draw(rng: &mut SplitMix64, swelling: (f64, f64)) -> ObliqueLv {
         let azimuth = rng.between(-60.0f64, 60.0).to_radians();
-        ObliqueLv { apex_direction: Vec3::new(0.0, azimuth.sin(), -azimuth.cos()), swelling: rng.between(0.0, 2.0) }
+        ObliqueLv { apex_direction: Vec3::new(0.0, azimuth.sin(), -azimuth.cos()), swelling: rng.between(swelling.0, swelling.1) }
     }
 
     /// The LV sphere (centred at the origin) swollen toward the apex.
@@ -218,7 +224,7 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
         member.suture_points_mm = rim_following_suture_points(&member.params, WIDE_ROOT_SUTURE_MARGIN_MM);
     }
     // Drawn last, so that the seed's other draws, and with them its tunnel, are unchanged.
-    let oblique_lv = ranges.oblique_lv.then(|| ObliqueLv::draw(&mut rng));
+    let oblique_lv = ranges.oblique_lv.then(|| ObliqueLv::draw(&mut rng, ranges.swelling));
     if let Some(apex) = &oblique_lv {
         member.pools.lv = apex.apply(&member.pools.lv);
     }
