@@ -200,10 +200,10 @@ pub const THROAT_COEFFICIENT_B: f64 = 1.807;
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg), over
 /// the rows of docs/hemodynamics_estimate.md, estimated by the code since commit e95dac5
-/// (sections in the lumen's own frame): the 400 synthetic hearts of four flow families
+/// (sections in the lumen's own frame): the 430 synthetic hearts of five flow families
 /// (`scripts/validation/flow_family.py table --re-estimate`, the plan's quick run on one 0.6 mm
 /// mesh: -4.87 to +9.27 on the three the coefficients were fitted on, the fit's half included;
-/// -2.06 to +1.49 on the oblique-LV family made after them) and p1-p3's published domains and
+/// -2.06 to +1.49 and -0.29 to +3.69 on the two oblique-LV families made after them) and p1-p3's published domains and
 /// designs on the paper's design input (`scripts/validation/hemodynamics_estimate.py`; 3D first
 /// peak on 0.6 mm meshes, 20 rows: -1.58 to +3.26, and on 0.85 / 1.25 mm meshes, 21 rows: -5.32
 /// at p1 z = 0 to +3.19 at p2 z = -0.25). The coefficients are fitted on half of three
@@ -220,7 +220,7 @@ pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.49);
 /// The measured error of dp against the 3D first peak, in words (from `DP_ERROR_RANGE_MMHG`).
 pub fn dp_uncertainty() -> String {
     let (below, above) = (-DP_ERROR_RANGE_MMHG.0, DP_ERROR_RANGE_MMHG.1);
-    format!("against the 3D first-peak static dp (441 rows of docs/hemodynamics_estimate.md: 400 synthetic hearts of four flow families on 0.6 mm meshes, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.01 below); within 20 % or 1 mmHg on 120 of the 150 family members its two coefficients were not fitted on, on 97 of the 100 members of a family with oblique LV inflow made after the fit, on p3 7 of 7, p1 2 of 3 and p2 2 of 10 (0.6 mm). p2's estimate lies 0.6-3.3 mmHg above its 3D dp: its flow crosses the VSD plane at 39 degrees, which the tunnel's sections do not give")
+    format!("against the 3D first-peak static dp (471 rows of docs/hemodynamics_estimate.md: 430 synthetic hearts of five flow families on 0.6 mm meshes, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.03 above); within 20 % or 1 mmHg on 120 of the 150 family members its two coefficients were not fitted on, on 97 of 100 and 24 of 30 members of two families with oblique LV inflow made after the fit, on p3 7 of 7, p1 2 of 3 and p2 2 of 10 (0.6 mm). Where the LV feeds the VSD as obliquely as p1-p3's (the mid-LV plane's centre 50-70 degrees off the VSD's normal) it tends to lie high: p2's by 0.6-3.3 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
 }
 
 /// The measured error of v_max against the 3D centerline maximum on the same rows, in
