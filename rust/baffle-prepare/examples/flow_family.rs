@@ -36,8 +36,10 @@
 //! p2's flow crosses its VSD plane at 39 degrees against the families' 13-25. `oblique-lv` (alone
 //! or as `wide-root,oblique-lv`) swells the LV toward a drawn apex direction away from the VSD
 //! (`oblique_lv`), drawn after every other draw and outside the VSD's cone: the RV, the aorta,
-//! the VSD and the suture points are those of the same seed without it, so the tunnel, its
-//! sections and the estimate are the same and only the flow into the VSD changes:
+//! the VSD and the suture points are those of the same seed without it. The designs still
+//! differ (`prepare` meets another union on its voxels: throats -24 % to +20 % against the
+//! wide-root family's, docs/hemodynamics_estimate.md), so the family tests new designs with
+//! oblique inflow, not the inflow's effect on one tunnel:
 //!
 //!     cargo run --release -p baffle-prepare --example flow_family /work/famO 0 100 -35 0 3 5 wide-root,oblique-lv
 //!
@@ -161,8 +163,8 @@ struct Ranges {
 /// beyond, so the surface stays star-shaped about the LV's centre (no fold) and smooth. u is
 /// normal to the VSD's axis (x), so the swelling starts 50 degrees from it, past the VSD's
 /// cone (at most about 31 degrees from the LV's centre in these ranges), and the LV meets the
-/// RV exactly where the sphere did. k up to 2 (an apex at 3 R) moves the mid-LV plane's centre
-/// up to about half the LV's radius off the VSD's axis.
+/// RV exactly where the sphere did. Measured on the plans: k 0-2 (an apex at up to 3 R) puts the
+/// mid-LV inflow cap's centre 2-41 degrees off the VSD's normal, k 2.5-4.5 53-69 degrees.
 struct ObliqueLv {
     apex_direction: Vec3,
     swelling: f64,
@@ -172,7 +174,7 @@ const OBLIQUE_LV_CONE_DEG: f64 = 40.0;
 
 impl ObliqueLv {
     /// u drawn within 60 degrees of -z about the VSD's axis (the aorta leaves the RV toward +z,
-    /// the apex points away from it), k from 0 to 2.
+    /// the apex points away from it), k from `swelling`'s range.
     fn draw(rng: &mut SplitMix64, swelling: (f64, f64)) -> ObliqueLv {
         let azimuth = rng.between(-60.0f64, 60.0).to_radians();
         ObliqueLv { apex_direction: Vec3::new(0.0, azimuth.sin(), -azimuth.cos()), swelling: rng.between(swelling.0, swelling.1) }
