@@ -21,7 +21,6 @@ to the flow, the sections the estimate reads its throat from).
 """
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -31,15 +30,9 @@ from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import hemodynamics_estimate as he  # noqa: E402
+from published import read_vtp, triangles  # noqa: E402
 
 CAPS = (11, 16)
-
-
-def read(path):
-    r = vtk.vtkXMLPolyDataReader()
-    r.SetFileName(str(path))
-    r.Update()
-    return r.GetOutput()
 
 
 def write(poly, path):
@@ -50,8 +43,7 @@ def write(poly, path):
 
 
 def triangles_and_labels(poly):
-    tris = vtk_to_numpy(poly.GetPolys().GetConnectivityArray()).reshape(-1, 3)
-    return tris, vtk_to_numpy(poly.GetCellData().GetArray("ModelFaceID"))
+    return triangles(poly), vtk_to_numpy(poly.GetCellData().GetArray("ModelFaceID"))
 
 
 def with_points(poly, points):
@@ -139,10 +131,8 @@ PERTURBATIONS = {"turned": turned, "caps off plane": caps_off_plane, "walls nois
 def design(baffle, folder, info, out, extra):
     argv = [baffle, "design", "--surface", folder / "capped_ventricle.vtp", "--points", folder / "suture_points.mrk.json",
             "--bsa", info["bsa_m2"], "--z-score", 0, "--peak-flow-ml-s", info["q_peak_ml_s"], "--out", out, *extra]
-    run = subprocess.run([str(a) for a in argv], capture_output=True, text=True)
-    if run.returncode != 0:
-        return None, (run.stderr.strip().splitlines() or ["failed"])[-1]
-    return json.loads((out / "report.json").read_text())["hemodynamics_estimate"], None
+    report, why = he.baffle_report(argv, out / "report.json")
+    return (report["hemodynamics_estimate"] if report else None), why
 
 
 def main():
@@ -166,7 +156,7 @@ def main():
         for name, perturb in PERTURBATIONS.items():
             folder = args.out / patient / name.replace(" ", "-")
             folder.mkdir(parents=True, exist_ok=True)
-            poly, markups = perturb(read(source / "capped_ventricle.vtp"), json.loads((source / "suture_points.mrk.json").read_text()))
+            poly, markups = perturb(read_vtp(source / "capped_ventricle.vtp"), json.loads((source / "suture_points.mrk.json").read_text()))
             write(poly, folder / "capped_ventricle.vtp")
             (folder / "suture_points.mrk.json").write_text(json.dumps(markups))
             e, why = design(args.baffle, folder, patients[patient], folder / "design", extra)

@@ -286,10 +286,13 @@ def patient_parts(args):
 def re_estimated(baffle, plan_dir, q_ml_s):
     """The estimate of the plan's designed domain by `baffle` (its centerline stage, as for the
     published domains), for members planned with an earlier binary."""
+    import hemodynamics_estimate as he
     dest = plan_dir / "re-estimate" / "centerline.vtp"
     argv = [baffle, "centerline", "--surface", plan_dir / "design" / "domain.vtp", "--peak-flow-ml-s", q_ml_s, "--out", dest]
-    subprocess.run([str(a) for a in argv], check=True, capture_output=True)
-    return json.loads(dest.with_suffix(".json").read_text())["hemodynamics_estimate"]
+    report, why = he.baffle_report(argv, dest.with_suffix(".json"))
+    if report is None:
+        raise RuntimeError(f"{plan_dir}: {why}")
+    return report["hemodynamics_estimate"]
 
 
 def family_rows(family, baffle=None):
@@ -318,8 +321,8 @@ def table(args):
     ok = [r for rows in families.values() for r in rows]
     pair = lambda r: (r["estimate"], r["comparison"]["dp_3d_mmhg"])
     fit_rows = [r for r in ok if r["seed"] % 2 == 0]
-    fit = [pair(r) for r in fit_rows]
-    held = [pair(r) for r in ok if r["seed"] % 2 == 1]
+    held_rows = [r for r in ok if r["seed"] % 2 == 1]
+    fit, held = [pair(r) for r in fit_rows], [pair(r) for r in held_rows]
     coef = fit_dynamic_weights(fit)
     jet_coef = fit_jet_weights(fit)
     plane_coef = fit_plane_coefficients(fit_rows)
@@ -328,7 +331,7 @@ def table(args):
     print(f"plane coefficients, medians of the {len(fit)} even seeds: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
     for name, rows in families.items():
         print(f"\n{name}:" + where_the_estimate_misses(rows))
-    print(crossing_angle_fit(fit_rows, [r for r in ok if r["seed"] % 2 == 1]))
+    print(crossing_angle_fit(fit_rows, held_rows))
     print("\n| model, rows | within 20 % or 1 mmHg | error min / 5 % / median / 95 % / max (mmHg) | relative error 5 / 50 / 95 % (rows with 3D dp > 1 mmHg) |")
     print("|---|---|---|---|")
     parts = [("fit part (even seeds)", fit), ("held-out part (odd seeds)", held)]

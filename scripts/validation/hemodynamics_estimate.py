@@ -51,10 +51,16 @@ def estimate_for(baffle, data, out, patient, row, info):
         inputs = data / patient / "design_input"
         argv = [baffle, "design", "--surface", inputs / "capped_ventricle.vtp", "--points", inputs / "suture_points.mrk.json", "--bsa", info["bsa_m2"], "--z-score", z, *extra, "--peak-flow-ml-s", q, "--out", dest]
         report = dest / "report.json"
+    return baffle_report(argv, report)
+
+
+def baffle_report(argv, report):
+    """Run a `baffle` command and read the JSON report it writes: (report, None), or (None,
+    the last line of its error) when it fails."""
     run = subprocess.run([str(a) for a in argv], capture_output=True, text=True)
     if run.returncode != 0:
         return None, (run.stderr.strip().splitlines() or ["failed"])[-1]
-    return json.loads(report.read_text()), None
+    return json.loads(Path(report).read_text()), None
 
 
 def no_recovery_mmhg(e):
