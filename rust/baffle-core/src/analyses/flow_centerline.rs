@@ -40,7 +40,7 @@
 //! scene's axes the voxel staircase fell differently and moved the throat's area by
 //! 0.4-2 % on p1-p3 rotated by (37, -23, 61) degrees.
 
-use crate::geometry::mesh::{axes_across, manifold_report, TriMesh, Vec3};
+use crate::geometry::mesh::{area_centroid_normal, axes_across, manifold_report, TriMesh, Vec3};
 use crate::geometry::spatial::{ray_triangle, Aabb, TriangleBvh};
 use crate::geometry::voxel::{best_first_search, voxelize, Grid};
 use rayon::prelude::*;
@@ -68,20 +68,14 @@ impl MeasurementPlane {
         (!triangles.is_empty()).then_some(MeasurementPlane { label, triangles })
     }
 
-    /// Area-weighted centroid.
+    /// Area-weighted centroid (zero for a disc without area).
     pub fn centroid(&self) -> Vec3 {
-        let (mut sum, mut area) = (Vec3::zeros(), 0.0);
-        for t in &self.triangles {
-            let a = 0.5 * (t[1] - t[0]).cross(&(t[2] - t[0])).norm();
-            sum += a * (t[0] + t[1] + t[2]) / 3.0;
-            area += a;
-        }
-        sum / area.max(1e-300)
+        area_centroid_normal(self.triangles.iter().copied()).1
     }
 
     /// Area-weighted normal (unit; zero for a degenerate disc), by the triangles' winding.
     pub fn normal(&self) -> Vec3 {
-        let sum: Vec3 = self.triangles.iter().map(|t| (t[1] - t[0]).cross(&(t[2] - t[0]))).sum();
+        let sum = area_centroid_normal(self.triangles.iter().copied()).2;
         if sum.norm() > 0.0 { sum.normalize() } else { sum }
     }
 

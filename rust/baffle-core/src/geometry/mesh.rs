@@ -61,6 +61,20 @@ impl std::hash::Hasher for EdgeHasher {
     }
 }
 
+/// The area of a set of triangles, their area-weighted centroid (zero without area) and the
+/// sum of their normals weighted by twice their areas (by their winding; not normalized).
+pub fn area_centroid_normal(triangles: impl IntoIterator<Item = [Vec3; 3]>) -> (f64, Vec3, Vec3) {
+    let (mut area, mut centroid, mut normal) = (0.0, Vec3::zeros(), Vec3::zeros());
+    for [a, b, c] in triangles {
+        let n2 = (b - a).cross(&(c - a));
+        let w = 0.5 * n2.norm();
+        area += w;
+        centroid += w * (a + b + c) / 3.0;
+        normal += n2;
+    }
+    (area, if area > 0.0 { centroid / area } else { centroid }, normal)
+}
+
 /// Two unit axes (u, v) across the unit vector `n`, with (u, v, n) right-handed: the
 /// in-plane frame of a plane or a tube section normal to `n`.
 pub fn axes_across(n: &Vec3) -> (Vec3, Vec3) {
@@ -124,24 +138,9 @@ impl TriMesh {
 
     /// Area-weighted centroid and unit normal of the triangles carrying `label`.
     pub fn label_centroid_normal(&self, label: i32) -> Option<(Vec3, Vec3, f64)> {
-        let mut area = 0.0;
-        let mut centroid = Vec3::zeros();
-        let mut normal = Vec3::zeros();
-        for t in 0..self.triangles.len() {
-            if self.face_ids[t] != label {
-                continue;
-            }
-            let [a, b, c] = self.triangle_points(t);
-            let n2 = (b - a).cross(&(c - a));
-            let w = 0.5 * n2.norm();
-            area += w;
-            centroid += w * (a + b + c) / 3.0;
-            normal += n2;
-        }
-        if area <= 0.0 {
-            return None;
-        }
-        Some((centroid / area, normal.normalize(), area))
+        let labelled = (0..self.triangles.len()).filter(|&t| self.face_ids[t] == label).map(|t| self.triangle_points(t));
+        let (area, centroid, normal) = area_centroid_normal(labelled);
+        (area > 0.0).then(|| (centroid, normal.normalize(), area))
     }
 
     /// For every undirected edge, the triangles that use it.
