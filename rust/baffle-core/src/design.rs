@@ -924,9 +924,11 @@ fn check_domain(mesh: &TriMesh, domain: &Domain, labels: &FaceLabels) -> Result<
             c.x, c.y, c.z
         )));
     }
+    // No baffle triangle in the pair: the input surface folds through itself, whatever the
+    // target. A surface error, so no search for a feasible target blames the suture points.
     if let Some(&(a, _)) = pairs.first() {
         let c = mesh.triangle_centroid(a as usize);
-        return Err(DesignError::Baffle(format!(
+        return Err(DesignError::Surface(format!(
             "the ventricle wall kept in the domain crosses itself near ({:.1}, {:.1}, {:.1}) mm ({} crossing pairs); \
              the ventricle surface folds there: smooth or re-segment it",
             c.x, c.y, c.z,
@@ -959,7 +961,9 @@ mod tests {
     #[test]
     fn a_kept_wall_through_itself_is_refused_though_no_baffle_triangle_crosses() {
         let folded = cube_with_top_apex(-0.5);
-        let err = check_domain(&folded, &wall_only(&folded), &FaceLabels::default()).unwrap_err().to_string();
+        let err = check_domain(&folded, &wall_only(&folded), &FaceLabels::default()).unwrap_err();
+        assert!(matches!(err, DesignError::Surface(_)), "the input's fault, not the target's: {err:?}");
+        let err = err.to_string();
         assert!(err.contains("the ventricle wall kept in the domain crosses itself near") && err.contains("crossing pairs"), "{err}");
         let sound = cube_with_top_apex(1.5);
         assert!(check_domain(&sound, &wall_only(&sound), &FaceLabels::default()).is_ok());
