@@ -8,7 +8,7 @@ use crate::steps::envelope::regularize_amplitudes;
 use crate::error::DesignError;
 use crate::geometry::mesh::{edge_key, manifold_report, FaceLabels, TriMesh, Vec3};
 use crate::steps::partition::{keep_capped_side, remesh_kept, KeptRegion};
-use crate::steps::patch::{initial_patch, nearest_seam_index, DiskMap, InitialPatch, UnitDisk};
+use crate::steps::patch::{initial_patch, seam_split_mm, DiskMap, InitialPatch, UnitDisk};
 use crate::steps::sections::{cut_mesh, nearest_contour, non_conflicting_arcs, split_at_seam, BaffleArc, Contour, Dropped};
 use crate::analyses::rv_cost::{rv_cost, RvCost};
 use crate::steps::seam::{seam_on_wall, WallProjector};
@@ -433,9 +433,11 @@ fn build_initial_patch(kept: &KeptRegion, seam_mm: &[Vec3], options: &DesignOpti
         }
         pts
     };
-    let vsd_index = nearest_seam_index(seam_mm, &cap_points(options.labels.vsd_cap));
-    let aortic_index = nearest_seam_index(seam_mm, &cap_points(options.labels.aortic_cap));
-    initial_patch(seam_mm, vsd_index, aortic_index, options.interior_control_points, options.baffle_edge_mm)
+    let (vsd, aortic) = (cap_frame(&kept.mesh, options.labels.vsd_cap)?.centroid_mm, cap_frame(&kept.mesh, options.labels.aortic_cap)?.centroid_mm);
+    let axis = (vsd - aortic).normalize();
+    let vsd_at_mm = seam_split_mm(seam_mm, &cap_points(options.labels.vsd_cap), axis);
+    let aortic_at_mm = seam_split_mm(seam_mm, &cap_points(options.labels.aortic_cap), -axis);
+    initial_patch(seam_mm, vsd_at_mm, aortic_at_mm, options.interior_control_points, options.baffle_edge_mm)
 }
 
 /// A cap's centroid and its inward normal (the domain is wound outward).

@@ -80,8 +80,6 @@ mod tests {
         let chord = InitialChord {
             vsd_end_mm: Vec3::new(3.0, 0.0, 0.0),
             aortic_end_mm: Vec3::new(3.0, 0.0, 12.0),
-            vsd_index: 0,
-            aortic_index: 10,
         };
         (vsd, aortic, chord)
     }
@@ -106,8 +104,6 @@ mod tests {
         let chord = InitialChord {
             vsd_end_mm: Vec3::new(2.0, 1.0, 0.0),
             aortic_end_mm: Vec3::new(7.0, 6.0, 0.0),
-            vsd_index: 0,
-            aortic_index: 10,
         };
         let c = build_centerline(vsd, aortic, &chord, 0.25).unwrap();
         let first = c.samples.first().unwrap();

@@ -1,6 +1,7 @@
 //! Step 3, the initial patch [paper 2.3.3].
 //!
-//! The seam is split at its points nearest the VSD and aortic caps; each side is
+//! The seam is split at its points nearest the VSD and aortic caps (of near ties, the
+//! point farthest behind the cap along the tunnel's axis, `seam_split_mm`); each side is
 //! mapped by arc length onto half the perimeter of a structured unit disk, so the
 //! split points land at (-1, 0) and (1, 0). Interior thin-plate-spline control points
 //! on the disk's diameter are mapped to evenly spaced points of R_init, the straight
@@ -32,9 +33,6 @@ pub struct UnitDisk {
 pub struct InitialChord {
     pub vsd_end_mm: Vec3,
     pub aortic_end_mm: Vec3,
-    /// Seam indices of the two ends.
-    pub vsd_index: usize,
-    pub aortic_index: usize,
 }
 
 impl InitialChord {
@@ -52,45 +50,80 @@ pub struct InitialPatch {
     pub chord: InitialChord,
 }
 
-/// Index of the seam point nearest to any of `targets` (e.g. a cap's vertices).
-pub fn nearest_seam_index(seam_mm: &[Vec3], targets: &[Vec3]) -> usize {
-    let mut best = (f64::INFINITY, 0);
-    for (i, s) in seam_mm.iter().enumerate() {
-        for t in targets {
-            let d = (s - t).norm_squared();
-            if d < best.0 {
-                best = (d, i);
-            }
-        }
-    }
-    best.1
+/// Seam points within this distance (mm) of the least distance to a cap are as near to
+/// it as the nearest one: the suture points are clicks on a segmentation (p1-p3's have
+/// 0.4 mm triangles), so a seam that follows a cap's rim (p3's, 1.7-2.2 mm from it over
+/// 20 mm) is equally near along that whole stretch.
+pub const SPLIT_TIE_MM: f64 = 0.5;
+
+/// Where the seam is split at a cap [paper 2.3.3], as an arc length along the seam loop
+/// (mm from seam vertex 0): of the seam points nearest to any of `cap` (a cap's
+/// vertices) within [`SPLIT_TIE_MM`], the one farthest along `axis` (the tunnel's
+/// direction out through this cap, from the other cap's centroid), refined between its
+/// neighbours by the parabola through their positions along `axis`. Where the seam runs
+/// along the rim, the plain nearest vertex is decided by tenths of a millimetre and
+/// jumps along the rim with the triangulation or a small drag (p3: 9 mm, its baffle
+/// 6.5 %); the farthest point behind the cap does not, and, being between vertices, does
+/// not hop with a vertex the seam gains or loses either.
+pub fn seam_split_mm(seam_mm: &[Vec3], cap: &[Vec3], axis: Vec3) -> f64 {
+    let n = seam_mm.len();
+    let distance: Vec<f64> = seam_mm.iter().map(|s| cap.iter().map(|t| (s - t).norm()).fold(f64::INFINITY, f64::min)).collect();
+    let least = distance.iter().copied().fold(f64::INFINITY, f64::min);
+    let along = |i: usize| seam_mm[i % n].dot(&axis);
+    let Some(i) = (0..n).filter(|&i| distance[i] <= least + SPLIT_TIE_MM).max_by(|&a, &b| along(a).total_cmp(&along(b))) else {
+        return 0.0;
+    };
+    let (before, after) = ((i + n - 1) % n, (i + 1) % n);
+    let (h0, h1) = ((seam_mm[i] - seam_mm[before]).norm(), (seam_mm[after] - seam_mm[i]).norm());
+    let (d0, d1) = (along(before) - along(i), along(after) - along(i));
+    // f(x) = a x^2 + b x through (-h0, d0), (0, 0), (h1, d1): its peak, where the vertex is
+    // a peak of the seam's course along the axis (not only the last near one).
+    let a = (d1 * h0 + d0 * h1) / (h0 * h1 * (h0 + h1));
+    let peak = d0 <= 0.0 && d1 <= 0.0 && a < 0.0;
+    let shift = if peak { (-(d1 - a * h1 * h1) / h1 / (2.0 * a)).clamp(-h0, h1) } else { 0.0 };
+    let (arc, total) = arc_positions_mm(seam_mm);
+    (arc[i] + shift).rem_euclid(total)
 }
 
-/// Disk angle of each seam vertex: arc length from the VSD split point (angle pi)
-/// to the aortic split point (angle 2 pi = 0) along the loop's order, then on back
-/// to the VSD split point (angle pi). Angles increase along the seam.
-pub fn seam_angles(seam_mm: &[Vec3], vsd_index: usize, aortic_index: usize) -> Vec<f64> {
+/// Arc length of each seam vertex from vertex 0 (mm), and the loop's length.
+fn arc_positions_mm(seam_mm: &[Vec3]) -> (Vec<f64>, f64) {
     let n = seam_mm.len();
-    let mut angles = vec![0.0; n];
-    let assign_side = |angles: &mut Vec<f64>, from: usize, to: usize, start_angle: f64| {
-        let mut lengths = vec![0.0];
-        let mut i = from;
-        while i != to {
-            let j = (i + 1) % n;
-            lengths.push(lengths.last().copied().unwrap_or(0.0) + (seam_mm[j] - seam_mm[i]).norm());
-            i = j;
-        }
-        let total = lengths.last().copied().unwrap_or(1.0).max(1e-300);
-        let mut i = from;
-        for l in &lengths {
-            angles[i] = start_angle + PI * l / total;
-            i = (i + 1) % n;
-        }
-    };
-    assign_side(&mut angles, aortic_index, vsd_index, 0.0);
-    assign_side(&mut angles, vsd_index, aortic_index, PI);
-    angles[aortic_index] = 0.0;
-    angles
+    let mut arc = Vec::with_capacity(n);
+    let mut total = 0.0;
+    for i in 0..n {
+        arc.push(total);
+        total += (seam_mm[(i + 1) % n] - seam_mm[i]).norm();
+    }
+    (arc, total)
+}
+
+/// The point of the seam loop at arc length `at_mm` from vertex 0.
+pub fn seam_point_at(seam_mm: &[Vec3], at_mm: f64) -> Vec3 {
+    let (arc, total) = arc_positions_mm(seam_mm);
+    let at = at_mm.rem_euclid(total.max(f64::MIN_POSITIVE));
+    let i = arc.partition_point(|&s| s <= at).saturating_sub(1);
+    let (a, b) = (seam_mm[i], seam_mm[(i + 1) % seam_mm.len()]);
+    let length = (b - a).norm();
+    if length > 0.0 { a + (at - arc[i]) / length * (b - a) } else { a }
+}
+
+/// Disk angle of each seam vertex: arc length from the aortic split (angle 0) to the VSD
+/// split (angle pi) along the loop's order, then on back to the aortic split (2 pi).
+/// The splits are arc lengths along the seam (`seam_split_mm`), between vertices or on
+/// one. Angles increase along the seam.
+pub fn seam_angles(seam_mm: &[Vec3], vsd_at_mm: f64, aortic_at_mm: f64) -> Vec<f64> {
+    let (arc, total) = arc_positions_mm(seam_mm);
+    let aortic_side = (vsd_at_mm - aortic_at_mm).rem_euclid(total);
+    arc.iter()
+        .map(|&s| {
+            let x = (s - aortic_at_mm).rem_euclid(total);
+            if x <= aortic_side {
+                PI * x / aortic_side
+            } else {
+                PI + PI * (x - aortic_side) / (total - aortic_side)
+            }
+        })
+        .collect()
 }
 
 /// Build the structured disk: `rings` rings (the last is the seam with the given
@@ -171,21 +204,19 @@ fn angle_gap(a: f64, b: f64) -> f64 {
 /// Build the initial patch on the seam (paper step 3).
 pub fn initial_patch(
     seam_mm: &[Vec3],
-    vsd_index: usize,
-    aortic_index: usize,
+    vsd_at_mm: f64,
+    aortic_at_mm: f64,
     interior_control_points: usize,
     target_edge_mm: f64,
 ) -> Result<InitialPatch, DesignError> {
-    if vsd_index == aortic_index {
+    let chord = InitialChord { vsd_end_mm: seam_point_at(seam_mm, vsd_at_mm), aortic_end_mm: seam_point_at(seam_mm, aortic_at_mm) };
+    // Within one mean seam step of each other, one side of the seam has no vertex.
+    let (_, total) = arc_positions_mm(seam_mm);
+    let apart = (vsd_at_mm - aortic_at_mm).rem_euclid(total);
+    if apart.min(total - apart) < total / seam_mm.len().max(1) as f64 {
         return Err(DesignError::Seam("the seam points nearest the VSD and aortic caps coincide".into()));
     }
-    let chord = InitialChord {
-        vsd_end_mm: seam_mm[vsd_index],
-        aortic_end_mm: seam_mm[aortic_index],
-        vsd_index,
-        aortic_index,
-    };
-    let angles = seam_angles(seam_mm, vsd_index, aortic_index);
+    let angles = seam_angles(seam_mm, vsd_at_mm, aortic_at_mm);
     // Ring spacing ~ the target edge: radially over the patch's half-width, and
     // around the outer ring over the seam's length (whatever its vertex count).
     let half_width_mm = 0.5 * (chord.aortic_end_mm - chord.vsd_end_mm).norm();
@@ -268,10 +299,15 @@ mod tests {
         assert_eq!(loops.len(), 1);
     }
 
+    /// Arc length of seam vertex `i`.
+    fn at(seam: &[Vec3], i: usize) -> f64 {
+        arc_positions_mm(seam).0[i]
+    }
+
     #[test]
     fn seam_angles_put_split_points_on_the_diameter() {
         let seam = circle_seam(40, 5.0);
-        let a = seam_angles(&seam, 5, 25);
+        let a = seam_angles(&seam, at(&seam, 5), at(&seam, 25));
         assert!((a[5] - PI).abs() < 1e-12 && a[25] == 0.0);
         for i in 0..40 {
             let (x, y) = (i, (i + 1) % 40);
@@ -284,7 +320,7 @@ mod tests {
     #[test]
     fn initial_patch_restores_the_seam_and_spans_it() {
         let seam = circle_seam(60, 5.0);
-        let patch = initial_patch(&seam, 0, 30, 9, 0.8).unwrap();
+        let patch = initial_patch(&seam, at(&seam, 0), at(&seam, 30), 9, 0.8).unwrap();
         for (i, &v) in patch.disk.boundary.iter().enumerate() {
             assert_eq!(patch.points_mm[v as usize], seam[i]);
         }
@@ -299,11 +335,50 @@ mod tests {
         // Paper's robustness check: 3 to 29 interior control points change the
         // initial surface by < 0.05 mm.
         let seam = circle_seam(70, 6.0);
-        let reference = initial_patch(&seam, 3, 38, 9, 0.85).unwrap();
+        let reference = initial_patch(&seam, at(&seam, 3), at(&seam, 38), 9, 0.85).unwrap();
         for n in [3, 5, 15, 29] {
-            let other = initial_patch(&seam, 3, 38, n, 0.85).unwrap();
+            let other = initial_patch(&seam, at(&seam, 3), at(&seam, 38), n, 0.85).unwrap();
             let max_d = reference.points_mm.iter().zip(&other.points_mm).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
             assert!(max_d < 0.05, "{n} control points moved the patch by {max_d} mm");
         }
+    }
+
+    /// A seam running along a cap's rim, 2 mm outside it, with a 0.2 mm wobble: every
+    /// point of the arc is as near as the nearest within the tie, so the split is the
+    /// point behind the cap along the axis, between vertices, wherever the wobble puts
+    /// the nearest vertex.
+    #[test]
+    fn a_seam_along_a_rim_is_split_behind_the_cap_whatever_its_wobble() {
+        let cap: Vec<Vec3> = (0..60).map(|k| { let a = TAU * k as f64 / 60.0; Vec3::new(5.0 * a.cos(), 5.0 * a.sin(), 0.0) }).collect();
+        let seam = |phase: f64, count: usize| -> Vec<Vec3> {
+            (0..count).map(|k| { let a = TAU * (k as f64 + 0.37) / count as f64; let r = 7.0 + 0.1 * (5.0 * a + phase).sin(); Vec3::new(r * a.cos(), r * a.sin(), 0.0) }).collect()
+        };
+        // The tunnel leaves the cap toward -x: the split is at angle pi, on the far side.
+        let axis = Vec3::new(-1.0, 0.0, 0.0);
+        for (phase, count) in [(0.0, 90), (1.3, 90), (2.9, 91), (0.7, 75)] {
+            let s = seam(phase, count);
+            let split = seam_point_at(&s, seam_split_mm(&s, &cap, axis));
+            let angle = split.y.atan2(split.x).rem_euclid(TAU);
+            // The wobble itself moves the farthest point by up to r'/r = 0.07 rad.
+            assert!((angle - PI).abs() < 0.08, "wobble phase {phase}, {count} points: split at {angle:.3} rad, not behind the cap");
+        }
+        // The plain nearest vertex hops around the rim with the wobble's phase.
+        let nearest = |s: &[Vec3]| {
+            let d = |p: &Vec3| cap.iter().map(|c| (p - c).norm()).fold(f64::INFINITY, f64::min);
+            s.iter().copied().min_by(|a, b| d(a).total_cmp(&d(b))).unwrap()
+        };
+        let hops: Vec<f64> = [0.0, 1.3, 2.9].iter().map(|&phase| (nearest(&seam(phase, 90)) - nearest(&seam(0.0, 90))).norm()).collect();
+        assert!(hops.iter().any(|&h| h > 3.0), "the wobble should move the nearest vertex: {hops:?}");
+    }
+
+    /// Where one seam point is clearly nearest, the split is that point (the paper's rule).
+    #[test]
+    fn a_clearly_nearest_seam_point_is_the_split() {
+        let seam = circle_seam(40, 5.0);
+        // 0.2 mm from vertex 10, its neighbours 0.8 mm: beyond the tie.
+        let cap = vec![Vec3::new(0.0, 5.2, -0.3)];
+        // The axis points elsewhere; the nearest point (angle pi/2, vertex 10) still wins.
+        let split = seam_point_at(&seam, seam_split_mm(&seam, &cap, Vec3::new(1.0, 0.0, 0.0)));
+        assert!((split - seam[10]).norm() < 1e-12, "{split:?} against {:?}", seam[10]);
     }
 }
