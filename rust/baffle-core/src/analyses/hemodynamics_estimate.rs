@@ -206,7 +206,8 @@ pub const THROAT_COEFFICIENT_B: f64 = 1.807;
 /// -2.06 to +1.49 and -0.29 to +3.69 on the two oblique-LV families made after them) and p1-p3's published domains and
 /// designs on the paper's design input (`scripts/validation/hemodynamics_estimate.py`; 3D first
 /// peak on 0.6 mm meshes, 20 rows: -1.58 to +3.26, and on 0.85 / 1.25 mm meshes, 21 rows: -5.32
-/// at p1 z = 0 to +3.19 at p2 z = -0.25). The coefficients are fitted on half of three
+/// at p1 z = 0 to +3.19 at p2 z = -0.25; the designs re-made by the steady seam split of
+/// 65ba6e5, 18 rows at 0.6 mm: -0.65 to +2.64). The coefficients are fitted on half of three
 /// families; this is the measured spread, not a model property, and a design unlike them can
 /// fall outside it.
 pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-5.32, 9.27);
@@ -220,7 +221,7 @@ pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.49);
 /// The measured error of dp against the 3D first peak, in words (from `DP_ERROR_RANGE_MMHG`).
 pub fn dp_uncertainty() -> String {
     let (below, above) = (-DP_ERROR_RANGE_MMHG.0, DP_ERROR_RANGE_MMHG.1);
-    format!("against the 3D first-peak static dp (471 rows of docs/hemodynamics_estimate.md: 430 synthetic hearts of five flow families on 0.6 mm meshes, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.03 above); within 20 % or 1 mmHg on 120 of the 150 family members its two coefficients were not fitted on, on 97 of 100 and 24 of 30 members of two families with oblique LV inflow made after the fit, on p3 7 of 7, p1 2 of 3 and p2 2 of 10 (0.6 mm). Where the LV feeds the VSD as obliquely as p1-p3's (the mid-LV plane's centre 50-70 degrees off the VSD's normal) it tends to lie high: p2's by 0.6-3.3 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
+    format!("against the 3D first-peak static dp (471 rows of docs/hemodynamics_estimate.md: 430 synthetic hearts of five flow families on 0.6 mm meshes, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.03 above); within 20 % or 1 mmHg on 120 of the 150 family members its two coefficients were not fitted on, on 97 of 100 and 24 of 30 members of two families with oblique LV inflow made after the fit, on today's designs of p1-p3's design inputs and their published domains (0.6 mm) p1 4 of 4, p3 7 of 7 and p2 1 of 10. Where the LV feeds the VSD as obliquely as p1-p3's (the mid-LV plane's centre 50-70 degrees off the VSD's normal) it tends to lie high: p2's by 0.6-2.6 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
 }
 
 /// The measured error of v_max against the 3D centerline maximum on the same rows, in
