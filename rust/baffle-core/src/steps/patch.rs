@@ -69,7 +69,7 @@ pub fn seam_split_mm(seam_mm: &[Vec3], cap: &[Vec3], axis: Vec3) -> f64 {
     let n = seam_mm.len();
     let distance: Vec<f64> = seam_mm.iter().map(|s| cap.iter().map(|t| (s - t).norm()).fold(f64::INFINITY, f64::min)).collect();
     let least = distance.iter().copied().fold(f64::INFINITY, f64::min);
-    let along = |i: usize| seam_mm[i % n].dot(&axis);
+    let along = |i: usize| seam_mm[i].dot(&axis);
     let Some(i) = (0..n).filter(|&i| distance[i] <= least + SPLIT_TIE_MM).max_by(|&a, &b| along(a).total_cmp(&along(b))) else {
         return 0.0;
     };
