@@ -32,16 +32,9 @@ from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import hemodynamics_estimate as he  # noqa: E402
-from published import read_vtp, triangles  # noqa: E402
+from published import polydata, read_vtp, triangles, write_poly  # noqa: E402
 
 CAPS = (11, 16)
-
-
-def write(poly, path):
-    w = vtk.vtkXMLPolyDataWriter()
-    w.SetFileName(str(path))
-    w.SetInputData(poly)
-    w.Write()
 
 
 def triangles_and_labels(poly):
@@ -170,20 +163,6 @@ def cells(poly, ids):
     return surface.GetOutput()
 
 
-def polydata(points, faces, face_ids):
-    out = vtk.vtkPolyData()
-    out.SetPoints(vtk.vtkPoints())
-    out.GetPoints().SetData(numpy_to_vtk(np.ascontiguousarray(points), deep=True))
-    polys = vtk.vtkCellArray()
-    for tri in faces:
-        polys.InsertNextCell(3, [int(i) for i in tri])
-    out.SetPolys(polys)
-    labels = numpy_to_vtk(np.ascontiguousarray(face_ids, dtype=np.int32), deep=True)
-    labels.SetName("ModelFaceID")
-    out.GetCellData().AddArray(labels)
-    return out
-
-
 PERTURBATIONS = {"turned": turned, "caps off plane": caps_off_plane, "walls noisy": walls_noisy,
                  "walls smoothed": walls_smoothed, "subdivided": subdivided, "decimated": decimated}
 
@@ -217,7 +196,7 @@ def main():
             folder = args.out / patient / name.replace(" ", "-")
             folder.mkdir(parents=True, exist_ok=True)
             poly, markups = perturb(read_vtp(source / "capped_ventricle.vtp"), json.loads((source / "suture_points.mrk.json").read_text()))
-            write(poly, folder / "capped_ventricle.vtp")
+            write_poly(poly, folder / "capped_ventricle.vtp")
             (folder / "suture_points.mrk.json").write_text(json.dumps(markups))
             e, why = design(args.baffle, folder, patients[patient], folder / "design", extra)
             if e is None:

@@ -54,6 +54,11 @@ def outward_mm(points_cm, tris):
 
 
 def write_vtp(path, points, tris, labels):
+    write_poly(polydata(points, tris, labels), path)
+
+
+def polydata(points, tris, labels):
+    """A triangle surface from numpy points, triangles and ModelFaceID labels."""
     poly = vtk.vtkPolyData()
     pts = vtk.vtkPoints()
     pts.SetData(numpy_to_vtk(np.ascontiguousarray(points, dtype=float), deep=True))
@@ -65,6 +70,10 @@ def write_vtp(path, points, tris, labels):
     arr = numpy_to_vtk(np.ascontiguousarray(labels, dtype=np.int32), deep=True)
     arr.SetName("ModelFaceID")
     poly.GetCellData().AddArray(arr)
+    return poly
+
+
+def write_poly(poly, path):
     writer = vtk.vtkXMLPolyDataWriter()
     writer.SetFileName(str(path))
     writer.SetInputData(poly)
