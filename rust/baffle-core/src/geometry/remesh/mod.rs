@@ -16,7 +16,7 @@ mod projection;
 #[cfg(test)]
 mod tests;
 
-use crate::geometry::mesh::{TriMesh, Vec3};
+use crate::geometry::mesh::{area_centroid_normal, TriMesh, Vec3};
 use halfedge::{face_of, next, prev, HalfEdgeMesh, NONE};
 use projection::{feature_key, FeatureKey, FeaturePolylines, SurfaceProjector};
 pub use grading::{SizeGrading, MAX_GROWTH};
@@ -601,22 +601,14 @@ impl Remesher {
     fn smoothed_position(&mut self, v: u32) -> Option<Vec3> {
         let m = &self.mesh;
         m.outgoing(v, &mut self.ring);
-        let (mut area, mut centroid, mut normal) = (0.0, Vec3::zeros(), Vec3::zeros());
-        for &g in &self.ring {
-            let f = face_of(g);
-            let n2 = m.face_normal2(f);
-            let w = n2.norm();
-            let [a, b, c] = m.corners[f].map(|x| m.pos[x as usize]);
-            centroid += w * (a + b + c) / 3.0;
-            area += w;
-            normal += n2;
-        }
+        let ring = self.ring.iter().map(|&g| m.corners[face_of(g)].map(|x| m.pos[x as usize]));
+        let (area, centroid, normal) = area_centroid_normal(ring);
         let normal_len = normal.norm();
         if area <= 0.0 || normal_len <= 0.0 {
             return None;
         }
         let (p, n) = (m.pos[v as usize], normal / normal_len);
-        let shift = centroid / area - p;
+        let shift = centroid - p;
         Some(p + shift - n * n.dot(&shift))
     }
 }
