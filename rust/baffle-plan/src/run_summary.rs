@@ -71,3 +71,26 @@ impl RunSummary {
 pub fn required(value: Option<f64>, key: &str, path: &Path) -> Result<f64, String> {
     value.filter(|v| v.is_finite()).ok_or_else(|| format!("{}: no finite {key}", path.display()))
 }
+
+/// A completed run of `mode` that gave every figure (for the crate's tests to alter).
+#[cfg(test)]
+pub(crate) fn completed_run(mode: &str) -> RunSummary {
+    let steady = mode == "steady";
+    RunSummary {
+        status: "completed".into(),
+        message: None,
+        mode: mode.into(),
+        converged: true,
+        unconverged_nonlinear_steps: 0,
+        last_step: if steady { 0 } else { 109 },
+        steps_planned: (!steady).then_some(109),
+        peak_time_s: Some(0.109),
+        dp_peak_mmhg: Some(1.47),
+        max_velocity_m_s: Some(1.5),
+        q_peak_ml_s: Some(36.0),
+        mass_imbalance: Some(1e-5),
+        periodicity_nrmsd: None,
+        steady_relative_residuals: Vec::new(),
+        inputs: RunInputs { q_mean_ml_s: Some(12.0), period_s: Some(0.682), steady_tolerance: steady.then_some(1e-6) },
+    }
+}

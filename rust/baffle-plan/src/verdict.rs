@@ -194,29 +194,7 @@ pub fn mesh_warning(quality: &QualityReport) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::run_summary::RunInputs;
-
-    /// A completed run of `mode` that gave every figure, before the test's changes.
-    fn run(mode: &str) -> RunSummary {
-        let steady = mode == "steady";
-        RunSummary {
-            status: "completed".into(),
-            message: None,
-            mode: mode.into(),
-            converged: true,
-            unconverged_nonlinear_steps: 0,
-            last_step: if steady { 0 } else { 109 },
-            steps_planned: (!steady).then_some(109),
-            peak_time_s: Some(0.109),
-            dp_peak_mmhg: Some(1.47),
-            max_velocity_m_s: Some(1.5),
-            q_peak_ml_s: Some(36.0),
-            mass_imbalance: Some(1e-5),
-            periodicity_nrmsd: None,
-            steady_relative_residuals: Vec::new(),
-            inputs: RunInputs { q_mean_ml_s: Some(12.0), period_s: Some(0.682), steady_tolerance: steady.then_some(1e-6) },
-        }
-    }
+    use crate::run_summary::completed_run as run;
 
     fn steady(converged: bool) -> RunSummary {
         RunSummary { converged, mass_imbalance: Some(1e-6), ..run("steady") }

@@ -169,32 +169,53 @@ struct EstimateBeside3d {
     /// quantities the estimate's error was measured on).
     comparison_with_3d: Option<EstimateComparison>,
     comparison_absent_because: Option<String>,
+    /// The 3D run the estimate is set beside, in words, and how far its error range (measured
+    /// on first peaks) is known to hold for it.
+    compared_with: String,
     verdict_uses: &'static str,
+}
+
+/// What is measured of a later peak's or a steady solve's dp against the first peak's, on
+/// which the estimate's error range was measured (docs/validation.md).
+const OTHER_RUNS_AGAINST_FIRST_PEAK: &str = "the estimate's error range was measured against first peaks; on p1-p3's published domains the fourth cycle's peak dp lay within 0.031 mmHg of the first, and a converged steady solve at peak flow within 0.02 mmHg of it on p2's (docs/validation.md)";
+
+/// The 3D figure the estimate is compared with, in words (`run`'s mode and mesh).
+fn compared_run_text(run: &RunSummary, edge_length_mm: f64) -> String {
+    let mesh = format!("the nominal {edge_length_mm:.2} mm mesh");
+    if run.is_quick() {
+        return format!("the dp at the first flow peak of {mesh}, the kind of run the estimate's error range was measured on");
+    }
+    let figure = if run.is_steady() { "the steady solve's dp at peak flow" } else { "the dp at the last cycle's flow peak" };
+    format!("{figure} of {mesh}: {OTHER_RUNS_AGAINST_FIRST_PEAK}")
 }
 
 impl EstimateBeside3d {
     /// `design`: the design report's `hemodynamics_estimate` (None: the file at
-    /// `design_path` has none).
-    fn of(design: Option<&EstimateOutcome>, design_path: &Path, dp_3d_mmhg: f64, v_max_3d_m_s: f64) -> EstimateBeside3d {
+    /// `design_path` has none); `run`: the nominal run's summary, whose dp and v_max these
+    /// are. A run with doubts (`run_doubts`: unconverged, stopped early) is no reference.
+    fn of(design: Option<&EstimateOutcome>, design_path: &Path, dp_3d_mmhg: f64, v_max_3d_m_s: f64, run: &RunSummary, edge_length_mm: f64) -> EstimateBeside3d {
         let design = match design {
             Some(outcome) => outcome.clone(),
             None => EstimateOutcome::Absent { absent_because: format!("{} has no hemodynamics_estimate", design_path.display()) },
         };
+        let doubts = crate::verdict::run_doubts(run);
         let compared = match &design {
-            EstimateOutcome::Estimated(e) => compare_with_3d(e, dp_3d_mmhg, v_max_3d_m_s),
             EstimateOutcome::Absent { .. } => Err("the design has no estimate".into()),
+            EstimateOutcome::Estimated(_) if !doubts.is_empty() => Err(format!("the 3D run is no reference: {}", doubts.join("; "))),
+            EstimateOutcome::Estimated(e) => compare_with_3d(e, dp_3d_mmhg, v_max_3d_m_s),
         };
         let (comparison_with_3d, comparison_absent_because) = match compared {
             Ok(c) => (Some(c), None),
             Err(why) => (None, Some(why)),
         };
-        EstimateBeside3d { design, comparison_with_3d, comparison_absent_because, verdict_uses: "the 3D dp (dp_peak_mmhg); the estimate never changes the verdict" }
+        let compared_with = compared_run_text(run, edge_length_mm);
+        EstimateBeside3d { design, comparison_with_3d, comparison_absent_because, compared_with, verdict_uses: "the 3D dp (dp_peak_mmhg); the estimate never changes the verdict" }
     }
 
     /// One paragraph for report.html, beside the 3D dp.
     fn text(&self) -> String {
         match (&self.design, &self.comparison_with_3d, &self.comparison_absent_because) {
-            (_, Some(c), _) => format!("{} The verdict uses the 3D dp.", c.text),
+            (_, Some(c), _) => format!("{} Compared with {}. The verdict uses the 3D dp.", c.text, self.compared_with),
             (EstimateOutcome::Estimated(e), None, why) => format!(
                 "Reduced-order estimate (not a CFD result): {:.2} mmHg, v_max {:.2} m/s at peak flow {:.1} ml/s; not compared with the 3D run ({}). The verdict uses the 3D dp.",
                 e.dp_estimate_mmhg,
@@ -780,7 +801,7 @@ pub fn write_reports(args: &PlanSettings, stages: &[Stage], records: &[StageReco
     flow_line.write_with_fields(reference_mmhg)?;
     let prepare = prepare_summary(&layout, records)?;
     let paper = input_path(args).and_then(paper::PaperPatient::of_input);
-    let estimate = EstimateBeside3d::of(design.hemodynamics_estimate.as_ref(), &design_path, dp, profile.v_max_m_s());
+    let estimate = EstimateBeside3d::of(design.hemodynamics_estimate.as_ref(), &design_path, dp, profile.v_max_m_s(), &nominal.summary, nominal.edge_length_mm);
 
     let run_rows: Vec<Value> = runs
         .iter()
@@ -1026,32 +1047,56 @@ mod tests {
         assert!(text.contains("0.66 mm apart") && text.contains("moved 2.00 mm into the LV") && text.contains("4.00 mm up the aortic root"), "{text}");
     }
 
+    /// The estimate of a straight 60 mm2 tunnel between 90 and 120 mm2 planes at 70 ml/s.
+    fn straight_tunnel_estimate() -> baffle_core::analyses::hemodynamics_estimate::HemodynamicsEstimate {
+        let tunnel = baffle_core::analyses::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
+        baffle_core::analyses::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap()
+    }
+
     #[test]
     fn the_designs_estimate_is_read_typed_and_set_beside_the_3d_run() {
         let path = Path::new("design/report.json");
-        let tunnel = baffle_core::analyses::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
-        let e = baffle_core::analyses::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap();
+        let e = straight_tunnel_estimate();
         let estimated = EstimateOutcome::Estimated(e.clone());
         let design = Some(&estimated);
+        let quick = crate::run_summary::completed_run(crate::case::QUICK_MODE);
         // The 3D dp equal to the estimate: within its measured error.
-        let near = EstimateBeside3d::of(design, path, e.dp_estimate_mmhg, e.v_max_estimate_m_s);
+        let near = EstimateBeside3d::of(design, path, e.dp_estimate_mmhg, e.v_max_estimate_m_s, &quick, 0.6);
         assert_eq!(near.design, EstimateOutcome::Estimated(e.clone()));
         let c = near.comparison_with_3d.as_ref().unwrap();
         assert!(c.dp_within_measured_error && c.v_max_within_measured_error && c.dp_3d_mmhg == e.dp_estimate_mmhg);
         assert!(near.text().starts_with("Reduced-order estimate (not a CFD result):") && !near.text().contains("disagree"), "{}", near.text());
         // 3D dp 20 mmHg above the estimate: beyond the range, and the text says so.
-        let far = EstimateBeside3d::of(design, path, e.dp_estimate_mmhg + 20.0, e.v_max_estimate_m_s);
+        let far = EstimateBeside3d::of(design, path, e.dp_estimate_mmhg + 20.0, e.v_max_estimate_m_s, &quick, 0.6);
         assert!(far.text().contains("disagree on dp beyond") && far.text().contains("verdict uses"), "{}", far.text());
         let report = serde_json::to_value(&far).unwrap();
         assert_eq!(report["comparison_with_3d"]["dp_within_measured_error"], false);
         assert_eq!(report["design"]["dp_estimate_mmhg"].as_f64(), Some(e.dp_estimate_mmhg));
         // No 3D v_max sampled: the estimate stands, the comparison says why not.
-        let unsampled = EstimateBeside3d::of(design, path, 1.0, f64::NAN);
+        let unsampled = EstimateBeside3d::of(design, path, 1.0, f64::NAN, &quick, 0.6);
         assert!(unsampled.comparison_with_3d.is_none() && unsampled.text().contains("not compared with the 3D run (hemodynamics estimate comparison: the 3D v_max"), "{}", unsampled.text());
         // Without an estimate: why, in one line.
         let absent = EstimateOutcome::Absent { absent_because: "no peak flow given".into() };
-        assert_eq!(EstimateBeside3d::of(Some(&absent), path, 1.0, 1.0).text(), "No reduced-order estimate of dp: no peak flow given.");
-        assert!(EstimateBeside3d::of(None, path, 1.0, 1.0).text().contains("design/report.json has no hemodynamics_estimate"));
+        assert_eq!(EstimateBeside3d::of(Some(&absent), path, 1.0, 1.0, &quick, 0.6).text(), "No reduced-order estimate of dp: no peak flow given.");
+        assert!(EstimateBeside3d::of(None, path, 1.0, 1.0, &quick, 0.6).text().contains("design/report.json has no hemodynamics_estimate"));
+    }
+
+    #[test]
+    fn the_estimate_says_which_3d_run_it_is_set_beside_and_skips_a_doubtful_one() {
+        let path = Path::new("design/report.json");
+        let e = straight_tunnel_estimate();
+        let estimated = EstimateOutcome::Estimated(e.clone());
+        let beside = |run: &RunSummary| EstimateBeside3d::of(Some(&estimated), path, e.dp_estimate_mmhg, e.v_max_estimate_m_s, run, 0.85);
+        let quick = beside(&crate::run_summary::completed_run(crate::case::QUICK_MODE));
+        assert!(quick.text().contains("first flow peak of the nominal 0.85 mm mesh") && !quick.text().contains("fourth cycle"), "{}", quick.text());
+        // Four settled cycles: compared, with what is known of the last peak against the first.
+        let cycles = RunSummary { periodicity_nrmsd: Some(1e-5), ..crate::run_summary::completed_run("transient") };
+        let four = beside(&cycles);
+        assert!(four.comparison_with_3d.is_some() && four.text().contains("last cycle's flow peak") && four.text().contains("within 0.031 mmHg"), "{}", four.text());
+        // A steady solve stopped at its cap is no reference: no comparison, and why.
+        let stalled = beside(&RunSummary { converged: false, ..crate::run_summary::completed_run("steady") });
+        assert!(stalled.comparison_with_3d.is_none(), "an unconverged 3D run must not be compared");
+        assert!(stalled.text().contains("not compared with the 3D run (the 3D run is no reference: the steady solve did not reach its residual target"), "{}", stalled.text());
     }
 
     /// A design's report.json as the design stage writes it (the phantom's), as JSON.
