@@ -11,7 +11,7 @@ results per member there (failures with their error; the 3D planes re-measured w
 `table` prints (markdown) the planes' kinetic-energy coefficients against the model's uniform
 flow, the planes' pressure coefficients A and B (plane_coefficients), and the error distribution
 of the derived stenosis model (the code's estimate before the planes' coefficients) and of
-three models fitted on the even seeds (the median plane coefficients are the code's estimate), on the odd seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
+three models fitted on the fit part (`--fit-part`, by default the even seeds; the median plane coefficients are the code's estimate), on the held-out seeds and, with --patients, on p1-p3's 21 rows of hemodynamics_estimate.py
 (their estimates made into OUT).
 """
 import argparse
@@ -105,7 +105,9 @@ def main():
     r.add_argument("--baffle", default="target/release/baffle")
     r.add_argument("--edge-length-mm", type=float, default=0.6)
     t = sub.add_parser("table")
-    t.add_argument("dir", nargs="+", help="one or more family folders; the fit takes the even seeds of all")
+    t.add_argument("dir", nargs="+", help="one or more family folders; the fit takes the seeds of --fit-part of all")
+    t.add_argument("--fit-part", default="2:0", metavar="M:R",
+                   help="the fit part is the members whose seed is R modulo M (default 2:0, the even seeds; 4:1 for folders that hold odd seeds only); the rest are held out")
     t.add_argument("--patients", type=Path, help="also the 21 p1-p3 rows of hemodynamics_estimate.py, estimated into this folder")
     t.add_argument("--baffle", default="target/release/baffle")
     t.add_argument("--re-estimate", action="store_true",
@@ -263,7 +265,7 @@ def crossing_angle_fit(fit_rows, held_rows):
     y = lambda rows: np.array([r["planes"]["11"]["crossing_angle_deg"] for r in rows])  # noqa: E731
     coef, *_ = np.linalg.lstsq(x(fit_rows), y(fit_rows), rcond=None)
     residual = y(held_rows) - x(held_rows) @ coef
-    return (f"\ncrossing angle (degrees) = {coef[0]:.3f} inflow + {coef[1]:.3f} outflow + {coef[2]:.2f} on the even seeds; "
+    return (f"\ncrossing angle (degrees) = {coef[0]:.3f} inflow + {coef[1]:.3f} outflow + {coef[2]:.2f} on the fit part; "
             f"held-out residual 5 / 50 / 95 %: {' / '.join(f'{v:+.1f}' for v in np.percentile(residual, [5, 50, 95]))}")
 
 
@@ -320,23 +322,26 @@ def table(args):
     families = {Path(d).name: family_rows(Path(d), args.baffle if args.re_estimate else None) for d in args.dir}
     ok = [r for rows in families.values() for r in rows]
     pair = lambda r: (r["estimate"], r["comparison"]["dp_3d_mmhg"])
-    fit_rows = [r for r in ok if r["seed"] % 2 == 0]
-    held_rows = [r for r in ok if r["seed"] % 2 == 1]
+    modulus, remainder = (int(x) for x in args.fit_part.split(":"))
+    in_fit = lambda r: r["seed"] % modulus == remainder
+    part_name = f"seeds {remainder} mod {modulus}"
+    fit_rows = [r for r in ok if in_fit(r)]
+    held_rows = [r for r in ok if not in_fit(r)]
     fit, held = [pair(r) for r in fit_rows], [pair(r) for r in held_rows]
     coef = fit_dynamic_weights(fit)
     jet_coef = fit_jet_weights(fit)
     plane_coef = fit_plane_coefficients(fit_rows)
-    print(f"\nfitted on the {len(fit)} even seeds: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
-    print(f"fitted on the {len(fit)} even seeds: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
-    print(f"plane coefficients, medians of the {len(fit)} even seeds: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
+    print(f"\nfitted on the {len(fit)} {part_name}: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
+    print(f"fitted on the {len(fit)} {part_name}: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
+    print(f"plane coefficients, medians of the {len(fit)} {part_name}: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
     for name, rows in families.items():
         print(f"\n{name}:" + where_the_estimate_misses(rows))
     print(crossing_angle_fit(fit_rows, held_rows))
     print("\n| model, rows | within 20 % or 1 mmHg | error min / 5 % / median / 95 % / max (mmHg) | relative error 5 / 50 / 95 % (rows with 3D dp > 1 mmHg) |")
     print("|---|---|---|---|")
-    parts = [("fit part (even seeds)", fit), ("held-out part (odd seeds)", held)]
+    parts = [(f"fit part ({part_name})", fit), ("held-out part (the other seeds)", held)]
     if len(families) > 1:
-        parts += [(f"held-out part of {name}", [pair(r) for r in rows if r["seed"] % 2 == 1]) for name, rows in families.items()]
+        parts += [(f"held-out part of {name}", [pair(r) for r in rows if not in_fit(r)]) for name, rows in families.items()]
     # The code's coefficients were fitted on some families' even seeds only: a family made
     # after them is held out whole.
     parts += [(f"every member of {name}", [pair(r) for r in rows]) for name, rows in families.items()]

@@ -7,9 +7,11 @@
 //! plane's static pressure lies below its flow-weighted total P11, B = (P11 - p16) /
 //! K_throat how far the aortic plane's does (the losses and the kinetic energy left there).
 //! A and B are measured on 3D first-peak runs: `VSD_PLANE_COEFFICIENT_A` and
-//! `THROAT_COEFFICIENT_B` are their medians over the fit half of three synthetic flow
-//! families (docs/hemodynamics_estimate.md, "Which plane decides dp"), fitted, and checked on
-//! the members they never saw and on p1-p3. A cos^2 of the flow's angle to the VSD plane is
+//! `THROAT_COEFFICIENT_B` are their medians over the fit part of three synthetic flow
+//! families as today's design makes them (docs/hemodynamics_estimate.md, "Which plane decides
+//! dp" and "Re-fitted on the steady split's designs"), fitted, and checked on the members they
+//! never saw and on p1-p3. They belong to the designs they were fitted on: the seam's steady
+//! split widened the families' tunnels and lowered the median B from 1.81 to 1.57. A cos^2 of the flow's angle to the VSD plane is
 //! 1.25-1.74 on the 300 members and 1.46-1.59 on p1-p3, near a sharp orifice's momentum
 //! balance (1.41), so A is the flow's obliquity at the VSD, which the tunnel's sections do
 //! not give; B holds the throat jet's losses, which the derived model below underestimates.
@@ -191,44 +193,42 @@ pub struct HemodynamicsEstimate {
 }
 
 /// The VSD plane's pressure coefficient A = (P11 - p11) / K_vsd: the median over the fit
-/// part (even seeds) of the three flow families' 3D first-peak runs on 0.6 mm meshes
+/// part (seeds 1 mod 4 of the odd seeds, 75 members, planned with the steady seam split of
+/// 65ba6e5) of the three flow families' 3D first-peak runs on 0.6 mm meshes
 /// (`scripts/validation/flow_family.py table`; fitted to 3D runs, see the module's doc).
-pub const VSD_PLANE_COEFFICIENT_A: f64 = 1.693;
+pub const VSD_PLANE_COEFFICIENT_A: f64 = 1.545;
 /// The aortic plane's pressure coefficient per throat dynamic pressure, B = (P11 - p16) /
 /// K_throat: the median over the same runs.
-pub const THROAT_COEFFICIENT_B: f64 = 1.807;
+pub const THROAT_COEFFICIENT_B: f64 = 1.570;
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg), over
-/// the rows of docs/hemodynamics_estimate.md, estimated by the code since commit e95dac5
-/// (sections in the lumen's own frame): the 430 synthetic hearts of five flow families
-/// (`scripts/validation/flow_family.py table --re-estimate`, the plan's quick run on one 0.6 mm
-/// mesh: -4.87 to +9.27 on the three the coefficients were fitted on, the fit's half included;
-/// -2.06 to +1.49 and -0.29 to +3.69 on the two oblique-LV families made after them) and p1-p3's published domains and
-/// designs on the paper's design input (`scripts/validation/hemodynamics_estimate.py`; 3D first
-/// peak on 0.6 mm meshes, 20 rows: -1.58 to +3.26, and on 0.85 / 1.25 mm meshes, 21 rows: -5.32
-/// at p1 z = 0 to +3.19 at p2 z = -0.25; the designs re-made by the steady seam split of
-/// 65ba6e5, 18 rows at 0.6 mm: -0.65 to +2.64). The coefficients are fitted on half of three
-/// families; this is the measured spread, not a model property, and a design unlike them can
-/// fall outside it.
-pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-5.32, 9.27);
+/// the 752 rows of docs/hemodynamics_estimate.md ("Re-fitted on the steady split's designs"),
+/// with today's coefficients: the 280 members of five flow families re-planned with the steady
+/// seam split (the plan's quick run on one 0.6 mm mesh; -2.85 to +6.00, the fit part included),
+/// the same families' 430 members as planned before it (their designed domains estimated again:
+/// -6.33 to +5.75) and p1-p3's published domains and designs (3D first peak on 0.6 mm meshes,
+/// today's designs, 21 rows: -1.24 to +2.10; on 0.85 / 1.25 mm meshes, the earlier designs, 21
+/// rows: -6.30 to +2.57). The coefficients are fitted on a quarter of three families; this is
+/// the measured spread, not a model property, and a design unlike them can fall outside it.
+pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-6.33, 6.00);
 /// The measured range of the v_max estimate's relative error, (estimate - 3D) / 3D with
 /// the 3D value the first-peak maximum speed on the flow centerline, over the same rows:
-/// -15 % (p2 z = 3) to +5 % (p1 published) on p1-p3, -12 % to +49 % on the flow families
-/// (medians +11 %, +20 % and +8 %: the first two's annulus, a tube's sharp rim, is the throat on
-/// most members).
-pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.49);
+/// -15 % (p2 z = 3) to +5 % (p1 published) on p1-p3, -7 % to +51 % on the re-planned flow
+/// families (median +18 %: the first two's annulus, a tube's sharp rim, is the throat on most
+/// members).
+pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.51);
 
 /// The measured error of dp against the 3D first peak, in words (from `DP_ERROR_RANGE_MMHG`).
 pub fn dp_uncertainty() -> String {
     let (below, above) = (-DP_ERROR_RANGE_MMHG.0, DP_ERROR_RANGE_MMHG.1);
-    format!("against the 3D first-peak static dp (471 rows of docs/hemodynamics_estimate.md: 430 synthetic hearts of five flow families on 0.6 mm meshes, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.03 above); within 20 % or 1 mmHg on 120 of the 150 family members its two coefficients were not fitted on, on 97 of 100 and 24 of 30 members of two families with oblique LV inflow made after the fit, on today's designs of p1-p3's design inputs and their published domains (0.6 mm) p1 4 of 4, p3 7 of 7 and p2 1 of 10. Where the LV feeds the VSD as obliquely as p1-p3's (the mid-LV plane's centre 50-70 degrees off the VSD's normal) it tends to lie high: p2's by 0.6-2.6 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
+    format!("against the 3D first-peak static dp (752 rows of docs/hemodynamics_estimate.md: 710 synthetic hearts of five flow families on 0.6 mm meshes, 280 of them as today's design makes them, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.19 below); within 20 % or 1 mmHg on 185 of the 205 family members made by today's design that its two coefficients were not fitted on, but on only 9 of the 19 of them whose 3D dp exceeds 5 mmHg (relative error 5 / 50 / 95 %: -32 / +3 / +30 %), and on p1-p3's designs and published domains (0.6 mm) p1 3 of 4, p3 7 of 7 and p2 3 of 10. Where the LV feeds the VSD as obliquely as p2's it lies high: p2's by up to 2.1 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
 }
 
 /// The measured error of v_max against the 3D centerline maximum on the same rows, in
 /// words (from `V_MAX_RELATIVE_ERROR_RANGE`).
 pub fn v_max_uncertainty() -> String {
     let (lo, hi) = (V_MAX_RELATIVE_ERROR_RANGE.0 * 100.0, V_MAX_RELATIVE_ERROR_RANGE.1 * 100.0);
-    format!("{lo:+.0} % to {hi:+.0} % of the 3D first-peak maximum speed on the flow centerline (the 300 family members and p1-p3's 21 rows on 1.25 mm meshes, docs/hemodynamics_estimate.md)")
+    format!("{lo:+.0} % to {hi:+.0} % of the 3D first-peak maximum speed on the flow centerline (the 280 re-planned family members and p1-p3's 21 rows on 1.25 mm meshes, docs/hemodynamics_estimate.md)")
 }
 
 /// The estimate beside a 3D run's dp and v_max: the differences, and whether each lies
@@ -294,7 +294,7 @@ pub fn compare_with_3d(estimate: &HemodynamicsEstimate, dp_3d_mmhg: f64, v_max_3
 
 /// What the estimate is, in words for the report (its coefficients from the constants).
 fn method() -> String {
-    format!("the planes' pressure coefficients: dp = B K_throat - A K_vsd, K = rho/2 (Q/A)^2 of the throat (the narrowest flow-normal section or plane) and of the VSD plane, A = {VSD_PLANE_COEFFICIENT_A:.3} and B = {THROAT_COEFFICIENT_B:.3} the medians of 3D first-peak runs on the fit half of three synthetic flow families (fitted to 3D runs; docs/hemodynamics_estimate.md); beside it the derived one-throat stenosis model (Bernoulli between the planes, expansion loss Kt 1.52 after Seeley & Young 1976, Hagen-Poiseuille friction after Young & Tsai 1973, the free round jet's unrecovered energy after Hussein et al. 1994; no coefficient fitted) as stenosis_model_dp_mmhg; v_max = Q / (0.62 A_throat) (vena contracta) (baffle_core::analyses::hemodynamics_estimate)")
+    format!("the planes' pressure coefficients: dp = B K_throat - A K_vsd, K = rho/2 (Q/A)^2 of the throat (the narrowest flow-normal section or plane) and of the VSD plane, A = {VSD_PLANE_COEFFICIENT_A:.3} and B = {THROAT_COEFFICIENT_B:.3} the medians of 3D first-peak runs on the fit part of three synthetic flow families (fitted to 3D runs; docs/hemodynamics_estimate.md); beside it the derived one-throat stenosis model (Bernoulli between the planes, expansion loss Kt 1.52 after Seeley & Young 1976, Hagen-Poiseuille friction after Young & Tsai 1973, the free round jet's unrecovered energy after Hussein et al. 1994; no coefficient fitted) as stenosis_model_dp_mmhg; v_max = Q / (0.62 A_throat) (vena contracta) (baffle_core::analyses::hemodynamics_estimate)")
 }
 
 /// A section's mean velocity (cm/s) at flow `q_ml_s` through `area_mm2`.
@@ -534,9 +534,9 @@ mod tests {
         let e = estimate(&tube(&[100.0, 60.0, 40.0, 60.0, 80.0], 2.0, 100.0, 80.0), Q, Blood::default()).unwrap();
         let (k_t, k_vsd) = (0.53 * 175.0f64.powi(2) / DYN_CM2_PER_MMHG, 0.53 * 70.0f64.powi(2) / DYN_CM2_PER_MMHG);
         assert!((e.k_throat_mmhg - k_t).abs() < 1e-9 && (e.k_vsd_mmhg - k_vsd).abs() < 1e-9, "{e:?}");
-        assert!((e.dp_estimate_mmhg - (1.807 * k_t - 1.693 * k_vsd)).abs() < 1e-9, "{e:?}");
+        assert!((e.dp_estimate_mmhg - (1.570 * k_t - 1.545 * k_vsd)).abs() < 1e-9, "{e:?}");
         assert_eq!((e.vsd_plane_coefficient_a, e.throat_coefficient_b), (VSD_PLANE_COEFFICIENT_A, THROAT_COEFFICIENT_B));
-        assert!(e.method.contains("A = 1.693 and B = 1.807") && e.method.contains("fitted to 3D runs"), "{}", e.method);
+        assert!(e.method.contains("A = 1.545 and B = 1.570") && e.method.contains("fitted to 3D runs"), "{}", e.method);
         // A report written before the coefficients reads back, without them.
         let mut old = serde_json::to_value(&e).unwrap();
         for key in ["k_throat_mmhg", "k_vsd_mmhg", "vsd_plane_coefficient_a", "throat_coefficient_b", "stenosis_model_dp_mmhg"] {
@@ -671,7 +671,7 @@ mod tests {
         assert!((e.dp_estimate_mmhg - (THROAT_COEFFICIENT_B * e.k_throat_mmhg - VSD_PLANE_COEFFICIENT_A * e.k_vsd_mmhg)).abs() < 1e-12, "{e:?}");
         assert!((0.0..=1.0).contains(&e.recovered_fraction) && e.aortic_plane_at_mm > e.throat_at_mm, "{e:?}");
         assert!((e.v_max_estimate_m_s - Q / (e.throat_area_mm2 * 1e-2) / VENA_CONTRACTA_CC * 1e-2).abs() < 1e-12);
-        assert!(e.friction_mmhg > 0.0 && e.wall_time_ms > 0.0 && e.dp_uncertainty.contains("120 of the 150"));
+        assert!(e.friction_mmhg > 0.0 && e.wall_time_ms > 0.0 && e.dp_uncertainty.contains("185 of the 205"));
         // A scene turned and moved in Slicer: the same sections, so the same estimate (the
         // centerline and the sections follow the lumen's own frame, not the scene's axes).
         let turn = nalgebra::Rotation3::from_euler_angles(37f64.to_radians(), -23f64.to_radians(), 61f64.to_radians());
@@ -690,9 +690,11 @@ mod tests {
     fn the_published_domains_are_estimated_as_the_validation_says() {
         let Some(dir) = baffle_test_support::reference_data::reference_data_if_present() else { return };
         let patients: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("patients.json")).unwrap()).unwrap();
-        // (patient, 3D dp static, 3D dp total flow-weighted, 3D v_max on the centerline), the
-        // current solver's rows (docs/validation.md, "Re-run on the current solver and design").
-        for (patient, dp_3d, dp_total_3d, v_3d) in [("p1", 5.00, 2.80, 1.59), ("p2", -0.02, 1.72, 1.60), ("p3", 6.15, 2.61, 1.72)] {
+        // (patient, 3D dp static on 0.6 mm meshes, the criterion's reference (docs/
+        // hemodynamics_estimate.md, "p1-p3 on the steady split's designs"); on 1.25 mm meshes, 3D
+        // dp total flow-weighted and v_max on the centerline there (docs/validation.md, "Re-run
+        // on the current solver and design")).
+        for (patient, dp_3d_fine, dp_3d, dp_total_3d, v_3d) in [("p1", 4.13, 5.00, 2.80, 1.59), ("p2", 0.06, -0.02, 1.72, 1.60), ("p3", 5.29, 6.15, 2.61, 1.72)] {
             let mut domain = crate::io::read_surface_labeled(&dir.join(patient).join("published_M_final.vtp")).unwrap().mesh;
             domain.points.iter_mut().for_each(|p| *p *= 10.0); // cm -> mm
             let q = patients["patients"][patient]["q_peak_ml_s"].as_f64().unwrap();
@@ -701,12 +703,15 @@ mod tests {
             eprintln!("{patient}: {e:?} in {:.2} s", started.elapsed().as_secs_f64());
             assert!((e.v_max_estimate_m_s - v_3d).abs() <= 0.2 * v_3d, "{patient}: v_max {} vs 3D {v_3d}", e.v_max_estimate_m_s);
             let loss = e.expansion_loss_mmhg + e.friction_mmhg;
-            let within = |dp: f64| (dp - dp_3d).abs() <= (0.2 * dp_3d.abs()).max(1.0);
+            let error = e.dp_estimate_mmhg - dp_3d_fine;
             match patient {
+                "p1" => assert!(error.abs() <= (0.2 * dp_3d_fine).max(1.0), "p1: dp {} vs 3D {dp_3d_fine}", e.dp_estimate_mmhg),
                 // p2's flow crosses its VSD plane at 39 degrees (the families' 13-25), so its
                 // VSD-plane coefficient is 2.64, not A: the estimate lies above the 3D dp.
-                "p2" => assert!(e.dp_estimate_mmhg > dp_3d + 1.0, "p2: dp {} vs 3D {dp_3d}: better than documented", e.dp_estimate_mmhg),
-                _ => assert!(within(e.dp_estimate_mmhg), "{patient}: dp {} vs 3D {dp_3d}", e.dp_estimate_mmhg),
+                "p2" => assert!(error > 1.0, "p2: dp {} vs 3D {dp_3d_fine}: better than documented", e.dp_estimate_mmhg),
+                // p3's published domain lies at the criterion's edge, 0.98-1.14 mmHg below (the
+                // centerline's and these sections' throats differ by 1 %).
+                _ => assert!((-1.3..=-0.8).contains(&error), "p3: dp {} vs 3D {dp_3d_fine}: not as documented", e.dp_estimate_mmhg),
             }
             // The derived model: p2 within 1 mmHg, a lower bound on p1 and p3 (the jet is not
             // mixed out at the aortic plane).
@@ -774,8 +779,8 @@ mod tests {
     #[test]
     fn the_uncertainty_texts_state_the_measured_ranges() {
         let e = estimate_of(1.0, 1.0);
-        assert!(e.dp_uncertainty.contains("from 5.32 mmHg below to 9.27 mmHg above"), "{}", e.dp_uncertainty);
-        assert!(e.v_max_uncertainty.starts_with("-15 % to +49 %"), "{}", e.v_max_uncertainty);
+        assert!(e.dp_uncertainty.contains("from 6.33 mmHg below to 6.00 mmHg above"), "{}", e.dp_uncertainty);
+        assert!(e.v_max_uncertainty.starts_with("-15 % to +51 %"), "{}", e.v_max_uncertainty);
         // What a design writes reads back as the same outcome (baffle plan's report reads it).
         for outcome in [EstimateOutcome::Estimated(e), EstimateOutcome::Absent { absent_because: "no flow".into() }] {
             let back: EstimateOutcome = serde_json::from_value(serde_json::to_value(&outcome).unwrap()).unwrap();
