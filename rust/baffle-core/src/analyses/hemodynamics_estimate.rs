@@ -11,10 +11,10 @@
 //! families as today's design makes them (docs/hemodynamics_estimate.md, "Which plane decides
 //! dp" and "Re-fitted on the steady split's designs"), fitted, and checked on the members they
 //! never saw and on p1-p3. They belong to the designs they were fitted on: the seam's steady
-//! split widened the families' tunnels and lowered the median B from 1.81 to 1.57. A cos^2 of the flow's angle to the VSD plane is
-//! 1.25-1.74 on the 300 members and 1.46-1.59 on p1-p3, near a sharp orifice's momentum
-//! balance (1.41), so A is the flow's obliquity at the VSD, which the tunnel's sections do
-//! not give; B holds the throat jet's losses, which the derived model below underestimates.
+//! split widened the families' tunnels and lowered the median B from 1.81 to 1.57. A cos^2 of
+//! the flow's angle to the VSD plane is 1.25-1.74 on the 300 members and 1.46-1.59 on p1-p3,
+//! near a sharp orifice's momentum balance (1.41), so A is the flow's obliquity at the VSD,
+//! which the tunnel's sections do not give; B holds the throat jet's losses, which the derived model below underestimates.
 //!
 //! The derived model, reported beside it (`stenosis_model_dp_mmhg`, no coefficient fitted;
 //! below every 3D dp of the families, p1 and p3): the tunnel is read as one stenosis
