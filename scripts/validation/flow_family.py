@@ -208,6 +208,22 @@ def fit_plane_coefficients(fit_rows):
     return float(np.median(a)), float(np.median(b))
 
 
+def fit_plane_line(fit_rows):
+    """A's median and the least-squares line B = B0 + B1 sigma over the fit part's members,
+    sigma the estimate's `contraction_ratio` (the throat over the widest flow-normal section):
+    the code's rule since the contraction ratio (VSD_PLANE_COEFFICIENT_A, THROAT_COEFFICIENT_B0/1)."""
+    import numpy as np
+    a, b = zip(*(plane_coefficients(r) for r in fit_rows))
+    b1, b0 = np.polyfit([r["estimate"]["contraction_ratio"] for r in fit_rows], b, 1)
+    return float(np.median(a)), float(b0), float(b1)
+
+
+def plane_line_mmhg(coef, e):
+    """dp = (B0 + B1 sigma) K_throat - A K_vsd with `fit_plane_line`'s coefficients."""
+    a, b0, b1 = coef
+    return (b0 + b1 * e["contraction_ratio"]) * dynamic_mmhg(e, "throat_area_mm2") - a * dynamic_mmhg(e, "vsd_area_mm2")
+
+
 def plane_model_mmhg(coef, e):
     """dp = B K_throat - A K_vsd with the fitted plane coefficients (friction is in B)."""
     a, b = coef
@@ -334,6 +350,10 @@ def table(args):
     print(f"\nfitted on the {len(fit)} {part_name}: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
     print(f"fitted on the {len(fit)} {part_name}: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
     print(f"plane coefficients, medians of the {len(fit)} {part_name}: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
+    # Reports written before the contraction ratio was estimated have none (--re-estimate).
+    line_coef = fit_plane_line(fit_rows) if all("contraction_ratio" in r["estimate"] for r in ok) else None
+    if line_coef:
+        print(f"plane coefficients on the {len(fit)} {part_name}: A = {line_coef[0]:.3f} (median), B = {line_coef[1]:.3f} + {line_coef[2]:.3f} sigma (least squares; sigma = throat / widest flow-normal section)")
     for name, rows in families.items():
         print(f"\n{name}:" + where_the_estimate_misses(rows))
     print(crossing_angle_fit(fit_rows, held_rows))
@@ -353,6 +373,8 @@ def table(args):
         print(summary(f"fitted dynamic weights, {name}", [(fitted_mmhg(coef, e), dp) for e, dp in part]))
         print(summary(f"fitted jet and VSD coefficients, {name}", [(jet_fitted_mmhg(jet_coef, e), dp) for e, dp in part]))
         print(summary(f"median plane coefficients, {name}", [(plane_model_mmhg(plane_coef, e), dp) for e, dp in part]))
+        if line_coef and all("contraction_ratio" in e for e, _ in part):
+            print(summary(f"plane coefficients, B on the contraction ratio, {name}", [(plane_line_mmhg(line_coef, e), dp) for e, dp in part]))
 
 
 if __name__ == "__main__":
