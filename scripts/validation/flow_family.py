@@ -209,19 +209,26 @@ def fit_plane_coefficients(fit_rows):
 
 
 def fit_plane_line(fit_rows):
-    """A's median and the least-squares line B = B0 + B1 sigma over the fit part's members,
-    sigma the estimate's `contraction_ratio` (the throat over the widest flow-normal section):
-    the code's rule since the contraction ratio (VSD_PLANE_COEFFICIENT_A, THROAT_COEFFICIENT_B0/1)."""
+    """A's median and B = B0 + B1 sigma + B2 rho by least squares over the fit part's members,
+    sigma the estimate's `contraction_ratio` (the throat over the widest flow-normal section)
+    and rho its `mean_section_aspect_ratio` (the sections' mean minor over major radius of
+    gyration): the code's rule (VSD_PLANE_COEFFICIENT_A, THROAT_COEFFICIENT_B0/1/2)."""
     import numpy as np
     a, b = zip(*(plane_coefficients(r) for r in fit_rows))
-    b1, b0 = np.polyfit([r["estimate"]["contraction_ratio"] for r in fit_rows], b, 1)
-    return float(np.median(a)), float(b0), float(b1)
+    x = np.array([line_regressors(r["estimate"]) for r in fit_rows])
+    coef, *_ = np.linalg.lstsq(x, np.array(b), rcond=None)
+    return (float(np.median(a)), *(float(c) for c in coef))
+
+
+def line_regressors(e):
+    """1, sigma and rho of an estimate (`fit_plane_line`)."""
+    return [1.0, e["contraction_ratio"], e["mean_section_aspect_ratio"]]
 
 
 def plane_line_mmhg(coef, e):
-    """dp = (B0 + B1 sigma) K_throat - A K_vsd with `fit_plane_line`'s coefficients."""
-    a, b0, b1 = coef
-    return (b0 + b1 * e["contraction_ratio"]) * dynamic_mmhg(e, "throat_area_mm2") - a * dynamic_mmhg(e, "vsd_area_mm2")
+    """dp = (B0 + B1 sigma + B2 rho) K_throat - A K_vsd with `fit_plane_line`'s coefficients."""
+    a, *b = coef
+    return sum(c * x for c, x in zip(b, line_regressors(e))) * dynamic_mmhg(e, "throat_area_mm2") - a * dynamic_mmhg(e, "vsd_area_mm2")
 
 
 def plane_model_mmhg(coef, e):
@@ -351,9 +358,10 @@ def table(args):
     print(f"fitted on the {len(fit)} {part_name}: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
     print(f"plane coefficients, medians of the {len(fit)} {part_name}: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
     # Reports written before the contraction ratio was estimated have none (--re-estimate).
-    line_coef = fit_plane_line(fit_rows) if all("contraction_ratio" in r["estimate"] for r in ok) else None
+    line_coef = fit_plane_line(fit_rows) if all("mean_section_aspect_ratio" in r["estimate"] for r in ok) else None
     if line_coef:
-        print(f"plane coefficients on the {len(fit)} {part_name}: A = {line_coef[0]:.3f} (median), B = {line_coef[1]:.3f} + {line_coef[2]:.3f} sigma (least squares; sigma = throat / widest flow-normal section)")
+        print(f"plane coefficients on the {len(fit)} {part_name}: A = {line_coef[0]:.3f} (median), B = {line_coef[1]:.3f} {line_coef[2]:+.3f} sigma {line_coef[3]:+.3f} rho "
+              "(least squares; sigma = throat / widest flow-normal section, rho = the sections' mean aspect ratio)")
     for name, rows in families.items():
         print(f"\n{name}:" + where_the_estimate_misses(rows))
     print(crossing_angle_fit(fit_rows, held_rows))
@@ -373,8 +381,8 @@ def table(args):
         print(summary(f"fitted dynamic weights, {name}", [(fitted_mmhg(coef, e), dp) for e, dp in part]))
         print(summary(f"fitted jet and VSD coefficients, {name}", [(jet_fitted_mmhg(jet_coef, e), dp) for e, dp in part]))
         print(summary(f"median plane coefficients, {name}", [(plane_model_mmhg(plane_coef, e), dp) for e, dp in part]))
-        if line_coef and all("contraction_ratio" in e for e, _ in part):
-            print(summary(f"plane coefficients, B on the contraction ratio, {name}", [(plane_line_mmhg(line_coef, e), dp) for e, dp in part]))
+        if line_coef and all("mean_section_aspect_ratio" in e for e, _ in part):
+            print(summary(f"plane coefficients, B on the contraction and aspect ratios, {name}", [(plane_line_mmhg(line_coef, e), dp) for e, dp in part]))
 
 
 if __name__ == "__main__":

@@ -544,20 +544,19 @@ def test_the_plane_coefficients_give_back_the_3d_dp_and_their_medians_fit():
 
 
 
-def test_the_b_line_on_the_contraction_ratio_recovers_a_known_line():
-    # Members whose B is exactly 1.2 + 0.5 sigma and whose A is 1.4, 1.6, 1.5: the fit gives the
-    # line back with A's median, and its dp is the planes' static difference.
-    def member(q, sigma, a):
-        e = dict(_estimate(q, 100.0, 50.0, 60.0), contraction_ratio=sigma)
+def test_the_b_line_on_the_contraction_and_aspect_ratios_recovers_a_known_plane():
+    # Members whose B is exactly 1.9 + 0.5 sigma - 0.8 rho and whose A is 1.4, 1.6, 1.5, 1.5:
+    # the fit gives the plane back with A's median, and its dp is the planes' static difference.
+    def member(q, sigma, rho, a):
+        e = dict(_estimate(q, 100.0, 50.0, 60.0), contraction_ratio=sigma, mean_section_aspect_ratio=rho)
         k_vsd, k_t = flow_family.dynamic_mmhg(e, "vsd_area_mm2"), flow_family.dynamic_mmhg(e, "throat_area_mm2")
-        planes = {"11": {"total": 100.0, "p": 100.0 - a * k_vsd}, "16": {"p": 100.0 - (1.2 + 0.5 * sigma) * k_t}}
+        planes = {"11": {"total": 100.0, "p": 100.0 - a * k_vsd}, "16": {"p": 100.0 - (1.9 + 0.5 * sigma - 0.8 * rho) * k_t}}
         return {"estimate": e, "planes": planes}
-    fit = [member(70.0, 0.3, 1.4), member(50.0, 0.6, 1.6), member(90.0, 0.9, 1.5)]
-    assert flow_family.fit_plane_line(fit) == pytest.approx((1.5, 1.2, 0.5), rel=1e-9)
-    r = member(60.0, 0.45, 1.5)
+    fit = [member(70.0, 0.3, 0.9, 1.4), member(50.0, 0.6, 0.6, 1.6), member(90.0, 0.9, 0.8, 1.5), member(60.0, 0.5, 0.5, 1.5)]
+    assert flow_family.fit_plane_line(fit) == pytest.approx((1.5, 1.9, 0.5, -0.8), rel=1e-9)
+    r = member(60.0, 0.45, 0.7, 1.5)
     dp = r["planes"]["11"]["p"] - r["planes"]["16"]["p"]
-    assert flow_family.plane_line_mmhg((1.5, 1.2, 0.5), r["estimate"]) == pytest.approx(dp, rel=1e-12)
-
+    assert flow_family.plane_line_mmhg((1.5, 1.9, 0.5, -0.8), r["estimate"]) == pytest.approx(dp, rel=1e-12)
 
 import potential_flow  # noqa: E402
 

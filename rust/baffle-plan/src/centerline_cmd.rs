@@ -7,7 +7,7 @@ use crate::error::PlanError;
 use crate::sampling::{PeakFields, Profile};
 use crate::files::write_atomic;
 use crate::progress::Progress;
-use baffle_core::analyses::flow_centerline::{flow_centerline, flow_normal_sections, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
+use baffle_core::analyses::flow_centerline::{flow_centerline, flow_normal_section_shapes, smallest_section, CenterlineOptions, FlowCenterline, Lumen, MeasurementPlane};
 use baffle_core::analyses::hemodynamics_estimate::{estimate, plane_area_mm2, Blood, TunnelSections};
 use baffle_core::io::{read_surface_labeled, write_vtp, DataArray, PolyData};
 use baffle_core::{FaceLabels, TriMesh};
@@ -94,6 +94,8 @@ fn two(labels: &[i32], flag: &str) -> Result<[i32; 2], String> {
 pub struct Measured {
     pub line: FlowCenterline,
     pub sections_mm2: Vec<Option<f64>>,
+    /// Each section's minor over major radius of gyration (1 round).
+    pub section_aspect_ratio: Vec<Option<f64>>,
     pub profile: Option<Profile>,
     /// The measurement planes' areas (mm2), inflow first.
     pub plane_areas_mm2: [f64; 2],
@@ -130,13 +132,15 @@ fn measure(args: &CenterlineSettings) -> Result<Measured, String> {
     let boundary = surface.with_labels(|l| !interior.contains(&l));
     let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;
-    let sections_mm2 = flow_normal_sections(&boundary, &line.points, &lumen.planes);
+    let shapes = flow_normal_section_shapes(&boundary, &line.points, &lumen.planes);
+    let sections_mm2 = shapes.iter().map(|s| s.map(|s| s.area_mm2)).collect();
+    let section_aspect_ratio = shapes.iter().map(|s| s.map(|s| s.aspect_ratio)).collect();
     let profile = match &args.results {
         Some(path) => Some(PeakFields::read(path)?.profile(&line.points)),
         None => None,
     };
     let plane_areas_mm2 = [plane_area_mm2(&lumen.planes[0]), plane_area_mm2(&lumen.planes[1])];
-    Ok(Measured { line, sections_mm2, profile, plane_areas_mm2 })
+    Ok(Measured { line, sections_mm2, section_aspect_ratio, profile, plane_areas_mm2 })
 }
 
 fn nan_for_none(v: &[Option<f64>]) -> Vec<f64> {
@@ -149,6 +153,7 @@ fn polydata(m: &Measured) -> PolyData {
         DataArray::f64("s_mm", 1, line.s_mm.clone()),
         DataArray::f64("radius_mm", 1, line.radius_mm.clone()),
         DataArray::f64("section_area_mm2", 1, nan_for_none(&m.sections_mm2)),
+        DataArray::f64("section_aspect_ratio", 1, nan_for_none(&m.section_aspect_ratio)),
     ];
     if let Some(p) = profile {
         point_data.push(DataArray::f64("pressure_mmhg", 1, nan_for_none(&p.pressure_mmhg)));
@@ -190,13 +195,14 @@ fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_j
         "timings_ms": line.timings_ms.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "s_mm": line.s_mm, "radius_mm": line.radius_mm,
         "section_area_mm2": m.sections_mm2,
+        "section_aspect_ratio": m.section_aspect_ratio,
         "min_section_mm2": smallest.map(|x| x.0), "min_section_at_mm": smallest.map(|x| x.1),
         "sections_measured": m.sections_mm2.iter().flatten().count(),
-        "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm; not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::analyses::flow_centerline::flow_normal_sections)",
+        "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm (its aspect ratio: minor over major radius of gyration of the pixels); not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::analyses::flow_centerline::flow_normal_sections)",
         "points_mm": line.points.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
     });
     if let Some(q) = args.peak_flow_ml_s {
-        let tunnel = TunnelSections { s_mm: line.s_mm.clone(), area_mm2: m.sections_mm2.clone(), vsd_area_mm2: m.plane_areas_mm2[0], aortic_area_mm2: m.plane_areas_mm2[1] };
+        let tunnel = TunnelSections { s_mm: line.s_mm.clone(), area_mm2: m.sections_mm2.clone(), aspect_ratio: m.section_aspect_ratio.clone(), vsd_area_mm2: m.plane_areas_mm2[0], aortic_area_mm2: m.plane_areas_mm2[1] };
         doc["hemodynamics_estimate"] = match estimate(&tunnel, q, Blood::default()) {
             Ok(e) => json!(e),
             Err(why) => json!({ "absent_because": why }),

@@ -43,6 +43,7 @@
 use crate::geometry::mesh::{area_centroid_normal, axes_across, manifold_report, TriMesh, Vec3};
 use crate::geometry::spatial::{ray_triangle, Aabb, TriangleBvh};
 use crate::geometry::voxel::{best_first_search, voxelize, Grid};
+use crate::geometry::plane_section::SectionShape;
 use rayon::prelude::*;
 
 /// Centerline spacing of the paper (mm).
@@ -313,6 +314,11 @@ impl MeasurementPlane {
 /// Each section is rastered in the line's own frame (`LumenFrame`), so that a rotated scene
 /// gives the same areas.
 pub fn flow_normal_sections(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<f64>> {
+    flow_normal_section_shapes(boundary, points, planes).into_iter().map(|s| s.map(|s| s.area_mm2)).collect()
+}
+
+/// [`flow_normal_sections`] with each section's shape (its aspect ratio) beside its area.
+pub fn flow_normal_section_shapes(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<SectionShape>> {
     let (Some(&first), Some(&last)) = (points.first(), points.last()) else { return Vec::new() };
     let frame = LumenFrame::new(first, last - first, planes);
     let boundary = frame.mesh_to_local(boundary);
@@ -321,7 +327,7 @@ pub fn flow_normal_sections(boundary: &TriMesh, points: &[Vec3], planes: &[Measu
     sections_in_own_frame(&boundary, &points, &planes)
 }
 
-fn sections_in_own_frame(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<f64>> {
+fn sections_in_own_frame(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<SectionShape>> {
     let s = arc_lengths(points);
     (0..points.len())
         .into_par_iter()
@@ -333,7 +339,7 @@ fn sections_in_own_frame(boundary: &TriMesh, points: &[Vec3], planes: &[Measurem
             if planes.iter().any(|p| p.is_crossed_by(points[k], tangent)) {
                 return None;
             }
-            crate::geometry::plane_section::section_area(boundary, None, points[k], tangent)
+            crate::geometry::plane_section::section_shape(boundary, points[k], tangent)
         })
         .collect()
 }

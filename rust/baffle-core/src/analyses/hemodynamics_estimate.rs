@@ -8,14 +8,18 @@
 //! K_throat how far the aortic plane's does (the losses and the kinetic energy left there).
 //! A and B are measured on 3D first-peak runs: `VSD_PLANE_COEFFICIENT_A` is their median
 //! over the fit part of three synthetic flow families as today's design makes them, and B is
-//! a line in the throat's contraction ratio sigma = throat / widest flow-normal section of the
-//! tunnel (`throat_coefficient_b`), fitted on the same members by least squares
-//! (docs/hemodynamics_estimate.md, "Which plane decides dp", "Re-fitted on the steady split's
-//! designs" and "B from the throat's contraction"), and checked on the members they never saw
-//! and on p1-p3. B is lower where the flow contracts into its throat (sigma small): a
-//! contraction flattens the velocity profile, so the throat's jet carries less kinetic energy
-//! and loses less than where a tunnel of even width leads to it; a constant B (1.57) left
-//! the families' B spread twice as wide at the same median. A cos^2 of
+//! a plane in two shape numbers of the tunnel (`throat_coefficient_b`), fitted on the same
+//! members by least squares (docs/hemodynamics_estimate.md, "Which plane decides dp",
+//! "Re-fitted on the steady split's designs" and "B from the tunnel's shape"), and checked
+//! on the members they never saw, on the families as an earlier design made them and on
+//! p1-p3. The two numbers: the throat's contraction ratio sigma = throat / widest
+//! flow-normal section (B is lower where the flow contracts into its throat, as a
+//! contraction's flatter velocity profile would make it), and the sections' mean aspect
+//! ratio rho (minor over major radius of gyration; B is higher in a flat tunnel, with more
+//! wall per area and a flat jet). On the fit part they leave B's spread at 0.103 against
+//! 0.166 about the constant median (1.57) they replace; the aspect ratio's slope, fitted on
+//! today's round tunnels (rho 0.71-0.98), is near what the earlier, flatter designs give on
+//! their own (-0.80 against -1.00). A cos^2 of
 //! the flow's angle to the VSD plane is 1.25-1.74 on the 300 members and 1.46-1.59 on p1-p3,
 //! near a sharp orifice's momentum balance (1.41), so A is the flow's obliquity at the VSD,
 //! which the tunnel's sections do not give; B holds the throat jet's losses, which the derived model below underestimates.
@@ -71,7 +75,8 @@
 //! The stated uncertainty is the estimate's error measured against 3D runs
 //! (docs/hemodynamics_estimate.md), not a model property.
 
-use crate::analyses::flow_centerline::{flow_centerline, flow_normal_sections, CenterlineOptions, Lumen, MeasurementPlane};
+use crate::analyses::flow_centerline::{flow_centerline, flow_normal_section_shapes, CenterlineOptions, Lumen, MeasurementPlane};
+use crate::geometry::plane_section::SectionShape;
 use crate::geometry::mesh::{FaceLabels, TriMesh};
 use serde::{Deserialize, Serialize};
 
@@ -128,14 +133,30 @@ impl Default for Blood {
 }
 
 /// The tunnel as the model reads it: the sections normal to the flow along the centerline
-/// (arc length from the VSD plane in mm, area in mm2; None where unmeasured), and the VSD
-/// and aortic planes' areas (mm2).
+/// (arc length from the VSD plane in mm, area in mm2 and aspect ratio, minor over major
+/// radius of gyration; None where unmeasured), and the VSD and aortic planes' areas (mm2).
 #[derive(Clone, Debug)]
 pub struct TunnelSections {
     pub s_mm: Vec<f64>,
     pub area_mm2: Vec<Option<f64>>,
+    pub aspect_ratio: Vec<Option<f64>>,
     pub vsd_area_mm2: f64,
     pub aortic_area_mm2: f64,
+}
+
+impl TunnelSections {
+    /// From `flow_normal_section_shapes` along a centerline of arc lengths `s_mm`.
+    pub fn from_shapes(s_mm: Vec<f64>, shapes: &[Option<SectionShape>], vsd_area_mm2: f64, aortic_area_mm2: f64) -> Self {
+        let area_mm2 = shapes.iter().map(|s| s.map(|s| s.area_mm2)).collect();
+        let aspect_ratio = shapes.iter().map(|s| s.map(|s| s.aspect_ratio)).collect();
+        TunnelSections { s_mm, area_mm2, aspect_ratio, vsd_area_mm2, aortic_area_mm2 }
+    }
+
+    /// The mean aspect ratio of the measured sections; 1 (round) where none is measured.
+    pub fn mean_aspect_ratio(&self) -> f64 {
+        let measured: Vec<f64> = self.aspect_ratio.iter().flatten().copied().collect();
+        if measured.is_empty() { 1.0 } else { measured.iter().sum::<f64>() / measured.len() as f64 }
+    }
 }
 
 /// The estimate and its terms (mmHg; velocities m/s; areas mm2). Read back from a
@@ -165,6 +186,10 @@ pub struct HemodynamicsEstimate {
     pub contraction_ratio: f64,
     #[serde(default)]
     pub widest_section_mm2: f64,
+    /// The mean aspect ratio of the measured flow-normal sections (minor over major radius of
+    /// gyration; 1 round), `TunnelSections::mean_aspect_ratio`.
+    #[serde(default)]
+    pub mean_section_aspect_ratio: f64,
     /// The derived one-throat stenosis model's dp (no fitted coefficient), the sum of the
     /// terms below: Bernoulli, expansion, friction and the jet's unrecovered energy.
     #[serde(default)]
@@ -209,16 +234,19 @@ pub struct HemodynamicsEstimate {
 /// (`scripts/validation/flow_family.py table`; fitted to 3D runs, see the module's doc).
 pub const VSD_PLANE_COEFFICIENT_A: f64 = 1.545;
 /// The aortic plane's pressure coefficient per throat dynamic pressure, B = (P11 - p16) /
-/// K_throat, is B0 + B1 sigma with sigma the throat's contraction ratio
-/// (`contraction_ratio`): least squares over the same runs (correlation 0.70; slope 0.38-0.58
-/// at 5-95 % over 2,000 bootstrap resamples). B0 is B where the flow contracts without
-/// limit into its throat, B0 + B1 where no section of the tunnel is wider than the throat.
-pub const THROAT_COEFFICIENT_B0: f64 = 1.257;
-pub const THROAT_COEFFICIENT_B1: f64 = 0.479;
+/// K_throat, is B0 + B1 sigma + B2 rho, with sigma the throat's contraction ratio
+/// (`contraction_ratio`) and rho the tunnel's sections' mean aspect ratio
+/// (`TunnelSections::mean_aspect_ratio`): least squares over the same runs (5-95 % over 2,000
+/// bootstrap resamples of the 75: B1 0.44-0.62, B2 -1.02 to -0.54). B is higher where a
+/// tunnel of even width leads to its throat and where the tunnel is flat.
+pub const THROAT_COEFFICIENT_B0: f64 = 1.920;
+pub const THROAT_COEFFICIENT_B1: f64 = 0.534;
+pub const THROAT_COEFFICIENT_B2: f64 = -0.797;
 
-/// B for a throat of contraction ratio `sigma` (see `THROAT_COEFFICIENT_B0`).
-pub fn throat_coefficient_b(sigma: f64) -> f64 {
-    THROAT_COEFFICIENT_B0 + THROAT_COEFFICIENT_B1 * sigma
+/// B for a throat of contraction ratio `sigma` in a tunnel whose sections' mean aspect ratio
+/// is `aspect` (see `THROAT_COEFFICIENT_B0`).
+pub fn throat_coefficient_b(sigma: f64, aspect: f64) -> f64 {
+    THROAT_COEFFICIENT_B0 + THROAT_COEFFICIENT_B1 * sigma + THROAT_COEFFICIENT_B2 * aspect
 }
 
 /// The throat's contraction ratio: its area over the widest measured flow-normal section of
@@ -231,17 +259,17 @@ pub fn contraction_ratio(tunnel: &TunnelSections, throat_mm2: f64) -> (f64, f64)
 }
 
 /// The measured range of the dp estimate's error, estimate minus 3D static dp (mmHg), over
-/// the 752 rows of docs/hemodynamics_estimate.md ("B from the throat's contraction"), with
-/// today's coefficients: the 280 members of five flow families re-planned with the steady
-/// seam split (the plan's quick run on one 0.6 mm mesh; -2.65 to +3.12, the fit part
-/// included), the same families' 430 members as planned before it (their designed domains
-/// estimated again: -5.44 to +3.39) and p1-p3's published domains and designs (3D first peak
-/// on 0.6 mm meshes, today's designs, 21 rows: -1.45 to +2.06; on 0.85 / 1.25 mm meshes, the
-/// earlier designs, 21 rows: -7.52 to +2.15, the low end p1 z = -1, whose 1.25 mm 3D dp is
-/// 15.84 mmHg on a design since narrowed less). The coefficients are fitted on a quarter of
-/// three families; this is the measured spread, not a model property, and a design unlike
-/// them can fall outside it.
-pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-7.52, 3.39);
+/// the 752 rows of docs/hemodynamics_estimate.md ("B from the tunnel's shape"), with today's
+/// coefficients: the 280 members of five flow families re-planned with the steady seam split
+/// (the plan's quick run on one 0.6 mm mesh; -2.61 to +3.80, the fit part included), the same
+/// families' 430 members as planned before it (their designed domains estimated again: -2.69
+/// to +7.55, the high end flat tunnels with 3D dp of 14-24 mmHg, 25-32 % over) and p1-p3's
+/// published domains and designs (3D first peak on 0.6 mm meshes, today's designs, 21 rows:
+/// -0.96 to +2.51; on 0.85 / 1.25 mm meshes, the earlier designs, 21 rows: -5.95 to +2.59, the
+/// low end p1 z = -1, whose 1.25 mm 3D dp is 15.84 mmHg on a design since changed). The
+/// coefficients are fitted on a quarter of three families; this is the measured spread, not a
+/// model property, and a design unlike them can fall outside it.
+pub const DP_ERROR_RANGE_MMHG: (f64, f64) = (-5.95, 7.55);
 /// The measured range of the v_max estimate's relative error, (estimate - 3D) / 3D with
 /// the 3D value the first-peak maximum speed on the flow centerline, over the same rows:
 /// -15 % (p2 z = 3) to +5 % (p1 published) on p1-p3, -7 % to +51 % on the re-planned flow
@@ -252,7 +280,7 @@ pub const V_MAX_RELATIVE_ERROR_RANGE: (f64, f64) = (-0.15, 0.51);
 /// The measured error of dp against the 3D first peak, in words (from `DP_ERROR_RANGE_MMHG`).
 pub fn dp_uncertainty() -> String {
     let (below, above) = (-DP_ERROR_RANGE_MMHG.0, DP_ERROR_RANGE_MMHG.1);
-    format!("against the 3D first-peak static dp (752 rows of docs/hemodynamics_estimate.md: 710 synthetic hearts of five flow families on 0.6 mm meshes, 280 of them as today's design makes them, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.05 below); within 20 % or 1 mmHg on 193 of the 205 family members made by today's design that its coefficients were not fitted on, 18 of the 19 of them whose 3D dp exceeds 5 mmHg (relative error 5 / 50 / 95 %: -20 / +8 / +45 %), and on p1-p3's designs and published domains (0.6 mm) p1 3 of 4, p3 6 of 7 and p2 3 of 10; on p1 and p3 it lies 0.3-1.5 mmHg low. Where the LV feeds the VSD as obliquely as p2's it lies high: p2's by up to 2.1 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
+    format!("against the 3D first-peak static dp (752 rows of docs/hemodynamics_estimate.md: 710 synthetic hearts of five flow families on 0.6 mm meshes, 280 of them as today's design makes them, and p1-p3's published domains and designs on 0.6 and 1.25 mm meshes): from {below:.2} mmHg below to {above:.2} mmHg above it (median 0.22 above); within 20 % or 1 mmHg on 193 of the 205 family members made by today's design that its coefficients were not fitted on, 18 of the 19 of them whose 3D dp exceeds 5 mmHg (relative error 5 / 50 / 95 %: -18 / +7 / +48 %), and on p1-p3's designs and published domains (0.6 mm) p1 4 of 4, p3 7 of 7 and p2 2 of 10. Where the LV feeds the VSD as obliquely as p2's it lies high: p2's by up to 2.5 mmHg, its flow crossing the VSD plane at 39 degrees, which the tunnel's sections do not give")
 }
 
 /// The measured error of v_max against the 3D centerline maximum on the same rows, in
@@ -325,7 +353,7 @@ pub fn compare_with_3d(estimate: &HemodynamicsEstimate, dp_3d_mmhg: f64, v_max_3
 
 /// What the estimate is, in words for the report (its coefficients from the constants).
 fn method() -> String {
-    format!("the planes' pressure coefficients: dp = B K_throat - A K_vsd, K = rho/2 (Q/A)^2 of the throat (the narrowest flow-normal section or plane) and of the VSD plane, A = {VSD_PLANE_COEFFICIENT_A:.3} the median and B = {THROAT_COEFFICIENT_B0:.3} + {THROAT_COEFFICIENT_B1:.3} sigma the least-squares line, sigma the throat over the widest flow-normal section, of 3D first-peak runs on the fit part of three synthetic flow families (fitted to 3D runs; docs/hemodynamics_estimate.md); beside it the derived one-throat stenosis model (Bernoulli between the planes, expansion loss Kt 1.52 after Seeley & Young 1976, Hagen-Poiseuille friction after Young & Tsai 1973, the free round jet's unrecovered energy after Hussein et al. 1994; no coefficient fitted) as stenosis_model_dp_mmhg; v_max = Q / (0.62 A_throat) (vena contracta) (baffle_core::analyses::hemodynamics_estimate)")
+    format!("the planes' pressure coefficients: dp = B K_throat - A K_vsd, K = rho/2 (Q/A)^2 of the throat (the narrowest flow-normal section or plane) and of the VSD plane, A = {VSD_PLANE_COEFFICIENT_A:.3} the median and B = {THROAT_COEFFICIENT_B0:.3} + {THROAT_COEFFICIENT_B1:.3} sigma - {:.3} rho the least-squares plane, sigma the throat over the widest flow-normal section and rho the sections' mean aspect ratio, of 3D first-peak runs on the fit part of three synthetic flow families (fitted to 3D runs; docs/hemodynamics_estimate.md); beside it the derived one-throat stenosis model (Bernoulli between the planes, expansion loss Kt 1.52 after Seeley & Young 1976, Hagen-Poiseuille friction after Young & Tsai 1973, the free round jet's unrecovered energy after Hussein et al. 1994; no coefficient fitted) as stenosis_model_dp_mmhg; v_max = Q / (0.62 A_throat) (vena contracta) (baffle_core::analyses::hemodynamics_estimate)", -THROAT_COEFFICIENT_B2)
 }
 
 /// A section's mean velocity (cm/s) at flow `q_ml_s` through `area_mm2`.
@@ -387,15 +415,19 @@ pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64
     if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
         return Err(format!("hemodynamics estimate: {name} must be positive and finite, got {v}"));
     }
-    if tunnel.s_mm.len() != tunnel.area_mm2.len() {
-        return Err(format!("hemodynamics estimate: {} arc lengths for {} sections", tunnel.s_mm.len(), tunnel.area_mm2.len()));
+    if tunnel.s_mm.len() != tunnel.area_mm2.len() || tunnel.aspect_ratio.len() != tunnel.area_mm2.len() {
+        return Err(format!("hemodynamics estimate: {} arc lengths for {} sections and {} aspect ratios", tunnel.s_mm.len(), tunnel.area_mm2.len(), tunnel.aspect_ratio.len()));
+    }
+    if let Some(bad) = tunnel.aspect_ratio.iter().flatten().find(|r| !(**r > 0.0 && **r <= 1.0)) {
+        return Err(format!("hemodynamics estimate: a section's aspect ratio of {bad} (minor over major radius, in (0, 1])"));
     }
     if let Some(bad) = tunnel.area_mm2.iter().flatten().find(|a| !(a.is_finite() && **a > 0.0)) {
         return Err(format!("hemodynamics estimate: a flow-normal section of {bad} mm2"));
     }
     let (throat_mm2, throat_at_mm) = throat(tunnel);
     let (sigma, widest_section_mm2) = contraction_ratio(tunnel, throat_mm2);
-    let b = throat_coefficient_b(sigma);
+    let aspect = tunnel.mean_aspect_ratio();
+    let b = throat_coefficient_b(sigma, aspect);
     let aortic_plane_at_mm = tunnel.s_mm.last().copied().unwrap_or(0.0);
     let rho = blood.density_g_cm3;
     // Each section's dynamic pressure rho/2 (Q/A)^2 (dyn/cm2): the planes' coefficients
@@ -422,6 +454,7 @@ pub fn estimate_with(tunnel: &TunnelSections, q_ml_s: f64, blood: Blood, kt: f64
         throat_coefficient_b: b,
         contraction_ratio: sigma,
         widest_section_mm2,
+        mean_section_aspect_ratio: aspect,
         stenosis_model_dp_mmhg: mmhg(bernoulli + expansion + friction + unrecovered_jet),
         bernoulli_mmhg: mmhg(bernoulli),
         expansion_loss_mmhg: mmhg(expansion),
@@ -493,8 +526,8 @@ pub fn tunnel_sections(domain: &TriMesh, labels: FaceLabels) -> Result<TunnelSec
     let (vsd_area_mm2, aortic_area_mm2) = (plane_area_mm2(&lumen.planes[0]), plane_area_mm2(&lumen.planes[1]));
     let options = CenterlineOptions { voxel_mm: lumen_voxel_mm(vsd_area_mm2.min(aortic_area_mm2)), ..CenterlineOptions::default() };
     let line = flow_centerline(&lumen, &options)?;
-    let area_mm2 = flow_normal_sections(domain, &line.points, &lumen.planes);
-    Ok(TunnelSections { s_mm: line.s_mm, area_mm2, vsd_area_mm2, aortic_area_mm2 })
+    let shapes = flow_normal_section_shapes(domain, &line.points, &lumen.planes);
+    Ok(TunnelSections::from_shapes(line.s_mm, &shapes, vsd_area_mm2, aortic_area_mm2))
 }
 
 /// Voxels across the smaller cap's equivalent radius that the estimate's centerline is
@@ -528,7 +561,9 @@ mod tests {
     const Q: f64 = 70.0;
 
     fn tube(areas: &[f64], step_mm: f64, vsd: f64, ao: f64) -> TunnelSections {
-        TunnelSections { s_mm: (0..areas.len()).map(|k| k as f64 * step_mm).collect(), area_mm2: areas.iter().map(|&a| Some(a)).collect(), vsd_area_mm2: vsd, aortic_area_mm2: ao }
+        // Round sections (aspect ratio 1), as a tube's.
+        let shapes: Vec<Option<SectionShape>> = areas.iter().map(|&area_mm2| Some(SectionShape { area_mm2, aspect_ratio: 1.0 })).collect();
+        TunnelSections::from_shapes((0..areas.len()).map(|k| k as f64 * step_mm).collect(), &shapes, vsd, ao)
     }
 
     #[test]
@@ -566,17 +601,17 @@ mod tests {
     fn the_estimate_is_the_planes_coefficients_times_their_dynamic_pressures() {
         // A 40 mm2 throat between a 100 mm2 VSD plane and an 80 mm2 aortic plane at 70 ml/s:
         // K_throat = 0.53 x 175^2, K_vsd = 0.53 x 70^2 dyn/cm2.
-        // The widest section is 100 mm2, so the throat's contraction ratio is 0.4 and B = 1.257 +
-        // 0.479 x 0.4.
+        // The widest section is 100 mm2, so the throat's contraction ratio is 0.4, and the
+        // tube's sections are round: B = 1.920 + 0.534 x 0.4 - 0.797 x 1.
         let e = estimate(&tube(&[100.0, 60.0, 40.0, 60.0, 80.0], 2.0, 100.0, 80.0), Q, Blood::default()).unwrap();
         let (k_t, k_vsd) = (0.53 * 175.0f64.powi(2) / DYN_CM2_PER_MMHG, 0.53 * 70.0f64.powi(2) / DYN_CM2_PER_MMHG);
         assert!((e.k_throat_mmhg - k_t).abs() < 1e-9 && (e.k_vsd_mmhg - k_vsd).abs() < 1e-9, "{e:?}");
-        assert!((e.contraction_ratio - 0.4).abs() < 1e-12 && e.widest_section_mm2 == 100.0, "{e:?}");
-        let b = 1.257 + 0.479 * 0.4;
+        assert!((e.contraction_ratio - 0.4).abs() < 1e-12 && e.widest_section_mm2 == 100.0 && e.mean_section_aspect_ratio == 1.0, "{e:?}");
+        let b = 1.920 + 0.534 * 0.4 - 0.797;
         assert!((e.dp_estimate_mmhg - (b * k_t - 1.545 * k_vsd)).abs() < 1e-9, "{e:?}");
         assert_eq!(e.vsd_plane_coefficient_a, VSD_PLANE_COEFFICIENT_A);
         assert!((e.throat_coefficient_b - b).abs() < 1e-12, "{e:?}");
-        assert!(e.method.contains("A = 1.545 the median and B = 1.257 + 0.479 sigma") && e.method.contains("fitted to 3D runs"), "{}", e.method);
+        assert!(e.method.contains("A = 1.545 the median and B = 1.920 + 0.534 sigma - 0.797 rho") && e.method.contains("fitted to 3D runs"), "{}", e.method);
         // A report written before the coefficients reads back, without them.
         let mut old = serde_json::to_value(&e).unwrap();
         for key in ["k_throat_mmhg", "k_vsd_mmhg", "vsd_plane_coefficient_a", "throat_coefficient_b", "contraction_ratio", "widest_section_mm2", "stenosis_model_dp_mmhg"] {
@@ -602,14 +637,27 @@ mod tests {
         // an even tube (sigma 1), and with no section measured (read as sigma 1).
         let contracting = estimate(&tube(&[120.0, 40.0, 40.0], 2.0, 60.0, 60.0), Q, Blood::default()).unwrap();
         let even = estimate(&tube(&[40.0, 40.0, 40.0], 2.0, 60.0, 60.0), Q, Blood::default()).unwrap();
-        let unmeasured = estimate(&TunnelSections { area_mm2: vec![None; 3], ..tube(&[40.0; 3], 2.0, 40.0, 60.0) }, Q, Blood::default()).unwrap();
+        let unmeasured = estimate(&TunnelSections { area_mm2: vec![None; 3], aspect_ratio: vec![None; 3], ..tube(&[40.0; 3], 2.0, 40.0, 60.0) }, Q, Blood::default()).unwrap();
         assert!((contracting.contraction_ratio - 1.0 / 3.0).abs() < 1e-12 && contracting.widest_section_mm2 == 120.0, "{contracting:?}");
         assert!(even.contraction_ratio == 1.0 && unmeasured.contraction_ratio == 1.0 && unmeasured.widest_section_mm2 == 40.0, "{even:?} {unmeasured:?}");
-        assert!((contracting.throat_coefficient_b - (THROAT_COEFFICIENT_B0 + THROAT_COEFFICIENT_B1 / 3.0)).abs() < 1e-12);
-        assert!(even.throat_coefficient_b == THROAT_COEFFICIENT_B0 + THROAT_COEFFICIENT_B1);
+        assert!((contracting.throat_coefficient_b - throat_coefficient_b(1.0 / 3.0, 1.0)).abs() < 1e-12);
+        assert!(even.throat_coefficient_b == throat_coefficient_b(1.0, 1.0) && unmeasured.mean_section_aspect_ratio == 1.0);
         assert!(contracting.dp_estimate_mmhg < even.dp_estimate_mmhg, "{contracting:?} {even:?}");
         // The throat is what the planes' dynamic pressures are weighed by, not the widest section.
         assert!(contracting.k_throat_mmhg == even.k_throat_mmhg);
+    }
+
+    #[test]
+    fn a_flat_tunnel_gets_the_larger_throat_coefficient() {
+        // The same sections, round or flat (aspect ratio 0.5, an ellipse twice as wide as deep).
+        let round = tube(&[80.0, 40.0, 60.0], 2.0, 80.0, 80.0);
+        let flat = TunnelSections { aspect_ratio: vec![Some(0.5); 3], ..round.clone() };
+        let (r, f) = (estimate(&round, Q, Blood::default()).unwrap(), estimate(&flat, Q, Blood::default()).unwrap());
+        assert!(r.mean_section_aspect_ratio == 1.0 && f.mean_section_aspect_ratio == 0.5, "{f:?}");
+        assert!((f.throat_coefficient_b - r.throat_coefficient_b - 0.5 * -THROAT_COEFFICIENT_B2).abs() < 1e-12 && f.dp_estimate_mmhg > r.dp_estimate_mmhg, "{f:?}");
+        // Unmeasured sections do not count in the mean.
+        let some = TunnelSections { aspect_ratio: vec![Some(0.5), None, Some(0.7)], area_mm2: vec![Some(80.0), None, Some(60.0)], ..round };
+        assert!((some.mean_aspect_ratio() - 0.6).abs() < 1e-12);
     }
 
     #[test]
@@ -625,7 +673,7 @@ mod tests {
     /// VSD plane 80 mm2, a 40 mm2 throat at 10 mm, the aortic plane of 160 mm2 `distance_mm`
     /// further: a throat's jet into an annulus four times its area, as p1's and p3's.
     fn throat_then_annulus(distance_mm: f64) -> TunnelSections {
-        TunnelSections { s_mm: vec![0.0, 10.0, 10.0 + distance_mm], area_mm2: vec![None, Some(40.0), None], vsd_area_mm2: 80.0, aortic_area_mm2: 160.0 }
+        TunnelSections { s_mm: vec![0.0, 10.0, 10.0 + distance_mm], area_mm2: vec![None, Some(40.0), None], aspect_ratio: vec![None, Some(1.0), None], vsd_area_mm2: 80.0, aortic_area_mm2: 160.0 }
     }
 
     /// The unmixed jet's dp: the throat's kinetic energy unrecovered, plus friction (mmHg).
@@ -725,7 +773,8 @@ mod tests {
         assert!(e.throat_area_mm2 <= smallest && e.throat_area_mm2 <= e.vsd_area_mm2.min(e.aortic_area_mm2), "{e:?}");
         assert!((e.stenosis_model_dp_mmhg - (e.bernoulli_mmhg + e.expansion_loss_mmhg + e.friction_mmhg + e.unrecovered_jet_mmhg)).abs() < 1e-12);
         assert!((e.dp_estimate_mmhg - (e.throat_coefficient_b * e.k_throat_mmhg - VSD_PLANE_COEFFICIENT_A * e.k_vsd_mmhg)).abs() < 1e-12, "{e:?}");
-        assert!(e.throat_coefficient_b == throat_coefficient_b(e.contraction_ratio) && (e.contraction_ratio - e.throat_area_mm2 / e.widest_section_mm2).abs() < 1e-12, "{e:?}");
+        assert!(e.throat_coefficient_b == throat_coefficient_b(e.contraction_ratio, e.mean_section_aspect_ratio) && (e.contraction_ratio - e.throat_area_mm2 / e.widest_section_mm2).abs() < 1e-12, "{e:?}");
+        assert!(e.mean_section_aspect_ratio > 0.0 && e.mean_section_aspect_ratio <= 1.0, "{e:?}");
         assert!(e.contraction_ratio > 0.0 && e.contraction_ratio <= 1.0, "{e:?}");
         assert!((0.0..=1.0).contains(&e.recovered_fraction) && e.aortic_plane_at_mm > e.throat_at_mm, "{e:?}");
         assert!((e.v_max_estimate_m_s - Q / (e.throat_area_mm2 * 1e-2) / VENA_CONTRACTA_CC * 1e-2).abs() < 1e-12);
@@ -763,13 +812,10 @@ mod tests {
             let loss = e.expansion_loss_mmhg + e.friction_mmhg;
             let error = e.dp_estimate_mmhg - dp_3d_fine;
             match patient {
-                "p1" => assert!(error.abs() <= (0.2 * dp_3d_fine).max(1.0), "p1: dp {} vs 3D {dp_3d_fine}", e.dp_estimate_mmhg),
+                "p1" | "p3" => assert!(error.abs() <= (0.2 * dp_3d_fine).max(1.0), "{patient}: dp {} vs 3D {dp_3d_fine}", e.dp_estimate_mmhg),
                 // p2's flow crosses its VSD plane at 39 degrees (the families' 13-25), so its
                 // VSD-plane coefficient is 2.64, not A: the estimate lies above the 3D dp.
-                "p2" => assert!(error > 1.0, "p2: dp {} vs 3D {dp_3d_fine}: better than documented", e.dp_estimate_mmhg),
-                // p3's published domain lies just beyond the criterion's 1.06 mmHg, 1.18-1.32 mmHg
-                // below (the centerline's and these sections' throats differ by 1 %).
-                _ => assert!((-1.45..=-1.05).contains(&error), "p3: dp {} vs 3D {dp_3d_fine}: not as documented", e.dp_estimate_mmhg),
+                _ => assert!(error > 1.0, "p2: dp {} vs 3D {dp_3d_fine}: better than documented", e.dp_estimate_mmhg),
             }
             // The derived model: p2 within 1 mmHg, a lower bound on p1 and p3 (the jet is not
             // mixed out at the aortic plane).
@@ -837,7 +883,7 @@ mod tests {
     #[test]
     fn the_uncertainty_texts_state_the_measured_ranges() {
         let e = estimate_of(1.0, 1.0);
-        assert!(e.dp_uncertainty.contains("from 7.52 mmHg below to 3.39 mmHg above"), "{}", e.dp_uncertainty);
+        assert!(e.dp_uncertainty.contains("from 5.95 mmHg below to 7.55 mmHg above"), "{}", e.dp_uncertainty);
         assert!(e.v_max_uncertainty.starts_with("-15 % to +51 %"), "{}", e.v_max_uncertainty);
         // What a design writes reads back as the same outcome (baffle plan's report reads it).
         for outcome in [EstimateOutcome::Estimated(e), EstimateOutcome::Absent { absent_because: "no flow".into() }] {
@@ -852,7 +898,9 @@ mod tests {
         assert!(estimate(&t, 0.0, Blood::default()).unwrap_err().contains("peak flow"));
         assert!(estimate(&TunnelSections { aortic_area_mm2: f64::NAN, ..t.clone() }, Q, Blood::default()).unwrap_err().contains("aortic plane area"));
         assert!(estimate(&TunnelSections { area_mm2: vec![Some(50.0), Some(-1.0)], ..t.clone() }, Q, Blood::default()).unwrap_err().contains("-1 mm2"));
-        assert!(estimate(&TunnelSections { s_mm: vec![0.0], ..t }, Q, Blood::default()).unwrap_err().contains("1 arc lengths for 2"));
+        assert!(estimate(&TunnelSections { s_mm: vec![0.0], ..t.clone() }, Q, Blood::default()).unwrap_err().contains("1 arc lengths for 2"));
+        assert!(estimate(&TunnelSections { aspect_ratio: vec![Some(1.0)], ..t.clone() }, Q, Blood::default()).unwrap_err().contains("and 1 aspect ratios"));
+        assert!(estimate(&TunnelSections { aspect_ratio: vec![Some(1.0), Some(1.5)], ..t }, Q, Blood::default()).unwrap_err().contains("aspect ratio of 1.5"));
     }
 
     #[test]

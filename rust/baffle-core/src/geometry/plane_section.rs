@@ -1,7 +1,7 @@
 //! The section of a closed surface by a plane, as an area: the piece of {inside a solid,
 //! outside an optional hole} in the plane that holds a given point. Both surfaces' cut
 //! segments are filled on a [`PIXEL_MM`] raster (even-odd) and the 4-connected piece
-//! holding the point is counted. Used by the RV outflow (`crate::analyses::rv_outflow`) and by the
+//! holding the point is counted (and, for its shape, its pixels' second moments). Used by the RV outflow (`crate::analyses::rv_outflow`) and by the
 //! flow-normal sections of a lumen (`crate::analyses::flow_centerline`).
 
 use crate::geometry::mesh::{axes_across, TriMesh, Vec3};
@@ -39,6 +39,57 @@ pub fn section_areas(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, norma
     let region_mm2 = raster.flood_count(&inside, seed) as f64 * pixel_mm2;
     let solid_mm2 = if hole.is_some() { raster.flood_count(&solid_fill, seed) as f64 * pixel_mm2 } else { region_mm2 };
     Some(SectionAreas { region_mm2, solid_mm2 })
+}
+
+/// A section's area and shape.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SectionShape {
+    pub area_mm2: f64,
+    /// Minor over major principal radius of gyration of the piece: 1 for a disc or a square,
+    /// b / a for an a x b ellipse or rectangle.
+    pub aspect_ratio: f64,
+}
+
+/// The area and shape of the piece of `solid` in the plane through `point` normal to
+/// `normal` that holds `point` ([`section_area`]'s piece, no hole); None when not inside.
+pub fn section_shape(solid: &TriMesh, point: Vec3, normal: Vec3) -> Option<SectionShape> {
+    let plane = PlaneFrame::new(point, normal);
+    let cut = plane.cut(solid);
+    let (lo, hi) = segment_bounds(&cut)?;
+    let raster = Raster::new(lo, hi);
+    let inside = raster.fill(&cut);
+    let seed = raster.nearest_inside(&inside, (0.0, 0.0))?;
+    let mut moments = PixelMoments::default();
+    let count = raster.flood(&inside, seed, |i, j| moments.add(i as f64, j as f64));
+    Some(SectionShape { area_mm2: count as f64 * PIXEL_MM * PIXEL_MM, aspect_ratio: moments.aspect_ratio() })
+}
+
+/// Running sums of pixel coordinates for a region's second moments.
+#[derive(Default)]
+struct PixelMoments {
+    n: f64,
+    x: f64,
+    y: f64,
+    xx: f64,
+    yy: f64,
+    xy: f64,
+}
+
+impl PixelMoments {
+    fn add(&mut self, x: f64, y: f64) {
+        self.n += 1.0;
+        (self.x, self.y) = (self.x + x, self.y + y);
+        (self.xx, self.yy, self.xy) = (self.xx + x * x, self.yy + y * y, self.xy + x * y);
+    }
+
+    /// sqrt(lambda_min / lambda_max) of the covariance, each pixel a unit square (its own
+    /// 1/12 on the diagonal, so a single pixel is round).
+    fn aspect_ratio(&self) -> f64 {
+        let (mx, my) = (self.x / self.n, self.y / self.n);
+        let (a, c, b) = (self.xx / self.n - mx * mx + 1.0 / 12.0, self.yy / self.n - my * my + 1.0 / 12.0, self.xy / self.n - mx * my);
+        let (mean, half_gap) = (0.5 * (a + c), (0.25 * (a - c).powi(2) + b * b).sqrt());
+        ((mean - half_gap).max(0.0) / (mean + half_gap)).sqrt()
+    }
 }
 
 type Segment = [(f64, f64); 2];
@@ -147,6 +198,11 @@ impl Raster {
 
     /// Pixels 4-connected to `seed` inside.
     fn flood_count(&self, inside: &[bool], seed: usize) -> usize {
+        self.flood(inside, seed, |_, _| ())
+    }
+
+    /// Visit (column, row) of every pixel 4-connected to `seed` inside; their count.
+    fn flood(&self, inside: &[bool], seed: usize, mut visit: impl FnMut(usize, usize)) -> usize {
         let mut seen = vec![false; inside.len()];
         let mut stack = vec![seed];
         seen[seed] = true;
@@ -154,6 +210,7 @@ impl Raster {
         while let Some(p) = stack.pop() {
             count += 1;
             let (i, j) = (p % self.width, p / self.width);
+            visit(i, j);
             let neighbours = [(i > 0).then(|| p - 1), (i + 1 < self.width).then(|| p + 1), (j > 0).then(|| p - self.width), (j + 1 < self.height).then(|| p + self.width)];
             for q in neighbours.into_iter().flatten() {
                 if inside[q] && !seen[q] {
@@ -163,5 +220,42 @@ impl Raster {
             }
         }
         count
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed prism of `n` sides around the z axis, radius 1, its cross-section the polygon
+    /// scaled by (`rx`, `ry`), from z = 0 to 10.
+    fn prism(rx: f64, ry: f64, n: usize) -> TriMesh {
+        let ring = |z: f64| (0..n).map(move |k| {
+            let t = 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+            Vec3::new(rx * t.cos(), ry * t.sin(), z)
+        });
+        let mut points: Vec<Vec3> = ring(0.0).chain(ring(10.0)).collect();
+        points.extend([Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 10.0)]);
+        let (n32, bottom, top) = (n as u32, 2 * n as u32, 2 * n as u32 + 1);
+        let mut triangles = Vec::new();
+        for k in 0..n32 {
+            let k1 = (k + 1) % n32;
+            triangles.extend([[k, k1, n32 + k1], [k, n32 + k1, n32 + k], [bottom, k1, k], [top, n32 + k, n32 + k1]]);
+        }
+        let face_ids = vec![2; triangles.len()];
+        TriMesh::new(points, triangles, face_ids)
+    }
+
+    #[test]
+    fn a_disc_is_round_and_an_ellipse_has_its_axes_ratio() {
+        let disc = section_shape(&prism(4.0, 4.0, 256), Vec3::new(0.0, 0.0, 5.0), Vec3::z()).unwrap();
+        assert!((disc.area_mm2 - std::f64::consts::PI * 16.0).abs() < 0.01 * disc.area_mm2 && disc.aspect_ratio > 0.99, "{disc:?}");
+        // Cut across the axis at a tilt the shape is the ellipse's, and the area the section's.
+        let ellipse = section_shape(&prism(6.0, 2.0, 256), Vec3::new(0.0, 0.0, 5.0), Vec3::z()).unwrap();
+        assert!((ellipse.aspect_ratio - 2.0 / 6.0).abs() < 0.01, "{ellipse:?}");
+        let tilted = section_shape(&prism(4.0, 4.0, 256), Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 1.0)).unwrap();
+        assert!((tilted.aspect_ratio - 45f64.to_radians().cos()).abs() < 0.01, "{tilted:?}");
+        // The same piece as section_area's.
+        assert_eq!(Some(ellipse.area_mm2), section_area(&prism(6.0, 2.0, 256), None, Vec3::new(0.0, 0.0, 5.0), Vec3::z()));
     }
 }

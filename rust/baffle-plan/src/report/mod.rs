@@ -1049,7 +1049,7 @@ mod tests {
 
     /// The estimate of a straight 60 mm2 tunnel between 90 and 120 mm2 planes at 70 ml/s.
     fn straight_tunnel_estimate() -> baffle_core::analyses::hemodynamics_estimate::HemodynamicsEstimate {
-        let tunnel = baffle_core::analyses::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
+        let tunnel = baffle_core::analyses::hemodynamics_estimate::TunnelSections { s_mm: vec![0.0, 10.0], area_mm2: vec![Some(60.0), Some(60.0)], aspect_ratio: vec![Some(1.0), Some(1.0)], vsd_area_mm2: 90.0, aortic_area_mm2: 120.0 };
         baffle_core::analyses::hemodynamics_estimate::estimate(&tunnel, 70.0, Default::default()).unwrap()
     }
 
