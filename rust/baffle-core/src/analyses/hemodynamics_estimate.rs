@@ -13,10 +13,11 @@
 //! "Re-fitted on the steady split's designs" and "B from the tunnel's shape"), and checked
 //! on the members they never saw, on the families as an earlier design made them and on
 //! p1-p3. The two numbers: the throat's contraction ratio sigma = throat / widest
-//! flow-normal section (B is lower where the flow contracts into its throat, as a
-//! contraction's flatter velocity profile would make it), and the sections' mean aspect
-//! ratio rho (minor over major radius of gyration; B is higher in a flat tunnel, with more
-//! wall per area and a flat jet). On the fit part they leave B's spread at 0.103 against
+//! flow-normal section (B is lower where the flow contracts into its throat), and the
+//! sections' mean aspect ratio rho (minor over major radius of gyration; B is higher in a
+//! flat tunnel). Both are measured correlations; a contraction's flatter velocity profile,
+//! and a flat tunnel's larger wall per area and flat jet, are readings of them, not
+//! measured here. On the fit part they leave B's spread at 0.103 against
 //! 0.166 about the constant median (1.57) they replace; the aspect ratio's slope, fitted on
 //! today's round tunnels (rho 0.71-0.98), is near what the earlier, flatter designs give on
 //! their own (-0.80 against -1.00). A cos^2 of
@@ -175,7 +176,7 @@ pub struct HemodynamicsEstimate {
     #[serde(default)]
     pub k_vsd_mmhg: f64,
     /// The coefficients the estimate used: `VSD_PLANE_COEFFICIENT_A`, and B =
-    /// `throat_coefficient_b` of this tunnel's contraction ratio.
+    /// `throat_coefficient_b` of this tunnel's contraction and aspect ratios.
     #[serde(default)]
     pub vsd_plane_coefficient_a: f64,
     #[serde(default)]
