@@ -264,7 +264,7 @@ pub fn contraction_ratio(tunnel: &TunnelSections, throat_mm2: f64) -> (f64, f64)
 /// coefficients: the 280 members of five flow families re-planned with the steady seam split
 /// (the plan's quick run on one 0.6 mm mesh; -2.61 to +3.80, the fit part included), the same
 /// families' 430 members as planned before it (their designed domains estimated again: -2.69
-/// to +7.55, the high end flat tunnels with 3D dp of 14-24 mmHg, 25-32 % over) and p1-p3's
+/// to +7.55, the high end narrow throats with 3D dp of 14-24 mmHg, 24-40 % over) and p1-p3's
 /// published domains and designs (3D first peak on 0.6 mm meshes, today's designs, 21 rows:
 /// -0.96 to +2.51; on 0.85 / 1.25 mm meshes, the earlier designs, 21 rows: -5.95 to +2.59, the
 /// low end p1 z = -1, whose 1.25 mm 3D dp is 15.84 mmHg on a design since changed). The
