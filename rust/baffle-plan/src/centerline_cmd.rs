@@ -93,12 +93,9 @@ fn two(labels: &[i32], flag: &str) -> Result<[i32; 2], String> {
 /// (mm2, None where none was found) and, with --results, the profile along it.
 pub struct Measured {
     pub line: FlowCenterline,
-    pub sections_mm2: Vec<Option<f64>>,
-    /// Each section's minor over major radius of gyration (1 round).
-    pub section_aspect_ratio: Vec<Option<f64>>,
+    /// The sections along it (area and aspect ratio) and the measurement planes' areas.
+    pub tunnel: TunnelSections,
     pub profile: Option<Profile>,
-    /// The measurement planes' areas (mm2), inflow first.
-    pub plane_areas_mm2: [f64; 2],
 }
 
 /// The centerline of `args`, its flow-normal sections, and its profile when --results is given.
@@ -133,14 +130,12 @@ fn measure(args: &CenterlineSettings) -> Result<Measured, String> {
     let lumen = Lumen::with_end_caps(&boundary, ends[0], ends[1], measurement).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let line = flow_centerline(&lumen, &options).map_err(|e| format!("{}: {e}", args.surface.display()))?;
     let shapes = flow_normal_section_shapes(&boundary, &line.points, &lumen.planes);
-    let sections_mm2 = shapes.iter().map(|s| s.map(|s| s.area_mm2)).collect();
-    let section_aspect_ratio = shapes.iter().map(|s| s.map(|s| s.aspect_ratio)).collect();
+    let tunnel = TunnelSections::from_shapes(line.s_mm.clone(), &shapes, plane_area_mm2(&lumen.planes[0]), plane_area_mm2(&lumen.planes[1]));
     let profile = match &args.results {
         Some(path) => Some(PeakFields::read(path)?.profile(&line.points)),
         None => None,
     };
-    let plane_areas_mm2 = [plane_area_mm2(&lumen.planes[0]), plane_area_mm2(&lumen.planes[1])];
-    Ok(Measured { line, sections_mm2, section_aspect_ratio, profile, plane_areas_mm2 })
+    Ok(Measured { line, tunnel, profile })
 }
 
 fn nan_for_none(v: &[Option<f64>]) -> Vec<f64> {
@@ -152,8 +147,8 @@ fn polydata(m: &Measured) -> PolyData {
     let mut point_data = vec![
         DataArray::f64("s_mm", 1, line.s_mm.clone()),
         DataArray::f64("radius_mm", 1, line.radius_mm.clone()),
-        DataArray::f64("section_area_mm2", 1, nan_for_none(&m.sections_mm2)),
-        DataArray::f64("section_aspect_ratio", 1, nan_for_none(&m.section_aspect_ratio)),
+        DataArray::f64("section_area_mm2", 1, nan_for_none(&m.tunnel.area_mm2)),
+        DataArray::f64("section_aspect_ratio", 1, nan_for_none(&m.tunnel.aspect_ratio)),
     ];
     if let Some(p) = profile {
         point_data.push(DataArray::f64("pressure_mmhg", 1, nan_for_none(&p.pressure_mmhg)));
@@ -182,7 +177,7 @@ fn radius_range(line: &FlowCenterline) -> (f64, f64) {
 /// The figures written to <stem>.json (also read back by the plan's report).
 fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_json::Value {
     let (line, profile) = (&m.line, m.profile.as_ref());
-    let smallest = smallest_section(&line.s_mm, &m.sections_mm2);
+    let smallest = smallest_section(&line.s_mm, &m.tunnel.area_mm2);
     let (r_min, r_max) = radius_range(line);
     let mut doc = json!({
         "surface": args.surface, "planes": args.planes, "ends": args.ends.as_ref().unwrap_or(&args.planes),
@@ -194,16 +189,15 @@ fn summary(args: &CenterlineSettings, m: &Measured, wall_time_s: f64) -> serde_j
         "wall_time_s": wall_time_s,
         "timings_ms": line.timings_ms.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "s_mm": line.s_mm, "radius_mm": line.radius_mm,
-        "section_area_mm2": m.sections_mm2,
-        "section_aspect_ratio": m.section_aspect_ratio,
+        "section_area_mm2": m.tunnel.area_mm2,
+        "section_aspect_ratio": m.tunnel.aspect_ratio,
         "min_section_mm2": smallest.map(|x| x.0), "min_section_at_mm": smallest.map(|x| x.1),
-        "sections_measured": m.sections_mm2.iter().flatten().count(),
+        "sections_measured": m.tunnel.area_mm2.iter().flatten().count(),
         "sections_method": "the piece of the plane normal to the centerline (its chord over 1 mm each side) inside the lumen that holds the point, rasterized at 0.1 mm (its aspect ratio: minor over major radius of gyration of the pixels); not measured (null) where that plane crosses the VSD or aortic plane (baffle_core::analyses::flow_centerline::flow_normal_sections)",
         "points_mm": line.points.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
     });
     if let Some(q) = args.peak_flow_ml_s {
-        let tunnel = TunnelSections { s_mm: line.s_mm.clone(), area_mm2: m.sections_mm2.clone(), aspect_ratio: m.section_aspect_ratio.clone(), vsd_area_mm2: m.plane_areas_mm2[0], aortic_area_mm2: m.plane_areas_mm2[1] };
-        doc["hemodynamics_estimate"] = match estimate(&tunnel, q, Blood::default()) {
+        doc["hemodynamics_estimate"] = match estimate(&m.tunnel, q, Blood::default()) {
             Ok(e) => json!(e),
             Err(why) => json!({ "absent_because": why }),
         };
@@ -243,7 +237,7 @@ fn centerline_and_write(args: &CenterlineSettings, progress: &Progress) -> Resul
     write_atomic(&json_path, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?.as_bytes())?;
     let (r_min, r_max) = radius_range(line);
     let mut said = format!("flow-domain centerline {:.2} mm between planes {:?} ({} points, inscribed radius {r_min:.2}-{r_max:.2} mm, {wall_time_s:.2} s)", line.length_mm, args.planes, line.points.len());
-    if let Some((a, at)) = smallest_section(&line.s_mm, &measured.sections_mm2) {
+    if let Some((a, at)) = smallest_section(&line.s_mm, &measured.tunnel.area_mm2) {
         said += &format!("; smallest section normal to it {a:.1} mm2 at s = {at:.1} mm");
     }
     if let Some(p) = &profile {

@@ -266,7 +266,7 @@ pub fn design_by_rule(
 /// The reduced-order estimate in one line.
 pub fn estimate_line(e: &baffle_core::analyses::hemodynamics_estimate::HemodynamicsEstimate) -> String {
     format!(
-        "estimate at peak flow {:.1} ml/s: dp {:.2} mmHg ({:.3} x throat {:.2} - {:.3} x VSD plane {:.2} dynamic pressure, B at the throat's contraction ratio {:.2}; derived stenosis model {:.2}), v_max {:.2} m/s, throat {:.1} mm2 at {:.1} mm; {:.0} ms",
+        "estimate at peak flow {:.1} ml/s: dp {:.2} mmHg ({:.3} x throat {:.2} - {:.3} x VSD plane {:.2} dynamic pressure, B at contraction ratio {:.2} and aspect ratio {:.2}; derived stenosis model {:.2}), v_max {:.2} m/s, throat {:.1} mm2 at {:.1} mm; {:.0} ms",
         e.peak_flow_ml_s,
         e.dp_estimate_mmhg,
         e.throat_coefficient_b,
@@ -274,6 +274,7 @@ pub fn estimate_line(e: &baffle_core::analyses::hemodynamics_estimate::Hemodynam
         e.vsd_plane_coefficient_a,
         e.k_vsd_mmhg,
         e.contraction_ratio,
+        e.mean_section_aspect_ratio,
         e.stenosis_model_dp_mmhg,
         e.v_max_estimate_m_s,
         e.throat_area_mm2,
