@@ -357,7 +357,7 @@ def table(args):
     print(f"\nfitted on the {len(fit)} {part_name}: dp = {coef[0]:.3f} K_throat {coef[1]:+.3f} K_aortic {-coef[2]:+.3f} K_vsd + friction")
     print(f"fitted on the {len(fit)} {part_name}: dp = {jet_coef[0]:.3f} K_jet {-jet_coef[1]:+.3f} K_vsd + friction")
     print(f"plane coefficients, medians of the {len(fit)} {part_name}: A = {plane_coef[0]:.3f}, B = {plane_coef[1]:.3f} (dp = B K_throat - A K_vsd)")
-    # Reports written before the contraction ratio was estimated have none (--re-estimate).
+    # Reports written before the sections' aspect ratio was estimated have no B plane (--re-estimate).
     line_coef = fit_plane_line(fit_rows) if all("mean_section_aspect_ratio" in r["estimate"] for r in ok) else None
     if line_coef:
         print(f"plane coefficients on the {len(fit)} {part_name}: A = {line_coef[0]:.3f} (median), B = {line_coef[1]:.3f} {line_coef[2]:+.3f} sigma {line_coef[3]:+.3f} rho "

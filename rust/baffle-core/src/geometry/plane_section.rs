@@ -1,8 +1,9 @@
 //! The section of a closed surface by a plane, as an area: the piece of {inside a solid,
 //! outside an optional hole} in the plane that holds a given point. Both surfaces' cut
 //! segments are filled on a [`PIXEL_MM`] raster (even-odd) and the 4-connected piece
-//! holding the point is counted (and, for its shape, its pixels' second moments). Used by the RV outflow (`crate::analyses::rv_outflow`) and by the
-//! flow-normal sections of a lumen (`crate::analyses::flow_centerline`).
+//! holding the point is counted (and, for its shape, its pixels' second moments). Used by
+//! the RV outflow (`crate::analyses::rv_outflow`) and by the flow-normal sections of a lumen
+//! (`crate::analyses::flow_centerline`).
 
 use crate::geometry::mesh::{axes_across, TriMesh, Vec3};
 
@@ -27,18 +28,35 @@ pub struct SectionAreas {
 
 /// [`section_area`], and the solid's piece through the same pixel without the hole.
 pub fn section_areas(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, normal: Vec3) -> Option<SectionAreas> {
-    let plane = PlaneFrame::new(point, normal);
-    let solid_cut = plane.cut(solid);
-    let hole_cut = hole.map(|h| plane.cut(h)).unwrap_or_default();
-    let (lo, hi) = segment_bounds(&solid_cut)?;
-    let raster = Raster::new(lo, hi);
-    let solid_fill = raster.fill(&solid_cut);
-    let inside: Vec<bool> = solid_fill.iter().zip(raster.fill(&hole_cut)).map(|(&s, h)| s && !h).collect();
-    let seed = raster.nearest_inside(&inside, (0.0, 0.0))?;
+    let r = Rasterized::new(solid, hole, point, normal)?;
     let pixel_mm2 = PIXEL_MM * PIXEL_MM;
-    let region_mm2 = raster.flood_count(&inside, seed) as f64 * pixel_mm2;
-    let solid_mm2 = if hole.is_some() { raster.flood_count(&solid_fill, seed) as f64 * pixel_mm2 } else { region_mm2 };
+    let region_mm2 = r.raster.flood_count(&r.inside, r.seed) as f64 * pixel_mm2;
+    let solid_mm2 = if hole.is_some() { r.raster.flood_count(&r.solid_fill, r.seed) as f64 * pixel_mm2 } else { region_mm2 };
     Some(SectionAreas { region_mm2, solid_mm2 })
+}
+
+/// One plane's cut of the solid (and hole) filled on the raster, and the inside pixel
+/// nearest the point that the pieces are flooded from.
+struct Rasterized {
+    raster: Raster,
+    solid_fill: Vec<bool>,
+    /// Inside the solid and outside the hole.
+    inside: Vec<bool>,
+    seed: usize,
+}
+
+impl Rasterized {
+    fn new(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, normal: Vec3) -> Option<Self> {
+        let plane = PlaneFrame::new(point, normal);
+        let solid_cut = plane.cut(solid);
+        let hole_cut = hole.map(|h| plane.cut(h)).unwrap_or_default();
+        let (lo, hi) = segment_bounds(&solid_cut)?;
+        let raster = Raster::new(lo, hi);
+        let solid_fill = raster.fill(&solid_cut);
+        let inside: Vec<bool> = solid_fill.iter().zip(raster.fill(&hole_cut)).map(|(&s, h)| s && !h).collect();
+        let seed = raster.nearest_inside(&inside, (0.0, 0.0))?;
+        Some(Rasterized { raster, solid_fill, inside, seed })
+    }
 }
 
 /// A section's area and shape.
@@ -53,14 +71,9 @@ pub struct SectionShape {
 /// The area and shape of the piece of `solid` in the plane through `point` normal to
 /// `normal` that holds `point` ([`section_area`]'s piece, no hole); None when not inside.
 pub fn section_shape(solid: &TriMesh, point: Vec3, normal: Vec3) -> Option<SectionShape> {
-    let plane = PlaneFrame::new(point, normal);
-    let cut = plane.cut(solid);
-    let (lo, hi) = segment_bounds(&cut)?;
-    let raster = Raster::new(lo, hi);
-    let inside = raster.fill(&cut);
-    let seed = raster.nearest_inside(&inside, (0.0, 0.0))?;
+    let r = Rasterized::new(solid, None, point, normal)?;
     let mut moments = PixelMoments::default();
-    let count = raster.flood(&inside, seed, |i, j| moments.add(i as f64, j as f64));
+    let count = r.raster.flood(&r.inside, r.seed, |i, j| moments.add(i as f64, j as f64));
     Some(SectionShape { area_mm2: count as f64 * PIXEL_MM * PIXEL_MM, aspect_ratio: moments.aspect_ratio() })
 }
 
