@@ -702,3 +702,55 @@ def test_the_realism_perturbations_keep_what_they_promise():
     assert np.allclose(np.linalg.norm(t - t[0], axis=1), np.linalg.norm(points - points[0], axis=1))
     index = int(np.argmin(np.linalg.norm(points - [4.0, 0.0, 0.0], axis=1)))
     assert np.allclose(turned_markups["markups"][0]["controlPoints"][0]["position"], t[index], atol=1e-6)
+
+
+import vsd_plane_coefficient  # noqa: E402
+
+
+def test_the_a_window_is_where_every_rows_tolerance_overlaps():
+    vpc = vsd_plane_coefficient
+    e = {"throat_coefficient_b": 1.5, "k_throat_mmhg": 4.0, "k_vsd_mmhg": 2.0}
+    # dp = 6 - 2 A: the 3D dp 2.0 needs A = 2.0, tolerance 1 mmHg = 0.5 in A; 3D dp 10 needs
+    # A = -2.0 with tolerance 2 mmHg = 1.0 in A.
+    assert vpc.needed_a(e, 2.0) == pytest.approx(2.0)
+    assert vpc.a_window([(e, 2.0)]) == pytest.approx((1.5, 2.5))
+    assert vpc.a_window([(e, 2.0), (e, 1.2)]) == pytest.approx((1.9, 2.5))
+    assert vpc.a_window([(e, 2.0), (e, 10.0)]) is None
+    assert vpc.count_within([(e, 2.0), (e, 1.2)], 2.2) == 2
+    assert vpc.count_within([(e, 2.0), (e, 1.2)], 1.6) == 1
+
+
+def test_a_funnel_cut_parallel_to_its_base_gives_its_tilt_and_areas():
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    vpc = vsd_plane_coefficient
+    # An oblique tube, radius 3 mm growing by 0.5 mm per mm, whose rings (in planes z = h) move
+    # along x by tan 40 degrees per mm: cuts z = t give discs of radius 3 + 0.5 t centred
+    # t tan 40 to the side.
+    rings, around, tilt = 41, 64, math.tan(math.radians(40.0))
+    h = np.linspace(0.0, 8.0, rings)
+    phi = np.linspace(0.0, 2 * math.pi, around, endpoint=False)
+    pts = np.array([[z * tilt + (3 + 0.5 * z) * math.cos(p), (3 + 0.5 * z) * math.sin(p), z] for z in h for p in phi])
+    tris = []
+    for i in range(rings - 1):
+        for j in range(around):
+            a, b, c, d = i * around + j, i * around + (j + 1) % around, (i + 1) * around + j, (i + 1) * around + (j + 1) % around
+            tris += [(a, b, d), (a, d, c)]
+    poly = vtk.vtkPolyData()
+    points = vtk.vtkPoints()
+    points.SetData(numpy_to_vtk(pts))
+    poly.SetPoints(points)
+    cells = vtk.vtkCellArray()
+    cells.SetCells(len(tris), numpy_to_vtkIdTypeArray(np.hstack([np.full((len(tris), 1), 3), np.array(tris)]).ravel().astype(np.int64)))
+    poly.SetPolys(cells)
+    cuts = vpc.funnel_cuts(poly, np.zeros(3), np.array([0.0, 0.0, 1.0]), 8.0, count=8)
+    assert len(cuts) == 8
+    for t, area, side in cuts:
+        polygon = 0.5 * around * (3 + 0.5 * t) ** 2 * math.sin(2 * math.pi / around)
+        assert area == pytest.approx(polygon, rel=1e-6)
+        assert side == pytest.approx([t * tilt, 0.0, 0.0], abs=1e-6)
+    assert vpc.funnel_tilt_deg(cuts, math.pi * 9.0, 2.0) == pytest.approx(40.0, abs=1e-6)
+    # Twice the first disc's area is reached at t = 2.49 mm: the tilt is read on three cuts,
+    # and on the first two when even the second is wider.
+    assert len([c for c in cuts if c[1] <= 2 * math.pi * 9.0]) == 3
+    assert vpc.funnel_tilt_deg(cuts, 10.0, 2.0) == pytest.approx(40.0, abs=1e-6)
