@@ -46,6 +46,15 @@
 //! Arguments 8 and 9 set the swelling's range (default 0 to 2: the inflow cap's centre up to
 //! about 41 degrees off the VSD's normal; p1-p3's lie at 49-60).
 //!
+//! In p1 the throat lies 10-18 mm along the tunnel and the aortic plane is 2-3.2 times it; the
+//! wide-root family's tunnel narrows toward its VSD, its throat 3-4 mm past the VSD plane.
+//! `waisted` (with `wide-root`) pinches the suture line's sides midway between the openings
+//! (`waisted_suture_points`, by a drawn 30-60 % of their distance from the arc, never nearer
+//! either rim than the wide-root margin), as a suture line along a protruding conal septum
+//! does, so the tunnel narrows between the VSD and a wide root:
+//!
+//!     cargo run --release -p baffle-prepare --example flow_family /work/famV 600 40 -35 -10 4 7 wide-root,waisted
+//!
 //! `turned-lv-triangles` (with the others) turns the LV sphere's triangles about its centre by
 //! (1.9, 2.3) degrees: the same sphere on other triangles, a null replicate that shows how far
 //! the plan and its 3D dp move when nothing physical does:
@@ -56,7 +65,7 @@ use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::target::boston_aortic_annulus_diameter_cm;
 use baffle_core::io::{write_markups_closed_curve, write_trimesh_vtp, CoordinateSystem};
 use baffle_core::{TriMesh, Vec3};
-use baffle_prepare::aorta_family::{aorta_tilt_from, rim_following_suture_points, AortaTiltParams};
+use baffle_prepare::aorta_family::{aorta_tilt_from, rim_following_suture_points, waisted_suture_points, AortaTiltParams};
 use std::path::{Path, PathBuf};
 
 /// The largest aorta-to-RV radius ratio: the largest of the first two families' 200 members
@@ -87,6 +96,11 @@ const WIDE_ROOT_SUTURE_MARGIN_MM: f64 = 1.2;
 /// 100 designs.
 const WIDE_ROOT_VSD_HALF_ANGLE: f64 = 0.85;
 
+/// `waisted`'s range: the suture line's sides pinch midway by this fraction of their
+/// distance from the arc between the openings (`waisted_suture_points`), never nearer either
+/// rim than the wide-root margin.
+const WAIST: (f64, f64) = (0.3, 0.6);
+
 /// The plan's inputs drawn for one member: body size (sets the target and the flow),
 /// target z-score and cardiac index (scales the flow).
 #[derive(serde::Serialize)]
@@ -99,7 +113,7 @@ struct PlanInputs {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first().map(PathBuf::from) else {
-        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [modes: wide-root,oblique-lv,turned-lv-triangles] [swelling from] [swelling to]");
+        eprintln!("usage: flow_family OUT [first seed] [count] [tilt from] [tilt to] [aortic z from] [aortic z to] [modes: wide-root,oblique-lv,turned-lv-triangles,waisted] [swelling from] [swelling to]");
         std::process::exit(2);
     };
     let first = argument(&args, 1, 0u64);
@@ -112,6 +126,7 @@ fn main() {
         wide_root: false,
         oblique_lv: false,
         turned_lv_triangles: false,
+        waisted: false,
     };
     let ranges = match args.get(7) {
         None => ranges,
@@ -119,8 +134,9 @@ fn main() {
             "wide-root" => Ranges { wide_root: true, ..r },
             "oblique-lv" => Ranges { oblique_lv: true, ..r },
             "turned-lv-triangles" => Ranges { turned_lv_triangles: true, ..r },
+            "waisted" => Ranges { waisted: true, ..r },
             other => {
-                eprintln!("flow_family: argument 7's {other} is not `wide-root`, `oblique-lv` or `turned-lv-triangles`");
+                eprintln!("flow_family: argument 7's {other} is not `wide-root`, `oblique-lv`, `turned-lv-triangles` or `waisted`");
                 std::process::exit(2)
             }
         }),
@@ -156,6 +172,7 @@ struct Ranges {
     wide_root: bool,
     oblique_lv: bool,
     turned_lv_triangles: bool,
+    waisted: bool,
 }
 
 /// `oblique-lv`'s apex: the LV sphere's radius grows as R (1 + k s^2) toward the apex
@@ -230,6 +247,11 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
     if let Some(apex) = &oblique_lv {
         member.pools.lv = apex.apply(&member.pools.lv);
     }
+    // Drawn after the LV's swelling, so that a seed's other draws stay those without it.
+    let waist = ranges.waisted.then(|| rng.between(WAIST.0, WAIST.1));
+    if let Some(waist) = waist {
+        member.suture_points_mm = waisted_suture_points(&member.params, WIDE_ROOT_SUTURE_MARGIN_MM, waist);
+    }
     if ranges.turned_lv_triangles {
         // About the LV's centre, the origin: the sphere stays, its triangles move.
         let turn = nalgebra::Rotation3::from_axis_angle(&Vec3::x_axis(), 1.9f64.to_radians()) * nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), 2.3f64.to_radians());
@@ -249,6 +271,9 @@ fn write_member(dir: &Path, seed: u64, ranges: &Ranges) -> Result<(), String> {
             "vsd_to_aortic_half_angle_at_most": WIDE_ROOT_VSD_HALF_ANGLE,
             "drawn_vsd_overlap_mm": drawn_vsd_overlap_mm,
         });
+    }
+    if let Some(waist) = waist {
+        json["waist"] = serde_json::json!({ "waist": waist, "suture_margin_mm": WIDE_ROOT_SUTURE_MARGIN_MM });
     }
     if let Some(apex) = &oblique_lv {
         let u = apex.apex_direction;

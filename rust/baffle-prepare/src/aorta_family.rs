@@ -7,7 +7,7 @@
 //! openings and a target below its smaller opening, for `design`.
 
 use crate::input::BloodPools;
-use crate::shapes::{capped_tube, suture_ring, tapered_suture_ring, uv_sphere};
+use crate::shapes::{capped_tube, shaped_suture_ring, suture_ring, tapered_suture_ring, uv_sphere};
 use baffle_core::geometry::numerics::random::SplitMix64;
 use baffle_core::Vec3;
 
@@ -130,9 +130,31 @@ pub fn aorta_tilt_from(seed: u64, params: AortaTiltParams) -> AortaTiltMember {
 /// the root's size; this one narrows toward the smaller opening, as a suture line along
 /// both rims does, so the aortic plane can be wider than the throat before it.
 pub fn rim_following_suture_points(params: &AortaTiltParams, margin_mm: f64) -> Vec<Vec3> {
+    waisted_suture_points(params, margin_mm, 0.0)
+}
+
+/// `rim_following_suture_points` pinched between the openings, as a suture line along a
+/// protruding conal septum narrows the tunnel midway: the kth side point's distance from the
+/// arc is the linear taper's times 1 - `waist` sin(pi k / 5), but never nearer than
+/// `margin_mm` to either opening's rim: on the sphere a point s along the arc from an
+/// opening's centre and r to its side lies acos(cos s cos r) from that centre, so it keeps
+/// a + margin from an opening of half-angle a while r >= acos(cos(a + margin) / cos s). A waist
+/// of 0 gives `rim_following_suture_points`' points.
+pub fn waisted_suture_points(params: &AortaTiltParams, margin_mm: f64, waist: f64) -> Vec<Vec3> {
     let (vsd_half, aorta_half) = params.opening_half_angles();
     let margin = margin_mm / params.rv_radius_mm;
-    tapered_suture_ring(params.rv_center(), params.rv_radius_mm, -Vec3::x(), params.aorta_axis(), vsd_half + margin, aorta_half + margin)
+    let (rho_vsd, rho_aorta) = (vsd_half + margin, aorta_half + margin);
+    if waist == 0.0 {
+        return tapered_suture_ring(params.rv_center(), params.rv_radius_mm, -Vec3::x(), params.aorta_axis(), rho_vsd, rho_aorta);
+    }
+    let span = (-Vec3::x()).dot(&params.aorta_axis()).clamp(-1.0, 1.0).acos();
+    let clear_of = |reach: f64, s: f64| if s < reach { (reach.cos() / s.cos()).clamp(-1.0, 1.0).acos() } else { 0.0 };
+    let side_rho = |k: usize| {
+        let t = k as f64 / 5.0;
+        let pinched = (rho_vsd + (rho_aorta - rho_vsd) * t) * (1.0 - waist * (std::f64::consts::PI * t).sin());
+        pinched.max(clear_of(rho_vsd, span * t)).max(clear_of(rho_aorta, span * (1.0 - t)))
+    };
+    shaped_suture_ring(params.rv_center(), params.rv_radius_mm, -Vec3::x(), params.aorta_axis(), rho_vsd, rho_aorta, &side_rho)
 }
 
 #[cfg(test)]
@@ -186,6 +208,43 @@ mod tests {
         let even = aorta_tilt_from(0, params.clone()).suture_points_mm;
         let across = |ps: &[Vec3]| (ps[2] - ps[12]).norm();
         assert!(across(&points) < across(&even) - 1.0, "{:.2} against {:.2} mm", across(&points), across(&even));
+    }
+
+    #[test]
+    fn a_waist_pinches_the_tunnel_midway_and_keeps_off_both_rims() {
+        // Openings about 80 degrees apart (tilt -35), so the sides between them are free to pinch.
+        let params = AortaTiltParams {
+            lv_radius_mm: 10.0,
+            rv_radius_mm: 9.0,
+            vsd_overlap_mm: 3.0,
+            aorta_radius_mm: 5.5,
+            tilt_deg: -35.0,
+            sideways_deg: 5.0,
+        };
+        let (vsd_half, aorta_half) = params.opening_half_angles();
+        let (center, margin) = (params.rv_center(), 1.2 / params.rv_radius_mm);
+        let straight = rim_following_suture_points(&params, 1.2);
+        assert_eq!(waisted_suture_points(&params, 1.2, 0.0), straight, "no waist, the rim-following points");
+        let waisted = waisted_suture_points(&params, 1.2, 0.5);
+        let from = |p: &Vec3, d: Vec3| ((p - center) / params.rv_radius_mm).dot(&d).clamp(-1.0, 1.0).acos();
+        // Pinched, a point keeps the margin from both rims, or the straight line's own distance
+        // where that is less (the taper's sides between the ends).
+        for (i, (p, q)) in waisted.iter().zip(&straight).enumerate() {
+            assert!(((p - center).norm() - params.rv_radius_mm).abs() < 1e-9, "point {i} is on the RV sphere");
+            for (axis, half) in [(-Vec3::x(), vsd_half), (params.aorta_axis(), aorta_half)] {
+                let (pinched, unpinched) = (from(p, axis) - half, from(q, axis) - half);
+                assert!(pinched > margin.min(unpinched) - 1e-9, "point {i}: {pinched:.4} rad outside a rim, straight {unpinched:.4}");
+            }
+        }
+        // The ends and the points round them stay; across the middle (points 2 and 12, 3 and
+        // 11) the line is narrower.
+        for i in [0, 5, 6, 7, 8, 9, 14, 15, 16, 17] {
+            assert!((waisted[i] - straight[i]).norm() < 1e-9, "point {i} moved");
+        }
+        let across = |ps: &[Vec3], a: usize, b: usize| (ps[a] - ps[b]).norm();
+        for (a, b) in [(2, 12), (3, 11)] {
+            assert!(across(&waisted, a, b) < across(&straight, a, b) - 2.0, "points {a}, {b}: {:.2} against {:.2} mm", across(&waisted, a, b), across(&straight, a, b));
+        }
     }
 
     #[test]

@@ -134,18 +134,24 @@ pub fn suture_ring(center: Vec3, radius_mm: f64, vsd: Vec3, aorta: Vec3, rho: f6
 /// `rho_aorta` round the aorta's, the side points in between going linearly from one to the
 /// other, so that the ring can follow two openings of different sizes.
 pub fn tapered_suture_ring(center: Vec3, radius_mm: f64, vsd: Vec3, aorta: Vec3, rho_vsd: f64, rho_aorta: f64) -> Vec<Vec3> {
+    shaped_suture_ring(center, radius_mm, vsd, aorta, rho_vsd, rho_aorta, &|k| rho_vsd + (rho_aorta - rho_vsd) * k as f64 / 5.0)
+}
+
+/// `tapered_suture_ring` whose kth side point (k = 0 at the VSD's end to 5 at the aorta's, at
+/// k / 5 of the arc) lies `side_rho(k)` (radians) to either side of the arc (k = 0 and 5
+/// should give the ends' own distances), so that the suture line can pinch the tunnel
+/// between the openings.
+pub fn shaped_suture_ring(center: Vec3, radius_mm: f64, vsd: Vec3, aorta: Vec3, rho_vsd: f64, rho_aorta: f64, side_rho: &dyn Fn(usize) -> f64) -> Vec<Vec3> {
     let toward = (aorta - vsd * vsd.dot(&aorta)).normalize();
     let span = vsd.dot(&aorta).clamp(-1.0, 1.0).acos();
     let side = vsd.cross(&toward);
     let arc = |t: f64| vsd * t.cos() + toward * t.sin();
     let beyond_aorta = toward * span.cos() - vsd * span.sin();
     let around = |end: Vec3, away: Vec3, phi: f64, rho: f64| end * rho.cos() + (away * phi.cos() + side * phi.sin()) * rho.sin();
-    // Equal ends give `rho_vsd` exactly (plus 0.0), so `suture_ring`'s points are unchanged.
-    let rho = |k: usize| rho_vsd + (rho_aorta - rho_vsd) * k as f64 / 5.0;
     let quarter = PI / 2.0;
-    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(span * k as f64 / 5.0) * rho(k).cos() + side * rho(k).sin()).collect();
+    let mut directions: Vec<Vec3> = (0..=5).map(|k| arc(span * k as f64 / 5.0) * side_rho(k).cos() + side * side_rho(k).sin()).collect();
     directions.extend((1..4).map(|k| around(aorta, beyond_aorta, quarter - PI * k as f64 / 4.0, rho_aorta)));
-    directions.extend((0..=5).rev().map(|k| arc(span * k as f64 / 5.0) * rho(k).cos() - side * rho(k).sin()));
+    directions.extend((0..=5).rev().map(|k| arc(span * k as f64 / 5.0) * side_rho(k).cos() - side * side_rho(k).sin()));
     directions.extend((1..4).map(|k| around(vsd, -toward, -quarter + PI * k as f64 / 4.0, rho_vsd)));
     directions.iter().map(|d| center + d.normalize() * radius_mm).collect()
 }
