@@ -39,18 +39,26 @@ def within(est, ref, rel=0.20, abs_mmhg=1.0):
     return abs(est - ref) <= max(rel * abs(ref), abs_mmhg)
 
 
-def estimate_for(baffle, data, out, patient, row, info):
-    q = info["q_peak_ml_s"]
+def output_of(out, patient, row):
+    """Where a row's `baffle` output goes under `out`, and the JSON report holding its
+    estimate: the published domain's centerline (.vtp, its .json beside it) or the design's
+    folder (its report.json)."""
     if row == "published":
         dest = out / patient / "published" / "centerline.vtp"
+        return dest, dest.with_suffix(".json")
+    dest = out / patient / ("z" + "".join(row.split()))
+    return dest, dest / "report.json"
+
+
+def estimate_for(baffle, data, out, patient, row, info):
+    q = info["q_peak_ml_s"]
+    dest, report = output_of(out, patient, row)
+    if row == "published":
         argv = [baffle, "centerline", "--surface", data / patient / "published_M_final.vtp", "--scale", "10", "--peak-flow-ml-s", q, "--out", dest]
-        report = dest.with_suffix(".json")
     else:
         z, *extra = row.split()
-        dest = out / patient / ("z" + z + "".join(extra))
         inputs = data / patient / "design_input"
         argv = [baffle, "design", "--surface", inputs / "capped_ventricle.vtp", "--points", inputs / "suture_points.mrk.json", "--bsa", info["bsa_m2"], "--z-score", z, *extra, "--peak-flow-ml-s", q, "--out", dest]
-        report = dest / "report.json"
     return baffle_report(argv, report)
 
 

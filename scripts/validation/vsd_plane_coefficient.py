@@ -49,11 +49,7 @@ def count_within(rows, a):
 
 def estimate_of(estimates, patient, row):
     """The estimate hemodynamics_estimate.py wrote for one row."""
-    if row == "published":
-        path = estimates / patient / "published" / "centerline.json"
-    else:
-        path = estimates / patient / ("z" + "".join(row.split())) / "report.json"
-    return json.loads(path.read_text())["hemodynamics_estimate"]
+    return json.loads(he.output_of(estimates, patient, row)[1].read_text())["hemodynamics_estimate"]
 
 
 def needed(row_files, estimates):
