@@ -314,21 +314,28 @@ impl MeasurementPlane {
 /// Each section is rastered in the line's own frame (`LumenFrame`), so that a rotated scene
 /// gives the same areas.
 pub fn flow_normal_sections(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<f64>> {
-    flow_normal_section_shapes(boundary, points, planes).into_iter().map(|s| s.map(|s| s.area_mm2)).collect()
+    sections_along(boundary, points, planes, |b, p, t| crate::geometry::plane_section::section_area(b, None, p, t))
 }
 
-/// [`flow_normal_sections`] with each section's shape (its aspect ratio) beside its area.
+/// [`flow_normal_sections`] with each section's shape (its aspect ratio) beside its area,
+/// the same pieces' pixels (the design's area-only sections do not pay for the moments).
 pub fn flow_normal_section_shapes(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<SectionShape>> {
+    sections_along(boundary, points, planes, crate::geometry::plane_section::section_shape)
+}
+
+/// `measure(boundary, point, tangent)` at each point of the line, in the line's own frame.
+fn sections_along<T: Send>(
+    boundary: &TriMesh,
+    points: &[Vec3],
+    planes: &[MeasurementPlane],
+    measure: impl Fn(&TriMesh, Vec3, Vec3) -> Option<T> + Sync,
+) -> Vec<Option<T>> {
     let (Some(&first), Some(&last)) = (points.first(), points.last()) else { return Vec::new() };
     let frame = LumenFrame::new(first, last - first, planes);
     let boundary = frame.mesh_to_local(boundary);
     let points: Vec<Vec3> = points.iter().map(|&p| frame.to_local(p)).collect();
     let planes: Vec<MeasurementPlane> = planes.iter().map(|p| frame.plane_to_local(p)).collect();
-    sections_in_own_frame(&boundary, &points, &planes)
-}
-
-fn sections_in_own_frame(boundary: &TriMesh, points: &[Vec3], planes: &[MeasurementPlane]) -> Vec<Option<SectionShape>> {
-    let s = arc_lengths(points);
+    let s = arc_lengths(&points);
     (0..points.len())
         .into_par_iter()
         .map(|k| {
@@ -339,7 +346,7 @@ fn sections_in_own_frame(boundary: &TriMesh, points: &[Vec3], planes: &[Measurem
             if planes.iter().any(|p| p.is_crossed_by(points[k], tangent)) {
                 return None;
             }
-            crate::geometry::plane_section::section_shape(boundary, points[k], tangent)
+            measure(&boundary, points[k], tangent)
         })
         .collect()
 }
