@@ -29,9 +29,8 @@ pub struct SectionAreas {
 /// [`section_area`], and the solid's piece through the same pixel without the hole.
 pub fn section_areas(solid: &TriMesh, hole: Option<&TriMesh>, point: Vec3, normal: Vec3) -> Option<SectionAreas> {
     let r = Rasterized::new(solid, hole, point, normal)?;
-    let pixel_mm2 = PIXEL_MM * PIXEL_MM;
-    let region_mm2 = r.raster.flood_count(&r.inside, r.seed) as f64 * pixel_mm2;
-    let solid_mm2 = if hole.is_some() { r.raster.flood_count(&r.solid_fill, r.seed) as f64 * pixel_mm2 } else { region_mm2 };
+    let region_mm2 = pixels_mm2(r.raster.flood_count(&r.inside, r.seed));
+    let solid_mm2 = if hole.is_some() { pixels_mm2(r.raster.flood_count(&r.solid_fill, r.seed)) } else { region_mm2 };
     Some(SectionAreas { region_mm2, solid_mm2 })
 }
 
@@ -74,7 +73,13 @@ pub fn section_shape(solid: &TriMesh, point: Vec3, normal: Vec3) -> Option<Secti
     let r = Rasterized::new(solid, None, point, normal)?;
     let mut moments = PixelMoments::default();
     let count = r.raster.flood(&r.inside, r.seed, |i, j| moments.add(i as f64, j as f64));
-    Some(SectionShape { area_mm2: count as f64 * PIXEL_MM * PIXEL_MM, aspect_ratio: moments.aspect_ratio() })
+    Some(SectionShape { area_mm2: pixels_mm2(count), aspect_ratio: moments.aspect_ratio() })
+}
+
+/// The area of `count` raster pixels (mm2), one rounding for every caller, so that a piece's
+/// area is the same number whether its shape is measured or not.
+fn pixels_mm2(count: usize) -> f64 {
+    count as f64 * (PIXEL_MM * PIXEL_MM)
 }
 
 /// Running sums of pixel coordinates for a region's second moments.
